@@ -1,0 +1,140 @@
+//! `meshless demo`: the whole service in one process. An embedded server
+//! (gRPC on a free loopback port, zenoh peer on another) runs the dam
+//! break; this command drives it as any remote client would: gRPC for
+//! control and status, zenoh for frames.
+
+use super::output::{Format, FrameFiles, engine_frame};
+use anyhow::{Context, Result, bail};
+use indicatif::{ProgressBar, ProgressStyle};
+use meshless_client::{Client, ZenohLink, v1};
+use meshless_server::ServerConfig;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+use tokio_stream::StreamExt;
+
+/// The scene the demo runs unless told otherwise.
+const DAM_BREAK: &str = include_str!("../../../scenes/dam_break.toml");
+
+/// Longest wait for any sign of progress before giving up.
+const STALL: Duration = Duration::from_secs(60);
+
+#[derive(Debug, clap::Args)]
+pub struct DemoArgs {
+    /// Scene file to run instead of the built-in dam break.
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Simulated time to run, in seconds.
+    #[arg(long, default_value_t = 1.0)]
+    until: f64,
+    /// Folder for the frame files.
+    #[arg(long, short, default_value = "out/demo")]
+    output: PathBuf,
+    #[arg(long, value_enum, default_value = "vtk")]
+    format: Format,
+}
+
+pub async fn demo(args: DemoArgs) -> Result<()> {
+    let scene = match &args.scene {
+        Some(path) => std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read {}", path.display()))?,
+        None => DAM_BREAK.to_owned(),
+    };
+    let server = meshless_server::start(ServerConfig::ephemeral()).await?;
+    let result = drive(&args, &scene, &server).await;
+    server.stop().await?;
+    result
+}
+
+async fn drive(
+    args: &DemoArgs,
+    scene: &str,
+    server: &meshless_server::RunningServer,
+) -> Result<()> {
+    let url = format!("http://{}", server.grpc_addr);
+    let client = Client::connect(&url).await?;
+    let info = client.server_info().await?;
+    let session = client.create_session_toml(scene).await?;
+    let id = session.id.clone();
+    println!(
+        "embedded server at {url} (zenoh {}); session {id}: {}, {} particles",
+        info.zenoh_locators.join(","),
+        session.name,
+        session.particle_count
+    );
+
+    let link = ZenohLink::connect(&info.zenoh_locators).await?;
+    let frames = link.frames(&id).await?;
+    let files = FrameFiles::start(&args.output, args.format)?;
+    let mut received = 0usize;
+    let mut last_step = 0;
+    if let Some(first) = link.latest_frame(&id).await? {
+        last_step = first.step;
+        files.write(engine_frame(first));
+        received += 1;
+    }
+    let mut statuses = client.watch_status(&id).await?;
+
+    let bar = ProgressBar::new((args.until * 1000.0).round() as u64).with_style(
+        ProgressStyle::with_template("{bar:40} {msg}  [{elapsed} < {eta}]")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let start = Instant::now();
+    client.run_until(&id, args.until, None).await?;
+    let mut final_step = None;
+    loop {
+        if final_step.is_some_and(|s| last_step >= s) {
+            break;
+        }
+        tokio::select! {
+            frame = frames.recv() => {
+                let frame = frame?;
+                last_step = frame.step;
+                bar.set_position((frame.time * 1000.0).round() as u64);
+                bar.set_message(format!("t = {:.3} s, step {}", frame.time, frame.step));
+                files.write(engine_frame(frame));
+                received += 1;
+            }
+            status = statuses.next() => {
+                let status = status.context("status stream ended")??;
+                match v1::SessionState::try_from(status.state) {
+                    Ok(v1::SessionState::Finished) => final_step = Some(status.step),
+                    Ok(v1::SessionState::Faulted) => bail!("the session faulted: {}", status.reason),
+                    Ok(v1::SessionState::Closed) => bail!("the session was deleted"),
+                    _ => {}
+                }
+            }
+            () = tokio::time::sleep(STALL) => bail!("no frame or status for {} s", STALL.as_secs()),
+        }
+    }
+    let wall = start.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    let pattern = files.pattern();
+    let written = files.finish()?;
+    let end = client.get_session(&id).await?;
+    let status = end.status.unwrap_or_default();
+    let frame_every = end
+        .scene
+        .and_then(|s| s.output)
+        .and_then(|o| o.frame_every)
+        .unwrap_or(1);
+    let published = status.step / u64::from(frame_every) + 1;
+    link.close().await;
+
+    println!("meshless demo: {}", session.name);
+    println!("  particles         {}", session.particle_count);
+    println!(
+        "  simulated         {:.3} s in {} steps",
+        status.time, status.step
+    );
+    println!(
+        "  wall time         {wall:.2} s  ({:.1} steps/s, {:.3e} particle-steps/s)",
+        status.step as f64 / wall,
+        session.particle_count as f64 * status.step as f64 / wall
+    );
+    println!(
+        "  frames received   {received} of {published} over zenoh (key {}/frames)",
+        session.zenoh_key_prefix
+    );
+    println!("  output            {pattern}  ({written} files; ParaView opens them as a series)");
+    Ok(())
+}

@@ -1,0 +1,66 @@
+//! Commands of the `meshless` binary.
+
+#[cfg(feature = "embedded")]
+mod demo;
+#[cfg(feature = "embedded")]
+mod output;
+#[cfg(feature = "embedded")]
+mod run;
+mod session;
+mod watch;
+
+use clap::{Parser, Subcommand};
+
+/// Meshless physics as a service: run scenes embedded, or drive a
+/// meshless-server over gRPC and watch its frames over zenoh.
+#[derive(Debug, Parser)]
+#[command(name = "meshless", version)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+    /// Log filter, e.g. `info` or `meshless_server=debug`.
+    #[arg(long, global = true, env = "MESHLESS_LOG", default_value = "warn")]
+    pub log: String,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// The main job: start an embedded server, run the dam break through
+    /// it over gRPC and zenoh, write the frames, print a summary.
+    #[cfg(feature = "embedded")]
+    Demo(demo::DemoArgs),
+    /// Run a scene file in this process (no server) and write its frames.
+    #[cfg(feature = "embedded")]
+    Run(run::RunArgs),
+    /// Create and drive sessions on a server.
+    Session(session::SessionArgs),
+    /// Print frame rates and particle counts of a session's zenoh stream.
+    Watch(watch::WatchArgs),
+}
+
+/// Runs the parsed command.
+///
+/// # Errors
+/// Whatever the command failed with, for printing.
+pub async fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        #[cfg(feature = "embedded")]
+        Command::Demo(args) => demo::demo(args).await,
+        #[cfg(feature = "embedded")]
+        Command::Run(args) => run::run(args),
+        Command::Session(args) => session::session(args).await,
+        Command::Watch(args) => watch::watch(args).await,
+    }
+}
+
+/// `--server` as every networked command spells it.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ServerArg {
+    /// gRPC URL of the meshless server.
+    #[arg(
+        long,
+        env = "MESHLESS_SERVER",
+        default_value = "http://127.0.0.1:50051"
+    )]
+    pub server: String,
+}

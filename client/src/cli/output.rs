@@ -1,0 +1,129 @@
+//! Frame files written on a thread of their own, so neither stepping nor
+//! receiving waits on the disk.
+
+use anyhow::{Context, Result};
+use meshless_client::{FrameView, v1};
+use meshless_engine::io::{ExportFormat, write_frame};
+use meshless_engine::{FieldData, FieldKind, Frame};
+use std::path::{Path, PathBuf};
+use std::sync::mpsc;
+use std::thread::JoinHandle;
+
+/// The `--format` flag.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Format {
+    /// Legacy VTK, for ParaView (opens the numbered files as a series).
+    Vtk,
+    /// PLY point clouds, for Blender and MeshLab.
+    Ply,
+}
+
+impl From<Format> for ExportFormat {
+    fn from(format: Format) -> Self {
+        match format {
+            Format::Vtk => ExportFormat::Vtk,
+            Format::Ply => ExportFormat::Ply,
+        }
+    }
+}
+
+/// A background writer of frame files.
+#[derive(Debug)]
+pub struct FrameFiles {
+    dir: PathBuf,
+    format: ExportFormat,
+    frames: mpsc::Sender<Frame>,
+    thread: JoinHandle<Result<usize>>,
+}
+
+impl FrameFiles {
+    /// Creates `dir` and removes frame files an earlier run left there, so
+    /// the folder holds one series.
+    ///
+    /// # Errors
+    /// When the folder cannot be created or cleaned.
+    pub fn start(dir: &Path, format: Format) -> Result<Self> {
+        let format = ExportFormat::from(format);
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        for entry in std::fs::read_dir(dir)? {
+            let path = entry?.path();
+            let name = path
+                .file_name()
+                .and_then(|n| n.to_str())
+                .unwrap_or_default();
+            if name.starts_with("frame_") && (name.ends_with(".vtk") || name.ends_with(".ply")) {
+                std::fs::remove_file(&path)
+                    .with_context(|| format!("cannot remove {}", path.display()))?;
+            }
+        }
+        let (frames, received) = mpsc::channel::<Frame>();
+        let out = dir.to_path_buf();
+        let thread = std::thread::spawn(move || {
+            let mut written = 0;
+            for frame in received {
+                write_frame(&out, format, &frame)?;
+                written += 1;
+            }
+            Ok(written)
+        });
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            format,
+            frames,
+            thread,
+        })
+    }
+
+    /// Queues a frame for writing.
+    pub fn write(&self, frame: Frame) {
+        // A send fails only if the writer stopped on an error, which
+        // `finish` reports.
+        let _ = self.frames.send(frame);
+    }
+
+    /// Waits for every queued frame and returns how many were written.
+    ///
+    /// # Errors
+    /// The first write error.
+    pub fn finish(self) -> Result<usize> {
+        drop(self.frames);
+        self.thread
+            .join()
+            .map_err(|_| anyhow::anyhow!("the frame writer panicked"))?
+    }
+
+    /// `dir/frame_*.ext`, for the summary.
+    pub fn pattern(&self) -> String {
+        format!("{}/frame_*.{}", self.dir.display(), self.format.extension())
+    }
+}
+
+/// An engine frame of a decoded wire frame (same fields, same order).
+pub fn engine_frame(frame: FrameView) -> Frame {
+    let fields = frame
+        .fields
+        .into_iter()
+        .filter_map(|f| {
+            let kind = match f.kind {
+                v1::FieldKind::Position => FieldKind::Position,
+                v1::FieldKind::Velocity => FieldKind::Velocity,
+                v1::FieldKind::Density => FieldKind::Density,
+                v1::FieldKind::Pressure => FieldKind::Pressure,
+                v1::FieldKind::Unspecified => return None,
+            };
+            Some(FieldData {
+                kind,
+                components: f.components,
+                values: f.values,
+            })
+        })
+        .collect();
+    Frame {
+        step: frame.step,
+        time: frame.time,
+        substeps: frame.substeps,
+        substep_dt: frame.substep_dt,
+        particle_count: frame.particle_count,
+        fields,
+    }
+}

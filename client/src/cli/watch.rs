@@ -1,0 +1,81 @@
+//! `meshless watch`: frame rate and particle counts of a session's stream.
+
+use super::ServerArg;
+use anyhow::Result;
+use meshless_client::{Client, ZenohLink};
+use std::time::{Duration, Instant};
+
+#[derive(Debug, clap::Args)]
+pub struct WatchArgs {
+    /// The session to watch.
+    session: String,
+    #[command(flatten)]
+    server: ServerArg,
+    /// Zenoh endpoints to subscribe through (default: the server's own).
+    #[arg(long, value_delimiter = ',')]
+    zenoh: Vec<String>,
+    /// Stop after this many frames.
+    #[arg(long)]
+    frames: Option<u64>,
+    /// Stop after this many seconds.
+    #[arg(long)]
+    seconds: Option<f64>,
+}
+
+pub async fn watch(args: WatchArgs) -> Result<()> {
+    let endpoints = if args.zenoh.is_empty() {
+        Client::connect(&args.server.server)
+            .await?
+            .server_info()
+            .await?
+            .zenoh_locators
+    } else {
+        args.zenoh
+    };
+    let link = ZenohLink::connect(&endpoints).await?;
+    let frames = link.frames(&args.session).await?;
+    println!("watching {} through {}", args.session, endpoints.join(","));
+    let start = Instant::now();
+    let deadline = args.seconds.map(|s| start + Duration::from_secs_f64(s));
+    let (mut total, mut window, mut window_start) = (0u64, 0u64, Instant::now());
+    let mut ticker = tokio::time::interval(Duration::from_secs(1));
+    ticker.tick().await;
+    let mut last = None;
+    loop {
+        let stop_at = deadline.map_or_else(
+            || tokio::time::Instant::now() + Duration::from_secs(86_400),
+            tokio::time::Instant::from_std,
+        );
+        tokio::select! {
+            frame = frames.recv() => {
+                let frame = frame?;
+                total += 1;
+                window += 1;
+                last = Some((frame.step, frame.time, frame.particle_count));
+                if args.frames.is_some_and(|n| total >= n) {
+                    break;
+                }
+            }
+            _ = ticker.tick() => {
+                let rate = window as f64 / window_start.elapsed().as_secs_f64();
+                match last {
+                    Some((step, time, particles)) => println!(
+                        "{rate:6.1} frames/s  step {step:>8}  t = {time:9.4} s  {particles} particles"
+                    ),
+                    None => println!("{rate:6.1} frames/s  (no frame yet)"),
+                }
+                window = 0;
+                window_start = Instant::now();
+            }
+            () = tokio::time::sleep_until(stop_at) => break,
+            r = tokio::signal::ctrl_c() => { r?; break; }
+        }
+    }
+    let elapsed = start.elapsed().as_secs_f64();
+    println!(
+        "{total} frames in {elapsed:.1} s ({:.1} frames/s)",
+        total as f64 / elapsed.max(1e-9)
+    );
+    link.close().await;
+    Ok(())
+}

@@ -1,0 +1,215 @@
+//! The gRPC side: session control.
+
+use crate::ClientError;
+use meshless_proto::v1::{self, simulation_client::SimulationClient};
+use tokio_stream::{Stream, StreamExt};
+use tonic::transport::{Channel, Endpoint};
+
+/// A connection to a meshless server. Cheap to clone; calls may run
+/// concurrently.
+#[derive(Debug, Clone)]
+pub struct Client {
+    grpc: SimulationClient<Channel>,
+}
+
+type Result<T> = std::result::Result<T, ClientError>;
+
+fn session_ref(id: &str) -> v1::SessionRef {
+    v1::SessionRef {
+        session_id: id.to_owned(),
+    }
+}
+
+impl Client {
+    /// Connects to a server at `url`, e.g. `http://127.0.0.1:50051`.
+    ///
+    /// # Errors
+    /// [`ClientError::Connect`] when the URL is malformed or unreachable.
+    pub async fn connect(url: &str) -> Result<Self> {
+        let connect_error = |e: tonic::transport::Error| ClientError::Connect {
+            url: url.to_owned(),
+            message: std::error::Error::source(&e)
+                .map_or_else(|| e.to_string(), |s| format!("{e}: {s}")),
+        };
+        let channel = Endpoint::from_shared(url.to_owned())
+            .map_err(connect_error)?
+            .connect()
+            .await
+            .map_err(connect_error)?;
+        let grpc = SimulationClient::new(channel)
+            .max_decoding_message_size(usize::MAX)
+            .max_encoding_message_size(64 * 1024 * 1024);
+        Ok(Self { grpc })
+    }
+
+    fn grpc(&self) -> SimulationClient<Channel> {
+        self.grpc.clone()
+    }
+
+    /// Version, limits and zenoh endpoints of the server.
+    ///
+    /// # Errors
+    /// [`ClientError::Rpc`] with the server's status.
+    pub async fn server_info(&self) -> Result<v1::ServerInfo> {
+        Ok(self
+            .grpc()
+            .get_server_info(v1::GetServerInfoRequest {})
+            .await?
+            .into_inner())
+    }
+
+    /// Creates a session from a scene message.
+    ///
+    /// # Errors
+    /// `INVALID_ARGUMENT` naming the bad field, `RESOURCE_EXHAUSTED` at a limit.
+    pub async fn create_session(&self, scene: v1::SceneSpec) -> Result<v1::Session> {
+        self.create(v1::create_session_request::Source::Scene(scene))
+            .await
+    }
+
+    /// Creates a session from the text of a TOML scene file.
+    ///
+    /// # Errors
+    /// As [`Client::create_session`]; parse errors give the line.
+    pub async fn create_session_toml(&self, toml: &str) -> Result<v1::Session> {
+        self.create(v1::create_session_request::Source::SceneToml(
+            toml.to_owned(),
+        ))
+        .await
+    }
+
+    async fn create(&self, source: v1::create_session_request::Source) -> Result<v1::Session> {
+        let request = v1::CreateSessionRequest {
+            source: Some(source),
+        };
+        Ok(self.grpc().create_session(request).await?.into_inner())
+    }
+
+    /// # Errors
+    /// `NOT_FOUND` for an unknown id.
+    pub async fn get_session(&self, id: &str) -> Result<v1::Session> {
+        Ok(self.grpc().get_session(session_ref(id)).await?.into_inner())
+    }
+
+    /// All sessions, oldest first.
+    ///
+    /// # Errors
+    /// [`ClientError::Rpc`] with the server's status.
+    pub async fn list_sessions(&self) -> Result<Vec<v1::Session>> {
+        Ok(self
+            .grpc()
+            .list_sessions(v1::ListSessionsRequest {})
+            .await?
+            .into_inner()
+            .sessions)
+    }
+
+    /// # Errors
+    /// `NOT_FOUND` for an unknown id.
+    pub async fn delete_session(&self, id: &str) -> Result<()> {
+        self.grpc().delete_session(session_ref(id)).await?;
+        Ok(())
+    }
+
+    /// Advances a session by `steps` steps and returns once they are done.
+    ///
+    /// # Errors
+    /// `FAILED_PRECONDITION` while running or faulted.
+    pub async fn step(&self, id: &str, steps: u64) -> Result<v1::Session> {
+        let request = v1::StepRequest {
+            session_id: id.to_owned(),
+            steps,
+        };
+        Ok(self.grpc().step(request).await?.into_inner())
+    }
+
+    /// Runs a session in the background until simulated time `until`;
+    /// `realtime_factor` paces it against the wall clock.
+    ///
+    /// # Errors
+    /// `INVALID_ARGUMENT` for a time not after the session's time.
+    pub async fn run_until(
+        &self,
+        id: &str,
+        until: f64,
+        realtime_factor: Option<f64>,
+    ) -> Result<v1::Session> {
+        self.run(
+            id,
+            v1::run_request::Until::UntilTime(until),
+            realtime_factor,
+        )
+        .await
+    }
+
+    /// Runs a session in the background until paused.
+    ///
+    /// # Errors
+    /// `FAILED_PRECONDITION` while running or faulted.
+    pub async fn run_forever(&self, id: &str, realtime_factor: Option<f64>) -> Result<v1::Session> {
+        self.run(id, v1::run_request::Until::Forever(true), realtime_factor)
+            .await
+    }
+
+    async fn run(
+        &self,
+        id: &str,
+        until: v1::run_request::Until,
+        realtime_factor: Option<f64>,
+    ) -> Result<v1::Session> {
+        let request = v1::RunRequest {
+            session_id: id.to_owned(),
+            until: Some(until),
+            realtime_factor,
+        };
+        Ok(self.grpc().run(request).await?.into_inner())
+    }
+
+    /// # Errors
+    /// `NOT_FOUND` for an unknown id.
+    pub async fn pause(&self, id: &str) -> Result<v1::Session> {
+        Ok(self.grpc().pause(session_ref(id)).await?.into_inner())
+    }
+
+    /// # Errors
+    /// `FAILED_PRECONDITION` unless a run is paused.
+    pub async fn resume(&self, id: &str) -> Result<v1::Session> {
+        Ok(self.grpc().resume(session_ref(id)).await?.into_inner())
+    }
+
+    /// # Errors
+    /// `NOT_FOUND` for an unknown id.
+    pub async fn reset(&self, id: &str) -> Result<v1::Session> {
+        Ok(self.grpc().reset(session_ref(id)).await?.into_inner())
+    }
+
+    /// The session's current status, then each state change until it is
+    /// deleted (state `CLOSED`).
+    ///
+    /// # Errors
+    /// `NOT_FOUND` for an unknown id.
+    pub async fn watch_status(
+        &self,
+        id: &str,
+    ) -> Result<impl Stream<Item = Result<v1::SessionStatus>> + Send + Unpin + use<>> {
+        let stream = self
+            .grpc()
+            .watch_status(session_ref(id))
+            .await?
+            .into_inner();
+        Ok(stream.map(|item| item.map_err(ClientError::from)))
+    }
+
+    /// The latest frame over gRPC (no zenoh needed).
+    ///
+    /// # Errors
+    /// `NOT_FOUND` for an unknown id; [`ClientError::Decode`] for a bad frame.
+    pub async fn latest_frame(&self, id: &str) -> Result<crate::FrameView> {
+        let frame = self
+            .grpc()
+            .get_latest_frame(session_ref(id))
+            .await?
+            .into_inner();
+        crate::FrameView::from_proto(frame)
+    }
+}

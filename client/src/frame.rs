@@ -1,0 +1,151 @@
+//! Decoded frames: the protocol's packed little-endian fields as `f32`.
+
+use crate::ClientError;
+use meshless_proto::v1;
+use prost::Message;
+
+/// One particle field.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FieldView {
+    pub kind: v1::FieldKind,
+    /// Scalars per particle (3 for vectors).
+    pub components: usize,
+    /// `particle_count * components` values, particle-major.
+    pub values: Vec<f32>,
+}
+
+/// A decoded frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameView {
+    pub session_id: String,
+    pub step: u64,
+    pub time: f64,
+    pub particle_count: usize,
+    pub substeps: u32,
+    pub substep_dt: f64,
+    pub fields: Vec<FieldView>,
+}
+
+impl FrameView {
+    /// Decodes an encoded `meshless.v1.Frame`.
+    ///
+    /// # Errors
+    /// [`ClientError::Decode`] when the bytes are not a consistent frame.
+    pub fn decode(bytes: &[u8]) -> Result<Self, ClientError> {
+        let frame = v1::Frame::decode(bytes).map_err(|e| ClientError::Decode(e.to_string()))?;
+        Self::from_proto(frame)
+    }
+
+    /// Checks and unpacks a frame message.
+    ///
+    /// # Errors
+    /// [`ClientError::Decode`] for a missing header, an unknown scalar
+    /// type, or a field whose size does not match the particle count.
+    pub fn from_proto(frame: v1::Frame) -> Result<Self, ClientError> {
+        let v1::Frame { header, fields } = frame;
+        let v1::FrameHeader {
+            session_id,
+            step,
+            time,
+            particle_count,
+            substeps,
+            substep_dt,
+            fields: _,
+        } = header.ok_or_else(|| ClientError::Decode("no header".into()))?;
+        let particle_count = usize::try_from(particle_count)
+            .map_err(|_| ClientError::Decode(format!("particle count {particle_count}")))?;
+        let fields = fields
+            .into_iter()
+            .map(|field| {
+                let v1::FieldData {
+                    kind,
+                    components,
+                    scalar,
+                    data,
+                } = field;
+                let kind = v1::FieldKind::try_from(kind)
+                    .map_err(|_| ClientError::Decode(format!("unknown field kind {kind}")))?;
+                if scalar != v1::ScalarType::F32 as i32 {
+                    return Err(ClientError::Decode(format!(
+                        "field {kind:?} has scalar type {scalar}, expected f32"
+                    )));
+                }
+                let components = components as usize;
+                if data.len() != 4 * components * particle_count {
+                    return Err(ClientError::Decode(format!(
+                        "field {kind:?} has {} bytes, expected {} for {particle_count} particles x {components}",
+                        data.len(),
+                        4 * components * particle_count
+                    )));
+                }
+                let values = data
+                    .chunks_exact(4)
+                    .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                    .collect();
+                Ok(FieldView {
+                    kind,
+                    components,
+                    values,
+                })
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Self {
+            session_id,
+            step,
+            time,
+            particle_count,
+            substeps,
+            substep_dt,
+            fields,
+        })
+    }
+
+    /// The field of a kind, if the frame carries it.
+    pub fn field(&self, kind: v1::FieldKind) -> Option<&FieldView> {
+        self.fields.iter().find(|f| f.kind == kind)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn wire(particles: u64, bytes: usize) -> v1::Frame {
+        v1::Frame {
+            header: Some(v1::FrameHeader {
+                session_id: "s".into(),
+                step: 3,
+                time: 0.25,
+                particle_count: particles,
+                substeps: 1,
+                substep_dt: 0.25,
+                fields: vec![v1::FieldKind::Density as i32],
+            }),
+            fields: vec![v1::FieldData {
+                kind: v1::FieldKind::Density as i32,
+                components: 1,
+                scalar: v1::ScalarType::F32 as i32,
+                data: (0..bytes)
+                    .map(|i| if i % 4 == 3 { 0x3f } else { 0 })
+                    .collect(),
+            }],
+        }
+    }
+
+    #[test]
+    fn frames_decode_to_f32_fields() {
+        let frame = FrameView::decode(&wire(2, 8).encode_to_vec()).expect("valid");
+        assert_eq!(frame.step, 3);
+        let density = frame.field(v1::FieldKind::Density).expect("density");
+        assert_eq!(density.values, vec![0.5, 0.5]);
+    }
+
+    #[test]
+    fn inconsistent_frames_are_refused() {
+        let err = FrameView::from_proto(wire(3, 8)).expect_err("too short");
+        assert!(err.to_string().contains("expected 12"), "{err}");
+        let mut no_header = wire(2, 8);
+        no_header.header = None;
+        assert!(FrameView::from_proto(no_header).is_err());
+    }
+}

@@ -1,0 +1,8 @@
+//! SPH fluids: the weakly compressible solver of the Adams–Wicke tutorial
+//! (Section 6, Algorithm 5) with the Tait equation of state.
+
+mod eos;
+mod wcsph;
+
+pub use eos::Tait;
+pub use wcsph::{Fluid, FluidParams, FluidState, Invalid};

@@ -1,0 +1,489 @@
+//! Weakly compressible SPH, tutorial Algorithm 5: neighbour search ->
+//! densities -> pressures -> pressure forces -> XSPH -> explicit
+//! integration with reflection off the domain walls.
+
+use super::Tait;
+use crate::approx::{Kernel, Poly6, Spiky};
+use crate::math::{Real, Vector};
+use crate::neighbors::{NeighborList, UniformGrid};
+use crate::stats::{Stage, StageTimer};
+use rayon::prelude::*;
+
+/// Physical and numerical parameters of one fluid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FluidParams {
+    /// Kernel support radius h, m.
+    pub support_radius: Real,
+    pub eos: Tait,
+    /// XSPH factor xi (Eq. 53); 0 skips the XSPH pass.
+    pub xsph: Real,
+    /// Mass of every particle, kg.
+    pub mass: Real,
+}
+
+impl FluidParams {
+    /// The particle mass that gives the interior of a cubic lattice of
+    /// `spacing` exactly the rest density under the poly6 density sum, so
+    /// the fluid starts at rest (the tutorial's advice on initial states).
+    pub fn lattice_mass(spacing: Real, support_radius: Real, rest_density: Real) -> Real {
+        let kernel = Poly6::new(support_radius);
+        let reach = (support_radius / spacing).ceil() as i64;
+        let mut sum = 0.0;
+        for i in -reach..=reach {
+            for j in -reach..=reach {
+                for k in -reach..=reach {
+                    let d2 = ((i * i + j * j + k * k) as Real) * spacing * spacing;
+                    sum += kernel.value_sq(d2);
+                }
+            }
+        }
+        rest_density / sum
+    }
+}
+
+/// A fluid: particle state as structure of arrays, plus the scratch the
+/// solver reuses every sub-step.
+#[derive(Debug, Clone)]
+pub struct Fluid {
+    pub params: FluidParams,
+    pub positions: Vec<Vector>,
+    pub velocities: Vec<Vector>,
+    /// rho_i from the last density pass, kg/m^3.
+    pub densities: Vec<Real>,
+    /// p_i from the last pressure pass, Pa.
+    pub pressures: Vec<Real>,
+    accelerations: Vec<Vector>,
+    smoothed_velocities: Vec<Vector>,
+    poly6: Poly6,
+    spiky: Spiky,
+    grid: UniformGrid,
+    neighbors: NeighborList,
+    max_acceleration: Real,
+}
+
+impl Fluid {
+    /// Particle speeds above this multiple of the speed of sound count as
+    /// a blow-up.
+    pub const SPEED_LIMIT: Real = 100.0;
+
+    /// A fluid with the given particles; `grid` must cover the domain with
+    /// cells of the support radius.
+    pub fn new(
+        params: FluidParams,
+        positions: Vec<Vector>,
+        velocities: Vec<Vector>,
+        grid: UniformGrid,
+    ) -> Self {
+        let n = positions.len();
+        let h = params.support_radius;
+        let mut fluid = Self {
+            params,
+            positions,
+            velocities,
+            densities: vec![params.eos.rest_density; n],
+            pressures: vec![0.0; n],
+            accelerations: vec![Vector::zeros(); n],
+            smoothed_velocities: if params.xsph > 0.0 {
+                vec![Vector::zeros(); n]
+            } else {
+                Vec::new()
+            },
+            poly6: Poly6::new(h),
+            spiky: Spiky::new(h),
+            grid,
+            neighbors: NeighborList::default(),
+            max_acceleration: 0.0,
+        };
+        // Densities and pressures of the initial state, so frame 0 and the
+        // first stability limit see real values.
+        fluid.find_neighbors();
+        fluid.compute_densities();
+        fluid.compute_pressures();
+        fluid
+    }
+
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// Neighbour pairs (ordered, self-pairs included) of the last search.
+    pub fn neighbor_pairs(&self) -> usize {
+        self.neighbors.pair_count()
+    }
+
+    /// The largest sub-step the explicit scheme allows now: the CFL
+    /// condition `cfl * h / (c_0 + |v|_max)` and the force condition
+    /// `cfl * sqrt(h / |a|_max)` (Monaghan 1992).
+    pub fn stable_dt(&self, cfl: Real) -> Real {
+        let h = self.params.support_radius;
+        let v_max = self
+            .velocities
+            .par_iter()
+            .map(|v| v.norm_squared())
+            .reduce(|| 0.0, Real::max)
+            .sqrt();
+        let cfl_dt = cfl * h / (self.params.eos.sound_speed() + v_max);
+        if self.max_acceleration > 0.0 {
+            cfl_dt.min(cfl * (h / self.max_acceleration).sqrt())
+        } else {
+            cfl_dt
+        }
+    }
+
+    /// One explicit sub-step of length `dt` (Algorithm 5), reflecting
+    /// particles off the walls of `[min, max]`.
+    pub fn substep(
+        &mut self,
+        dt: Real,
+        gravity: &Vector,
+        min: &Vector,
+        max: &Vector,
+        timer: &mut StageTimer,
+    ) {
+        timer.time(Stage::NeighborSearch, || self.find_neighbors());
+        timer.time(Stage::Density, || {
+            self.compute_densities();
+            self.compute_pressures();
+        });
+        timer.time(Stage::PressureForce, || {
+            pressure_accelerations(
+                &self.positions,
+                &self.densities,
+                &self.pressures,
+                self.params.mass,
+                &self.neighbors,
+                &self.spiky,
+                gravity,
+                &mut self.accelerations,
+            );
+        });
+        if self.params.xsph > 0.0 {
+            timer.time(Stage::Xsph, || self.apply_xsph());
+        }
+        timer.time(Stage::Integrate, || self.integrate(dt, min, max));
+    }
+
+    fn find_neighbors(&mut self) {
+        self.grid.rebuild(&self.positions);
+        self.neighbors
+            .build(&self.grid, &self.positions, self.params.support_radius);
+    }
+
+    /// `rho_i = sum_j m_j omega(|x_i - x_j|)` with poly6 (Algorithm 5).
+    fn compute_densities(&mut self) {
+        let (positions, neighbors, kernel, mass) = (
+            &self.positions,
+            &self.neighbors,
+            &self.poly6,
+            self.params.mass,
+        );
+        self.densities
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, rho)| {
+                let xi = positions[i];
+                *rho = mass
+                    * neighbors
+                        .of(i)
+                        .iter()
+                        .map(|&j| kernel.value_sq((xi - positions[j as usize]).norm_squared()))
+                        .sum::<Real>();
+            });
+    }
+
+    fn compute_pressures(&mut self) {
+        let eos = self.params.eos;
+        self.pressures
+            .par_iter_mut()
+            .zip(self.densities.par_iter())
+            .for_each(|(p, &rho)| *p = eos.pressure(rho));
+    }
+
+    /// XSPH (Eq. 53): `v_i <- (1 - xi) v_i + xi sum_j (m_j / rho_j) v_j omega_ij`.
+    fn apply_xsph(&mut self) {
+        let (positions, velocities, densities, neighbors, kernel, mass) = (
+            &self.positions,
+            &self.velocities,
+            &self.densities,
+            &self.neighbors,
+            &self.poly6,
+            self.params.mass,
+        );
+        self.smoothed_velocities
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, out)| {
+                let xi = positions[i];
+                *out = neighbors.of(i).iter().fold(Vector::zeros(), |acc, &j| {
+                    let j = j as usize;
+                    let w = kernel.value_sq((xi - positions[j]).norm_squared());
+                    acc + velocities[j] * (mass / densities[j] * w)
+                });
+            });
+        let xi = self.params.xsph;
+        self.velocities
+            .par_iter_mut()
+            .zip(self.smoothed_velocities.par_iter())
+            .for_each(|(v, avg)| *v = *v * (1.0 - xi) + avg * xi);
+    }
+
+    /// Eq. 58-59 (symplectic Euler), then reflection off the walls.
+    fn integrate(&mut self, dt: Real, min: &Vector, max: &Vector) {
+        self.max_acceleration = self
+            .accelerations
+            .par_iter()
+            .map(|a| a.norm_squared())
+            .reduce(|| 0.0, Real::max)
+            .sqrt();
+        self.positions
+            .par_iter_mut()
+            .zip(self.velocities.par_iter_mut())
+            .zip(self.accelerations.par_iter())
+            .for_each(|((x, v), a)| {
+                *v += a * dt;
+                *x += *v * dt;
+                reflect(x, v, min, max);
+            });
+    }
+
+    /// The first particle whose state cannot go on: a position, velocity,
+    /// density or pressure that is not finite or does not fit a frame's
+    /// f32, or a speed above [`Self::SPEED_LIMIT`] times the speed of
+    /// sound (the weakly compressible model is void there; this is how an
+    /// unstable run shows before it overflows).
+    pub fn first_invalid(&self) -> Option<Invalid> {
+        const MAX: Real = f32::MAX as Real;
+        let bad_vector = |v: &Vector| !v.iter().all(|c| c.abs() < MAX);
+        let bad_scalar = |s: &Real| !(s.abs() < MAX);
+        let max_speed = Self::SPEED_LIMIT * self.params.eos.sound_speed();
+        let found = |quantity, i: Option<usize>, value: Real| {
+            i.map(|particle| Invalid {
+                quantity,
+                particle,
+                value,
+            })
+        };
+        let i = self.positions.par_iter().position_first(bad_vector);
+        if let Some(v) = found("position", i, i.map_or(0.0, |i| self.positions[i].norm())) {
+            return Some(v);
+        }
+        let i = self
+            .velocities
+            .par_iter()
+            .position_first(|v| bad_vector(v) || v.norm() > max_speed);
+        if let Some(v) = found("velocity", i, i.map_or(0.0, |i| self.velocities[i].norm())) {
+            return Some(v);
+        }
+        let i = self.densities.par_iter().position_first(bad_scalar);
+        if let Some(v) = found("density", i, i.map_or(0.0, |i| self.densities[i])) {
+            return Some(v);
+        }
+        let i = self.pressures.par_iter().position_first(bad_scalar);
+        found("pressure", i, i.map_or(0.0, |i| self.pressures[i]))
+    }
+
+    /// Copies the evolving state into `backup`, reusing its buffers.
+    pub fn save(&self, backup: &mut FluidState) {
+        backup.positions.clone_from(&self.positions);
+        backup.velocities.clone_from(&self.velocities);
+        backup.densities.clone_from(&self.densities);
+        backup.pressures.clone_from(&self.pressures);
+        backup.max_acceleration = self.max_acceleration;
+    }
+
+    /// Puts back a state saved by [`Fluid::save`].
+    pub fn restore(&mut self, backup: &FluidState) {
+        self.positions.clone_from(&backup.positions);
+        self.velocities.clone_from(&backup.velocities);
+        self.densities.clone_from(&backup.densities);
+        self.pressures.clone_from(&backup.pressures);
+        self.max_acceleration = backup.max_acceleration;
+    }
+}
+
+/// The part of a fluid a step changes, kept to undo a failed step.
+#[derive(Debug, Clone, Default)]
+pub struct FluidState {
+    positions: Vec<Vector>,
+    velocities: Vec<Vector>,
+    densities: Vec<Real>,
+    pressures: Vec<Real>,
+    max_acceleration: Real,
+}
+
+/// A particle quantity that left its valid range.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Invalid {
+    pub quantity: &'static str,
+    pub particle: usize,
+    /// The offending value (a norm for vectors).
+    pub value: Real,
+}
+
+/// Mirrors a particle that crossed a wall back inside and flips its normal
+/// velocity ("reflect them off solid boundaries", tutorial Section 6.4).
+#[inline]
+fn reflect(x: &mut Vector, v: &mut Vector, min: &Vector, max: &Vector) {
+    for a in 0..3 {
+        if x[a] < min[a] {
+            x[a] = min[a] + (min[a] - x[a]);
+            v[a] = v[a].abs();
+        } else if x[a] > max[a] {
+            x[a] = max[a] - (x[a] - max[a]);
+            v[a] = -v[a].abs();
+        }
+        // A particle fast enough to cross the whole box stays inside.
+        x[a] = x[a].clamp(min[a], max[a]);
+    }
+}
+
+/// Accelerations from the symmetric SPH pressure gradient (tutorial
+/// Eq. 51) plus gravity:
+/// `a_i = g - sum_j m_j (p_i / rho_i^2 + p_j / rho_j^2) grad omega(x_i - x_j)`
+/// with the spiky kernel. The pair terms are antisymmetric, so pressure
+/// conserves linear and angular momentum.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn pressure_accelerations(
+    positions: &[Vector],
+    densities: &[Real],
+    pressures: &[Real],
+    mass: Real,
+    neighbors: &NeighborList,
+    kernel: &Spiky,
+    gravity: &Vector,
+    out: &mut [Vector],
+) {
+    out.par_iter_mut().enumerate().for_each(|(i, a)| {
+        let xi = positions[i];
+        let pi = pressures[i] / (densities[i] * densities[i]);
+        let mut sum = Vector::zeros();
+        for &j in neighbors.of(i) {
+            let j = j as usize;
+            if j == i {
+                continue;
+            }
+            let r = xi - positions[j];
+            let pj = pressures[j] / (densities[j] * densities[j]);
+            sum += kernel.gradient(&r, r.norm()) * (pi + pj);
+        }
+        *a = gravity - sum * mass;
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn uniform(seed: &mut u64) -> Real {
+        *seed = seed.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = *seed;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        (z ^ (z >> 31)) as Real / u64::MAX as Real
+    }
+
+    /// Eq. 51 is antisymmetric in each pair, so on any particle layout and
+    /// any pressures the pressure forces sum to zero: the total momentum
+    /// change from pressure must vanish to round-off, relative to the sum of
+    /// the force magnitudes.
+    #[test]
+    fn symmetric_pressure_forces_sum_to_zero() {
+        let mut seed = 11;
+        let h = 0.1;
+        let spacing = 0.05;
+        let mut positions = Vec::new();
+        for i in 0..12 {
+            for j in 0..12 {
+                for k in 0..12 {
+                    let jitter =
+                        Vector::new(uniform(&mut seed), uniform(&mut seed), uniform(&mut seed))
+                            .map(|c| (c - 0.5) * 0.6 * spacing);
+                    positions.push(
+                        Vector::new(i as Real, j as Real, k as Real) * spacing
+                            + Vector::repeat(0.2)
+                            + jitter,
+                    );
+                }
+            }
+        }
+        let n = positions.len();
+        let min = Vector::zeros();
+        let max = Vector::repeat(1.0);
+        let mut grid = UniformGrid::new(min, max, h).expect("grid");
+        grid.rebuild(&positions);
+        let mut neighbors = NeighborList::default();
+        neighbors.build(&grid, &positions, h);
+        let densities: Vec<Real> = (0..n).map(|_| 900.0 + 200.0 * uniform(&mut seed)).collect();
+        let pressures: Vec<Real> = (0..n).map(|_| -1e3 + 1e5 * uniform(&mut seed)).collect();
+        let mass = 0.125;
+        let mut accelerations = vec![Vector::zeros(); n];
+        pressure_accelerations(
+            &positions,
+            &densities,
+            &pressures,
+            mass,
+            &neighbors,
+            &Spiky::new(h),
+            &Vector::zeros(),
+            &mut accelerations,
+        );
+        let total: Vector = accelerations.iter().map(|a| a * mass).sum();
+        let scale: Real = accelerations.iter().map(|a| a.norm() * mass).sum();
+        assert!(scale > 0.0);
+        assert!(
+            total.norm() < 1e-9 * scale,
+            "net pressure force {total:?} against total magnitude {scale}"
+        );
+        // Angular momentum: every pair force is parallel to x_i - x_j.
+        let torque: Vector = positions
+            .iter()
+            .zip(&accelerations)
+            .map(|(x, a)| x.cross(&(a * mass)))
+            .sum();
+        assert!(
+            torque.norm() < 1e-9 * scale,
+            "net pressure torque {torque:?}"
+        );
+    }
+
+    /// The calibrated mass gives interior lattice particles the rest density.
+    #[test]
+    fn lattice_mass_gives_rest_density() {
+        let spacing = 0.05;
+        let h = 0.1;
+        let mass = FluidParams::lattice_mass(spacing, h, 1000.0);
+        let mut positions = Vec::new();
+        for i in 0..9 {
+            for j in 0..9 {
+                for k in 0..9 {
+                    positions.push(Vector::new(i as Real, j as Real, k as Real) * spacing);
+                }
+            }
+        }
+        let centre = 4 * 81 + 4 * 9 + 4;
+        let kernel = Poly6::new(h);
+        let rho: Real = positions
+            .iter()
+            .map(|x| mass * kernel.value_sq((x - positions[centre]).norm_squared()))
+            .sum();
+        assert!((rho - 1000.0).abs() < 1e-9, "interior density {rho}");
+    }
+
+    #[test]
+    fn reflection_keeps_particles_inside() {
+        let min = Vector::zeros();
+        let max = Vector::repeat(1.0);
+        let mut x = Vector::new(-0.1, 1.2, 0.5);
+        let mut v = Vector::new(-2.0, 3.0, 0.0);
+        reflect(&mut x, &mut v, &min, &max);
+        assert!((x - Vector::new(0.1, 0.8, 0.5)).norm() < 1e-12);
+        assert_eq!(v, Vector::new(2.0, -3.0, 0.0));
+        let mut x = Vector::new(-50.0, 0.5, 0.5);
+        reflect(&mut x, &mut v, &min, &max);
+        assert!(x.x >= 0.0 && x.x <= 1.0);
+    }
+}

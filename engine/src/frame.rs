@@ -1,0 +1,34 @@
+//! Frames: immutable snapshots of the particle fields a scene asked for.
+
+use crate::math::Real;
+use crate::scene::FieldKind;
+
+/// One particle field, `components` f32 per particle, particle-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FieldData {
+    pub kind: FieldKind,
+    pub components: usize,
+    pub values: Vec<f32>,
+}
+
+/// A snapshot of a world after a step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frame {
+    /// Steps completed since the world was built.
+    pub step: u64,
+    /// Simulated time, s.
+    pub time: Real,
+    /// Sub-steps the last step was split into, and the shortest of them.
+    pub substeps: u32,
+    pub substep_dt: Real,
+    pub particle_count: usize,
+    /// Positions first, then the requested fields in scene order.
+    pub fields: Vec<FieldData>,
+}
+
+impl Frame {
+    /// The field of a kind, if the frame carries it.
+    pub fn field(&self, kind: FieldKind) -> Option<&FieldData> {
+        self.fields.iter().find(|f| f.kind == kind)
+    }
+}

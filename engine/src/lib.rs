@@ -1,0 +1,23 @@
+//! # meshless-engine
+//!
+//! The numerics of meshless: kernels and approximations, neighbour search,
+//! SPH fluids, scenes, frames and file export. A plain library with no
+//! networking: embed it in any program.
+//!
+//! The data flow is `Scene` (validated description) -> [`Scene::build`] ->
+//! [`World`] (state, stepped by [`World::step`]) -> [`Frame`] (snapshot of
+//! the fields a subscriber asked for).
+
+pub mod approx;
+pub mod fluid;
+pub mod frame;
+pub mod io;
+pub mod math;
+pub mod neighbors;
+pub mod scene;
+pub mod stats;
+pub mod world;
+
+pub use frame::{FieldData, Frame};
+pub use scene::{BuildOptions, FieldKind, Scene, SceneError};
+pub use world::{Clock, StepError, StepInfo, World};

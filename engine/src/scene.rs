@@ -1,0 +1,660 @@
+//! The scene: a validated description of what a world simulates. Loaded
+//! from TOML (`scenes/*.toml`) or converted from the protocol's `SceneSpec`
+//! by the server; field names match the protocol.
+//!
+//! [`Scene::build`] validates everything first and then creates only the
+//! systems and fields the scene names.
+
+use crate::math::Real;
+use crate::neighbors::{GridError, UniformGrid};
+use crate::world::World;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Defaults for every optional scene parameter, shared with the protocol
+/// conversion so both front doors build the same world.
+pub mod defaults {
+    use crate::math::Real;
+
+    pub const GRAVITY: [Real; 3] = [0.0, -9.81, 0.0];
+    pub const MAX_SUBSTEPS: u32 = 256;
+    pub const CFL: Real = 0.4;
+    /// Support radius as a multiple of the particle spacing.
+    pub const SUPPORT_RATIO: Real = 2.0;
+    pub const REST_DENSITY: Real = 1000.0;
+    pub const GAMMA: Real = 7.0;
+    pub const NEGATIVE_PRESSURE_SCALE: Real = 0.0;
+    pub const XSPH: Real = 0.1;
+    pub const FRAME_EVERY: u32 = 1;
+}
+
+/// Limits a host puts on the worlds it builds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BuildOptions {
+    /// Largest particle count a scene may create.
+    pub max_particles: u64,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        Self {
+            max_particles: 5_000_000,
+        }
+    }
+}
+
+/// Why a scene was rejected. Every variant names the offending field and
+/// says what to change.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SceneError {
+    /// A field is out of its allowed range.
+    #[error("{field}: {message}")]
+    Invalid { field: String, message: String },
+    /// The scene would create more particles than the host allows.
+    #[error(
+        "the scene creates {count} particles, above this host's limit of {limit}; \
+         increase `spacing` or shrink the fluid blocks"
+    )]
+    TooManyParticles { count: u64, limit: u64 },
+    /// The scene file could not be read or parsed.
+    #[error("{0}")]
+    Parse(String),
+}
+
+impl SceneError {
+    fn invalid(field: impl Into<String>, message: impl Into<String>) -> Self {
+        Self::Invalid {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+}
+
+/// An axis-aligned box.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Aabb {
+    pub min: [Real; 3],
+    pub max: [Real; 3],
+}
+
+impl Aabb {
+    fn extent(&self, axis: usize) -> Real {
+        self.max[axis] - self.min[axis]
+    }
+
+    fn contains(&self, other: &Aabb, tolerance: Real) -> bool {
+        (0..3).all(|a| {
+            other.min[a] >= self.min[a] - tolerance && other.max[a] <= self.max[a] + tolerance
+        })
+    }
+
+    fn overlaps(&self, other: &Aabb) -> bool {
+        (0..3).all(|a| self.min[a] < other.max[a] && other.min[a] < self.max[a])
+    }
+}
+
+/// Time stepping.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimeSpec {
+    /// Time advanced by one step, seconds; split into sub-steps when above
+    /// the stability limit.
+    pub dt: Real,
+    /// Upper bound on sub-steps per step.
+    #[serde(default = "default_max_substeps")]
+    pub max_substeps: u32,
+    /// Courant number of the stability limit, in (0, 1].
+    #[serde(default = "default_cfl")]
+    pub cfl: Real,
+}
+
+/// A particle field a frame can carry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FieldKind {
+    Position,
+    Velocity,
+    Density,
+    Pressure,
+}
+
+impl FieldKind {
+    /// Scalars per particle.
+    pub fn components(self) -> usize {
+        match self {
+            Self::Position | Self::Velocity => 3,
+            Self::Density | Self::Pressure => 1,
+        }
+    }
+
+    /// Lower-case name, as in scene files and exported files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Position => "position",
+            Self::Velocity => "velocity",
+            Self::Density => "density",
+            Self::Pressure => "pressure",
+        }
+    }
+}
+
+/// What frames carry and how often they are produced.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Fields besides positions, which every frame carries.
+    #[serde(default)]
+    pub fields: Vec<FieldKind>,
+    /// A frame every this many steps.
+    #[serde(default = "default_frame_every")]
+    pub frame_every: u32,
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        Self {
+            fields: Vec::new(),
+            frame_every: defaults::FRAME_EVERY,
+        }
+    }
+}
+
+/// A box filled with fluid particles on a regular lattice.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FluidBlock {
+    pub region: Aabb,
+    /// Initial velocity, m/s.
+    #[serde(default)]
+    pub velocity: [Real; 3],
+}
+
+/// A weakly compressible SPH fluid (Adams–Wicke tutorial, Algorithm 5).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FluidSpec {
+    /// Initial particle spacing, m.
+    pub spacing: Real,
+    /// Kernel support radius h, m; default `2 * spacing`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub support_radius: Option<Real>,
+    /// Rest density rho_0, kg/m^3.
+    #[serde(default = "default_rest_density")]
+    pub rest_density: Real,
+    /// Tait stiffness K, Pa (Eq. 47).
+    pub stiffness: Real,
+    /// Tait exponent gamma (Eq. 47).
+    #[serde(default = "default_gamma")]
+    pub gamma: Real,
+    /// Factor zeta on negative pressures (Eq. 54).
+    #[serde(default = "default_negative_pressure_scale")]
+    pub negative_pressure_scale: Real,
+    /// XSPH factor xi (Eq. 53); 0 runs no XSPH pass.
+    #[serde(default = "default_xsph")]
+    pub xsph: Real,
+    pub blocks: Vec<FluidBlock>,
+}
+
+impl FluidSpec {
+    /// The support radius h, with its default applied.
+    pub fn support_radius(&self) -> Real {
+        self.support_radius
+            .unwrap_or(defaults::SUPPORT_RATIO * self.spacing)
+    }
+
+    /// Lattice points per axis of a block. Points sit at the centres of
+    /// spacing-sized cells, so adjacent blocks tile without overlap.
+    fn lattice_dims(&self, block: &FluidBlock) -> [f64; 3] {
+        [0, 1, 2].map(|a| {
+            (block.region.extent(a) / self.spacing + 1e-9)
+                .floor()
+                .max(0.0)
+        })
+    }
+
+    /// Number of particles the blocks create.
+    pub fn particle_count(&self) -> f64 {
+        self.blocks
+            .iter()
+            .map(|b| self.lattice_dims(b).iter().product::<f64>())
+            .sum()
+    }
+
+    /// Lattice positions of all blocks, with each particle's block index.
+    pub fn lattice(&self) -> impl Iterator<Item = ([Real; 3], usize)> + '_ {
+        self.blocks.iter().enumerate().flat_map(move |(b, block)| {
+            let [nx, ny, nz] = self.lattice_dims(block).map(|n| n as usize);
+            let s = self.spacing;
+            let min = block.region.min;
+            (0..nz).flat_map(move |k| {
+                (0..ny).flat_map(move |j| {
+                    (0..nx).map(move |i| {
+                        (
+                            [
+                                min[0] + (i as Real + 0.5) * s,
+                                min[1] + (j as Real + 0.5) * s,
+                                min[2] + (k as Real + 0.5) * s,
+                            ],
+                            b,
+                        )
+                    })
+                })
+            })
+        })
+    }
+}
+
+/// One physical system of a scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum SystemSpec {
+    Fluid(FluidSpec),
+}
+
+/// A complete scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    #[serde(default)]
+    pub name: String,
+    /// The simulation box; particles reflect off its walls.
+    pub domain: Aabb,
+    /// m/s^2.
+    #[serde(default = "default_gravity")]
+    pub gravity: [Real; 3],
+    pub time: TimeSpec,
+    pub systems: Vec<SystemSpec>,
+    #[serde(default)]
+    pub output: OutputSpec,
+}
+
+fn default_gravity() -> [Real; 3] {
+    defaults::GRAVITY
+}
+fn default_max_substeps() -> u32 {
+    defaults::MAX_SUBSTEPS
+}
+fn default_cfl() -> Real {
+    defaults::CFL
+}
+fn default_rest_density() -> Real {
+    defaults::REST_DENSITY
+}
+fn default_gamma() -> Real {
+    defaults::GAMMA
+}
+fn default_negative_pressure_scale() -> Real {
+    defaults::NEGATIVE_PRESSURE_SCALE
+}
+fn default_xsph() -> Real {
+    defaults::XSPH
+}
+fn default_frame_every() -> u32 {
+    defaults::FRAME_EVERY
+}
+
+/// Checks that `value` is finite and inside `[lo, hi]` (`hi` may be infinite).
+fn check_range(field: &str, value: Real, lo: Real, hi: Real) -> Result<(), SceneError> {
+    if !value.is_finite() {
+        return Err(SceneError::invalid(
+            field,
+            format!("must be a finite number, got {value}"),
+        ));
+    }
+    if value < lo || value > hi {
+        let range = if hi.is_infinite() {
+            format!(">= {lo}")
+        } else {
+            format!("in [{lo}, {hi}]")
+        };
+        return Err(SceneError::invalid(
+            field,
+            format!("must be {range}, got {value}"),
+        ));
+    }
+    Ok(())
+}
+
+fn check_positive(field: &str, value: Real) -> Result<(), SceneError> {
+    check_range(field, value, 0.0, Real::INFINITY)?;
+    if value == 0.0 {
+        return Err(SceneError::invalid(field, "must be > 0, got 0"));
+    }
+    Ok(())
+}
+
+fn check_vector(field: &str, v: [Real; 3]) -> Result<(), SceneError> {
+    for (axis, value) in ["x", "y", "z"].iter().zip(v) {
+        if !value.is_finite() {
+            return Err(SceneError::invalid(
+                format!("{field}.{axis}"),
+                format!("must be a finite number, got {value}"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn check_box(field: &str, b: &Aabb) -> Result<(), SceneError> {
+    check_vector(&format!("{field}.min"), b.min)?;
+    check_vector(&format!("{field}.max"), b.max)?;
+    for (a, axis) in ["x", "y", "z"].iter().enumerate() {
+        if b.max[a] <= b.min[a] {
+            return Err(SceneError::invalid(
+                field,
+                format!(
+                    "is empty: max.{axis} ({}) must exceed min.{axis} ({})",
+                    b.max[a], b.min[a]
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+impl Scene {
+    /// Parses a scene from TOML text.
+    ///
+    /// # Errors
+    /// [`SceneError::Parse`] with the line and key of the problem.
+    pub fn from_toml_str(text: &str) -> Result<Self, SceneError> {
+        toml::from_str(text).map_err(|e| SceneError::Parse(e.to_string()))
+    }
+
+    /// Reads and parses a scene file.
+    ///
+    /// # Errors
+    /// [`SceneError::Parse`] naming the file.
+    pub fn from_toml_file(path: &Path) -> Result<Self, SceneError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| SceneError::Parse(format!("cannot read {}: {e}", path.display())))?;
+        Self::from_toml_str(&text)
+            .map_err(|e| SceneError::Parse(format!("{}: {e}", path.display())))
+    }
+
+    /// The scene as TOML text.
+    pub fn to_toml_string(&self) -> String {
+        toml::to_string(self).unwrap_or_else(|e| format!("# cannot serialise scene: {e}"))
+    }
+
+    /// Total particle count over all systems.
+    pub fn particle_count(&self) -> f64 {
+        self.systems
+            .iter()
+            .map(|s| match s {
+                SystemSpec::Fluid(f) => f.particle_count(),
+            })
+            .sum()
+    }
+
+    /// Checks every parameter against its allowed range and the host's
+    /// limits, without allocating the world.
+    ///
+    /// # Errors
+    /// The first problem found, naming its field.
+    pub fn validate(&self, options: &BuildOptions) -> Result<(), SceneError> {
+        check_box("domain", &self.domain)?;
+        check_vector("gravity", self.gravity)?;
+        check_positive("time.dt", self.time.dt)?;
+        if self.time.max_substeps == 0 || self.time.max_substeps > 1_000_000 {
+            return Err(SceneError::invalid(
+                "time.max_substeps",
+                format!("must be in [1, 1000000], got {}", self.time.max_substeps),
+            ));
+        }
+        check_positive("time.cfl", self.time.cfl)?;
+        check_range("time.cfl", self.time.cfl, 0.0, 1.0)?;
+        if self.output.frame_every == 0 {
+            return Err(SceneError::invalid(
+                "output.frame_every",
+                "must be >= 1, got 0",
+            ));
+        }
+        if self.systems.is_empty() {
+            return Err(SceneError::invalid(
+                "systems",
+                "is empty; name at least one system (kind = \"fluid\")",
+            ));
+        }
+        let mut fluids = 0;
+        for (s, system) in self.systems.iter().enumerate() {
+            match system {
+                SystemSpec::Fluid(fluid) => {
+                    fluids += 1;
+                    if fluids > 1 {
+                        return Err(SceneError::invalid(
+                            format!("systems[{s}]"),
+                            "a scene holds at most one fluid; put all its blocks into the first",
+                        ));
+                    }
+                    self.validate_fluid(&format!("systems[{s}]"), fluid)?
+                }
+            }
+        }
+        let count = self.particle_count();
+        if count > options.max_particles as f64 {
+            return Err(SceneError::TooManyParticles {
+                count: count.min(u64::MAX as f64) as u64,
+                limit: options.max_particles,
+            });
+        }
+        Ok(())
+    }
+
+    fn validate_fluid(&self, at: &str, fluid: &FluidSpec) -> Result<(), SceneError> {
+        check_positive(&format!("{at}.spacing"), fluid.spacing)?;
+        let h = fluid.support_radius();
+        check_range(
+            &format!("{at}.support_radius"),
+            h,
+            fluid.spacing,
+            5.0 * fluid.spacing,
+        )
+        .map_err(|e| match e {
+            SceneError::Invalid { field, message } => SceneError::Invalid {
+                field,
+                message: format!("{message} (between 1 and 5 times `spacing`)"),
+            },
+            other => other,
+        })?;
+        check_positive(&format!("{at}.rest_density"), fluid.rest_density)?;
+        check_positive(&format!("{at}.stiffness"), fluid.stiffness)?;
+        // Water's bulk modulus is 2.2e9 Pa; beyond 1e12 the explicit
+        // sub-steps would be needlessly tiny and pressures overflow frames.
+        check_range(&format!("{at}.stiffness"), fluid.stiffness, 0.0, 1e12)?;
+        check_range(&format!("{at}.gamma"), fluid.gamma, 1.0, 10.0)?;
+        check_range(
+            &format!("{at}.negative_pressure_scale"),
+            fluid.negative_pressure_scale,
+            0.0,
+            1.0,
+        )?;
+        check_range(&format!("{at}.xsph"), fluid.xsph, 0.0, 1.0)?;
+        if fluid.blocks.is_empty() {
+            return Err(SceneError::invalid(
+                format!("{at}.blocks"),
+                "is empty; add at least one block of fluid",
+            ));
+        }
+        let domain = Aabb {
+            min: self.domain.min,
+            max: self.domain.max,
+        };
+        for (b, block) in fluid.blocks.iter().enumerate() {
+            let field = format!("{at}.blocks[{b}]");
+            check_box(&format!("{field}.region"), &block.region)?;
+            check_vector(&format!("{field}.velocity"), block.velocity)?;
+            if !domain.contains(&block.region, 1e-9 * fluid.spacing) {
+                return Err(SceneError::invalid(
+                    format!("{field}.region"),
+                    "must lie inside the domain",
+                ));
+            }
+            if fluid.lattice_dims(block).contains(&0.0) {
+                return Err(SceneError::invalid(
+                    format!("{field}.region"),
+                    format!(
+                        "holds no particle at spacing {}; make it at least one spacing wide on every axis",
+                        fluid.spacing
+                    ),
+                ));
+            }
+            if let Some(o) = fluid.blocks[..b]
+                .iter()
+                .position(|other| other.region.overlaps(&block.region))
+            {
+                return Err(SceneError::invalid(
+                    format!("{field}.region"),
+                    format!("overlaps {at}.blocks[{o}]; particles would coincide"),
+                ));
+            }
+        }
+        UniformGrid::new(
+            crate::math::vector(self.domain.min),
+            crate::math::vector(self.domain.max),
+            h,
+        )
+        .map_err(|e: GridError| SceneError::invalid("domain", e.to_string()))?;
+        Ok(())
+    }
+
+    /// Validates the scene and builds its world: only the systems and
+    /// fields the scene names.
+    ///
+    /// # Errors
+    /// See [`Scene::validate`].
+    pub fn build(&self, options: &BuildOptions) -> Result<World, SceneError> {
+        self.validate(options)?;
+        Ok(World::new(self.clone()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SMALL: &str = r#"
+        name = "small"
+        [domain]
+        min = [0.0, 0.0, 0.0]
+        max = [1.0, 1.0, 1.0]
+        [time]
+        dt = 0.01
+        [[systems]]
+        kind = "fluid"
+        spacing = 0.1
+        stiffness = 1000.0
+        [[systems.blocks]]
+        region = { min = [0.0, 0.0, 0.0], max = [0.5, 0.5, 0.5] }
+    "#;
+
+    fn small() -> Scene {
+        Scene::from_toml_str(SMALL).expect("valid scene")
+    }
+
+    fn rejected_field(scene: &Scene) -> String {
+        match scene.validate(&BuildOptions::default()) {
+            Err(SceneError::Invalid { field, .. }) => field,
+            other => panic!("expected an invalid field, got {other:?}"),
+        }
+    }
+
+    fn fluid(scene: &mut Scene) -> &mut FluidSpec {
+        match &mut scene.systems[0] {
+            SystemSpec::Fluid(f) => f,
+        }
+    }
+
+    #[test]
+    fn toml_defaults_are_applied() {
+        let scene = small();
+        assert_eq!(scene.gravity, defaults::GRAVITY);
+        assert_eq!(scene.time.max_substeps, defaults::MAX_SUBSTEPS);
+        let mut s = scene.clone();
+        let f = fluid(&mut s);
+        assert_eq!(f.support_radius(), 0.2);
+        assert_eq!(f.gamma, defaults::GAMMA);
+        assert_eq!(scene.particle_count(), 125.0);
+        assert_eq!(f.lattice().count(), 125);
+    }
+
+    #[test]
+    fn toml_round_trips() {
+        let scene = small();
+        let again = Scene::from_toml_str(&scene.to_toml_string()).expect("round trip");
+        assert_eq!(scene, again);
+    }
+
+    /// Each kind of bad value is rejected with the path of its field.
+    #[test]
+    fn bad_values_name_their_field() {
+        let mut s = small();
+        fluid(&mut s).spacing = -1.0;
+        assert_eq!(rejected_field(&s), "systems[0].spacing");
+
+        let mut s = small();
+        fluid(&mut s).support_radius = Some(Real::NAN);
+        assert_eq!(rejected_field(&s), "systems[0].support_radius");
+
+        let mut s = small();
+        fluid(&mut s).support_radius = Some(0.0);
+        assert_eq!(rejected_field(&s), "systems[0].support_radius");
+
+        let mut s = small();
+        s.domain.max[1] = s.domain.min[1];
+        assert_eq!(rejected_field(&s), "domain");
+
+        let mut s = small();
+        s.gravity[2] = Real::INFINITY;
+        assert_eq!(rejected_field(&s), "gravity.z");
+
+        let mut s = small();
+        s.time.dt = 0.0;
+        assert_eq!(rejected_field(&s), "time.dt");
+
+        let mut s = small();
+        fluid(&mut s).blocks[0].region.max = [2.0, 0.5, 0.5];
+        assert_eq!(rejected_field(&s), "systems[0].blocks[0].region");
+
+        let mut s = small();
+        let block = fluid(&mut s).blocks[0].clone();
+        fluid(&mut s).blocks.push(block);
+        assert_eq!(rejected_field(&s), "systems[0].blocks[1].region");
+
+        let mut s = small();
+        s.systems.clear();
+        assert_eq!(rejected_field(&s), "systems");
+
+        let mut s = small();
+        s.domain.max = [1e6, 1e6, 1e6];
+        assert_eq!(rejected_field(&s), "domain");
+    }
+
+    #[test]
+    fn particle_limit_is_enforced_before_allocation() {
+        let mut s = small();
+        fluid(&mut s).spacing = 0.001;
+        fluid(&mut s).support_radius = Some(0.004);
+        let err = s
+            .validate(&BuildOptions {
+                max_particles: 1000,
+            })
+            .expect_err("limit");
+        assert!(
+            matches!(err, SceneError::TooManyParticles { limit: 1000, .. }),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn unknown_systems_and_keys_are_parse_errors() {
+        let text = SMALL.replace("kind = \"fluid\"", "kind = \"plasma\"");
+        let err = Scene::from_toml_str(&text).expect_err("unknown system");
+        assert!(err.to_string().contains("plasma"), "{err}");
+
+        let text = SMALL.replace("stiffness = 1000.0", "stiffness = 1000.0\nstifness = 1.0");
+        let err = Scene::from_toml_str(&text).expect_err("unknown key");
+        assert!(err.to_string().contains("stifness"), "{err}");
+    }
+}

@@ -1,0 +1,70 @@
+//! Per-stage counters of a world's step: how often each pass ran and how
+//! long it took. They make "a scene pays only for what it names" testable
+//! and show where the time goes.
+
+use std::time::Instant;
+
+/// A pass of the step pipeline.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    NeighborSearch,
+    Density,
+    PressureForce,
+    Xsph,
+    Integrate,
+}
+
+impl Stage {
+    pub const ALL: [Stage; 5] = [
+        Stage::NeighborSearch,
+        Stage::Density,
+        Stage::PressureForce,
+        Stage::Xsph,
+        Stage::Integrate,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::NeighborSearch => "neighbour search",
+            Stage::Density => "density and pressure",
+            Stage::PressureForce => "pressure force",
+            Stage::Xsph => "XSPH",
+            Stage::Integrate => "integration",
+        }
+    }
+}
+
+/// Runs and wall-clock seconds of one stage.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StageStats {
+    pub runs: u64,
+    pub seconds: f64,
+}
+
+/// Counters for every [`Stage`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct StageTimer {
+    stats: [StageStats; Stage::ALL.len()],
+}
+
+impl StageTimer {
+    /// Runs `work`, counting it under `stage`.
+    #[inline]
+    pub fn time<R>(&mut self, stage: Stage, work: impl FnOnce() -> R) -> R {
+        let start = Instant::now();
+        let result = work();
+        let s = &mut self.stats[stage as usize];
+        s.runs += 1;
+        s.seconds += start.elapsed().as_secs_f64();
+        result
+    }
+
+    pub fn get(&self, stage: Stage) -> StageStats {
+        self.stats[stage as usize]
+    }
+
+    /// `(stage, stats)` for every stage, in pipeline order.
+    pub fn iter(&self) -> impl Iterator<Item = (Stage, StageStats)> + '_ {
+        Stage::ALL.iter().map(|&s| (s, self.get(s)))
+    }
+}

@@ -1,0 +1,231 @@
+//! The running world: the systems a scene built, the clock, and the step.
+
+use crate::fluid::{Fluid, FluidParams, FluidState, Tait};
+use crate::frame::{FieldData, Frame};
+use crate::math::{Real, Vector, vector};
+use crate::neighbors::UniformGrid;
+use crate::scene::{FieldKind, FluidSpec, Scene, SystemSpec};
+use crate::stats::StageTimer;
+
+/// Where a world is in time.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Clock {
+    /// Steps completed.
+    pub step: u64,
+    /// Simulated time, s.
+    pub time: Real,
+}
+
+/// How the last step was carried out.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StepInfo {
+    /// Sub-steps the step was split into.
+    pub substeps: u32,
+    /// Shortest sub-step, s.
+    pub min_substep: Real,
+    /// Whether `max_substeps` capped the split, so sub-steps exceeded the
+    /// stability limit.
+    pub capped: bool,
+}
+
+/// A step failed; the world is left as it was before the step.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StepError {
+    #[error(
+        "the {quantity} of particle {particle} left its valid range ({value:e}) in sub-step \
+         {substep} of step {step}; the simulation is unstable: lower time.dt, time.cfl or the \
+         stiffness, or raise time.max_substeps"
+    )]
+    Unstable {
+        quantity: &'static str,
+        particle: usize,
+        value: f64,
+        step: u64,
+        substep: u32,
+    },
+}
+
+/// State of one scene: its systems and clock. Stepped by [`World::step`].
+#[derive(Debug, Clone)]
+pub struct World {
+    scene: Scene,
+    clock: Clock,
+    last_step: StepInfo,
+    fluid: Option<Fluid>,
+    /// Fluid state at the start of the current step, restored when the
+    /// step fails.
+    backup: FluidState,
+    timer: StageTimer,
+    frame_fields: Vec<FieldKind>,
+}
+
+impl World {
+    /// Builds the world of an already validated scene (see [`Scene::build`]).
+    pub(crate) fn new(scene: Scene) -> Self {
+        let mut fluid = None;
+        for system in &scene.systems {
+            match system {
+                SystemSpec::Fluid(spec) => fluid = Some(build_fluid(&scene, spec)),
+            }
+        }
+        let mut frame_fields = vec![FieldKind::Position];
+        for &kind in &scene.output.fields {
+            if !frame_fields.contains(&kind) {
+                frame_fields.push(kind);
+            }
+        }
+        Self {
+            scene,
+            clock: Clock::default(),
+            last_step: StepInfo::default(),
+            fluid,
+            backup: FluidState::default(),
+            timer: StageTimer::default(),
+            frame_fields,
+        }
+    }
+
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    pub fn clock(&self) -> Clock {
+        self.clock
+    }
+
+    pub fn last_step(&self) -> StepInfo {
+        self.last_step
+    }
+
+    /// Runs and seconds of each pass so far.
+    pub fn stages(&self) -> &StageTimer {
+        &self.timer
+    }
+
+    pub fn fluid(&self) -> Option<&Fluid> {
+        self.fluid.as_ref()
+    }
+
+    pub fn particle_count(&self) -> usize {
+        self.fluid.as_ref().map_or(0, Fluid::len)
+    }
+
+    /// Advances by `scene.time.dt`, split into sub-steps that respect the
+    /// stability limit (up to `time.max_substeps`).
+    ///
+    /// # Errors
+    /// [`StepError::Unstable`] when a sub-step produced NaN, infinity or a
+    /// runaway speed; the world is then restored to its state before this
+    /// step.
+    pub fn step(&mut self) -> Result<StepInfo, StepError> {
+        let dt = self.scene.time.dt;
+        let mut info = StepInfo {
+            substeps: 0,
+            min_substep: dt,
+            capped: false,
+        };
+        if let Some(fluid) = &mut self.fluid {
+            fluid.save(&mut self.backup);
+
+            let gravity = vector(self.scene.gravity);
+            let (min, max) = (vector(self.scene.domain.min), vector(self.scene.domain.max));
+            let time = &self.scene.time;
+            let mut elapsed = 0.0;
+            while dt - elapsed > dt * 1e-9 {
+                let remaining = dt - elapsed;
+                let limit = fluid.stable_dt(time.cfl);
+                let budget = time.max_substeps - info.substeps;
+                let wanted = (remaining / limit).ceil().max(1.0);
+                if wanted > budget as Real {
+                    info.capped = true;
+                }
+                let sub = remaining / wanted.min(budget as Real);
+                fluid.substep(sub, &gravity, &min, &max, &mut self.timer);
+                info.substeps += 1;
+                info.min_substep = info.min_substep.min(sub);
+                elapsed += sub;
+                if let Some(invalid) = fluid.first_invalid() {
+                    fluid.restore(&self.backup);
+                    return Err(StepError::Unstable {
+                        quantity: invalid.quantity,
+                        particle: invalid.particle,
+                        value: invalid.value,
+                        step: self.clock.step + 1,
+                        substep: info.substeps,
+                    });
+                }
+            }
+        }
+        self.clock.step += 1;
+        self.clock.time += dt;
+        self.last_step = info;
+        Ok(info)
+    }
+
+    /// Whether the current step is one the scene publishes a frame for.
+    pub fn is_frame_step(&self) -> bool {
+        self.clock.step % u64::from(self.scene.output.frame_every) == 0
+    }
+
+    /// The fields each frame carries, positions first.
+    pub fn frame_fields(&self) -> &[FieldKind] {
+        &self.frame_fields
+    }
+
+    /// A snapshot of the fields the scene asked for.
+    pub fn frame(&self) -> Frame {
+        let fields = self
+            .frame_fields
+            .iter()
+            .map(|&kind| FieldData {
+                kind,
+                components: kind.components(),
+                values: self.field_values(kind),
+            })
+            .collect();
+        Frame {
+            step: self.clock.step,
+            time: self.clock.time,
+            substeps: self.last_step.substeps,
+            substep_dt: self.last_step.min_substep,
+            particle_count: self.particle_count(),
+            fields,
+        }
+    }
+
+    fn field_values(&self, kind: FieldKind) -> Vec<f32> {
+        let Some(fluid) = &self.fluid else {
+            return Vec::new();
+        };
+        let vectors = |v: &[Vector]| v.iter().flat_map(|p| p.iter().map(|&c| c as f32)).collect();
+        let scalars = |s: &[Real]| s.iter().map(|&c| c as f32).collect();
+        match kind {
+            FieldKind::Position => vectors(&fluid.positions),
+            FieldKind::Velocity => vectors(&fluid.velocities),
+            FieldKind::Density => scalars(&fluid.densities),
+            FieldKind::Pressure => scalars(&fluid.pressures),
+        }
+    }
+}
+
+fn build_fluid(scene: &Scene, spec: &FluidSpec) -> Fluid {
+    let h = spec.support_radius();
+    let params = FluidParams {
+        support_radius: h,
+        eos: Tait {
+            stiffness: spec.stiffness,
+            gamma: spec.gamma,
+            rest_density: spec.rest_density,
+            negative_scale: spec.negative_pressure_scale,
+        },
+        xsph: spec.xsph,
+        mass: FluidParams::lattice_mass(spec.spacing, h, spec.rest_density),
+    };
+    let (positions, velocities): (Vec<Vector>, Vec<Vector>) = spec
+        .lattice()
+        .map(|(x, block)| (vector(x), vector(spec.blocks[block].velocity)))
+        .unzip();
+    let grid = UniformGrid::new(vector(scene.domain.min), vector(scene.domain.max), h)
+        .expect("validated by Scene::validate");
+    Fluid::new(params, positions, velocities, grid)
+}

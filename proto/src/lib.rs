@@ -1,0 +1,18 @@
+//! The `meshless.v1` wire protocol: generated message types, the
+//! `Simulation` gRPC client and server stubs, and the zenoh key expressions
+//! that carry frames and status.
+//!
+//! The `.proto` files live in `proto/meshless/v1/`, laid out so that Python
+//! code generated with `grpc_tools.protoc -I proto` imports as `meshless.v1`.
+
+/// Generated types and stubs of package `meshless.v1`.
+pub mod v1 {
+    #![allow(missing_docs, clippy::all, missing_debug_implementations)]
+    tonic::include_proto!("meshless.v1");
+}
+
+pub mod keys;
+
+/// Encoded `FileDescriptorSet` of all meshless protos, for gRPC reflection.
+pub const FILE_DESCRIPTOR_SET: &[u8] =
+    include_bytes!(concat!(env!("OUT_DIR"), "/meshless_descriptor.bin"));

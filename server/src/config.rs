@@ -1,0 +1,89 @@
+//! Server configuration: built-in defaults, then environment variables,
+//! then command-line flags (clap resolves the layers), checked at start.
+
+use std::net::SocketAddr;
+
+/// How the server's zenoh session joins the network.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ZenohMode {
+    /// Listens for and talks to other peers directly (the default: no
+    /// router needed).
+    Peer,
+    /// Talks only through the routers in `--zenoh-connect`.
+    Client,
+}
+
+impl ZenohMode {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Peer => "peer",
+            Self::Client => "client",
+        }
+    }
+}
+
+/// Everything the server needs to start.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ServerConfig {
+    /// Address of the gRPC endpoint; port 0 picks a free port.
+    #[arg(long, env = "MESHLESS_GRPC_ADDR", default_value = "127.0.0.1:50051")]
+    pub grpc_addr: SocketAddr,
+
+    /// Zenoh mode of the server's session.
+    #[arg(long, env = "MESHLESS_ZENOH_MODE", value_enum, default_value = "peer")]
+    pub zenoh_mode: ZenohMode,
+
+    /// Zenoh endpoints to listen on (peer mode), comma separated; a TCP
+    /// port 0 picks a free port.
+    #[arg(
+        long,
+        env = "MESHLESS_ZENOH_LISTEN",
+        value_delimiter = ',',
+        default_value = "tcp/127.0.0.1:7447"
+    )]
+    pub zenoh_listen: Vec<String>,
+
+    /// Zenoh endpoints to connect to, e.g. a router at `tcp/zenohd:7447`.
+    #[arg(long, env = "MESHLESS_ZENOH_CONNECT", value_delimiter = ',')]
+    pub zenoh_connect: Vec<String>,
+
+    /// Largest particle count one session may create.
+    #[arg(long, env = "MESHLESS_MAX_PARTICLES", default_value_t = 2_000_000)]
+    pub max_particles: u64,
+
+    /// Largest number of sessions held at once.
+    #[arg(long, env = "MESHLESS_MAX_SESSIONS", default_value_t = 64)]
+    pub max_sessions: u32,
+}
+
+impl ServerConfig {
+    /// A server on loopback with free ports for gRPC and zenoh: what the
+    /// embedded `meshless demo` and tests use.
+    pub fn ephemeral() -> Self {
+        Self {
+            grpc_addr: SocketAddr::from(([127, 0, 0, 1], 0)),
+            zenoh_mode: ZenohMode::Peer,
+            zenoh_listen: vec!["tcp/127.0.0.1:0".into()],
+            zenoh_connect: Vec::new(),
+            max_particles: 2_000_000,
+            max_sessions: 64,
+        }
+    }
+
+    /// Checks combinations that clap cannot.
+    ///
+    /// # Errors
+    /// A message naming the flag to change.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.zenoh_mode == ZenohMode::Client && self.zenoh_connect.is_empty() {
+            return Err("--zenoh-mode client needs at least one --zenoh-connect endpoint".into());
+        }
+        if self.max_particles == 0 {
+            return Err("--max-particles must be at least 1".into());
+        }
+        if self.max_sessions == 0 {
+            return Err("--max-sessions must be at least 1".into());
+        }
+        Ok(())
+    }
+}

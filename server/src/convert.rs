@@ -1,0 +1,298 @@
+//! Conversions between the protocol's messages and the engine's types.
+//! Messages are destructured exhaustively, so a new proto field breaks the
+//! build here until it is handled.
+
+use crate::error::ServiceError;
+use meshless_engine::scene::{
+    Aabb, FluidBlock, FluidSpec, OutputSpec, SystemSpec, TimeSpec, defaults,
+};
+use meshless_engine::{FieldKind, Frame, Scene};
+use meshless_proto::v1;
+
+type Result<T> = std::result::Result<T, ServiceError>;
+
+fn required<T>(value: Option<T>, field: &str) -> Result<T> {
+    value.ok_or_else(|| ServiceError::invalid(field, "is required"))
+}
+
+fn vec3(v: v1::Vec3) -> [f64; 3] {
+    let v1::Vec3 { x, y, z } = v;
+    [x, y, z]
+}
+
+fn to_vec3(v: [f64; 3]) -> v1::Vec3 {
+    v1::Vec3 {
+        x: v[0],
+        y: v[1],
+        z: v[2],
+    }
+}
+
+fn aabb(b: Option<v1::Aabb>, field: &str) -> Result<Aabb> {
+    let v1::Aabb { min, max } = required(b, field)?;
+    Ok(Aabb {
+        min: vec3(required(min, &format!("{field}.min"))?),
+        max: vec3(required(max, &format!("{field}.max"))?),
+    })
+}
+
+fn to_aabb(b: &Aabb) -> v1::Aabb {
+    v1::Aabb {
+        min: Some(to_vec3(b.min)),
+        max: Some(to_vec3(b.max)),
+    }
+}
+
+/// Engine field kind of a proto enum value.
+pub fn field_kind(value: i32, field: &str) -> Result<FieldKind> {
+    match v1::FieldKind::try_from(value) {
+        Ok(v1::FieldKind::Position) => Ok(FieldKind::Position),
+        Ok(v1::FieldKind::Velocity) => Ok(FieldKind::Velocity),
+        Ok(v1::FieldKind::Density) => Ok(FieldKind::Density),
+        Ok(v1::FieldKind::Pressure) => Ok(FieldKind::Pressure),
+        Ok(v1::FieldKind::Unspecified) | Err(_) => Err(ServiceError::invalid(
+            field,
+            format!("unknown field kind {value}; use position, velocity, density or pressure"),
+        )),
+    }
+}
+
+pub fn to_field_kind(kind: FieldKind) -> v1::FieldKind {
+    match kind {
+        FieldKind::Position => v1::FieldKind::Position,
+        FieldKind::Velocity => v1::FieldKind::Velocity,
+        FieldKind::Density => v1::FieldKind::Density,
+        FieldKind::Pressure => v1::FieldKind::Pressure,
+    }
+}
+
+/// The engine scene of a `SceneSpec`, defaults filled in. Ranges are
+/// checked later by `Scene::validate`, with the same field names.
+pub fn scene_from_proto(spec: v1::SceneSpec) -> Result<Scene> {
+    let v1::SceneSpec {
+        name,
+        domain,
+        gravity,
+        time,
+        systems,
+        output,
+    } = spec;
+    let v1::TimeSpec {
+        dt,
+        max_substeps,
+        cfl,
+    } = required(time, "time")?;
+    let systems = systems
+        .into_iter()
+        .enumerate()
+        .map(|(s, system)| system_from_proto(system, &format!("systems[{s}]")))
+        .collect::<Result<Vec<_>>>()?;
+    let output = match output {
+        None => OutputSpec::default(),
+        Some(v1::OutputSpec {
+            fields,
+            frame_every,
+        }) => OutputSpec {
+            fields: fields
+                .into_iter()
+                .enumerate()
+                .map(|(i, f)| field_kind(f, &format!("output.fields[{i}]")))
+                .collect::<Result<_>>()?,
+            frame_every: frame_every.unwrap_or(defaults::FRAME_EVERY),
+        },
+    };
+    Ok(Scene {
+        name,
+        domain: aabb(domain, "domain")?,
+        gravity: gravity.map_or(defaults::GRAVITY, vec3),
+        time: TimeSpec {
+            dt,
+            max_substeps: max_substeps.unwrap_or(defaults::MAX_SUBSTEPS),
+            cfl: cfl.unwrap_or(defaults::CFL),
+        },
+        systems,
+        output,
+    })
+}
+
+fn system_from_proto(system: v1::SystemSpec, field: &str) -> Result<SystemSpec> {
+    let v1::SystemSpec { kind } = system;
+    match kind {
+        Some(v1::system_spec::Kind::Fluid(fluid)) => {
+            Ok(SystemSpec::Fluid(fluid_from_proto(fluid, field)?))
+        }
+        None => Err(ServiceError::invalid(
+            format!("{field}.kind"),
+            "unknown or missing system kind; this server simulates: fluid",
+        )),
+    }
+}
+
+fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
+    let v1::FluidSpec {
+        spacing,
+        support_radius,
+        rest_density,
+        stiffness,
+        gamma,
+        negative_pressure_scale,
+        xsph,
+        blocks,
+    } = fluid;
+    let blocks = blocks
+        .into_iter()
+        .enumerate()
+        .map(|(b, block)| {
+            let v1::FluidBlock { region, velocity } = block;
+            Ok(FluidBlock {
+                region: aabb(region, &format!("{field}.blocks[{b}].region"))?,
+                velocity: velocity.map_or([0.0; 3], vec3),
+            })
+        })
+        .collect::<Result<_>>()?;
+    Ok(FluidSpec {
+        spacing,
+        support_radius,
+        rest_density: rest_density.unwrap_or(defaults::REST_DENSITY),
+        stiffness,
+        gamma: gamma.unwrap_or(defaults::GAMMA),
+        negative_pressure_scale: negative_pressure_scale
+            .unwrap_or(defaults::NEGATIVE_PRESSURE_SCALE),
+        xsph: xsph.unwrap_or(defaults::XSPH),
+        blocks,
+    })
+}
+
+/// The `SceneSpec` of an engine scene, every default made explicit.
+pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
+    v1::SceneSpec {
+        name: scene.name.clone(),
+        domain: Some(to_aabb(&scene.domain)),
+        gravity: Some(to_vec3(scene.gravity)),
+        time: Some(v1::TimeSpec {
+            dt: scene.time.dt,
+            max_substeps: Some(scene.time.max_substeps),
+            cfl: Some(scene.time.cfl),
+        }),
+        systems: scene
+            .systems
+            .iter()
+            .map(|system| v1::SystemSpec {
+                kind: Some(match system {
+                    SystemSpec::Fluid(f) => v1::system_spec::Kind::Fluid(v1::FluidSpec {
+                        spacing: f.spacing,
+                        support_radius: Some(f.support_radius()),
+                        rest_density: Some(f.rest_density),
+                        stiffness: f.stiffness,
+                        gamma: Some(f.gamma),
+                        negative_pressure_scale: Some(f.negative_pressure_scale),
+                        xsph: Some(f.xsph),
+                        blocks: f
+                            .blocks
+                            .iter()
+                            .map(|b| v1::FluidBlock {
+                                region: Some(to_aabb(&b.region)),
+                                velocity: Some(to_vec3(b.velocity)),
+                            })
+                            .collect(),
+                    }),
+                }),
+            })
+            .collect(),
+        output: Some(v1::OutputSpec {
+            fields: scene
+                .output
+                .fields
+                .iter()
+                .map(|&k| to_field_kind(k) as i32)
+                .collect(),
+            frame_every: Some(scene.output.frame_every),
+        }),
+    }
+}
+
+/// A frame on the wire: each field as packed little-endian f32.
+pub fn frame_to_proto(session_id: &str, frame: &Frame) -> v1::Frame {
+    v1::Frame {
+        header: Some(v1::FrameHeader {
+            session_id: session_id.to_owned(),
+            step: frame.step,
+            time: frame.time,
+            particle_count: frame.particle_count as u64,
+            substeps: frame.substeps,
+            substep_dt: frame.substep_dt,
+            fields: frame
+                .fields
+                .iter()
+                .map(|f| to_field_kind(f.kind) as i32)
+                .collect(),
+        }),
+        fields: frame
+            .fields
+            .iter()
+            .map(|f| v1::FieldData {
+                kind: to_field_kind(f.kind) as i32,
+                components: f.components as u32,
+                scalar: v1::ScalarType::F32 as i32,
+                data: f.values.iter().flat_map(|v| v.to_le_bytes()).collect(),
+            })
+            .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use meshless_engine::BuildOptions;
+
+    fn dam_break() -> Scene {
+        Scene::from_toml_str(include_str!("../../scenes/dam_break.toml")).expect("shipped scene")
+    }
+
+    /// engine -> proto -> engine is the identity once defaults are explicit.
+    #[test]
+    fn scenes_round_trip_through_the_protocol() {
+        let scene = dam_break();
+        let back = scene_from_proto(scene_to_proto(&scene)).expect("round trip");
+        let mut explicit = scene.clone();
+        let SystemSpec::Fluid(f) = &mut explicit.systems[0];
+        f.support_radius = Some(f.support_radius());
+        assert_eq!(back, explicit);
+        back.validate(&BuildOptions::default())
+            .expect("still valid");
+    }
+
+    #[test]
+    fn missing_messages_name_their_field() {
+        let mut spec = scene_to_proto(&dam_break());
+        spec.time = None;
+        assert!(
+            scene_from_proto(spec)
+                .expect_err("no time")
+                .to_string()
+                .starts_with("time:")
+        );
+
+        let mut spec = scene_to_proto(&dam_break());
+        spec.systems[0].kind = None;
+        let err = scene_from_proto(spec).expect_err("no kind");
+        assert!(err.to_string().starts_with("systems[0].kind:"), "{err}");
+
+        let mut spec = scene_to_proto(&dam_break());
+        spec.output.as_mut().expect("output").fields.push(99);
+        let err = scene_from_proto(spec).expect_err("bad field");
+        assert!(err.to_string().starts_with("output.fields[3]:"), "{err}");
+    }
+
+    #[test]
+    fn frames_pack_fields_little_endian() {
+        let world = dam_break().build(&BuildOptions::default()).expect("world");
+        let frame = world.frame();
+        let wire = frame_to_proto("s", &frame);
+        let positions = &wire.fields[0];
+        assert_eq!(positions.data.len(), 4 * 3 * frame.particle_count);
+        let x0 = f32::from_le_bytes(positions.data[0..4].try_into().expect("4 bytes"));
+        assert_eq!(x0, frame.fields[0].values[0]);
+        assert_eq!(wire.header.expect("header").fields.len(), wire.fields.len());
+    }
+}

@@ -1,0 +1,152 @@
+//! # meshless-server
+//!
+//! Hosts simulation sessions behind the `meshless.v1.Simulation` gRPC
+//! service. Each session steps its world on its own thread; frames and
+//! status go out over zenoh. Tokio threads only do I/O.
+//!
+//! [`start`] runs a server inside any tokio program (the `meshless demo`
+//! command and the tests do); the `meshless-server` binary wraps it with
+//! signal handling.
+
+pub mod config;
+mod convert;
+mod error;
+mod pubsub;
+mod registry;
+mod service;
+mod session;
+
+pub use config::{ServerConfig, ZenohMode};
+
+use anyhow::{Context, Result};
+use meshless_engine::BuildOptions;
+use meshless_proto::v1::{self, simulation_server::SimulationServer};
+use registry::Registry;
+use service::SimulationService;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use tokio_util::sync::CancellationToken;
+
+/// Largest gRPC message accepted: scenes are small, but leave room.
+const MAX_MESSAGE_BYTES: usize = 64 * 1024 * 1024;
+
+/// A server started by [`start`].
+#[derive(Debug)]
+pub struct RunningServer {
+    /// The bound gRPC address (the real port when 0 was asked for).
+    pub grpc_addr: SocketAddr,
+    /// The zenoh endpoints the server listens on.
+    pub zenoh_locators: Vec<String>,
+    shutdown: CancellationToken,
+    task: tokio::task::JoinHandle<Result<()>>,
+}
+
+impl RunningServer {
+    /// Stops accepting requests, stops every session, closes zenoh.
+    ///
+    /// # Errors
+    /// Whatever the serving task failed with.
+    pub async fn stop(self) -> Result<()> {
+        self.shutdown.cancel();
+        self.task.await.context("server task")?
+    }
+}
+
+/// Binds the gRPC port, opens zenoh and serves until [`RunningServer::stop`].
+///
+/// # Errors
+/// An invalid configuration or a port that cannot be bound.
+pub async fn start(config: ServerConfig) -> Result<RunningServer> {
+    config.validate().map_err(anyhow::Error::msg)?;
+    let (zenoh, zenoh_locators) = pubsub::open(&config).await?;
+    let listener = tokio::net::TcpListener::bind(config.grpc_addr)
+        .await
+        .with_context(|| format!("cannot bind the gRPC address {}", config.grpc_addr))?;
+    let grpc_addr = listener.local_addr()?;
+
+    let shutdown = CancellationToken::new();
+    let registry = Arc::new(Registry::new(
+        zenoh.clone(),
+        BuildOptions {
+            max_particles: config.max_particles,
+        },
+        config.max_sessions,
+        shutdown.child_token(),
+    ));
+    let info = v1::ServerInfo {
+        version: env!("CARGO_PKG_VERSION").into(),
+        zenoh_locators: zenoh_locators.clone(),
+        zenoh_key_root: meshless_proto::keys::ROOT.into(),
+        max_particles_per_session: config.max_particles,
+        max_sessions: config.max_sessions,
+    };
+    let simulation = SimulationServer::new(SimulationService::new(
+        registry.clone(),
+        info,
+        shutdown.clone(),
+    ))
+    .max_decoding_message_size(MAX_MESSAGE_BYTES)
+    .max_encoding_message_size(MAX_MESSAGE_BYTES);
+    let (health_reporter, health) = tonic_health::server::health_reporter();
+    health_reporter
+        .set_serving::<SimulationServer<SimulationService>>()
+        .await;
+    let reflection = tonic_reflection::server::Builder::configure()
+        .register_encoded_file_descriptor_set(meshless_proto::FILE_DESCRIPTOR_SET)
+        .build_v1()
+        .context("gRPC reflection")?;
+
+    let incoming = tokio_stream::wrappers::TcpListenerStream::new(listener);
+    let stop = shutdown.clone();
+    let task = tokio::spawn(async move {
+        let served = tonic::transport::Server::builder()
+            .add_service(health)
+            .add_service(reflection)
+            .add_service(simulation)
+            .serve_with_incoming_shutdown(incoming, stop.cancelled_owned())
+            .await;
+        registry.shut_down_all().await;
+        if let Err(e) = zenoh.close().await {
+            tracing::warn!("closing zenoh: {e}");
+        }
+        served.context("gRPC server")
+    });
+    tracing::info!(%grpc_addr, zenoh = ?zenoh_locators, "meshless-server listening");
+    Ok(RunningServer {
+        grpc_addr,
+        zenoh_locators,
+        shutdown,
+        task,
+    })
+}
+
+/// Runs a server until SIGINT or SIGTERM, printing one line with its
+/// addresses to stdout once it is ready (scripts and tests wait for it).
+///
+/// # Errors
+/// See [`start`].
+pub async fn serve_until_signal(config: ServerConfig) -> Result<()> {
+    let server = start(config).await?;
+    println!(
+        "meshless-server ready grpc={} zenoh={}",
+        server.grpc_addr,
+        server.zenoh_locators.join(",")
+    );
+    shutdown_signal().await?;
+    tracing::info!("shutting down");
+    server.stop().await
+}
+
+async fn shutdown_signal() -> Result<()> {
+    #[cfg(unix)]
+    {
+        let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())?;
+        tokio::select! {
+            r = tokio::signal::ctrl_c() => r?,
+            _ = term.recv() => {}
+        }
+    }
+    #[cfg(not(unix))]
+    tokio::signal::ctrl_c().await?;
+    Ok(())
+}

@@ -1,0 +1,219 @@
+//! The `meshless.v1.Simulation` gRPC service: a thin adapter that
+//! validates a request, converts it, calls the registry or a session, and
+//! converts the answer back.
+
+use crate::convert::scene_from_proto;
+use crate::error::ServiceError;
+use crate::registry::Registry;
+use crate::session::{Command, RunTarget};
+use meshless_engine::Scene;
+use meshless_proto::v1::{self, simulation_server::Simulation};
+use std::sync::Arc;
+use tokio::sync::{broadcast, mpsc};
+use tokio_stream::wrappers::ReceiverStream;
+use tokio_util::sync::CancellationToken;
+use tonic::{Request, Response, Status};
+
+/// Most steps one `Step` call may ask for.
+const MAX_STEPS_PER_CALL: u64 = 1_000_000;
+
+#[derive(Debug)]
+pub struct SimulationService {
+    registry: Arc<Registry>,
+    info: v1::ServerInfo,
+    shutdown: CancellationToken,
+}
+
+impl SimulationService {
+    pub fn new(registry: Arc<Registry>, info: v1::ServerInfo, shutdown: CancellationToken) -> Self {
+        Self {
+            registry,
+            info,
+            shutdown,
+        }
+    }
+
+    fn session_id(id: &str) -> Result<&str, ServiceError> {
+        if id.is_empty() {
+            Err(ServiceError::invalid("session_id", "is required"))
+        } else {
+            Ok(id)
+        }
+    }
+
+    async fn command(&self, id: &str, command: Command) -> Result<v1::Session, ServiceError> {
+        let session = self.registry.get(Self::session_id(id)?)?;
+        session.command(command).await?;
+        Ok(session.to_proto())
+    }
+}
+
+type Reply<T> = Result<Response<T>, Status>;
+
+#[tonic::async_trait]
+impl Simulation for SimulationService {
+    async fn get_server_info(&self, _: Request<v1::GetServerInfoRequest>) -> Reply<v1::ServerInfo> {
+        Ok(Response::new(self.info.clone()))
+    }
+
+    async fn create_session(
+        &self,
+        request: Request<v1::CreateSessionRequest>,
+    ) -> Reply<v1::Session> {
+        let v1::CreateSessionRequest { source } = request.into_inner();
+        let scene = match source {
+            Some(v1::create_session_request::Source::Scene(spec)) => scene_from_proto(spec)?,
+            Some(v1::create_session_request::Source::SceneToml(text)) => {
+                Scene::from_toml_str(&text).map_err(ServiceError::from)?
+            }
+            None => return Err(ServiceError::invalid("source", "set scene or scene_toml").into()),
+        };
+        let session = self.registry.create(scene).await?;
+        tracing::info!(session = %session.id, particles = session.particle_count, "session created");
+        Ok(Response::new(session.to_proto()))
+    }
+
+    async fn get_session(&self, request: Request<v1::SessionRef>) -> Reply<v1::Session> {
+        let id = request.into_inner().session_id;
+        let session = self.registry.get(Self::session_id(&id)?)?;
+        Ok(Response::new(session.to_proto()))
+    }
+
+    async fn list_sessions(
+        &self,
+        _: Request<v1::ListSessionsRequest>,
+    ) -> Reply<v1::ListSessionsResponse> {
+        let sessions = self.registry.list().iter().map(|s| s.to_proto()).collect();
+        Ok(Response::new(v1::ListSessionsResponse { sessions }))
+    }
+
+    async fn delete_session(
+        &self,
+        request: Request<v1::SessionRef>,
+    ) -> Reply<v1::DeleteSessionResponse> {
+        let id = request.into_inner().session_id;
+        self.registry.delete(Self::session_id(&id)?).await?;
+        tracing::info!(session = %id, "session deleted");
+        Ok(Response::new(v1::DeleteSessionResponse {}))
+    }
+
+    async fn step(&self, request: Request<v1::StepRequest>) -> Reply<v1::Session> {
+        let v1::StepRequest { session_id, steps } = request.into_inner();
+        if steps == 0 || steps > MAX_STEPS_PER_CALL {
+            return Err(ServiceError::invalid(
+                "steps",
+                format!("must be in [1, {MAX_STEPS_PER_CALL}], got {steps}"),
+            )
+            .into());
+        }
+        Ok(Response::new(
+            self.command(&session_id, Command::Step(steps)).await?,
+        ))
+    }
+
+    async fn run(&self, request: Request<v1::RunRequest>) -> Reply<v1::Session> {
+        let v1::RunRequest {
+            session_id,
+            until,
+            realtime_factor,
+        } = request.into_inner();
+        let until = match until {
+            Some(v1::run_request::Until::UntilTime(t)) if t.is_finite() && t > 0.0 => Some(t),
+            Some(v1::run_request::Until::UntilTime(t)) => {
+                return Err(ServiceError::invalid(
+                    "until_time",
+                    format!("must be a finite time > 0 s, got {t}"),
+                )
+                .into());
+            }
+            Some(v1::run_request::Until::Forever(true)) => None,
+            Some(v1::run_request::Until::Forever(false)) | None => {
+                return Err(ServiceError::invalid(
+                    "until",
+                    "set until_time, or forever = true to run until paused",
+                )
+                .into());
+            }
+        };
+        let realtime_factor = match realtime_factor {
+            Some(f) if !f.is_finite() || f < 0.0 => {
+                return Err(ServiceError::invalid(
+                    "realtime_factor",
+                    format!("must be a finite number >= 0 (0: as fast as possible), got {f}"),
+                )
+                .into());
+            }
+            Some(f) if f > 0.0 => Some(f),
+            _ => None,
+        };
+        let target = RunTarget {
+            until,
+            realtime_factor,
+        };
+        Ok(Response::new(
+            self.command(&session_id, Command::Run(target)).await?,
+        ))
+    }
+
+    async fn pause(&self, request: Request<v1::SessionRef>) -> Reply<v1::Session> {
+        let id = request.into_inner().session_id;
+        Ok(Response::new(self.command(&id, Command::Pause).await?))
+    }
+
+    async fn resume(&self, request: Request<v1::SessionRef>) -> Reply<v1::Session> {
+        let id = request.into_inner().session_id;
+        Ok(Response::new(self.command(&id, Command::Resume).await?))
+    }
+
+    async fn reset(&self, request: Request<v1::SessionRef>) -> Reply<v1::Session> {
+        let id = request.into_inner().session_id;
+        Ok(Response::new(self.command(&id, Command::Reset).await?))
+    }
+
+    type WatchStatusStream = ReceiverStream<Result<v1::SessionStatus, Status>>;
+
+    async fn watch_status(
+        &self,
+        request: Request<v1::SessionRef>,
+    ) -> Reply<Self::WatchStatusStream> {
+        let id = request.into_inner().session_id;
+        let session = self.registry.get(Self::session_id(&id)?)?;
+        let mut events = session.subscribe();
+        let (tx, rx) = mpsc::channel(16);
+        let shutdown = self.shutdown.clone();
+        tokio::spawn(async move {
+            let closed = v1::SessionState::Closed as i32;
+            let mut next = Ok(session.status());
+            loop {
+                let status = match next {
+                    Ok(status) => status,
+                    Err(broadcast::error::RecvError::Lagged(_)) => session.status(),
+                    Err(broadcast::error::RecvError::Closed) => break,
+                };
+                let last = status.state == closed;
+                if tx.send(Ok(status)).await.is_err() || last {
+                    break;
+                }
+                next = tokio::select! {
+                    () = tx.closed() => break,
+                    () = shutdown.cancelled() => break,
+                    event = events.recv() => event,
+                };
+            }
+        });
+        Ok(Response::new(ReceiverStream::new(rx)))
+    }
+
+    async fn get_latest_frame(&self, request: Request<v1::SessionRef>) -> Reply<v1::Frame> {
+        let id = request.into_inner().session_id;
+        let session = self.registry.get(Self::session_id(&id)?)?;
+        let frame = session.latest_frame();
+        let id = session.id.clone();
+        // Encoding a large frame is CPU work: keep it off the I/O threads.
+        let message =
+            tokio::task::spawn_blocking(move || crate::convert::frame_to_proto(&id, &frame))
+                .await
+                .map_err(|e| ServiceError::Internal(format!("frame encoding failed: {e}")))?;
+        Ok(Response::new(message))
+    }
+}

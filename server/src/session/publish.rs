@@ -1,0 +1,114 @@
+//! Zenoh side of a session: tokio tasks that encode and put frames (drop
+//! on congestion), put status changes (reliable), and answer queries for
+//! the latest frame. The compute thread only hands them data.
+
+use super::LatestFrame;
+use crate::convert::frame_to_proto;
+use meshless_engine::Frame;
+use meshless_proto::{keys, v1};
+use prost::Message;
+use std::sync::Arc;
+use tokio::sync::{broadcast, mpsc};
+use tokio_util::sync::CancellationToken;
+use zenoh::qos::{CongestionControl, Priority};
+
+/// Puts every frame from `frames` until the worker drops its sender.
+pub fn spawn_frames(zenoh: zenoh::Session, id: String, mut frames: mpsc::Receiver<Arc<Frame>>) {
+    tokio::spawn(async move {
+        let key = keys::frames(&id);
+        let publisher = match zenoh
+            .declare_publisher(key.clone())
+            .congestion_control(CongestionControl::Drop)
+            .priority(Priority::DataLow)
+            .await
+        {
+            Ok(p) => p,
+            Err(e) => {
+                tracing::error!(session = %id, "cannot declare publisher {key}: {e}");
+                return;
+            }
+        };
+        while let Some(frame) = frames.recv().await {
+            let bytes = frame_to_proto(&id, &frame).encode_to_vec();
+            if let Err(e) = publisher.put(bytes).await {
+                tracing::warn!(session = %id, step = frame.step, "frame not published: {e}");
+            }
+        }
+    });
+}
+
+/// Puts every status change until the session is closed.
+pub fn spawn_status(
+    zenoh: zenoh::Session,
+    id: String,
+    mut events: broadcast::Receiver<v1::SessionStatus>,
+) {
+    tokio::spawn(async move {
+        let key = keys::status(&id);
+        let publisher = match zenoh
+            .declare_publisher(key.clone())
+            .congestion_control(CongestionControl::Block)
+            .priority(Priority::InteractiveLow)
+            .await
+        {
+            Ok(p) => p,
+            Err(e) => {
+                tracing::error!(session = %id, "cannot declare publisher {key}: {e}");
+                return;
+            }
+        };
+        loop {
+            match events.recv().await {
+                Ok(status) => {
+                    let closed = status.state == v1::SessionState::Closed as i32;
+                    if let Err(e) = publisher.put(status.encode_to_vec()).await {
+                        tracing::warn!(session = %id, "status not published: {e}");
+                    }
+                    if closed {
+                        break;
+                    }
+                }
+                Err(broadcast::error::RecvError::Lagged(n)) => {
+                    tracing::warn!(session = %id, "{n} status changes skipped on zenoh");
+                }
+                Err(broadcast::error::RecvError::Closed) => break,
+            }
+        }
+    });
+}
+
+/// Answers `…/latest` queries with the latest frame until cancelled.
+pub fn spawn_latest(
+    zenoh: zenoh::Session,
+    id: String,
+    latest: LatestFrame,
+    cancel: CancellationToken,
+) {
+    tokio::spawn(async move {
+        let key = keys::latest(&id);
+        let queryable = match zenoh.declare_queryable(key.clone()).await {
+            Ok(q) => q,
+            Err(e) => {
+                tracing::error!(session = %id, "cannot declare queryable {key}: {e}");
+                return;
+            }
+        };
+        loop {
+            let query = tokio::select! {
+                () = cancel.cancelled() => break,
+                query = queryable.recv_async() => match query {
+                    Ok(q) => q,
+                    Err(_) => break,
+                },
+            };
+            let frame = latest
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .clone();
+            let bytes = frame_to_proto(&id, &frame).encode_to_vec();
+            if let Err(e) = query.reply(key.clone(), bytes).await {
+                tracing::warn!(session = %id, "latest-frame reply failed: {e}");
+            }
+        }
+    });
+}

@@ -1,0 +1,328 @@
+//! The compute thread of a session. It owns the world, applies commands
+//! between steps, and hands frames and status to the publishing tasks
+//! without ever waiting on them.
+
+use super::{Command, LatestFrame, Reply};
+use crate::error::{ServiceError, state_name};
+use meshless_engine::{BuildOptions, Frame, World};
+use meshless_proto::v1::{SessionState, SessionStatus};
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
+use std::time::{Duration, Instant};
+use tokio::sync::{broadcast, mpsc, watch};
+use tokio_util::sync::CancellationToken;
+
+/// What a run steps towards.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RunTarget {
+    /// Simulated time to stop at; `None` runs until paused.
+    pub until: Option<f64>,
+    /// Simulated seconds per wall-clock second; `None` is unpaced.
+    pub realtime_factor: Option<f64>,
+}
+
+/// A message to the compute thread.
+#[derive(Debug)]
+pub enum Message {
+    Command(Command, Reply),
+    /// Stop and exit; sent on delete and server shutdown.
+    Shutdown,
+}
+
+/// Where the worker's results go.
+#[derive(Debug)]
+pub struct Outputs {
+    pub status: watch::Sender<SessionStatus>,
+    pub events: broadcast::Sender<SessionStatus>,
+    pub frames: mpsc::Sender<Arc<Frame>>,
+    pub latest: LatestFrame,
+}
+
+/// Wall-clock pacing of a run with a real-time factor.
+#[derive(Debug, Clone, Copy)]
+struct Pacing {
+    wall_start: Instant,
+    sim_start: f64,
+    factor: f64,
+}
+
+impl Pacing {
+    /// How long to wait before the next step to keep to the factor.
+    fn wait(&self, sim_time: f64) -> Option<Duration> {
+        let due = (sim_time - self.sim_start) / self.factor;
+        let elapsed = self.wall_start.elapsed().as_secs_f64();
+        (due > elapsed).then(|| Duration::from_secs_f64(due - elapsed))
+    }
+}
+
+#[derive(Debug)]
+pub struct Worker {
+    id: String,
+    world: World,
+    options: BuildOptions,
+    out: Outputs,
+    cancel: CancellationToken,
+    state: SessionState,
+    reason: String,
+    run: Option<RunTarget>,
+    pacing: Option<Pacing>,
+    published_step: Option<u64>,
+    dropped_frames: u64,
+}
+
+impl Worker {
+    pub fn new(
+        id: String,
+        world: World,
+        options: BuildOptions,
+        out: Outputs,
+        cancel: CancellationToken,
+    ) -> Self {
+        let mut worker = Self {
+            id,
+            world,
+            options,
+            out,
+            cancel,
+            state: SessionState::Idle,
+            reason: "created".into(),
+            run: None,
+            pacing: None,
+            published_step: None,
+            dropped_frames: 0,
+        };
+        worker.publish_frame();
+        worker
+    }
+
+    /// The thread's main loop: block for commands while idle, step while
+    /// running, exit on shutdown.
+    pub fn run(mut self, messages: Receiver<Message>) {
+        loop {
+            let message = if self.state == SessionState::Running {
+                match self.pacing.and_then(|p| p.wait(self.world.clock().time)) {
+                    Some(wait) => match messages.recv_timeout(wait) {
+                        Ok(m) => Some(m),
+                        Err(RecvTimeoutError::Timeout) => None,
+                        Err(RecvTimeoutError::Disconnected) => break,
+                    },
+                    None => match messages.try_recv() {
+                        Ok(m) => Some(m),
+                        Err(TryRecvError::Empty) => None,
+                        Err(TryRecvError::Disconnected) => break,
+                    },
+                }
+            } else {
+                messages.recv().ok().or(Some(Message::Shutdown))
+            };
+            match message {
+                Some(Message::Command(command, reply)) => {
+                    let result = self.handle(command);
+                    // The caller may have gone away; the command still applied.
+                    let _ = reply.send(result);
+                }
+                Some(Message::Shutdown) => break,
+                None if self.cancel.is_cancelled() => break,
+                None => {
+                    let due = self.pacing.and_then(|p| p.wait(self.world.clock().time));
+                    if due.is_none() {
+                        self.advance_run();
+                    }
+                }
+            }
+        }
+        if self.dropped_frames > 0 {
+            tracing::info!(session = %self.id, dropped = self.dropped_frames, "frames dropped under congestion");
+        }
+        self.set_state(SessionState::Closed, "deleted");
+    }
+
+    fn handle(&mut self, command: Command) -> Result<SessionStatus, ServiceError> {
+        match command {
+            Command::Step(steps) => self.step(steps),
+            Command::Run(target) => self.start_run(target),
+            Command::Pause => {
+                if self.state == SessionState::Running {
+                    self.publish_if_stale();
+                    self.set_state(SessionState::Paused, "paused");
+                }
+                Ok(self.status())
+            }
+            Command::Resume => self.resume(),
+            Command::Reset => self.reset(),
+        }
+    }
+
+    fn refuse(&self, action: &'static str, hint: &'static str) -> ServiceError {
+        if self.state == SessionState::Faulted {
+            ServiceError::Faulted {
+                session_id: self.id.clone(),
+                reason: self.reason.clone(),
+            }
+        } else {
+            ServiceError::WrongState {
+                session_id: self.id.clone(),
+                state: state_name(self.state),
+                action,
+                hint,
+            }
+        }
+    }
+
+    fn step(&mut self, steps: u64) -> Result<SessionStatus, ServiceError> {
+        if matches!(self.state, SessionState::Running | SessionState::Faulted) {
+            return Err(self.refuse("step", "pause it first"));
+        }
+        for _ in 0..steps {
+            if self.cancel.is_cancelled() || !self.advance() {
+                break;
+            }
+        }
+        if self.state != SessionState::Faulted {
+            self.publish_if_stale();
+            self.run = None;
+            self.set_state(SessionState::Paused, "stepped");
+        }
+        Ok(self.status())
+    }
+
+    fn start_run(&mut self, target: RunTarget) -> Result<SessionStatus, ServiceError> {
+        if matches!(self.state, SessionState::Running | SessionState::Faulted) {
+            return Err(self.refuse("run", "pause it first"));
+        }
+        let now = self.world.clock().time;
+        if let Some(until) = target.until
+            && until <= now
+        {
+            return Err(ServiceError::invalid(
+                "until_time",
+                format!("must be after the session's time, {now} s; got {until} s"),
+            ));
+        }
+        self.run = Some(target);
+        self.begin_running();
+        Ok(self.status())
+    }
+
+    fn resume(&mut self) -> Result<SessionStatus, ServiceError> {
+        match self.state {
+            SessionState::Running => Ok(self.status()),
+            SessionState::Paused if self.run.is_some() => {
+                self.begin_running();
+                Ok(self.status())
+            }
+            _ => Err(self.refuse("resume", "only a paused run can be resumed; start a run")),
+        }
+    }
+
+    fn begin_running(&mut self) {
+        let target = self.run.unwrap_or(RunTarget {
+            until: None,
+            realtime_factor: None,
+        });
+        self.pacing = target.realtime_factor.map(|factor| Pacing {
+            wall_start: Instant::now(),
+            sim_start: self.world.clock().time,
+            factor,
+        });
+        let reason = match target.until {
+            Some(t) => format!("running until {t} s"),
+            None => "running until paused".into(),
+        };
+        self.set_state(SessionState::Running, &reason);
+    }
+
+    fn reset(&mut self) -> Result<SessionStatus, ServiceError> {
+        self.world = self.world.scene().build(&self.options)?;
+        self.run = None;
+        self.pacing = None;
+        self.published_step = None;
+        self.publish_frame();
+        self.set_state(SessionState::Idle, "reset");
+        Ok(self.status())
+    }
+
+    /// One step of a run; finishes the run at its target time.
+    fn advance_run(&mut self) {
+        if !self.advance() {
+            return;
+        }
+        let until = self.run.and_then(|r| r.until);
+        if let Some(until) = until
+            && self.world.clock().time >= until - 1e-6 * self.world.scene().time.dt
+        {
+            self.publish_if_stale();
+            self.run = None;
+            self.set_state(SessionState::Finished, &format!("reached {until} s"));
+        }
+    }
+
+    /// Steps the world once. On failure the session faults, keeping the
+    /// last good frame. Returns whether the step succeeded.
+    fn advance(&mut self) -> bool {
+        match self.world.step() {
+            Ok(_) => {
+                let clock = self.world.clock();
+                self.out.status.send_modify(|s| {
+                    s.step = clock.step;
+                    s.time = clock.time;
+                });
+                if self.world.is_frame_step() {
+                    self.publish_frame();
+                }
+                true
+            }
+            Err(e) => {
+                tracing::warn!(session = %self.id, "session faulted: {e}");
+                self.run = None;
+                self.set_state(SessionState::Faulted, &e.to_string());
+                false
+            }
+        }
+    }
+
+    fn publish_if_stale(&mut self) {
+        if self.published_step != Some(self.world.clock().step) {
+            self.publish_frame();
+        }
+    }
+
+    /// Hands the current frame to the publisher, dropping it when the
+    /// publisher is behind: a slow network never slows the simulation.
+    fn publish_frame(&mut self) {
+        let frame = Arc::new(self.world.frame());
+        *self
+            .out
+            .latest
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner) = frame.clone();
+        if self.out.frames.try_send(frame).is_err() {
+            self.dropped_frames += 1;
+        }
+        self.published_step = Some(self.world.clock().step);
+    }
+
+    fn status(&self) -> SessionStatus {
+        self.out.status.borrow().clone()
+    }
+
+    /// Records a new state; watchers and zenoh hear of state changes.
+    fn set_state(&mut self, state: SessionState, reason: &str) {
+        let changed = self.state != state;
+        self.state = state;
+        self.reason = reason.to_owned();
+        let clock = self.world.clock();
+        let run_until = self.run.and_then(|r| r.until);
+        self.out.status.send_modify(|s| {
+            s.state = state as i32;
+            s.reason = reason.to_owned();
+            s.step = clock.step;
+            s.time = clock.time;
+            s.run_until = run_until;
+        });
+        if changed {
+            // No watcher is not an error.
+            let _ = self.out.events.send(self.status());
+        }
+    }
+}
