@@ -1,1 +1,149 @@
+//! Harness for the end-to-end tests: the real `meshless-server` binary on
+//! free loopback ports, and timeouts around every wait.
 
+use anyhow::{Context, Result, bail};
+use meshless_client::Client;
+use std::future::Future;
+use std::path::PathBuf;
+use std::process::{ExitStatus, Stdio};
+use std::time::Duration;
+use tokio::io::{AsyncBufReadExt, BufReader};
+use tokio::process::{Child, Command};
+
+/// Upper bound on any single wait in a test.
+pub const TIMEOUT: Duration = Duration::from_secs(30);
+
+/// Awaits `future`, failing the test with `what` if it takes longer than
+/// [`TIMEOUT`].
+pub async fn within<T>(what: &str, future: impl Future<Output = T>) -> T {
+    match tokio::time::timeout(TIMEOUT, future).await {
+        Ok(value) => value,
+        Err(_) => panic!("timed out after {TIMEOUT:?} waiting for {what}"),
+    }
+}
+
+/// A small fluid scene (125 particles) as TOML, frames every step.
+pub fn small_scene() -> String {
+    r#"
+name = "small tank"
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [0.5, 0.5, 0.5]
+[time]
+dt = 0.01
+[output]
+fields = ["velocity", "density"]
+frame_every = 1
+[[systems]]
+kind = "fluid"
+spacing = 0.04
+stiffness = 2.0e4
+[[systems.blocks]]
+region = { min = [0.0, 0.0, 0.0], max = [0.2, 0.2, 0.2] }
+"#
+    .to_owned()
+}
+
+/// Where cargo put the `meshless-server` binary: `$MESHLESS_SERVER_BIN`,
+/// or beside this test executable's `deps/` folder.
+fn server_binary() -> Result<PathBuf> {
+    if let Some(path) = std::env::var_os("MESHLESS_SERVER_BIN") {
+        return Ok(path.into());
+    }
+    let exe = std::env::current_exe()?;
+    let profile_dir = exe
+        .parent()
+        .and_then(|deps| deps.parent())
+        .context("test executable has no target folder")?;
+    let binary = profile_dir.join(format!("meshless-server{}", std::env::consts::EXE_SUFFIX));
+    if !binary.exists() {
+        bail!(
+            "{} does not exist: build it first with `cargo build -p meshless-server` \
+             (scripts/test does), or set MESHLESS_SERVER_BIN",
+            binary.display()
+        );
+    }
+    Ok(binary)
+}
+
+/// A `meshless-server` child process, killed when dropped.
+#[derive(Debug)]
+pub struct ServerProcess {
+    child: Child,
+    /// `http://127.0.0.1:PORT`.
+    pub grpc_url: String,
+    /// The zenoh endpoints it listens on.
+    pub zenoh: Vec<String>,
+}
+
+impl ServerProcess {
+    /// Starts the server on free ports with extra flags, and waits for its
+    /// ready line.
+    ///
+    /// # Errors
+    /// When the binary is missing or the server does not come up.
+    pub async fn spawn(extra_args: &[&str]) -> Result<Self> {
+        let mut child = Command::new(server_binary()?)
+            .args(["--grpc-addr", "127.0.0.1:0", "--zenoh-listen", "tcp/127.0.0.1:0"])
+            .args(extra_args)
+            .env("MESHLESS_LOG", "warn")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .kill_on_drop(true)
+            .spawn()
+            .context("cannot start meshless-server")?;
+        let stdout = child.stdout.take().context("no stdout")?;
+        let mut lines = BufReader::new(stdout).lines();
+        let ready = tokio::time::timeout(TIMEOUT, async {
+            while let Some(line) = lines.next_line().await? {
+                if let Some(rest) = line.strip_prefix("meshless-server ready ") {
+                    return Ok::<_, std::io::Error>(Some(rest.to_owned()));
+                }
+            }
+            Ok(None)
+        })
+        .await
+        .context("the server did not print its ready line in time")??
+        .context("the server exited before it was ready")?;
+        // Keep draining stdout so the child never blocks on a full pipe.
+        tokio::spawn(async move { while let Ok(Some(_)) = lines.next_line().await {} });
+        let mut grpc_url = None;
+        let mut zenoh = Vec::new();
+        for part in ready.split_whitespace() {
+            if let Some(addr) = part.strip_prefix("grpc=") {
+                grpc_url = Some(format!("http://{addr}"));
+            } else if let Some(endpoints) = part.strip_prefix("zenoh=") {
+                zenoh = endpoints.split(',').map(str::to_owned).collect();
+            }
+        }
+        Ok(Self {
+            child,
+            grpc_url: grpc_url.context("ready line without grpc=")?,
+            zenoh,
+        })
+    }
+
+    /// A gRPC client of this server.
+    ///
+    /// # Errors
+    /// When the connection fails.
+    pub async fn client(&self) -> Result<Client> {
+        Ok(within("gRPC connect", Client::connect(&self.grpc_url)).await?)
+    }
+
+    /// Sends SIGTERM and waits for the process to exit.
+    ///
+    /// # Errors
+    /// When the signal cannot be sent or the process does not exit.
+    pub async fn terminate(mut self) -> Result<ExitStatus> {
+        let pid = self.child.id().context("the server already exited")?;
+        let sent = Command::new("kill")
+            .args(["-TERM", &pid.to_string()])
+            .status()
+            .await?;
+        if !sent.success() {
+            bail!("kill -TERM {pid} failed");
+        }
+        Ok(within("server exit after SIGTERM", self.child.wait()).await?)
+    }
+}
