@@ -164,7 +164,9 @@ impl World {
 
     /// Whether the current step is one the scene publishes a frame for.
     pub fn is_frame_step(&self) -> bool {
-        self.clock.step % u64::from(self.scene.output.frame_every) == 0
+        self.clock
+            .step
+            .is_multiple_of(u64::from(self.scene.output.frame_every))
     }
 
     /// The fields each frame carries, positions first.

@@ -84,7 +84,12 @@ impl ServerProcess {
     /// When the binary is missing or the server does not come up.
     pub async fn spawn(extra_args: &[&str]) -> Result<Self> {
         let mut child = Command::new(server_binary()?)
-            .args(["--grpc-addr", "127.0.0.1:0", "--zenoh-listen", "tcp/127.0.0.1:0"])
+            .args([
+                "--grpc-addr",
+                "127.0.0.1:0",
+                "--zenoh-listen",
+                "tcp/127.0.0.1:0",
+            ])
             .args(extra_args)
             .env("MESHLESS_LOG", "warn")
             .stdout(Stdio::piped())

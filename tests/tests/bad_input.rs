@@ -11,10 +11,16 @@ fn expect_code(result: Result<v1::Session, ClientError>, code: Code, mentions: &
         Ok(session) => panic!("expected {code:?} mentioning {mentions:?}, got {session:?}"),
         Err(err) => {
             assert_eq!(err.code(), Some(code), "{err}");
-            assert!(err.to_string().contains(mentions), "{err:?} should mention {mentions:?}");
+            assert!(
+                err.to_string().contains(mentions),
+                "{err:?} should mention {mentions:?}"
+            );
         }
     }
 }
+
+/// Makes one field of a valid scene invalid.
+type Breaker = Box<dyn Fn(&mut v1::SceneSpec)>;
 
 fn state(session: &v1::Session) -> v1::SessionState {
     v1::SessionState::try_from(session.status.as_ref().expect("status").state).expect("known")
@@ -22,8 +28,12 @@ fn state(session: &v1::Session) -> v1::SessionState {
 
 /// The small scene as a proto message, via the server's own echo.
 async fn small_spec(client: &Client) -> v1::SceneSpec {
-    let session = within("create", client.create_session_toml(&small_scene())).await.expect("ok");
-    within("delete", client.delete_session(&session.id)).await.expect("deleted");
+    let session = within("create", client.create_session_toml(&small_scene()))
+        .await
+        .expect("ok");
+    within("delete", client.delete_session(&session.id))
+        .await
+        .expect("deleted");
     session.scene.expect("scene echo")
 }
 
@@ -43,19 +53,38 @@ async fn bad_input_gets_the_right_code_and_loses_nothing() {
     let spec = small_spec(&client).await;
 
     // A healthy session runs (paced to real time) through everything below.
-    let healthy = within("create", client.create_session(spec.clone())).await.expect("ok");
-    within("run", client.run_forever(&healthy.id, Some(1.0))).await.expect("runs");
+    let healthy = within("create", client.create_session(spec.clone()))
+        .await
+        .expect("ok");
+    within("run", client.run_forever(&healthy.id, Some(1.0)))
+        .await
+        .expect("runs");
 
     // Invalid scenes: INVALID_ARGUMENT naming the field and the range.
-    let cases: Vec<(&str, Box<dyn Fn(&mut v1::SceneSpec)>)> = vec![
+    let cases: Vec<(&str, Breaker)> = vec![
         ("systems[0].spacing", Box::new(|s| fluid(s).spacing = -0.1)),
-        ("systems[0].support_radius", Box::new(|s| fluid(s).support_radius = Some(0.0))),
-        ("systems[0].stiffness", Box::new(|s| fluid(s).stiffness = f64::NAN)),
-        ("gravity.y", Box::new(|s| s.gravity.as_mut().expect("g").y = f64::INFINITY)),
-        ("domain", Box::new(|s| s.domain.as_mut().expect("d").max.as_mut().expect("max").x = 0.0)),
+        (
+            "systems[0].support_radius",
+            Box::new(|s| fluid(s).support_radius = Some(0.0)),
+        ),
+        (
+            "systems[0].stiffness",
+            Box::new(|s| fluid(s).stiffness = f64::NAN),
+        ),
+        (
+            "gravity.y",
+            Box::new(|s| s.gravity.as_mut().expect("g").y = f64::INFINITY),
+        ),
+        (
+            "domain",
+            Box::new(|s| s.domain.as_mut().expect("d").max.as_mut().expect("max").x = 0.0),
+        ),
         ("systems[0].kind", Box::new(|s| s.systems[0].kind = None)),
         ("time", Box::new(|s| s.time = None)),
-        ("output.fields[2]", Box::new(|s| s.output.as_mut().expect("o").fields.push(42))),
+        (
+            "output.fields[2]",
+            Box::new(|s| s.output.as_mut().expect("o").fields.push(42)),
+        ),
     ];
     for (field, break_it) in cases {
         let mut bad = spec.clone();
@@ -84,19 +113,46 @@ async fn bad_input_gets_the_right_code_and_loses_nothing() {
     );
 
     // Unknown ids: NOT_FOUND, for every call that takes one.
-    expect_code(within("get", client.get_session("nope")).await, Code::NotFound, "nope");
-    expect_code(within("step", client.step("nope", 1)).await, Code::NotFound, "nope");
-    expect_code(within("reset", client.reset("nope")).await, Code::NotFound, "nope");
-    let err = within("delete", client.delete_session("nope")).await.expect_err("unknown");
+    expect_code(
+        within("get", client.get_session("nope")).await,
+        Code::NotFound,
+        "nope",
+    );
+    expect_code(
+        within("step", client.step("nope", 1)).await,
+        Code::NotFound,
+        "nope",
+    );
+    expect_code(
+        within("reset", client.reset("nope")).await,
+        Code::NotFound,
+        "nope",
+    );
+    let err = within("delete", client.delete_session("nope"))
+        .await
+        .expect_err("unknown");
     assert_eq!(err.code(), Some(Code::NotFound));
-    let err = within("watch", client.watch_status("nope")).await.err().expect("unknown");
+    let err = within("watch", client.watch_status("nope"))
+        .await
+        .err()
+        .expect("unknown");
     assert_eq!(err.code(), Some(Code::NotFound));
 
     // Bad commands on a good session leave it unchanged.
-    let other = within("create", client.create_session(spec.clone())).await.expect("ok");
-    within("step", client.step(&other.id, 2)).await.expect("steps");
-    let before = within("get", client.get_session(&other.id)).await.expect("ok");
-    expect_code(within("0 steps", client.step(&other.id, 0)).await, Code::InvalidArgument, "steps");
+    let other = within("create", client.create_session(spec.clone()))
+        .await
+        .expect("ok");
+    within("step", client.step(&other.id, 2))
+        .await
+        .expect("steps");
+    let before = within("get", client.get_session(&other.id))
+        .await
+        .expect("ok");
+    expect_code(
+        within("0 steps", client.step(&other.id, 0)).await,
+        Code::InvalidArgument,
+        "steps",
+    );
     expect_code(
         within("past time", client.run_until(&other.id, 0.01, None)).await,
         Code::InvalidArgument,
@@ -112,7 +168,9 @@ async fn bad_input_gets_the_right_code_and_loses_nothing() {
         Code::FailedPrecondition,
         "resume",
     );
-    let after = within("get", client.get_session(&other.id)).await.expect("ok");
+    let after = within("get", client.get_session(&other.id))
+        .await
+        .expect("ok");
     assert_eq!(before, after, "rejected requests changed the session");
 
     // A running session refuses a step.
@@ -127,25 +185,43 @@ async fn bad_input_gets_the_right_code_and_loses_nothing() {
     let mut unstable = spec.clone();
     fluid(&mut unstable).stiffness = 1e12;
     unstable.time.as_mut().expect("time").max_substeps = Some(1);
-    let doomed = within("create", client.create_session(unstable)).await.expect("valid");
-    let faulted = within("step to blow-up", client.step(&doomed.id, 200)).await.expect("answers");
+    let doomed = within("create", client.create_session(unstable))
+        .await
+        .expect("valid");
+    let faulted = within("step to blow-up", client.step(&doomed.id, 200))
+        .await
+        .expect("answers");
     assert_eq!(state(&faulted), v1::SessionState::Faulted);
     let reason = &faulted.status.as_ref().expect("status").reason;
     assert!(reason.contains("unstable"), "{reason}");
-    let kept = within("latest", client.latest_frame(&doomed.id)).await.expect("frame");
-    assert!(kept.fields.iter().all(|f| f.values.iter().all(|v| v.is_finite())));
-    expect_code(within("step faulted", client.step(&doomed.id, 1)).await, Code::FailedPrecondition, "faulted");
+    let kept = within("latest", client.latest_frame(&doomed.id))
+        .await
+        .expect("frame");
+    assert!(
+        kept.fields
+            .iter()
+            .all(|f| f.values.iter().all(|v| v.is_finite()))
+    );
+    expect_code(
+        within("step faulted", client.step(&doomed.id, 1)).await,
+        Code::FailedPrecondition,
+        "faulted",
+    );
     expect_code(
         within("run faulted", client.run_until(&doomed.id, 5.0, None)).await,
         Code::FailedPrecondition,
         "faulted",
     );
-    let reset = within("reset", client.reset(&doomed.id)).await.expect("reset");
+    let reset = within("reset", client.reset(&doomed.id))
+        .await
+        .expect("reset");
     assert_eq!(state(&reset), v1::SessionState::Idle);
 
     // Four sessions exist (healthy, other, doomed, plus none deleted): the
     // fifth is refused at the session limit.
-    within("fourth", client.create_session(spec.clone())).await.expect("room for 4");
+    within("fourth", client.create_session(spec.clone()))
+        .await
+        .expect("room for 4");
     expect_code(
         within("fifth", client.create_session(spec.clone())).await,
         Code::ResourceExhausted,
@@ -153,11 +229,17 @@ async fn bad_input_gets_the_right_code_and_loses_nothing() {
     );
 
     // Through all of it the healthy session kept running.
-    let healthy_now = within("get", client.get_session(&healthy.id)).await.expect("ok");
+    let healthy_now = within("get", client.get_session(&healthy.id))
+        .await
+        .expect("ok");
     assert_eq!(state(&healthy_now), v1::SessionState::Running);
     let step = healthy_now.status.as_ref().expect("status").step;
-    let paused = within("pause", client.pause(&healthy.id)).await.expect("pauses");
+    let paused = within("pause", client.pause(&healthy.id))
+        .await
+        .expect("pauses");
     assert_eq!(state(&paused), v1::SessionState::Paused);
-    let stepped = within("step", client.step(&healthy.id, 1)).await.expect("steps");
+    let stepped = within("step", client.step(&healthy.id, 1))
+        .await
+        .expect("steps");
     assert!(stepped.status.as_ref().expect("status").step > step);
 }

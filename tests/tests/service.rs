@@ -16,7 +16,12 @@ fn session_state(session: &v1::Session) -> v1::SessionState {
 
 /// Receives frames until one with `step`, checking that every frame in
 /// between arrives in order and has the session's particle count.
-async fn frames_until(frames: &meshless_client::Frames, first: u64, last: u64, particles: usize) -> FrameView {
+async fn frames_until(
+    frames: &meshless_client::Frames,
+    first: u64,
+    last: u64,
+    particles: usize,
+) -> FrameView {
     let mut expected = first;
     loop {
         let frame = within(&format!("frame of step {expected}"), frames.recv())
@@ -27,7 +32,9 @@ async fn frames_until(frames: &meshless_client::Frames, first: u64, last: u64, p
         let positions = frame.field(v1::FieldKind::Position).expect("positions");
         assert_eq!(positions.values.len(), 3 * particles);
         assert!(positions.values.iter().all(|v| v.is_finite()));
-        let density = frame.field(v1::FieldKind::Density).expect("requested density");
+        let density = frame
+            .field(v1::FieldKind::Density)
+            .expect("requested density");
         assert_eq!(density.values.len(), particles);
         if frame.step == last {
             return frame;
@@ -44,7 +51,9 @@ async fn frames_until(frames: &meshless_client::Frames, first: u64, last: u64, p
 async fn a_session_lives_steps_streams_and_closes() {
     let server = ServerProcess::spawn(&[]).await.expect("server starts");
     let client = server.client().await.expect("client");
-    let info = within("server info", client.server_info()).await.expect("info");
+    let info = within("server info", client.server_info())
+        .await
+        .expect("info");
     assert_eq!(info.zenoh_locators, server.zenoh);
 
     let session = within("create", client.create_session_toml(&small_scene()))
@@ -54,15 +63,27 @@ async fn a_session_lives_steps_streams_and_closes() {
     let particles = session.particle_count as usize;
     assert_eq!(particles, 125);
     assert_eq!(session_state(&session), v1::SessionState::Idle);
-    assert_eq!(session.zenoh_key_prefix, format!("meshless/v1/sessions/{id}"));
+    assert_eq!(
+        session.zenoh_key_prefix,
+        format!("meshless/v1/sessions/{id}")
+    );
 
     let link = within("zenoh connect", ZenohLink::connect(&info.zenoh_locators))
         .await
         .expect("zenoh link");
-    let frames = within("frame subscription", link.frames(&id)).await.expect("frames");
-    let statuses = within("status subscription", link.statuses(&id)).await.expect("statuses");
-    let mut watch = within("watch", client.watch_status(&id)).await.expect("watch");
-    let first = within("first status", watch.next()).await.expect("an item").expect("ok");
+    let frames = within("frame subscription", link.frames(&id))
+        .await
+        .expect("frames");
+    let statuses = within("status subscription", link.statuses(&id))
+        .await
+        .expect("statuses");
+    let mut watch = within("watch", client.watch_status(&id))
+        .await
+        .expect("watch");
+    let first = within("first status", watch.next())
+        .await
+        .expect("an item")
+        .expect("ok");
     assert_eq!(state(&first), v1::SessionState::Idle);
 
     // Step: five frames, steps 1..=5, then the state becomes PAUSED.
@@ -70,17 +91,29 @@ async fn a_session_lives_steps_streams_and_closes() {
     assert_eq!(stepped.status.as_ref().expect("status").step, 5);
     assert_eq!(session_state(&stepped), v1::SessionState::Paused);
     frames_until(&frames, 1, 5, particles).await;
-    let paused = within("zenoh status", statuses.recv()).await.expect("status");
+    let paused = within("zenoh status", statuses.recv())
+        .await
+        .expect("status");
     assert_eq!((state(&paused), paused.step), (v1::SessionState::Paused, 5));
-    let watched = within("watched status", watch.next()).await.expect("an item").expect("ok");
+    let watched = within("watched status", watch.next())
+        .await
+        .expect("an item")
+        .expect("ok");
     assert_eq!(state(&watched), v1::SessionState::Paused);
 
     // Run to 0.1 s (step 10): RUNNING, then FINISHED, on both channels.
-    within("run", client.run_until(&id, 0.1, None)).await.expect("run");
+    within("run", client.run_until(&id, 0.1, None))
+        .await
+        .expect("run");
     for expected in [v1::SessionState::Running, v1::SessionState::Finished] {
-        let s = within("watched transition", watch.next()).await.expect("item").expect("ok");
+        let s = within("watched transition", watch.next())
+            .await
+            .expect("item")
+            .expect("ok");
         assert_eq!(state(&s), expected, "gRPC watch: {s:?}");
-        let z = within("zenoh transition", statuses.recv()).await.expect("status");
+        let z = within("zenoh transition", statuses.recv())
+            .await
+            .expect("status");
         assert_eq!(state(&z), expected, "zenoh status: {z:?}");
     }
     let last = frames_until(&frames, 6, 10, particles).await;
@@ -92,29 +125,46 @@ async fn a_session_lives_steps_streams_and_closes() {
         .expect("query")
         .expect("a reply");
     assert_eq!(latest, last);
-    let over_grpc = within("latest over gRPC", client.latest_frame(&id)).await.expect("frame");
+    let over_grpc = within("latest over gRPC", client.latest_frame(&id))
+        .await
+        .expect("frame");
     assert_eq!(over_grpc, last);
 
     // Reset: back to step 0, IDLE, and a fresh frame 0 is published.
     let reset = within("reset", client.reset(&id)).await.expect("reset");
     assert_eq!(session_state(&reset), v1::SessionState::Idle);
     assert_eq!(reset.status.as_ref().expect("status").step, 0);
-    let zero = within("frame after reset", frames.recv()).await.expect("frame");
+    let zero = within("frame after reset", frames.recv())
+        .await
+        .expect("frame");
     assert_eq!(zero.step, 0);
-    let idle = within("watched reset", watch.next()).await.expect("item").expect("ok");
+    let idle = within("watched reset", watch.next())
+        .await
+        .expect("item")
+        .expect("ok");
     assert_eq!(state(&idle), v1::SessionState::Idle);
 
     // Delete: watchers see CLOSED and their stream ends; the id is gone.
-    within("delete", client.delete_session(&id)).await.expect("delete");
-    let closed = within("closing status", watch.next()).await.expect("item").expect("ok");
+    within("delete", client.delete_session(&id))
+        .await
+        .expect("delete");
+    let closed = within("closing status", watch.next())
+        .await
+        .expect("item")
+        .expect("ok");
     assert_eq!(state(&closed), v1::SessionState::Closed);
     assert!(within("end of watch", watch.next()).await.is_none());
-    let gone = within("get deleted", client.get_session(&id)).await.expect_err("deleted");
+    let gone = within("get deleted", client.get_session(&id))
+        .await
+        .expect_err("deleted");
     assert_eq!(gone.code(), Some(tonic::Code::NotFound));
 
     link.close().await;
     let exit = server.terminate().await.expect("terminates");
-    assert!(exit.success(), "the server exits cleanly on SIGTERM: {exit:?}");
+    assert!(
+        exit.success(),
+        "the server exits cleanly on SIGTERM: {exit:?}"
+    );
 }
 
 /// Sessions are listed oldest first and each keeps its own clock.
@@ -122,8 +172,12 @@ async fn a_session_lives_steps_streams_and_closes() {
 async fn sessions_are_independent_and_listed() {
     let server = ServerProcess::spawn(&[]).await.expect("server starts");
     let client = server.client().await.expect("client");
-    let a = within("create a", client.create_session_toml(&small_scene())).await.expect("a");
-    let b = within("create b", client.create_session_toml(&small_scene())).await.expect("b");
+    let a = within("create a", client.create_session_toml(&small_scene()))
+        .await
+        .expect("a");
+    let b = within("create b", client.create_session_toml(&small_scene()))
+        .await
+        .expect("b");
     within("step a", client.step(&a.id, 3)).await.expect("step");
     let listed = within("list", client.list_sessions()).await.expect("list");
     let ids: Vec<_> = listed.iter().map(|s| s.id.as_str()).collect();

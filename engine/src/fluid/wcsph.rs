@@ -257,8 +257,9 @@ impl Fluid {
     /// unstable run shows before it overflows).
     pub fn first_invalid(&self) -> Option<Invalid> {
         const MAX: Real = f32::MAX as Real;
-        let bad_vector = |v: &Vector| !v.iter().all(|c| c.abs() < MAX);
-        let bad_scalar = |s: &Real| !(s.abs() < MAX);
+        let bad_vector = |v: &Vector| v.iter().any(|c| !c.is_finite() || c.abs() >= MAX);
+        // NaN fails `is_finite`; infinities and huge values fail the bound.
+        let bad_scalar = |s: &Real| !s.is_finite() || s.abs() >= MAX;
         let max_speed = Self::SPEED_LIMIT * self.params.eos.sound_speed();
         let found = |quantity, i: Option<usize>, value: Real| {
             i.map(|particle| Invalid {

@@ -45,7 +45,7 @@ impl UniformGrid {
         let extent = max - min;
         let per_axis = extent.map(|e| (e / cell_size).ceil().max(1.0));
         let cells = per_axis.x * per_axis.y * per_axis.z;
-        if !(cells <= Self::MAX_CELLS as f64) {
+        if cells.is_nan() || cells > Self::MAX_CELLS as f64 {
             return Err(GridError {
                 cells,
                 cell_size,

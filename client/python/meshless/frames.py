@@ -1,0 +1,67 @@
+"""Frames: the protocol's packed little-endian fields as numpy arrays."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+KEY_ROOT = "meshless/v1/sessions"
+
+
+def frames_key(session_id: str) -> str:
+    """Zenoh key on which a session's frames are put."""
+    return f"{KEY_ROOT}/{session_id}/frames"
+
+
+def status_key(session_id: str) -> str:
+    """Zenoh key on which a session's status changes are put."""
+    return f"{KEY_ROOT}/{session_id}/status"
+
+
+def latest_key(session_id: str) -> str:
+    """Zenoh queryable answering with a session's latest frame."""
+    return f"{KEY_ROOT}/{session_id}/latest"
+
+
+@dataclass
+class Frame:
+    """A decoded frame: header values and one ``(n, components)`` array per field."""
+
+    session_id: str
+    step: int
+    time: float
+    particle_count: int
+    substeps: int
+    fields: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+def decode_frame(data: bytes) -> Frame:
+    """Decodes an encoded ``meshless.v1.Frame``.
+
+    Raises ``ValueError`` when a field's size does not match the particle
+    count or its scalar type is not f32.
+    """
+    from .v1 import frame_pb2, scene_pb2
+
+    message = frame_pb2.Frame.FromString(data)
+    header = message.header
+    n = header.particle_count
+    fields = {}
+    for f in message.fields:
+        name = scene_pb2.FieldKind.Name(f.kind).removeprefix("FIELD_KIND_").lower()
+        if f.scalar != frame_pb2.SCALAR_TYPE_F32:
+            raise ValueError(f"field {name}: scalar type {f.scalar}, expected f32")
+        if len(f.data) != 4 * f.components * n:
+            raise ValueError(
+                f"field {name}: {len(f.data)} bytes, expected {4 * f.components * n}"
+            )
+        fields[name] = np.frombuffer(f.data, dtype="<f4").reshape(n, f.components)
+    return Frame(
+        session_id=header.session_id,
+        step=header.step,
+        time=header.time,
+        particle_count=n,
+        substeps=header.substeps,
+        fields=fields,
+    )

@@ -1,0 +1,61 @@
+"""Starts the real meshless-server binary on free loopback ports."""
+
+from __future__ import annotations
+
+import os
+import queue
+import subprocess
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+TIMEOUT = 30.0
+
+
+@dataclass
+class Server:
+    grpc_target: str
+    zenoh_endpoints: list[str]
+
+
+def _server_binary() -> str:
+    path = os.environ.get("MESHLESS_SERVER_BIN")
+    if path:
+        return path
+    root = Path(__file__).resolve().parents[3]
+    return str(root / "target" / "debug" / "meshless-server")
+
+
+@pytest.fixture()
+def server():
+    binary = _server_binary()
+    if not Path(binary).exists():
+        raise FileNotFoundError(
+            f"{binary} is missing: run `cargo build -p meshless-server` or set MESHLESS_SERVER_BIN"
+        )
+    process = subprocess.Popen(
+        [binary, "--grpc-addr", "127.0.0.1:0", "--zenoh-listen", "tcp/127.0.0.1:0"],
+        stdout=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MESHLESS_LOG": "warn"},
+    )
+    lines: queue.Queue[str] = queue.Queue()
+
+    def pump() -> None:
+        assert process.stdout is not None
+        for line in process.stdout:
+            lines.put(line)
+
+    threading.Thread(target=pump, daemon=True).start()
+    try:
+        while True:
+            line = lines.get(timeout=TIMEOUT)
+            if line.startswith("meshless-server ready "):
+                break
+        parts = dict(p.split("=", 1) for p in line.split()[2:])
+        yield Server(grpc_target=parts["grpc"], zenoh_endpoints=parts["zenoh"].split(","))
+    finally:
+        process.terminate()
+        assert process.wait(timeout=TIMEOUT) == 0, "the server exits cleanly on SIGTERM"
