@@ -26,10 +26,21 @@ impl Client {
     /// # Errors
     /// [`ClientError::Connect`] when the URL is malformed or unreachable.
     pub async fn connect(url: &str) -> Result<Self> {
-        let connect_error = |e: tonic::transport::Error| ClientError::Connect {
-            url: url.to_owned(),
-            message: std::error::Error::source(&e)
-                .map_or_else(|| e.to_string(), |s| format!("{e}: {s}")),
+        let connect_error = |e: tonic::transport::Error| {
+            // The useful part ("Connection refused") sits deep in the chain.
+            let mut message = e.to_string();
+            let mut source = std::error::Error::source(&e);
+            while let Some(cause) = source {
+                let cause_text = cause.to_string();
+                if !message.ends_with(&cause_text) {
+                    message = format!("{message}: {cause_text}");
+                }
+                source = cause.source();
+            }
+            ClientError::Connect {
+                url: url.to_owned(),
+                message,
+            }
         };
         let channel = Endpoint::from_shared(url.to_owned())
             .map_err(connect_error)?

@@ -44,22 +44,22 @@ region = { min = [0.0, 0.0, 0.0], max = [0.2, 0.2, 0.2] }
     .to_owned()
 }
 
-/// Where cargo put the `meshless-server` binary: `$MESHLESS_SERVER_BIN`,
-/// or beside this test executable's `deps/` folder.
-fn server_binary() -> Result<PathBuf> {
-    if let Some(path) = std::env::var_os("MESHLESS_SERVER_BIN") {
-        return Ok(path.into());
-    }
+/// Where cargo put one of the workspace's binaries (`meshless-server`,
+/// `meshless`): beside this test executable's `deps/` folder.
+///
+/// # Errors
+/// When the binary has not been built.
+pub fn binary(name: &str) -> Result<PathBuf> {
     let exe = std::env::current_exe()?;
     let profile_dir = exe
         .parent()
         .and_then(|deps| deps.parent())
         .context("test executable has no target folder")?;
-    let binary = profile_dir.join(format!("meshless-server{}", std::env::consts::EXE_SUFFIX));
+    let binary = profile_dir.join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
     if !binary.exists() {
         bail!(
-            "{} does not exist: build it first with `cargo build -p meshless-server` \
-             (scripts/test does), or set MESHLESS_SERVER_BIN",
+            "{} does not exist: build the binaries first with `cargo build --workspace --bins` \
+             (scripts/test does)",
             binary.display()
         );
     }
@@ -83,7 +83,7 @@ impl ServerProcess {
     /// # Errors
     /// When the binary is missing or the server does not come up.
     pub async fn spawn(extra_args: &[&str]) -> Result<Self> {
-        let mut child = Command::new(server_binary()?)
+        let mut child = Command::new(binary("meshless-server")?)
             .args([
                 "--grpc-addr",
                 "127.0.0.1:0",

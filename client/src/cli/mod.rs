@@ -59,6 +59,7 @@ pub struct ServerArg {
     /// gRPC URL of the meshless server.
     #[arg(
         long,
+        global = true,
         env = "MESHLESS_SERVER",
         default_value = "http://127.0.0.1:50051"
     )]

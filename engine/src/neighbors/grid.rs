@@ -17,20 +17,48 @@ pub struct GridError {
     pub limit: usize,
 }
 
-/// Particles bucketed by grid cell. Particles outside the box are clamped
-/// into its border cells, which keeps queries exact: clamping never
-/// separates two cells by more than it separated the unclamped ones.
-#[derive(Debug, Clone)]
-pub struct UniformGrid {
+/// The geometry of the grid: where cell (0, 0, 0) starts, the cell size
+/// and the cell counts. Particles outside the box are clamped into its
+/// border cells, which keeps queries exact: clamping never separates two
+/// cells by more than it separated the unclamped ones.
+#[derive(Debug, Clone, Copy)]
+struct Lattice {
     origin: Vector,
     inv_cell: Real,
     dims: [usize; 3],
+}
+
+impl Lattice {
+    /// Integer cell coordinates of a point, clamped into the grid.
+    #[inline]
+    fn coords(&self, p: &Vector) -> [usize; 3] {
+        let mut c = [0usize; 3];
+        for axis in 0..3 {
+            let f = ((p[axis] - self.origin[axis]) * self.inv_cell).floor();
+            // NaN and negative values clamp to 0 (`as` saturates).
+            c[axis] = (f.max(0.0) as usize).min(self.dims[axis] - 1);
+        }
+        c
+    }
+
+    #[inline]
+    fn linear(&self, c: [usize; 3]) -> usize {
+        (c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]
+    }
+}
+
+/// Particles bucketed by grid cell.
+#[derive(Debug, Clone)]
+pub struct UniformGrid {
+    lattice: Lattice,
     /// `cell_start[c]..cell_start[c + 1]` indexes `sorted` for cell `c`.
     cell_start: Vec<u32>,
     /// Particle indices ordered by cell, stable within a cell.
     sorted: Vec<u32>,
     /// Linear cell index of each particle.
     cell_of: Vec<u32>,
+    /// Scratch of the counting sort: next free slot per cell.
+    cursor: Vec<u32>,
 }
 
 impl UniformGrid {
@@ -57,43 +85,28 @@ impl UniformGrid {
             per_axis.y as usize,
             per_axis.z as usize,
         ];
+        let count = dims[0] * dims[1] * dims[2];
         Ok(Self {
-            origin: min,
-            inv_cell: 1.0 / cell_size,
-            dims,
-            cell_start: vec![0; dims[0] * dims[1] * dims[2] + 1],
+            lattice: Lattice {
+                origin: min,
+                inv_cell: 1.0 / cell_size,
+                dims,
+            },
+            cell_start: vec![0; count + 1],
             sorted: Vec::new(),
             cell_of: Vec::new(),
+            cursor: vec![0; count + 1],
         })
-    }
-
-    /// Integer cell coordinates of a point, clamped into the grid.
-    #[inline]
-    fn cell_coords(&self, p: &Vector) -> [usize; 3] {
-        let mut c = [0usize; 3];
-        for axis in 0..3 {
-            let f = ((p[axis] - self.origin[axis]) * self.inv_cell).floor();
-            // NaN and negative values clamp to 0 (`as` saturates).
-            c[axis] = (f.max(0.0) as usize).min(self.dims[axis] - 1);
-        }
-        c
-    }
-
-    #[inline]
-    fn linear(&self, c: [usize; 3]) -> usize {
-        (c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]
     }
 
     /// Buckets `positions` by cell (counting sort). Reuses its buffers.
     pub fn rebuild(&mut self, positions: &[Vector]) {
-        let n = positions.len();
-        self.cell_of.resize(n, 0);
-        let this = &*self;
-        let cells: Vec<u32> = positions
-            .par_iter()
-            .map(|p| this.linear(this.cell_coords(p)) as u32)
-            .collect();
-        self.cell_of.copy_from_slice(&cells);
+        let lattice = self.lattice;
+        self.cell_of.resize(positions.len(), 0);
+        self.cell_of
+            .par_iter_mut()
+            .zip(positions.par_iter())
+            .for_each(|(cell, p)| *cell = lattice.linear(lattice.coords(p)) as u32);
         self.cell_start.fill(0);
         for &c in &self.cell_of {
             self.cell_start[c as usize + 1] += 1;
@@ -101,10 +114,10 @@ impl UniformGrid {
         for c in 1..self.cell_start.len() {
             self.cell_start[c] += self.cell_start[c - 1];
         }
-        self.sorted.resize(n, 0);
-        let mut cursor = self.cell_start.clone();
+        self.sorted.resize(positions.len(), 0);
+        self.cursor.copy_from_slice(&self.cell_start);
         for (i, &c) in self.cell_of.iter().enumerate() {
-            let slot = &mut cursor[c as usize];
+            let slot = &mut self.cursor[c as usize];
             self.sorted[*slot as usize] = i as u32;
             *slot += 1;
         }
@@ -115,12 +128,13 @@ impl UniformGrid {
     /// distance.
     #[inline]
     pub fn for_each_candidate(&self, p: &Vector, mut visit: impl FnMut(u32)) {
-        let c = self.cell_coords(p);
+        let lattice = &self.lattice;
+        let c = lattice.coords(p);
         let lo = |a: usize| c[a].saturating_sub(1);
-        let hi = |a: usize| (c[a] + 1).min(self.dims[a] - 1);
+        let hi = |a: usize| (c[a] + 1).min(lattice.dims[a] - 1);
         for z in lo(2)..=hi(2) {
             for y in lo(1)..=hi(1) {
-                let row = self.linear([0, y, z]);
+                let row = lattice.linear([0, y, z]);
                 let start = self.cell_start[row + lo(0)] as usize;
                 let end = self.cell_start[row + hi(0) + 1] as usize;
                 // Cells along x are contiguous: one run covers all three.

@@ -14,59 +14,47 @@ const CHUNK: usize = 256;
 pub struct NeighborList {
     offsets: Vec<u32>,
     indices: Vec<u32>,
+    /// Per work item: neighbour counts and indices of its particles, kept
+    /// between builds so that rebuilding does not allocate.
+    chunks: Vec<(Vec<u32>, Vec<u32>)>,
 }
 
 impl NeighborList {
     /// Rebuilds the lists for `positions` from a grid already bucketed with
-    /// the same positions. Runs in parallel; the result does not depend on
-    /// the thread count.
+    /// the same positions, in one pass over the candidates. Runs in
+    /// parallel; the result does not depend on the thread count.
     pub fn build(&mut self, grid: &UniformGrid, positions: &[Vector], radius: Real) {
         let n = positions.len();
         let r2 = radius * radius;
-        let count = |i: usize| {
-            let mut k = 0u32;
-            let xi = positions[i];
-            grid.for_each_candidate(&xi, |j| {
-                if (positions[j as usize] - xi).norm_squared() < r2 {
-                    k += 1;
-                }
-            });
-            k
-        };
-        self.offsets.resize(n + 1, 0);
-        self.offsets[0] = 0;
-        self.offsets[1..]
+        self.chunks.resize_with(n.div_ceil(CHUNK), Default::default);
+        self.chunks
             .par_iter_mut()
             .enumerate()
-            .for_each(|(i, slot)| *slot = count(i));
-        for i in 1..=n {
-            self.offsets[i] += self.offsets[i - 1];
-        }
-        self.indices.resize(self.offsets[n] as usize, 0);
-
-        // Split the index array at chunk boundaries so each worker fills its
-        // own contiguous range.
-        let mut rest: &mut [u32] = &mut self.indices;
-        let mut chunks = Vec::with_capacity(n.div_ceil(CHUNK));
-        for start in (0..n).step_by(CHUNK) {
-            let end = (start + CHUNK).min(n);
-            let len = (self.offsets[end] - self.offsets[start]) as usize;
-            let (head, tail) = rest.split_at_mut(len);
-            chunks.push((start, end, head));
-            rest = tail;
-        }
-        chunks.into_par_iter().for_each(|(start, end, out)| {
-            let mut k = 0;
-            for i in start..end {
-                let xi = positions[i];
-                grid.for_each_candidate(&xi, |j| {
-                    if (positions[j as usize] - xi).norm_squared() < r2 {
-                        out[k] = j;
-                        k += 1;
-                    }
-                });
+            .for_each(|(c, (counts, found))| {
+                counts.clear();
+                found.clear();
+                for i in c * CHUNK..((c + 1) * CHUNK).min(n) {
+                    let before = found.len();
+                    let xi = positions[i];
+                    grid.for_each_candidate(&xi, |j| {
+                        if (positions[j as usize] - xi).norm_squared() < r2 {
+                            found.push(j);
+                        }
+                    });
+                    counts.push((found.len() - before) as u32);
+                }
+            });
+        self.offsets.clear();
+        self.offsets.push(0);
+        self.indices.clear();
+        let mut total = 0;
+        for (counts, found) in &self.chunks {
+            for &k in counts {
+                total += k;
+                self.offsets.push(total);
             }
-        });
+            self.indices.extend_from_slice(found);
+        }
     }
 
     /// Neighbours of particle `i`, itself included.

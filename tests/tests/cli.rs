@@ -1,0 +1,137 @@
+//! The `meshless` command line as a user runs it: an embedded run that
+//! writes files ParaView opens, session commands against a real server,
+//! and bad input that ends in a clear message and a failing exit code.
+
+use meshless_tests::{ServerProcess, binary, small_scene, within};
+use std::path::PathBuf;
+use tokio::process::Command;
+
+/// A fresh folder under the system temp dir, removed when dropped.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(name: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("meshless-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        Self(dir)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+async fn meshless(args: &[&str]) -> std::process::Output {
+    let mut command = Command::new(binary("meshless").expect("built"));
+    command.args(args).env("MESHLESS_LOG", "error");
+    within(&format!("meshless {}", args.join(" ")), command.output())
+        .await
+        .expect("runs")
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn run_writes_a_vtk_series() {
+    let dir = TempDir::new("run");
+    let scene = dir.0.join("small.toml");
+    std::fs::write(&scene, small_scene()).expect("scene file");
+    let out = dir.0.join("frames");
+    let output = meshless(&[
+        "run",
+        scene.to_str().expect("utf-8"),
+        "--until",
+        "0.05",
+        "--output",
+        out.to_str().expect("utf-8"),
+    ])
+    .await;
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(stdout.contains("particles         125"), "{stdout}");
+    let mut files: Vec<_> = std::fs::read_dir(&out)
+        .expect("output folder")
+        .map(|e| e.expect("entry").file_name().into_string().expect("utf-8"))
+        .collect();
+    files.sort();
+    let expected: Vec<_> = (0..=5).map(|s| format!("frame_{s:06}.vtk")).collect();
+    assert_eq!(files, expected);
+    let first = std::fs::read(out.join("frame_000005.vtk")).expect("frame file");
+    assert!(first.starts_with(b"# vtk DataFile Version 3.0\n"));
+    assert!(first.windows(16).any(|w| w == b"POINTS 125 float"));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_bad_scene_file_fails_with_the_field_named() {
+    let dir = TempDir::new("bad");
+    let scene = dir.0.join("bad.toml");
+    std::fs::write(
+        &scene,
+        small_scene().replace("spacing = 0.04", "spacing = 0.0"),
+    )
+    .expect("file");
+    let output = meshless(&["run", scene.to_str().expect("utf-8")]).await;
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("systems[0].spacing"), "{stderr}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn session_commands_drive_a_server() {
+    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let dir = TempDir::new("session");
+    let scene = dir.0.join("small.toml");
+    std::fs::write(&scene, small_scene()).expect("scene file");
+    let url = server.grpc_url.clone();
+    let with_server = |args: &[&str]| {
+        let mut all: Vec<String> = args.iter().map(|a| (*a).to_owned()).collect();
+        all.extend(["--server".to_owned(), url.clone()]);
+        all
+    };
+
+    let created = meshless(&[
+        "session",
+        "create",
+        scene.to_str().expect("utf-8"),
+        "--server",
+        &url,
+    ])
+    .await;
+    assert!(
+        created.status.success(),
+        "{}",
+        String::from_utf8_lossy(&created.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&created.stdout);
+    let id = stdout.split_whitespace().next().expect("an id").to_owned();
+    assert!(stdout.contains("idle at step 0"), "{stdout}");
+
+    let args = with_server(&["session", "step", &id, "-n", "4"]);
+    let stepped = meshless(&args.iter().map(String::as_str).collect::<Vec<_>>()).await;
+    assert!(stepped.status.success());
+    assert!(String::from_utf8_lossy(&stepped.stdout).contains("paused at step 4"));
+
+    let args = with_server(&["session", "list"]);
+    let listed = meshless(&args.iter().map(String::as_str).collect::<Vec<_>>()).await;
+    assert!(String::from_utf8_lossy(&listed.stdout).contains(&id));
+
+    let args = with_server(&["session", "delete", &id]);
+    let deleted = meshless(&args.iter().map(String::as_str).collect::<Vec<_>>()).await;
+    assert!(deleted.status.success());
+
+    let args = with_server(&["session", "get", &id]);
+    let missing = meshless(&args.iter().map(String::as_str).collect::<Vec<_>>()).await;
+    assert!(!missing.status.success());
+    let stderr = String::from_utf8_lossy(&missing.stderr);
+    assert!(
+        stderr.contains("NotFound")
+            || stderr.contains("not found")
+            || stderr.contains("no session"),
+        "{stderr}"
+    );
+}
