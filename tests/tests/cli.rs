@@ -4,6 +4,8 @@
 
 use meshless_tests::{ServerProcess, binary, small_scene, within};
 use std::path::PathBuf;
+use std::process::Stdio;
+use tokio::io::{AsyncBufReadExt, BufReader};
 use tokio::process::Command;
 
 /// A fresh folder under the system temp dir, removed when dropped.
@@ -134,4 +136,37 @@ async fn session_commands_drive_a_server() {
             || stderr.contains("no session"),
         "{stderr}"
     );
+}
+
+/// `meshless watch` finds the zenoh endpoint through the server, counts
+/// the frames it receives and stops after `--frames`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn watch_counts_frames_from_zenoh() {
+    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let client = server.client().await.expect("client");
+    let session = within("create", client.create_session_toml(&small_scene()))
+        .await
+        .expect("session");
+    let mut watch = Command::new(binary("meshless").expect("built"))
+        .args(["watch", &session.id, "--frames", "3", "--server", &server.grpc_url])
+        .env("MESHLESS_LOG", "error")
+        .stdout(Stdio::piped())
+        .kill_on_drop(true)
+        .spawn()
+        .expect("watch starts");
+    let mut lines = BufReader::new(watch.stdout.take().expect("stdout")).lines();
+    let first = within("watch subscribes", lines.next_line())
+        .await
+        .expect("reads")
+        .expect("a line");
+    assert!(first.starts_with("watching"), "{first}");
+    within("step", client.step(&session.id, 3)).await.expect("steps");
+    let mut rest = Vec::new();
+    while let Some(line) = within("watch output", lines.next_line()).await.expect("reads") {
+        rest.push(line);
+    }
+    let status = within("watch exits", watch.wait()).await.expect("exit status");
+    assert!(status.success());
+    let last = rest.last().expect("a summary line");
+    assert!(last.starts_with("3 frames in"), "{rest:?}");
 }
