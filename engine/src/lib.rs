@@ -16,6 +16,8 @@ pub mod math;
 pub mod neighbors;
 pub mod scene;
 pub mod stats;
+#[cfg(test)]
+mod testing;
 pub mod world;
 
 pub use frame::{FieldData, Frame};

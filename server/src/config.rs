@@ -22,6 +22,11 @@ impl ZenohMode {
     }
 }
 
+/// Default of `--max-particles`.
+pub const DEFAULT_MAX_PARTICLES: u64 = 2_000_000;
+/// Default of `--max-sessions`.
+pub const DEFAULT_MAX_SESSIONS: u32 = 64;
+
 /// Everything the server needs to start.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ServerConfig {
@@ -48,11 +53,11 @@ pub struct ServerConfig {
     pub zenoh_connect: Vec<String>,
 
     /// Largest particle count one session may create.
-    #[arg(long, env = "MESHLESS_MAX_PARTICLES", default_value_t = 2_000_000)]
+    #[arg(long, env = "MESHLESS_MAX_PARTICLES", default_value_t = DEFAULT_MAX_PARTICLES)]
     pub max_particles: u64,
 
     /// Largest number of sessions held at once.
-    #[arg(long, env = "MESHLESS_MAX_SESSIONS", default_value_t = 64)]
+    #[arg(long, env = "MESHLESS_MAX_SESSIONS", default_value_t = DEFAULT_MAX_SESSIONS)]
     pub max_sessions: u32,
 }
 
@@ -65,8 +70,8 @@ impl ServerConfig {
             zenoh_mode: ZenohMode::Peer,
             zenoh_listen: vec!["tcp/127.0.0.1:0".into()],
             zenoh_connect: Vec::new(),
-            max_particles: 2_000_000,
-            max_sessions: 64,
+            max_particles: DEFAULT_MAX_PARTICLES,
+            max_sessions: DEFAULT_MAX_SESSIONS,
         }
     }
 

@@ -148,7 +148,14 @@ async fn watch_counts_frames_from_zenoh() {
         .await
         .expect("session");
     let mut watch = Command::new(binary("meshless").expect("built"))
-        .args(["watch", &session.id, "--frames", "3", "--server", &server.grpc_url])
+        .args([
+            "watch",
+            &session.id,
+            "--frames",
+            "3",
+            "--server",
+            &server.grpc_url,
+        ])
         .env("MESHLESS_LOG", "error")
         .stdout(Stdio::piped())
         .kill_on_drop(true)
@@ -160,13 +167,57 @@ async fn watch_counts_frames_from_zenoh() {
         .expect("reads")
         .expect("a line");
     assert!(first.starts_with("watching"), "{first}");
-    within("step", client.step(&session.id, 3)).await.expect("steps");
+    within("step", client.step(&session.id, 3))
+        .await
+        .expect("steps");
     let mut rest = Vec::new();
-    while let Some(line) = within("watch output", lines.next_line()).await.expect("reads") {
+    while let Some(line) = within("watch output", lines.next_line())
+        .await
+        .expect("reads")
+    {
         rest.push(line);
     }
-    let status = within("watch exits", watch.wait()).await.expect("exit status");
+    let status = within("watch exits", watch.wait())
+        .await
+        .expect("exit status");
     assert!(status.success());
     let last = rest.last().expect("a summary line");
     assert!(last.starts_with("3 frames in"), "{rest:?}");
+}
+
+/// The main job, `meshless demo`, end to end on a small scene: embedded
+/// server, gRPC control, zenoh frames, files on disk, every frame received.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn demo_runs_the_whole_service_in_process() {
+    let dir = TempDir::new("demo");
+    let scene = dir.0.join("small.toml");
+    std::fs::write(&scene, small_scene()).expect("scene file");
+    let out = dir.0.join("frames");
+    let output = meshless(&[
+        "demo",
+        "--scene",
+        scene.to_str().expect("utf-8"),
+        "--until",
+        "0.1",
+        "--format",
+        "ply",
+        "--output",
+        out.to_str().expect("utf-8"),
+    ])
+    .await;
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        stdout.contains("simulated         0.100 s in 10 steps"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("frames received   11 of 11"), "{stdout}");
+    let files = std::fs::read_dir(&out).expect("output").count();
+    assert_eq!(files, 11);
+    let last = std::fs::read(out.join("frame_000010.ply")).expect("last frame");
+    assert!(last.starts_with(b"ply\nformat binary_little_endian 1.0\n"));
 }

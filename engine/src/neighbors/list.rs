@@ -81,15 +81,7 @@ impl NeighborList {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Deterministic pseudo-random numbers in [0, 1) (SplitMix64).
-    fn uniform(seed: &mut u64) -> Real {
-        *seed = seed.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = *seed;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        (z ^ (z >> 31)) as Real / u64::MAX as Real
-    }
+    use crate::testing::uniform;
 
     fn brute_force(positions: &[Vector], i: usize, radius: Real) -> Vec<u32> {
         let mut v: Vec<u32> = (0..positions.len())
