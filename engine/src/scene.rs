@@ -5,6 +5,7 @@
 //! [`Scene::build`] validates everything first and then creates only the
 //! systems and fields the scene names.
 
+use crate::approx::KernelKind;
 use crate::math::Real;
 use crate::neighbors::{GridError, UniformGrid};
 use crate::world::World;
@@ -26,6 +27,8 @@ pub mod defaults {
     pub const NEGATIVE_PRESSURE_SCALE: Real = 0.0;
     pub const XSPH: Real = 0.1;
     pub const FRAME_EVERY: u32 = 1;
+    pub const DENSITY_KERNEL: super::KernelKind = super::KernelKind::Poly6;
+    pub const GRADIENT_KERNEL: super::KernelKind = super::KernelKind::Spiky;
 }
 
 /// Limits a host puts on the worlds it builds.
@@ -193,6 +196,12 @@ pub struct FluidSpec {
     /// XSPH factor xi (Eq. 53); 0 runs no XSPH pass.
     #[serde(default = "default_xsph")]
     pub xsph: Real,
+    /// Kernel of densities and XSPH averages.
+    #[serde(default = "default_density_kernel")]
+    pub density_kernel: KernelKind,
+    /// Kernel of the pressure gradient.
+    #[serde(default = "default_gradient_kernel")]
+    pub gradient_kernel: KernelKind,
     pub blocks: Vec<FluidBlock>,
 }
 
@@ -289,6 +298,12 @@ fn default_negative_pressure_scale() -> Real {
 }
 fn default_xsph() -> Real {
     defaults::XSPH
+}
+fn default_density_kernel() -> KernelKind {
+    defaults::DENSITY_KERNEL
+}
+fn default_gradient_kernel() -> KernelKind {
+    defaults::GRADIENT_KERNEL
 }
 fn default_frame_every() -> u32 {
     defaults::FRAME_EVERY
@@ -471,6 +486,12 @@ impl Scene {
             1.0,
         )?;
         check_range(&format!("{at}.xsph"), fluid.xsph, 0.0, 1.0)?;
+        if fluid.density_kernel == KernelKind::Viscosity {
+            return Err(SceneError::invalid(
+                format!("{at}.density_kernel"),
+                "viscosity is infinite at zero distance; use poly6, cubic_spline, wendland_c2 or spiky",
+            ));
+        }
         if fluid.blocks.is_empty() {
             return Err(SceneError::invalid(
                 format!("{at}.blocks"),

@@ -1,5 +1,6 @@
 //! The running world: the systems a scene built, the clock, and the step.
 
+use crate::approx::Kernel;
 use crate::fluid::{Fluid, FluidParams, FluidState, Tait};
 use crate::frame::{FieldData, Frame};
 use crate::math::{Real, Vector, vector};
@@ -212,8 +213,11 @@ impl World {
 
 fn build_fluid(scene: &Scene, spec: &FluidSpec) -> Fluid {
     let h = spec.support_radius();
+    let density_kernel = Kernel::new_3d(spec.density_kernel, h);
     let params = FluidParams {
         support_radius: h,
+        density_kernel,
+        gradient_kernel: Kernel::new_3d(spec.gradient_kernel, h),
         eos: Tait {
             stiffness: spec.stiffness,
             gamma: spec.gamma,
@@ -221,7 +225,7 @@ fn build_fluid(scene: &Scene, spec: &FluidSpec) -> Fluid {
             negative_scale: spec.negative_pressure_scale,
         },
         xsph: spec.xsph,
-        mass: FluidParams::lattice_mass(spec.spacing, h, spec.rest_density),
+        mass: FluidParams::lattice_mass(spec.spacing, &density_kernel, spec.rest_density),
     };
     let (positions, velocities): (Vec<Vector>, Vec<Vector>) = spec
         .lattice()

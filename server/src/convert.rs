@@ -3,6 +3,7 @@
 //! build here until it is handled.
 
 use crate::error::ServiceError;
+use meshless_engine::approx::KernelKind;
 use meshless_engine::scene::{
     Aabb, FluidBlock, FluidSpec, OutputSpec, SystemSpec, TimeSpec, defaults,
 };
@@ -54,6 +55,36 @@ pub fn field_kind(value: i32, field: &str) -> Result<FieldKind> {
             field,
             format!("unknown field kind {value}; use position, velocity, density or pressure"),
         )),
+    }
+}
+
+/// Engine kernel of a proto enum value; `None` (unset) gives `default`.
+fn kernel_kind(value: Option<i32>, default: KernelKind, field: &str) -> Result<KernelKind> {
+    let Some(value) = value else {
+        return Ok(default);
+    };
+    match v1::KernelKind::try_from(value) {
+        Ok(v1::KernelKind::Poly6) => Ok(KernelKind::Poly6),
+        Ok(v1::KernelKind::Spiky) => Ok(KernelKind::Spiky),
+        Ok(v1::KernelKind::Viscosity) => Ok(KernelKind::Viscosity),
+        Ok(v1::KernelKind::CubicSpline) => Ok(KernelKind::CubicSpline),
+        Ok(v1::KernelKind::WendlandC2) => Ok(KernelKind::WendlandC2),
+        Ok(v1::KernelKind::Unspecified) | Err(_) => Err(ServiceError::invalid(
+            field,
+            format!(
+                "unknown kernel {value}; use poly6, spiky, viscosity, cubic_spline or wendland_c2"
+            ),
+        )),
+    }
+}
+
+fn to_kernel_kind(kind: KernelKind) -> v1::KernelKind {
+    match kind {
+        KernelKind::Poly6 => v1::KernelKind::Poly6,
+        KernelKind::Spiky => v1::KernelKind::Spiky,
+        KernelKind::Viscosity => v1::KernelKind::Viscosity,
+        KernelKind::CubicSpline => v1::KernelKind::CubicSpline,
+        KernelKind::WendlandC2 => v1::KernelKind::WendlandC2,
     }
 }
 
@@ -138,6 +169,8 @@ fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
         negative_pressure_scale,
         xsph,
         blocks,
+        density_kernel,
+        gradient_kernel,
     } = fluid;
     let blocks = blocks
         .into_iter()
@@ -159,6 +192,16 @@ fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
         negative_pressure_scale: negative_pressure_scale
             .unwrap_or(defaults::NEGATIVE_PRESSURE_SCALE),
         xsph: xsph.unwrap_or(defaults::XSPH),
+        density_kernel: kernel_kind(
+            density_kernel,
+            defaults::DENSITY_KERNEL,
+            &format!("{field}.density_kernel"),
+        )?,
+        gradient_kernel: kernel_kind(
+            gradient_kernel,
+            defaults::GRADIENT_KERNEL,
+            &format!("{field}.gradient_kernel"),
+        )?,
         blocks,
     })
 }
@@ -187,6 +230,8 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
                         gamma: Some(f.gamma),
                         negative_pressure_scale: Some(f.negative_pressure_scale),
                         xsph: Some(f.xsph),
+                        density_kernel: Some(to_kernel_kind(f.density_kernel) as i32),
+                        gradient_kernel: Some(to_kernel_kind(f.gradient_kernel) as i32),
                         blocks: f
                             .blocks
                             .iter()

@@ -1,6 +1,6 @@
 //! Approximation building blocks: SPH smoothing kernels (Adams–Wicke
-//! tutorial, Appendix A).
+//! tutorial, Section 2 and Appendix A).
 
 pub mod kernels;
 
-pub use kernels::{Kernel, Poly6, Spiky};
+pub use kernels::{Kernel, KernelKind};

@@ -3,7 +3,7 @@
 //! integration with reflection off the domain walls.
 
 use super::Tait;
-use crate::approx::{Kernel, Poly6, Spiky};
+use crate::approx::Kernel;
 use crate::math::{Real, Vector};
 use crate::neighbors::{NeighborList, UniformGrid};
 use crate::stats::{Stage, StageTimer};
@@ -14,6 +14,10 @@ use rayon::prelude::*;
 pub struct FluidParams {
     /// Kernel support radius h, m.
     pub support_radius: Real,
+    /// Kernel of the density sum and XSPH averages (poly6 in Algorithm 5).
+    pub density_kernel: Kernel,
+    /// Kernel of the pressure gradient (spiky in Algorithm 5).
+    pub gradient_kernel: Kernel,
     pub eos: Tait,
     /// XSPH factor xi (Eq. 53); 0 skips the XSPH pass.
     pub xsph: Real,
@@ -23,11 +27,11 @@ pub struct FluidParams {
 
 impl FluidParams {
     /// The particle mass that gives the interior of a cubic lattice of
-    /// `spacing` exactly the rest density under the poly6 density sum, so
-    /// the fluid starts at rest (the tutorial's advice on initial states).
-    pub fn lattice_mass(spacing: Real, support_radius: Real, rest_density: Real) -> Real {
-        let kernel = Poly6::new(support_radius);
-        let reach = (support_radius / spacing).ceil() as i64;
+    /// `spacing` exactly the rest density under the density sum with
+    /// `kernel`, so the fluid starts at rest (the tutorial's advice on
+    /// initial states).
+    pub fn lattice_mass(spacing: Real, kernel: &Kernel, rest_density: Real) -> Real {
+        let reach = (kernel.support() / spacing).ceil() as i64;
         let mut sum = 0.0;
         for i in -reach..=reach {
             for j in -reach..=reach {
@@ -54,8 +58,6 @@ pub struct Fluid {
     pub pressures: Vec<Real>,
     accelerations: Vec<Vector>,
     smoothed_velocities: Vec<Vector>,
-    poly6: Poly6,
-    spiky: Spiky,
     grid: UniformGrid,
     neighbors: NeighborList,
     max_acceleration: Real,
@@ -75,7 +77,6 @@ impl Fluid {
         grid: UniformGrid,
     ) -> Self {
         let n = positions.len();
-        let h = params.support_radius;
         let mut fluid = Self {
             params,
             positions,
@@ -88,8 +89,6 @@ impl Fluid {
             } else {
                 Vec::new()
             },
-            poly6: Poly6::new(h),
-            spiky: Spiky::new(h),
             grid,
             neighbors: NeighborList::default(),
             max_acceleration: 0.0,
@@ -156,7 +155,7 @@ impl Fluid {
                 &self.pressures,
                 self.params.mass,
                 &self.neighbors,
-                &self.spiky,
+                &self.params.gradient_kernel,
                 gravity,
                 &mut self.accelerations,
             );
@@ -173,12 +172,12 @@ impl Fluid {
             .build(&self.grid, &self.positions, self.params.support_radius);
     }
 
-    /// `rho_i = sum_j m_j omega(|x_i - x_j|)` with poly6 (Algorithm 5).
+    /// `rho_i = sum_j m_j omega(|x_i - x_j|)` (Algorithm 5; poly6 by default).
     fn compute_densities(&mut self) {
         let (positions, neighbors, kernel, mass) = (
             &self.positions,
             &self.neighbors,
-            &self.poly6,
+            &self.params.density_kernel,
             self.params.mass,
         );
         self.densities
@@ -210,7 +209,7 @@ impl Fluid {
             &self.velocities,
             &self.densities,
             &self.neighbors,
-            &self.poly6,
+            &self.params.density_kernel,
             self.params.mass,
         );
         self.smoothed_velocities
@@ -345,7 +344,7 @@ fn reflect(x: &mut Vector, v: &mut Vector, min: &Vector, max: &Vector) {
 /// Accelerations from the symmetric SPH pressure gradient (tutorial
 /// Eq. 51) plus gravity:
 /// `a_i = g - sum_j m_j (p_i / rho_i^2 + p_j / rho_j^2) grad omega(x_i - x_j)`
-/// with the spiky kernel. The pair terms are antisymmetric, so pressure
+/// (spiky in Algorithm 5). The pair terms are antisymmetric, so pressure
 /// conserves linear and angular momentum.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn pressure_accelerations(
@@ -354,7 +353,7 @@ pub(crate) fn pressure_accelerations(
     pressures: &[Real],
     mass: Real,
     neighbors: &NeighborList,
-    kernel: &Spiky,
+    kernel: &Kernel,
     gravity: &Vector,
     out: &mut [Vector],
 ) {
@@ -378,6 +377,7 @@ pub(crate) fn pressure_accelerations(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::approx::KernelKind;
     use crate::testing::uniform;
 
     /// Eq. 51 is antisymmetric in each pair, so on any particle layout and
@@ -421,7 +421,7 @@ mod tests {
             &pressures,
             mass,
             &neighbors,
-            &Spiky::new(h),
+            &Kernel::new_3d(KernelKind::Spiky, h),
             &Vector::zeros(),
             &mut accelerations,
         );
@@ -444,12 +444,28 @@ mod tests {
         );
     }
 
-    /// The calibrated mass gives interior lattice particles the rest density.
+    /// The calibrated mass gives interior lattice particles the rest
+    /// density, for every kernel fit for densities.
     #[test]
     fn lattice_mass_gives_rest_density() {
         let spacing = 0.05;
         let h = 0.1;
-        let mass = FluidParams::lattice_mass(spacing, h, 1000.0);
+        for kind in [
+            KernelKind::Poly6,
+            KernelKind::CubicSpline,
+            KernelKind::WendlandC2,
+            KernelKind::Spiky,
+        ] {
+            let kernel = Kernel::new_3d(kind, h);
+            let mass = FluidParams::lattice_mass(spacing, &kernel, 1000.0);
+            assert!(
+                (interior_density(spacing, &kernel, mass) - 1000.0).abs() < 1e-9,
+                "{kind:?}"
+            );
+        }
+    }
+
+    fn interior_density(spacing: Real, kernel: &Kernel, mass: Real) -> Real {
         let mut positions = Vec::new();
         for i in 0..9 {
             for j in 0..9 {
@@ -459,12 +475,10 @@ mod tests {
             }
         }
         let centre = 4 * 81 + 4 * 9 + 4;
-        let kernel = Poly6::new(h);
-        let rho: Real = positions
+        positions
             .iter()
             .map(|x| mass * kernel.value_sq((x - positions[centre]).norm_squared()))
-            .sum();
-        assert!((rho - 1000.0).abs() < 1e-9, "interior density {rho}");
+            .sum()
     }
 
     #[test]
