@@ -27,6 +27,8 @@ pub mod defaults {
     pub const NEGATIVE_PRESSURE_SCALE: Real = 0.0;
     pub const XSPH: Real = 0.1;
     pub const FRAME_EVERY: u32 = 1;
+    pub const VISCOSITY: Real = 0.0;
+    pub const WALLS: super::WallModel = super::WallModel::Solid;
     pub const DENSITY_KERNEL: super::KernelKind = super::KernelKind::Poly6;
     pub const GRADIENT_KERNEL: super::KernelKind = super::KernelKind::Spiky;
 }
@@ -173,6 +175,18 @@ pub struct FluidBlock {
     pub velocity: [Real; 3],
 }
 
+/// How the fluid meets the walls of the domain.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum WallModel {
+    /// Walls count in densities and push back through pressure, like layers
+    /// of ghost particles (tutorial Eq. 55); reflection guards the rest.
+    Solid,
+    /// Particles are only reflected (tutorial Section 6.4): cheaper, but
+    /// particles beside a wall lack density and cling to it.
+    Reflect,
+}
+
 /// A weakly compressible SPH fluid (Adams–Wicke tutorial, Algorithm 5).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -196,6 +210,12 @@ pub struct FluidSpec {
     /// XSPH factor xi (Eq. 53); 0 runs no XSPH pass.
     #[serde(default = "default_xsph")]
     pub xsph: Real,
+    /// Dynamic viscosity mu, Pa s (Eq. 52); 0 runs no viscosity pass.
+    #[serde(default = "default_viscosity")]
+    pub viscosity: Real,
+    /// How the fluid meets the domain's walls.
+    #[serde(default = "default_walls")]
+    pub walls: WallModel,
     /// Kernel of densities and XSPH averages.
     #[serde(default = "default_density_kernel")]
     pub density_kernel: KernelKind,
@@ -298,6 +318,12 @@ fn default_negative_pressure_scale() -> Real {
 }
 fn default_xsph() -> Real {
     defaults::XSPH
+}
+fn default_viscosity() -> Real {
+    defaults::VISCOSITY
+}
+fn default_walls() -> WallModel {
+    defaults::WALLS
 }
 fn default_density_kernel() -> KernelKind {
     defaults::DENSITY_KERNEL
@@ -486,6 +512,9 @@ impl Scene {
             1.0,
         )?;
         check_range(&format!("{at}.xsph"), fluid.xsph, 0.0, 1.0)?;
+        // Honey is about 10 Pa s; beyond 1e4 the diffusion limit of the
+        // explicit step makes sub-steps vanishingly small.
+        check_range(&format!("{at}.viscosity"), fluid.viscosity, 0.0, 1e4)?;
         if fluid.density_kernel == KernelKind::Viscosity {
             return Err(SceneError::invalid(
                 format!("{at}.density_kernel"),

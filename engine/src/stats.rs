@@ -10,15 +10,17 @@ pub enum Stage {
     NeighborSearch,
     Density,
     PressureForce,
+    Viscosity,
     Xsph,
     Integrate,
 }
 
 impl Stage {
-    pub const ALL: [Stage; 5] = [
+    pub const ALL: [Stage; 6] = [
         Stage::NeighborSearch,
         Stage::Density,
         Stage::PressureForce,
+        Stage::Viscosity,
         Stage::Xsph,
         Stage::Integrate,
     ];
@@ -28,6 +30,7 @@ impl Stage {
             Stage::NeighborSearch => "neighbour search",
             Stage::Density => "density and pressure",
             Stage::PressureForce => "pressure force",
+            Stage::Viscosity => "viscosity",
             Stage::Xsph => "XSPH",
             Stage::Integrate => "integration",
         }

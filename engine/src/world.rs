@@ -1,11 +1,11 @@
 //! The running world: the systems a scene built, the clock, and the step.
 
 use crate::approx::Kernel;
-use crate::fluid::{Fluid, FluidParams, FluidState, Tait};
+use crate::fluid::{BoxWalls, Fluid, FluidParams, FluidState, Tait};
 use crate::frame::{FieldData, Frame};
 use crate::math::{Real, Vector, vector};
 use crate::neighbors::UniformGrid;
-use crate::scene::{FieldKind, FluidSpec, Scene, SystemSpec};
+use crate::scene::{FieldKind, FluidSpec, Scene, SystemSpec, WallModel};
 use crate::stats::StageTimer;
 
 /// Where a world is in time.
@@ -214,10 +214,11 @@ impl World {
 fn build_fluid(scene: &Scene, spec: &FluidSpec) -> Fluid {
     let h = spec.support_radius();
     let density_kernel = Kernel::new_3d(spec.density_kernel, h);
+    let gradient_kernel = Kernel::new_3d(spec.gradient_kernel, h);
     let params = FluidParams {
         support_radius: h,
         density_kernel,
-        gradient_kernel: Kernel::new_3d(spec.gradient_kernel, h),
+        gradient_kernel,
         eos: Tait {
             stiffness: spec.stiffness,
             gamma: spec.gamma,
@@ -225,13 +226,25 @@ fn build_fluid(scene: &Scene, spec: &FluidSpec) -> Fluid {
             negative_scale: spec.negative_pressure_scale,
         },
         xsph: spec.xsph,
+        viscosity: spec.viscosity,
         mass: FluidParams::lattice_mass(spec.spacing, &density_kernel, spec.rest_density),
+    };
+    let (min, max) = (vector(scene.domain.min), vector(scene.domain.max));
+    let walls = match spec.walls {
+        WallModel::Solid => Some(BoxWalls::new(
+            min,
+            max,
+            spec.spacing,
+            params.mass,
+            &density_kernel,
+            &gradient_kernel,
+        )),
+        WallModel::Reflect => None,
     };
     let (positions, velocities): (Vec<Vector>, Vec<Vector>) = spec
         .lattice()
         .map(|(x, block)| (vector(x), vector(spec.blocks[block].velocity)))
         .unzip();
-    let grid = UniformGrid::new(vector(scene.domain.min), vector(scene.domain.max), h)
-        .expect("validated by Scene::validate");
-    Fluid::new(params, positions, velocities, grid)
+    let grid = UniformGrid::new(min, max, h).expect("validated by Scene::validate");
+    Fluid::new(params, positions, velocities, walls, grid)
 }

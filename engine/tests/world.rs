@@ -146,3 +146,78 @@ fn stepping_is_deterministic() {
     }
     assert_eq!(a.frame(), b.frame());
 }
+
+/// XSPH smooths velocity differences only: a fluid moving uniformly (no
+/// gravity, no walls in reach) keeps its velocity exactly, although its
+/// free surface cuts every outer neighbourhood. The tutorial's Eq. 53 as
+/// printed would brake it there.
+#[test]
+fn xsph_leaves_uniform_motion_alone() {
+    let mut scene = dam_break();
+    scene.gravity = [0.0; 3];
+    scene.domain.max = [4.0, 4.0, 4.0];
+    let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+    fluid.blocks[0].region.min = [1.0, 1.0, 1.0];
+    fluid.blocks[0].region.max = [1.4, 1.4, 1.4];
+    fluid.blocks[0].velocity = [0.5, -0.25, 0.1];
+    fluid.xsph = 0.5;
+    let mut world = build(&scene);
+    for _ in 0..3 {
+        world.step().expect("step");
+    }
+    assert!(world.stages().get(Stage::Xsph).runs > 0);
+    for (i, v) in world.fluid().expect("fluid").velocities.iter().enumerate() {
+        let error = (v - nalgebra::Vector3::new(0.5, -0.25, 0.1)).norm();
+        assert!(error < 1e-9, "particle {i} changed velocity by {error}");
+    }
+}
+
+/// Laplacian viscosity (Eq. 52) runs only when named, conserves momentum
+/// (its pair terms are antisymmetric) and slows a shear layer.
+#[test]
+fn viscosity_conserves_momentum_and_damps_shear() {
+    let mut scene = dam_break();
+    scene.gravity = [0.0; 3];
+    scene.domain.max = [4.0, 4.0, 4.0];
+    let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+    let lower = fluid.blocks[0].clone();
+    fluid.blocks = vec![lower.clone(), lower];
+    fluid.blocks[0].region.min = [1.0, 1.0, 1.0];
+    fluid.blocks[0].region.max = [1.4, 1.2, 1.4];
+    fluid.blocks[0].velocity = [0.2, 0.0, 0.0];
+    fluid.blocks[1].region.min = [1.0, 1.2, 1.0];
+    fluid.blocks[1].region.max = [1.4, 1.4, 1.4];
+    fluid.blocks[1].velocity = [-0.2, 0.0, 0.0];
+    fluid.xsph = 0.0;
+
+    let shear = |world: &World| {
+        let f = world.fluid().expect("fluid");
+        let (mut lower, mut upper) = (0.0, 0.0);
+        for (x, v) in f.positions.iter().zip(&f.velocities) {
+            if x.y < 1.2 { lower += v.x } else { upper += v.x }
+        }
+        (lower - upper) / f.len() as f64
+    };
+    let momentum = |world: &World| {
+        let f = world.fluid().expect("fluid");
+        f.velocities.iter().sum::<nalgebra::Vector3<f64>>() * f.params.mass
+    };
+
+    let mut inviscid = build(&scene);
+    inviscid.step().expect("step");
+    assert_eq!(inviscid.stages().get(Stage::Viscosity).runs, 0);
+
+    let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+    fluid.viscosity = 20.0;
+    let mut viscous = build(&scene);
+    let (p0, s0) = (momentum(&viscous), shear(&viscous));
+    for _ in 0..5 {
+        viscous.step().expect("step");
+        inviscid.step().expect("step");
+    }
+    assert!(viscous.stages().get(Stage::Viscosity).runs > 0);
+    let scale = viscous.fluid().expect("fluid").params.mass * viscous.particle_count() as f64 * 0.2;
+    assert!((momentum(&viscous) - p0).norm() < 1e-9 * scale, "viscosity changed momentum");
+    assert!(shear(&viscous) < 0.95 * s0, "shear {} from {s0}", shear(&viscous));
+    assert!(shear(&viscous) < shear(&inviscid));
+}

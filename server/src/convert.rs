@@ -5,7 +5,7 @@
 use crate::error::ServiceError;
 use meshless_engine::approx::KernelKind;
 use meshless_engine::scene::{
-    Aabb, FluidBlock, FluidSpec, OutputSpec, SystemSpec, TimeSpec, defaults,
+    Aabb, FluidBlock, FluidSpec, OutputSpec, SystemSpec, TimeSpec, WallModel, defaults,
 };
 use meshless_engine::{FieldKind, Frame, Scene};
 use meshless_proto::v1;
@@ -75,6 +75,26 @@ fn kernel_kind(value: Option<i32>, default: KernelKind, field: &str) -> Result<K
                 "unknown kernel {value}; use poly6, spiky, viscosity, cubic_spline or wendland_c2"
             ),
         )),
+    }
+}
+
+/// Engine wall model of a proto enum value; unset gives the default.
+fn wall_model(value: Option<i32>, field: &str) -> Result<WallModel> {
+    match value.map(v1::WallModel::try_from) {
+        None => Ok(defaults::WALLS),
+        Some(Ok(v1::WallModel::Solid)) => Ok(WallModel::Solid),
+        Some(Ok(v1::WallModel::Reflect)) => Ok(WallModel::Reflect),
+        Some(Ok(v1::WallModel::Unspecified) | Err(_)) => Err(ServiceError::invalid(
+            field,
+            format!("unknown wall model {value:?}; use solid or reflect"),
+        )),
+    }
+}
+
+fn to_wall_model(walls: WallModel) -> v1::WallModel {
+    match walls {
+        WallModel::Solid => v1::WallModel::Solid,
+        WallModel::Reflect => v1::WallModel::Reflect,
     }
 }
 
@@ -171,6 +191,8 @@ fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
         blocks,
         density_kernel,
         gradient_kernel,
+        viscosity,
+        walls,
     } = fluid;
     let blocks = blocks
         .into_iter()
@@ -192,6 +214,8 @@ fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
         negative_pressure_scale: negative_pressure_scale
             .unwrap_or(defaults::NEGATIVE_PRESSURE_SCALE),
         xsph: xsph.unwrap_or(defaults::XSPH),
+        viscosity: viscosity.unwrap_or(defaults::VISCOSITY),
+        walls: wall_model(walls, &format!("{field}.walls"))?,
         density_kernel: kernel_kind(
             density_kernel,
             defaults::DENSITY_KERNEL,
@@ -232,6 +256,8 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
                         xsph: Some(f.xsph),
                         density_kernel: Some(to_kernel_kind(f.density_kernel) as i32),
                         gradient_kernel: Some(to_kernel_kind(f.gradient_kernel) as i32),
+                        viscosity: Some(f.viscosity),
+                        walls: Some(to_wall_model(f.walls) as i32),
                         blocks: f
                             .blocks
                             .iter()

@@ -2,7 +2,9 @@
 //! (Section 6, Algorithm 5) with the Tait equation of state.
 
 mod eos;
+mod walls;
 mod wcsph;
 
 pub use eos::Tait;
+pub use walls::BoxWalls;
 pub use wcsph::{Fluid, FluidParams, FluidState, Invalid};

@@ -1,9 +1,9 @@
 //! Weakly compressible SPH, tutorial Algorithm 5: neighbour search ->
-//! densities -> pressures -> pressure forces -> XSPH -> explicit
-//! integration with reflection off the domain walls.
+//! densities -> pressures -> pressure forces -> viscosity -> XSPH ->
+//! explicit integration with reflection off the domain walls.
 
-use super::Tait;
-use crate::approx::Kernel;
+use super::{BoxWalls, Tait};
+use crate::approx::{Kernel, KernelKind};
 use crate::math::{Real, Vector};
 use crate::neighbors::{NeighborList, UniformGrid};
 use crate::stats::{Stage, StageTimer};
@@ -21,6 +21,8 @@ pub struct FluidParams {
     pub eos: Tait,
     /// XSPH factor xi (Eq. 53); 0 skips the XSPH pass.
     pub xsph: Real,
+    /// Dynamic viscosity mu, Pa s (Eq. 52); 0 skips the viscosity pass.
+    pub viscosity: Real,
     /// Mass of every particle, kg.
     pub mass: Real,
 }
@@ -58,6 +60,10 @@ pub struct Fluid {
     pub pressures: Vec<Real>,
     accelerations: Vec<Vector>,
     smoothed_velocities: Vec<Vector>,
+    /// Solid walls of the domain, when the scene asks for them.
+    walls: Option<BoxWalls>,
+    /// Müller's viscosity kernel, when the scene has viscosity.
+    viscosity_kernel: Option<Kernel>,
     grid: UniformGrid,
     neighbors: NeighborList,
     max_acceleration: Real,
@@ -74,6 +80,7 @@ impl Fluid {
         params: FluidParams,
         positions: Vec<Vector>,
         velocities: Vec<Vector>,
+        walls: Option<BoxWalls>,
         grid: UniformGrid,
     ) -> Self {
         let n = positions.len();
@@ -89,6 +96,9 @@ impl Fluid {
             } else {
                 Vec::new()
             },
+            walls,
+            viscosity_kernel: (params.viscosity > 0.0)
+                .then(|| Kernel::new_3d(KernelKind::Viscosity, params.support_radius)),
             grid,
             neighbors: NeighborList::default(),
             max_acceleration: 0.0,
@@ -115,8 +125,9 @@ impl Fluid {
     }
 
     /// The largest sub-step the explicit scheme allows now: the CFL
-    /// condition `cfl * h / (c_0 + |v|_max)` and the force condition
-    /// `cfl * sqrt(h / |a|_max)` (Monaghan 1992).
+    /// condition `cfl * h / (c_0 + |v|_max)`, the force condition
+    /// `cfl * sqrt(h / |a|_max)` (Monaghan 1992) and, with viscosity, the
+    /// diffusion condition `0.125 h^2 rho_0 / mu` (Morris et al. 1997).
     pub fn stable_dt(&self, cfl: Real) -> Real {
         let h = self.params.support_radius;
         let v_max = self
@@ -125,12 +136,14 @@ impl Fluid {
             .map(|v| v.norm_squared())
             .reduce(|| 0.0, Real::max)
             .sqrt();
-        let cfl_dt = cfl * h / (self.params.eos.sound_speed() + v_max);
+        let mut dt = cfl * h / (self.params.eos.sound_speed() + v_max);
         if self.max_acceleration > 0.0 {
-            cfl_dt.min(cfl * (h / self.max_acceleration).sqrt())
-        } else {
-            cfl_dt
+            dt = dt.min(cfl * (h / self.max_acceleration).sqrt());
         }
+        if self.params.viscosity > 0.0 {
+            dt = dt.min(0.125 * h * h * self.params.eos.rest_density / self.params.viscosity);
+        }
+        dt
     }
 
     /// One explicit sub-step of length `dt` (Algorithm 5), reflecting
@@ -156,10 +169,15 @@ impl Fluid {
                 self.params.mass,
                 &self.neighbors,
                 &self.params.gradient_kernel,
+                self.walls.as_ref(),
+                self.params.eos.rest_density,
                 gravity,
                 &mut self.accelerations,
             );
         });
+        if let Some(kernel) = self.viscosity_kernel {
+            timer.time(Stage::Viscosity, || self.apply_viscosity(&kernel));
+        }
         if self.params.xsph > 0.0 {
             timer.time(Stage::Xsph, || self.apply_xsph());
         }
@@ -172,13 +190,15 @@ impl Fluid {
             .build(&self.grid, &self.positions, self.params.support_radius);
     }
 
-    /// `rho_i = sum_j m_j omega(|x_i - x_j|)` (Algorithm 5; poly6 by default).
+    /// `rho_i = sum_j m_j omega(|x_i - x_j|)` (Algorithm 5; poly6 by
+    /// default), plus the walls' ghost layers (Eq. 55).
     fn compute_densities(&mut self) {
-        let (positions, neighbors, kernel, mass) = (
+        let (positions, neighbors, kernel, mass, walls) = (
             &self.positions,
             &self.neighbors,
             &self.params.density_kernel,
             self.params.mass,
+            self.walls.as_ref(),
         );
         self.densities
             .par_iter_mut()
@@ -190,7 +210,29 @@ impl Fluid {
                         .of(i)
                         .iter()
                         .map(|&j| kernel.value_sq((xi - positions[j as usize]).norm_squared()))
-                        .sum::<Real>();
+                        .sum::<Real>()
+                    + walls.map_or(0.0, |w| w.density(&xi));
+            });
+    }
+
+    /// Laplacian viscosity (Eq. 52) with Müller's viscosity kernel:
+    /// `a_i += (mu / rho_i) sum_j m_j (v_j - v_i) / rho_j Delta omega_ij`.
+    /// Antisymmetric in each pair, so it conserves momentum.
+    fn apply_viscosity(&mut self, kernel: &Kernel) {
+        let (positions, velocities, densities, neighbors) =
+            (&self.positions, &self.velocities, &self.densities, &self.neighbors);
+        let (mass, mu) = (self.params.mass, self.params.viscosity);
+        self.accelerations
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, a)| {
+                let (xi, vi) = (positions[i], velocities[i]);
+                let sum = neighbors.of(i).iter().fold(Vector::zeros(), |acc, &j| {
+                    let j = j as usize;
+                    let r = (xi - positions[j]).norm();
+                    acc + (velocities[j] - vi) * (kernel.laplacian(r) / densities[j])
+                });
+                *a += sum * (mu * mass / densities[i]);
             });
     }
 
@@ -202,7 +244,17 @@ impl Fluid {
             .for_each(|(p, &rho)| *p = eos.pressure(rho));
     }
 
-    /// XSPH (Eq. 53): `v_i <- (1 - xi) v_i + xi sum_j (m_j / rho_j) v_j omega_ij`.
+    /// XSPH artificial viscosity (tutorial Eq. 53, Monaghan 1989) in its
+    /// difference form:
+    /// `v_i <- v_i + xi sum_j (2 m / (rho_i + rho_j)) (v_j - v_i) omega_ij`.
+    ///
+    /// Eq. 53 blends `v_i` with the SPH average `sum_j (m_j / rho_j) v_j
+    /// omega_ij`; both agree where that average reproduces constants
+    /// (`sum_j (m_j / rho_j) omega_ij = 1`), but where the neighbourhood is
+    /// cut (free surfaces, walls) the average falls short and Eq. 53 as
+    /// written brakes uniform motion, every sub-step. The difference form
+    /// leaves uniform motion alone and, with the pair-symmetric density,
+    /// conserves momentum.
     fn apply_xsph(&mut self) {
         let (positions, velocities, densities, neighbors, kernel, mass) = (
             &self.positions,
@@ -212,22 +264,20 @@ impl Fluid {
             &self.params.density_kernel,
             self.params.mass,
         );
+        let xi = self.params.xsph;
         self.smoothed_velocities
             .par_iter_mut()
             .enumerate()
             .for_each(|(i, out)| {
-                let xi = positions[i];
-                *out = neighbors.of(i).iter().fold(Vector::zeros(), |acc, &j| {
+                let (xi_pos, vi, rho_i) = (positions[i], velocities[i], densities[i]);
+                let correction = neighbors.of(i).iter().fold(Vector::zeros(), |acc, &j| {
                     let j = j as usize;
-                    let w = kernel.value_sq((xi - positions[j]).norm_squared());
-                    acc + velocities[j] * (mass / densities[j] * w)
+                    let w = kernel.value_sq((xi_pos - positions[j]).norm_squared());
+                    acc + (velocities[j] - vi) * (2.0 * mass / (rho_i + densities[j]) * w)
                 });
+                *out = vi + correction * xi;
             });
-        let xi = self.params.xsph;
-        self.velocities
-            .par_iter_mut()
-            .zip(self.smoothed_velocities.par_iter())
-            .for_each(|(v, avg)| *v = *v * (1.0 - xi) + avg * xi);
+        std::mem::swap(&mut self.velocities, &mut self.smoothed_velocities);
     }
 
     /// Eq. 58-59 (symplectic Euler), then reflection off the walls.
@@ -342,7 +392,7 @@ fn reflect(x: &mut Vector, v: &mut Vector, min: &Vector, max: &Vector) {
 }
 
 /// Accelerations from the symmetric SPH pressure gradient (tutorial
-/// Eq. 51) plus gravity:
+/// Eq. 51), the walls' pressure (see [`BoxWalls`]) and gravity:
 /// `a_i = g - sum_j m_j (p_i / rho_i^2 + p_j / rho_j^2) grad omega(x_i - x_j)`
 /// (spiky in Algorithm 5). The pair terms are antisymmetric, so pressure
 /// conserves linear and angular momentum.
@@ -354,6 +404,8 @@ pub(crate) fn pressure_accelerations(
     mass: Real,
     neighbors: &NeighborList,
     kernel: &Kernel,
+    walls: Option<&BoxWalls>,
+    rest_density: Real,
     gravity: &Vector,
     out: &mut [Vector],
 ) {
@@ -370,14 +422,16 @@ pub(crate) fn pressure_accelerations(
             let pj = pressures[j] / (densities[j] * densities[j]);
             sum += kernel.gradient(&r, r.norm()) * (pi + pj);
         }
-        *a = gravity - sum * mass;
+        let wall = walls.map_or(Vector::zeros(), |w| {
+            w.pressure_acceleration(&xi, pressures[i], densities[i], rest_density)
+        });
+        *a = gravity - sum * mass + wall;
     });
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::KernelKind;
     use crate::testing::uniform;
 
     /// Eq. 51 is antisymmetric in each pair, so on any particle layout and
@@ -422,6 +476,8 @@ mod tests {
             mass,
             &neighbors,
             &Kernel::new_3d(KernelKind::Spiky, h),
+            None,
+            1000.0,
             &Vector::zeros(),
             &mut accelerations,
         );
