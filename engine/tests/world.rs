@@ -194,7 +194,11 @@ fn viscosity_conserves_momentum_and_damps_shear() {
         let f = world.fluid().expect("fluid");
         let (mut lower, mut upper) = (0.0, 0.0);
         for (x, v) in f.positions.iter().zip(&f.velocities) {
-            if x.y < 1.2 { lower += v.x } else { upper += v.x }
+            if x.y < 1.2 {
+                lower += v.x
+            } else {
+                upper += v.x
+            }
         }
         (lower - upper) / f.len() as f64
     };
@@ -217,7 +221,14 @@ fn viscosity_conserves_momentum_and_damps_shear() {
     }
     assert!(viscous.stages().get(Stage::Viscosity).runs > 0);
     let scale = viscous.fluid().expect("fluid").params.mass * viscous.particle_count() as f64 * 0.2;
-    assert!((momentum(&viscous) - p0).norm() < 1e-9 * scale, "viscosity changed momentum");
-    assert!(shear(&viscous) < 0.95 * s0, "shear {} from {s0}", shear(&viscous));
+    assert!(
+        (momentum(&viscous) - p0).norm() < 1e-9 * scale,
+        "viscosity changed momentum"
+    );
+    assert!(
+        shear(&viscous) < 0.95 * s0,
+        "shear {} from {s0}",
+        shear(&viscous)
+    );
     assert!(shear(&viscous) < shear(&inviscid));
 }

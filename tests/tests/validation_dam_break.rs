@@ -3,8 +3,8 @@
 //! `Z = x / a` against `T = t sqrt(2 g / a)`, must follow the measurements
 //! within 10 % for 1 <= T <= 3 with the shipped dam-break scene.
 
-use meshless_engine::scene::{SystemSpec, WallModel};
 use meshless_engine::math::Vector;
+use meshless_engine::scene::{SystemSpec, WallModel};
 use meshless_engine::{BuildOptions, Scene};
 
 const A: f64 = 0.3;
@@ -28,7 +28,11 @@ fn measured_front() -> Vec<(f64, f64)> {
 /// The front: a high percentile of x among particles near the floor, so
 /// one stray particle does not define it.
 fn front(positions: &[Vector]) -> f64 {
-    let mut xs: Vec<f64> = positions.iter().filter(|p| p.y < A / 6.0).map(|p| p.x).collect();
+    let mut xs: Vec<f64> = positions
+        .iter()
+        .filter(|p| p.y < A / 6.0)
+        .map(|p| p.x)
+        .collect();
     xs.sort_by(f64::total_cmp);
     xs[((xs.len() - 1) as f64 * 0.995).round() as usize]
 }
@@ -36,10 +40,14 @@ fn front(positions: &[Vector]) -> f64 {
 /// Runs the shipped scene with the given wall model and returns the
 /// simulated `(T, Z)` curve, one point per step.
 fn simulate(walls: WallModel) -> Vec<(f64, f64)> {
-    let mut scene = Scene::from_toml_str(include_str!("../../scenes/dam_break.toml")).expect("scene");
+    let mut scene =
+        Scene::from_toml_str(include_str!("../../scenes/dam_break.toml")).expect("scene");
     let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
     fluid.walls = walls;
-    assert_eq!(fluid.blocks[0].region.max[0], A, "the scene's column is a wide");
+    assert_eq!(
+        fluid.blocks[0].region.max[0], A,
+        "the scene's column is a wide"
+    );
     assert_eq!(fluid.blocks[0].region.max[1], 2.0 * A, "and 2a high");
     let mut world = scene.build(&BuildOptions::default()).expect("valid");
     let scale = (2.0 * G / A).sqrt();
@@ -53,7 +61,9 @@ fn simulate(walls: WallModel) -> Vec<(f64, f64)> {
 }
 
 fn interpolate(curve: &[(f64, f64)], t: f64) -> f64 {
-    let k = curve.partition_point(|&(ct, _)| ct < t).clamp(1, curve.len() - 1);
+    let k = curve
+        .partition_point(|&(ct, _)| ct < t)
+        .clamp(1, curve.len() - 1);
     let ((t0, z0), (t1, z1)) = (curve[k - 1], curve[k]);
     z0 + (z1 - z0) * (t - t0) / (t1 - t0)
 }
@@ -77,8 +87,16 @@ fn dam_break_front_follows_martin_and_moyce() {
             worst_reflect = worst_reflect.max(((zr - z) / z).abs());
         }
     }
-    println!("worst error for 1 <= T <= 3: solid {:.1} %, reflect {:.1} %", 100.0 * worst, 100.0 * worst_reflect);
-    assert!(worst < 0.10, "solid walls: worst front error {:.1} %", 100.0 * worst);
+    println!(
+        "worst error for 1 <= T <= 3: solid {:.1} %, reflect {:.1} %",
+        100.0 * worst,
+        100.0 * worst_reflect
+    );
+    assert!(
+        worst < 0.10,
+        "solid walls: worst front error {:.1} %",
+        100.0 * worst
+    );
     // Reflection alone leaves particles beside walls short of density: the
     // front lags, which is why solid walls are the default.
     assert!(worst_reflect > worst);

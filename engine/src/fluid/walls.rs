@@ -85,8 +85,7 @@ impl BoxWalls {
         // d/dz P(z) = -2 pi w(z) z.
         let slope = (0..SAMPLES)
             .map(|i| {
-                per_volume
-                    * layer_sum(sample(i), &|z| -2.0 * PI * gradient_kernel.value(z) * z)
+                per_volume * layer_sum(sample(i), &|z| -2.0 * PI * gradient_kernel.value(z) * z)
             })
             .collect();
         Self {
@@ -140,7 +139,13 @@ impl BoxWalls {
     /// The pressure acceleration the walls exert on a particle at `x` with
     /// pressure `p` and density `rho`.
     #[inline]
-    pub fn pressure_acceleration(&self, x: &Vector, p: Real, rho: Real, rest_density: Real) -> Vector {
+    pub fn pressure_acceleration(
+        &self,
+        x: &Vector,
+        p: Real,
+        rho: Real,
+        rest_density: Real,
+    ) -> Vector {
         let weight = p / (rho * rho) + p / (rest_density * rest_density);
         let mut a = Vector::zeros();
         self.near(x, |d, n| a -= n * (weight * self.lookup(&self.slope, d)));
@@ -162,7 +167,11 @@ mod tests {
     #[test]
     fn a_wall_completes_the_density_of_particles_beside_it() {
         let spacing = 0.02;
-        for kind in [KernelKind::Poly6, KernelKind::CubicSpline, KernelKind::WendlandC2] {
+        for kind in [
+            KernelKind::Poly6,
+            KernelKind::CubicSpline,
+            KernelKind::WendlandC2,
+        ] {
             let kernel = Kernel::new_3d(kind, 2.0 * spacing);
             let mass = FluidParams::lattice_mass(spacing, &kernel, 1000.0);
             let walls = BoxWalls::new(
@@ -214,6 +223,9 @@ mod tests {
         assert!(a.x > 0.0 && a.z < 0.0 && a.y == 0.0, "{a:?}");
         let centre = Vector::new(0.5, 1.0, 1.5);
         assert_eq!(walls.density(&centre), 0.0);
-        assert_eq!(walls.pressure_acceleration(&centre, 100.0, 1000.0, 1000.0), Vector::zeros());
+        assert_eq!(
+            walls.pressure_acceleration(&centre, 100.0, 1000.0, 1000.0),
+            Vector::zeros()
+        );
     }
 }

@@ -219,8 +219,12 @@ impl Fluid {
     /// `a_i += (mu / rho_i) sum_j m_j (v_j - v_i) / rho_j Delta omega_ij`.
     /// Antisymmetric in each pair, so it conserves momentum.
     fn apply_viscosity(&mut self, kernel: &Kernel) {
-        let (positions, velocities, densities, neighbors) =
-            (&self.positions, &self.velocities, &self.densities, &self.neighbors);
+        let (positions, velocities, densities, neighbors) = (
+            &self.positions,
+            &self.velocities,
+            &self.densities,
+            &self.neighbors,
+        );
         let (mass, mu) = (self.params.mass, self.params.viscosity);
         self.accelerations
             .par_iter_mut()
