@@ -170,7 +170,6 @@ impl Fluid {
                 &self.neighbors,
                 &self.params.gradient_kernel,
                 self.walls.as_ref(),
-                self.params.eos.rest_density,
                 gravity,
                 &mut self.accelerations,
             );
@@ -409,7 +408,6 @@ pub(crate) fn pressure_accelerations(
     neighbors: &NeighborList,
     kernel: &Kernel,
     walls: Option<&BoxWalls>,
-    rest_density: Real,
     gravity: &Vector,
     out: &mut [Vector],
 ) {
@@ -427,7 +425,7 @@ pub(crate) fn pressure_accelerations(
             sum += kernel.gradient(&r, r.norm()) * (pi + pj);
         }
         let wall = walls.map_or(Vector::zeros(), |w| {
-            w.pressure_acceleration(&xi, pressures[i], densities[i], rest_density)
+            w.pressure_acceleration(&xi, pressures[i], densities[i])
         });
         *a = gravity - sum * mass + wall;
     });
@@ -481,7 +479,6 @@ mod tests {
             &neighbors,
             &Kernel::new_3d(KernelKind::Spiky, h),
             None,
-            1000.0,
             &Vector::zeros(),
             &mut accelerations,
         );
