@@ -232,3 +232,55 @@ fn viscosity_conserves_momentum_and_damps_shear() {
     );
     assert!(shear(&viscous) < shear(&inviscid));
 }
+
+/// Stability at the extremes: stiffness over five decades, a step 100x the
+/// stable one, a lone particle. Each either runs (sub-stepped, every value
+/// finite and inside the box) or stops with a step error; none produces
+/// NaN.
+#[test]
+fn extremes_run_or_fail_cleanly() {
+    let check = |world: &World| {
+        let fluid = world.fluid().expect("fluid");
+        let (min, max) = (world.scene().domain.min, world.scene().domain.max);
+        for x in &fluid.positions {
+            for a in 0..3 {
+                assert!(x[a].is_finite() && x[a] >= min[a] && x[a] <= max[a], "{x:?}");
+            }
+        }
+    };
+    for stiffness in [1e2, 1e4, 1e5, 1e7] {
+        let mut scene = dam_break();
+        let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+        fluid.stiffness = stiffness;
+        let mut world = build(&scene);
+        for _ in 0..5 {
+            let info = world.step().expect("sub-stepping keeps any stiffness stable");
+            assert!(!info.capped, "K = {stiffness}: {info:?}");
+        }
+        check(&world);
+    }
+
+    // 100x the stable step: sub-stepped up to the cap.
+    let mut scene = dam_break();
+    scene.time.dt = 1.0;
+    let mut world = build(&scene);
+    match world.step() {
+        Ok(info) => {
+            assert_eq!(info.substeps, scene.time.max_substeps);
+            check(&world);
+        }
+        Err(e) => assert!(e.to_string().contains("unstable"), "{e}"),
+    }
+
+    // One particle: it falls and bounces off the floor, forever finite.
+    let mut scene = dam_break();
+    let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+    fluid.blocks[0].region.max = [0.04, 0.5, 0.04];
+    fluid.blocks[0].region.min = [0.0, 0.46, 0.0];
+    let mut world = build(&scene);
+    assert_eq!(world.particle_count(), 1);
+    for _ in 0..100 {
+        world.step().expect("a lone particle is stable");
+    }
+    check(&world);
+}
