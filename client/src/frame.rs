@@ -23,6 +23,10 @@ pub struct FrameView {
     pub particle_count: usize,
     pub substeps: u32,
     pub substep_dt: f64,
+    /// Pressure-solver iterations of the last step (0 for WCSPH).
+    pub solver_iterations: u32,
+    /// Worst average density error of the last step's solves (fraction).
+    pub density_error: f64,
     pub fields: Vec<FieldView>,
 }
 
@@ -51,6 +55,8 @@ impl FrameView {
             substeps,
             substep_dt,
             fields: _,
+            solver_iterations,
+            density_error,
         } = header.ok_or_else(|| ClientError::Decode("no header".into()))?;
         let particle_count = usize::try_from(particle_count)
             .map_err(|_| ClientError::Decode(format!("particle count {particle_count}")))?;
@@ -96,6 +102,8 @@ impl FrameView {
             particle_count,
             substeps,
             substep_dt,
+            solver_iterations,
+            density_error,
             fields,
         })
     }
@@ -120,6 +128,8 @@ mod tests {
                 substeps: 1,
                 substep_dt: 0.25,
                 fields: vec![v1::FieldKind::Density as i32],
+                solver_iterations: 0,
+                density_error: 0.0,
             }),
             fields: vec![v1::FieldData {
                 kind: v1::FieldKind::Density as i32,

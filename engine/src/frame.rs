@@ -21,6 +21,10 @@ pub struct Frame {
     /// Sub-steps the last step was split into, and the shortest of them.
     pub substeps: u32,
     pub substep_dt: Real,
+    /// Pressure-solver iterations of the last step (0 for WCSPH).
+    pub solver_iterations: u32,
+    /// Worst average density error of the last step's solves (fraction).
+    pub density_error: Real,
     pub particle_count: usize,
     /// Positions first, then the requested fields in scene order.
     pub fields: Vec<FieldData>,

@@ -28,6 +28,10 @@ pub mod defaults {
     pub const XSPH: Real = 0.1;
     pub const FRAME_EVERY: u32 = 1;
     pub const VISCOSITY: Real = 0.0;
+    pub const SOLVER: super::SolverKind = super::SolverKind::Wcsph;
+    pub const DENSITY_TOLERANCE: Real = 0.001;
+    pub const DIVERGENCE_TOLERANCE: Real = 0.001;
+    pub const MAX_SOLVER_ITERATIONS: u32 = 100;
     pub const WALLS: super::WallModel = super::WallModel::Solid;
     /// The same kernel for densities and pressure gradients keeps the
     /// pressure force the gradient of the internal energy: an undamped
@@ -181,6 +185,18 @@ pub struct FluidBlock {
     pub velocity: [Real; 3],
 }
 
+/// The pressure solver of a fluid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SolverKind {
+    /// Weakly compressible SPH (tutorial Algorithm 5): explicit, the step
+    /// limited by the sound speed that `stiffness` sets.
+    Wcsph,
+    /// Divergence-free SPH (Bender & Koschier 2015): iterated to
+    /// `density_tolerance`, the step limited by the flow speed.
+    Dfsph,
+}
+
 /// How the fluid meets the walls of the domain.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -205,7 +221,8 @@ pub struct FluidSpec {
     /// Rest density rho_0, kg/m^3.
     #[serde(default = "default_rest_density")]
     pub rest_density: Real,
-    /// Tait stiffness K, Pa (Eq. 47).
+    /// Tait stiffness K, Pa (Eq. 47); required by the WCSPH solver.
+    #[serde(default)]
     pub stiffness: Real,
     /// Tait exponent gamma (Eq. 47).
     #[serde(default = "default_gamma")]
@@ -222,6 +239,19 @@ pub struct FluidSpec {
     /// How the fluid meets the domain's walls.
     #[serde(default = "default_walls")]
     pub walls: WallModel,
+    /// The pressure solver.
+    #[serde(default = "default_solver")]
+    pub solver: SolverKind,
+    /// DFSPH: largest average density error accepted (fraction of rho_0).
+    #[serde(default = "default_density_tolerance")]
+    pub density_tolerance: Real,
+    /// DFSPH: largest average density change per sub-step accepted by the
+    /// divergence-free solve (fraction of rho_0).
+    #[serde(default = "default_divergence_tolerance")]
+    pub divergence_tolerance: Real,
+    /// DFSPH: iteration cap of each solve.
+    #[serde(default = "default_max_solver_iterations")]
+    pub max_solver_iterations: u32,
     /// Kernel of densities and XSPH averages.
     #[serde(default = "default_density_kernel")]
     pub density_kernel: KernelKind,
@@ -327,6 +357,18 @@ fn default_xsph() -> Real {
 }
 fn default_viscosity() -> Real {
     defaults::VISCOSITY
+}
+fn default_solver() -> SolverKind {
+    defaults::SOLVER
+}
+fn default_density_tolerance() -> Real {
+    defaults::DENSITY_TOLERANCE
+}
+fn default_divergence_tolerance() -> Real {
+    defaults::DIVERGENCE_TOLERANCE
+}
+fn default_max_solver_iterations() -> u32 {
+    defaults::MAX_SOLVER_ITERATIONS
 }
 fn default_walls() -> WallModel {
     defaults::WALLS
@@ -506,10 +548,44 @@ impl Scene {
             other => other,
         })?;
         check_positive(&format!("{at}.rest_density"), fluid.rest_density)?;
-        check_positive(&format!("{at}.stiffness"), fluid.stiffness)?;
-        // Water's bulk modulus is 2.2e9 Pa; beyond 1e12 the explicit
-        // sub-steps would be needlessly tiny and pressures overflow frames.
-        check_range(&format!("{at}.stiffness"), fluid.stiffness, 0.0, 1e12)?;
+        match fluid.solver {
+            SolverKind::Wcsph => {
+                check_positive(&format!("{at}.stiffness"), fluid.stiffness).map_err(
+                    |e| match e {
+                        SceneError::Invalid { field, message } => SceneError::Invalid {
+                            field,
+                            message: format!(
+                                "{message} (the wcsph solver needs the Tait stiffness)"
+                            ),
+                        },
+                        other => other,
+                    },
+                )?;
+                // Water's bulk modulus is 2.2e9 Pa; beyond 1e12 the explicit
+                // sub-steps would be needlessly tiny and pressures overflow frames.
+                check_range(&format!("{at}.stiffness"), fluid.stiffness, 0.0, 1e12)?;
+            }
+            SolverKind::Dfsph => {
+                check_range(
+                    &format!("{at}.density_tolerance"),
+                    fluid.density_tolerance,
+                    1e-6,
+                    0.1,
+                )?;
+                check_range(
+                    &format!("{at}.divergence_tolerance"),
+                    fluid.divergence_tolerance,
+                    1e-6,
+                    0.1,
+                )?;
+                if fluid.max_solver_iterations == 0 || fluid.max_solver_iterations > 10_000 {
+                    return Err(SceneError::invalid(
+                        format!("{at}.max_solver_iterations"),
+                        format!("must be in [1, 10000], got {}", fluid.max_solver_iterations),
+                    ));
+                }
+            }
+        }
         check_range(&format!("{at}.gamma"), fluid.gamma, 1.0, 10.0)?;
         check_range(
             &format!("{at}.negative_pressure_scale"),
@@ -685,6 +761,23 @@ mod tests {
         let mut s = small();
         s.domain.max = [1e6, 1e6, 1e6];
         assert_eq!(rejected_field(&s), "domain");
+    }
+
+    /// The stiffness is the WCSPH solver's knob: required there, not for
+    /// DFSPH, whose own knobs are range-checked instead.
+    #[test]
+    fn each_solver_checks_its_own_knobs() {
+        let mut s = small();
+        fluid(&mut s).stiffness = 0.0;
+        assert_eq!(rejected_field(&s), "systems[0].stiffness");
+        fluid(&mut s).solver = SolverKind::Dfsph;
+        s.validate(&BuildOptions::default())
+            .expect("DFSPH needs no stiffness");
+        fluid(&mut s).density_tolerance = 0.0;
+        assert_eq!(rejected_field(&s), "systems[0].density_tolerance");
+        fluid(&mut s).density_tolerance = 0.001;
+        fluid(&mut s).max_solver_iterations = 0;
+        assert_eq!(rejected_field(&s), "systems[0].max_solver_iterations");
     }
 
     #[test]

@@ -10,16 +10,20 @@ pub enum Stage {
     NeighborSearch,
     Density,
     PressureForce,
+    PressureSolve,
+    DivergenceSolve,
     Viscosity,
     Xsph,
     Integrate,
 }
 
 impl Stage {
-    pub const ALL: [Stage; 6] = [
+    pub const ALL: [Stage; 8] = [
         Stage::NeighborSearch,
         Stage::Density,
         Stage::PressureForce,
+        Stage::PressureSolve,
+        Stage::DivergenceSolve,
         Stage::Viscosity,
         Stage::Xsph,
         Stage::Integrate,
@@ -30,6 +34,8 @@ impl Stage {
             Stage::NeighborSearch => "neighbour search",
             Stage::Density => "density and pressure",
             Stage::PressureForce => "pressure force",
+            Stage::PressureSolve => "pressure solve",
+            Stage::DivergenceSolve => "divergence solve",
             Stage::Viscosity => "viscosity",
             Stage::Xsph => "XSPH",
             Stage::Integrate => "integration",

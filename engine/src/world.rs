@@ -1,11 +1,11 @@
 //! The running world: the systems a scene built, the clock, and the step.
 
 use crate::approx::Kernel;
-use crate::fluid::{BoxWalls, Fluid, FluidParams, FluidState, Tait};
+use crate::fluid::{BoxWalls, DfsphParams, Fluid, FluidParams, FluidState, PressureSolver, Tait};
 use crate::frame::{FieldData, Frame};
 use crate::math::{Real, Vector, vector};
 use crate::neighbors::UniformGrid;
-use crate::scene::{FieldKind, FluidSpec, Scene, SystemSpec, WallModel};
+use crate::scene::{FieldKind, FluidSpec, Scene, SolverKind, SystemSpec, WallModel};
 use crate::stats::StageTimer;
 
 /// Where a world is in time.
@@ -27,6 +27,11 @@ pub struct StepInfo {
     /// Whether `max_substeps` capped the split, so sub-steps exceeded the
     /// stability limit.
     pub capped: bool,
+    /// Pressure-solver iterations over all sub-steps (0 for WCSPH).
+    pub solver_iterations: u32,
+    /// Worst average density error after a sub-step's pressure solve
+    /// (fraction of rho_0; 0 for WCSPH).
+    pub density_error: Real,
 }
 
 /// A step failed; the world is left as it was before the step.
@@ -124,6 +129,8 @@ impl World {
             substeps: 0,
             min_substep: dt,
             capped: false,
+            solver_iterations: 0,
+            density_error: 0.0,
         };
         if let Some(fluid) = &mut self.fluid {
             fluid.save(&mut self.backup);
@@ -142,6 +149,9 @@ impl World {
                 }
                 let sub = remaining / wanted.min(budget as Real);
                 fluid.substep(sub, &gravity, &min, &max, &mut self.timer);
+                let solve = fluid.last_solve();
+                info.solver_iterations += solve.density_iterations + solve.divergence_iterations;
+                info.density_error = info.density_error.max(solve.density_error);
                 info.substeps += 1;
                 info.min_substep = info.min_substep.min(sub);
                 elapsed += sub;
@@ -191,6 +201,8 @@ impl World {
             time: self.clock.time,
             substeps: self.last_step.substeps,
             substep_dt: self.last_step.min_substep,
+            solver_iterations: self.last_step.solver_iterations,
+            density_error: self.last_step.density_error,
             particle_count: self.particle_count(),
             fields,
         }
@@ -228,6 +240,15 @@ fn build_fluid(scene: &Scene, spec: &FluidSpec) -> Fluid {
         xsph: spec.xsph,
         viscosity: spec.viscosity,
         mass: FluidParams::lattice_mass(spec.spacing, &density_kernel, spec.rest_density),
+        spacing: spec.spacing,
+        solver: match spec.solver {
+            SolverKind::Wcsph => PressureSolver::Wcsph,
+            SolverKind::Dfsph => PressureSolver::Dfsph(DfsphParams {
+                density_tolerance: spec.density_tolerance,
+                divergence_tolerance: spec.divergence_tolerance,
+                max_iterations: spec.max_solver_iterations,
+            }),
+        },
     };
     let (min, max) = (vector(scene.domain.min), vector(scene.domain.max));
     let walls = match spec.walls {

@@ -244,7 +244,10 @@ fn extremes_run_or_fail_cleanly() {
         let (min, max) = (world.scene().domain.min, world.scene().domain.max);
         for x in &fluid.positions {
             for a in 0..3 {
-                assert!(x[a].is_finite() && x[a] >= min[a] && x[a] <= max[a], "{x:?}");
+                assert!(
+                    x[a].is_finite() && x[a] >= min[a] && x[a] <= max[a],
+                    "{x:?}"
+                );
             }
         }
     };
@@ -254,7 +257,9 @@ fn extremes_run_or_fail_cleanly() {
         fluid.stiffness = stiffness;
         let mut world = build(&scene);
         for _ in 0..5 {
-            let info = world.step().expect("sub-stepping keeps any stiffness stable");
+            let info = world
+                .step()
+                .expect("sub-stepping keeps any stiffness stable");
             assert!(!info.capped, "K = {stiffness}: {info:?}");
         }
         check(&world);
@@ -283,4 +288,35 @@ fn extremes_run_or_fail_cleanly() {
         world.step().expect("a lone particle is stable");
     }
     check(&world);
+}
+
+/// DFSPH: a block of fluid at rest in a tank (the dam-break column with a
+/// dam: all of it, no gravity) stays at rest, and each step holds the
+/// density error under the tolerance within few iterations.
+#[test]
+fn dfsph_keeps_a_resting_fluid_at_rest() {
+    let mut scene = dam_break();
+    scene.gravity = [0.0; 3];
+    let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+    fluid.solver = meshless_engine::scene::SolverKind::Dfsph;
+    fluid.density_kernel = meshless_engine::approx::KernelKind::CubicSpline;
+    fluid.gradient_kernel = meshless_engine::approx::KernelKind::CubicSpline;
+    let mut world = build(&scene);
+    for _ in 0..20 {
+        let info = world.step().expect("stable");
+        assert!(info.density_error <= 0.001, "{info:?}");
+    }
+    assert!(world.stages().get(Stage::PressureSolve).runs > 0);
+    assert_eq!(
+        world.stages().get(Stage::PressureForce).runs,
+        0,
+        "no WCSPH pass"
+    );
+    let fluid = world.fluid().expect("fluid");
+    let fastest = fluid
+        .velocities
+        .iter()
+        .map(|v| v.norm())
+        .fold(0.0, f64::max);
+    assert!(fastest < 1e-3, "a resting fluid moved at {fastest} m/s");
 }

@@ -5,7 +5,7 @@
 use crate::error::ServiceError;
 use meshless_engine::approx::KernelKind;
 use meshless_engine::scene::{
-    Aabb, FluidBlock, FluidSpec, OutputSpec, SystemSpec, TimeSpec, WallModel, defaults,
+    Aabb, FluidBlock, FluidSpec, OutputSpec, SolverKind, SystemSpec, TimeSpec, WallModel, defaults,
 };
 use meshless_engine::{FieldKind, Frame, Scene};
 use meshless_proto::v1;
@@ -88,6 +88,26 @@ fn wall_model(value: Option<i32>, field: &str) -> Result<WallModel> {
             field,
             format!("unknown wall model {value:?}; use solid or reflect"),
         )),
+    }
+}
+
+/// Engine solver of a proto enum value; unset gives the default.
+fn solver_kind(value: Option<i32>, field: &str) -> Result<SolverKind> {
+    match value.map(v1::SolverKind::try_from) {
+        None => Ok(defaults::SOLVER),
+        Some(Ok(v1::SolverKind::Wcsph)) => Ok(SolverKind::Wcsph),
+        Some(Ok(v1::SolverKind::Dfsph)) => Ok(SolverKind::Dfsph),
+        Some(Ok(v1::SolverKind::Unspecified) | Err(_)) => Err(ServiceError::invalid(
+            field,
+            format!("unknown solver {value:?}; use wcsph or dfsph"),
+        )),
+    }
+}
+
+fn to_solver_kind(solver: SolverKind) -> v1::SolverKind {
+    match solver {
+        SolverKind::Wcsph => v1::SolverKind::Wcsph,
+        SolverKind::Dfsph => v1::SolverKind::Dfsph,
     }
 }
 
@@ -193,6 +213,10 @@ fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
         gradient_kernel,
         viscosity,
         walls,
+        solver,
+        density_tolerance,
+        divergence_tolerance,
+        max_solver_iterations,
     } = fluid;
     let blocks = blocks
         .into_iter()
@@ -216,6 +240,10 @@ fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
         xsph: xsph.unwrap_or(defaults::XSPH),
         viscosity: viscosity.unwrap_or(defaults::VISCOSITY),
         walls: wall_model(walls, &format!("{field}.walls"))?,
+        solver: solver_kind(solver, &format!("{field}.solver"))?,
+        density_tolerance: density_tolerance.unwrap_or(defaults::DENSITY_TOLERANCE),
+        divergence_tolerance: divergence_tolerance.unwrap_or(defaults::DIVERGENCE_TOLERANCE),
+        max_solver_iterations: max_solver_iterations.unwrap_or(defaults::MAX_SOLVER_ITERATIONS),
         density_kernel: kernel_kind(
             density_kernel,
             defaults::DENSITY_KERNEL,
@@ -258,6 +286,10 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
                         gradient_kernel: Some(to_kernel_kind(f.gradient_kernel) as i32),
                         viscosity: Some(f.viscosity),
                         walls: Some(to_wall_model(f.walls) as i32),
+                        solver: Some(to_solver_kind(f.solver) as i32),
+                        density_tolerance: Some(f.density_tolerance),
+                        divergence_tolerance: Some(f.divergence_tolerance),
+                        max_solver_iterations: Some(f.max_solver_iterations),
                         blocks: f
                             .blocks
                             .iter()
@@ -292,6 +324,8 @@ pub fn frame_to_proto(session_id: &str, frame: &Frame) -> v1::Frame {
             particle_count: frame.particle_count as u64,
             substeps: frame.substeps,
             substep_dt: frame.substep_dt,
+            solver_iterations: frame.solver_iterations,
+            density_error: frame.density_error,
             fields: frame
                 .fields
                 .iter()

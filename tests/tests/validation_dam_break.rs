@@ -3,8 +3,9 @@
 //! `Z = x / a` against `T = t sqrt(2 g / a)`, must follow the measurements
 //! within 10 % for 1 <= T <= 3 with the shipped dam-break scene.
 
+use meshless_engine::approx::KernelKind;
 use meshless_engine::math::Vector;
-use meshless_engine::scene::{SystemSpec, WallModel};
+use meshless_engine::scene::{SolverKind, SystemSpec, WallModel};
 use meshless_engine::{BuildOptions, Scene};
 
 const A: f64 = 0.3;
@@ -37,13 +38,20 @@ fn front(positions: &[Vector]) -> f64 {
     xs[((xs.len() - 1) as f64 * 0.995).round() as usize]
 }
 
-/// Runs the shipped scene with the given wall model and returns the
-/// simulated `(T, Z)` curve, one point per step.
-fn simulate(walls: WallModel) -> Vec<(f64, f64)> {
+/// Runs the shipped scene with the given wall model (and, for DFSPH, its
+/// solver and the consistent cubic spline pair) and returns the simulated
+/// `(T, Z)` curve, one point per step, and the worst density error the
+/// pressure solver left.
+fn simulate(walls: WallModel, solver: SolverKind) -> (Vec<(f64, f64)>, f64) {
     let mut scene =
         Scene::from_toml_str(include_str!("../../scenes/dam_break.toml")).expect("scene");
     let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
     fluid.walls = walls;
+    fluid.solver = solver;
+    if solver == SolverKind::Dfsph {
+        fluid.density_kernel = KernelKind::CubicSpline;
+        fluid.gradient_kernel = KernelKind::CubicSpline;
+    }
     assert_eq!(
         fluid.blocks[0].region.max[0], A,
         "the scene's column is a wide"
@@ -52,12 +60,14 @@ fn simulate(walls: WallModel) -> Vec<(f64, f64)> {
     let mut world = scene.build(&BuildOptions::default()).expect("valid");
     let scale = (2.0 * G / A).sqrt();
     let mut curve = Vec::new();
+    let mut density_error: f64 = 0.0;
     while world.clock().time * scale < 3.4 {
-        world.step().expect("stable");
+        let info = world.step().expect("stable");
+        density_error = density_error.max(info.density_error);
         let fluid = world.fluid().expect("fluid");
         curve.push((world.clock().time * scale, front(&fluid.positions) / A));
     }
-    curve
+    (curve, density_error)
 }
 
 fn interpolate(curve: &[(f64, f64)], t: f64) -> f64 {
@@ -68,36 +78,55 @@ fn interpolate(curve: &[(f64, f64)], t: f64) -> f64 {
     z0 + (z1 - z0) * (t - t0) / (t1 - t0)
 }
 
+/// The shipped scene (WCSPH, solid walls) within 10 % of the experiment
+/// for 1 <= T <= 3. Also reported: reflection-only walls, whose wall-side
+/// particles lack density and drag the front (worse), and DFSPH, which is
+/// less dissipative and leads the measured front early on (the
+/// experiment's gate opening slows its first instants), held to 20 % and
+/// to its density tolerance.
 #[test]
 fn dam_break_front_follows_martin_and_moyce() {
-    let solid = simulate(WallModel::Solid);
-    let reflect = simulate(WallModel::Reflect);
-    println!("    T   Z measured   Z solid walls   Z reflecting walls");
-    let mut worst: f64 = 0.0;
-    let mut worst_reflect: f64 = 0.0;
+    let (solid, _) = simulate(WallModel::Solid, SolverKind::Wcsph);
+    let (reflect, _) = simulate(WallModel::Reflect, SolverKind::Wcsph);
+    let (dfsph, density_error) = simulate(WallModel::Solid, SolverKind::Dfsph);
+    println!("    T   Z measured   WCSPH solid walls   WCSPH reflecting walls   DFSPH solid walls");
+    let (mut worst, mut worst_reflect, mut worst_dfsph): (f64, f64, f64) = (0.0, 0.0, 0.0);
     for (t, z) in measured_front() {
-        let (zs, zr) = (interpolate(&solid, t), interpolate(&reflect, t));
+        let [zs, zr, zd] = [&solid, &reflect, &dfsph].map(|c| interpolate(c, t));
+        let pct = |v: f64| 100.0 * (v - z) / z;
         println!(
-            "{t:5.2}   {z:10.2}   {zs:6.2} ({:+5.1} %)   {zr:6.2} ({:+5.1} %)",
-            100.0 * (zs - z) / z,
-            100.0 * (zr - z) / z
+            "{t:5.2}   {z:10.2}   {zs:6.2} ({:+5.1} %)     {zr:6.2} ({:+5.1} %)          {zd:6.2} ({:+5.1} %)",
+            pct(zs),
+            pct(zr),
+            pct(zd)
         );
         if (1.0..=3.0).contains(&t) {
             worst = worst.max(((zs - z) / z).abs());
             worst_reflect = worst_reflect.max(((zr - z) / z).abs());
+            worst_dfsph = worst_dfsph.max(((zd - z) / z).abs());
         }
     }
     println!(
-        "worst error for 1 <= T <= 3: solid {:.1} %, reflect {:.1} %",
+        "worst error for 1 <= T <= 3: WCSPH solid {:.1} %, reflect {:.1} %, DFSPH {:.1} %; \
+         DFSPH worst density error {:.3} %",
         100.0 * worst,
-        100.0 * worst_reflect
+        100.0 * worst_reflect,
+        100.0 * worst_dfsph,
+        100.0 * density_error
     );
     assert!(
         worst < 0.10,
         "solid walls: worst front error {:.1} %",
         100.0 * worst
     );
-    // Reflection alone leaves particles beside walls short of density: the
-    // front lags, which is why solid walls are the default.
     assert!(worst_reflect > worst);
+    assert!(
+        worst_dfsph < 0.20,
+        "DFSPH: worst front error {:.1} %",
+        100.0 * worst_dfsph
+    );
+    assert!(
+        density_error <= 0.001 + 1e-12,
+        "DFSPH left {density_error} density error"
+    );
 }

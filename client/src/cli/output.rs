@@ -123,6 +123,8 @@ pub fn engine_frame(frame: FrameView) -> Frame {
         time: frame.time,
         substeps: frame.substeps,
         substep_dt: frame.substep_dt,
+        solver_iterations: frame.solver_iterations,
+        density_error: frame.density_error,
         particle_count: frame.particle_count,
         fields,
     }

@@ -48,10 +48,12 @@ pub fn run(args: RunArgs) -> Result<()> {
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let start = Instant::now();
-    let mut substeps = 0u64;
+    let (mut substeps, mut iterations, mut worst_error) = (0u64, 0u64, 0.0f64);
     for _ in 0..steps {
         let info = world.step()?;
         substeps += u64::from(info.substeps);
+        iterations += u64::from(info.solver_iterations);
+        worst_error = worst_error.max(info.density_error);
         if world.is_frame_step() {
             files.write(world.frame());
         }
@@ -77,6 +79,13 @@ pub fn run(args: RunArgs) -> Result<()> {
         steps as f64 / wall,
         particles * substeps as f64 / wall
     );
+    if iterations > 0 {
+        println!(
+            "  pressure solver   {:.1} iterations per sub-step, worst average density error {:.3} %",
+            iterations as f64 / substeps as f64,
+            100.0 * worst_error
+        );
+    }
     let total: f64 = world.stages().iter().map(|(_, s)| s.seconds).sum();
     for (stage, stats) in world.stages().iter().filter(|(_, s)| s.runs > 0) {
         println!(

@@ -139,14 +139,20 @@ impl BoxWalls {
         rho
     }
 
+    /// Gradient of the density the walls add at `x` (with the gradient
+    /// kernel): it points into the nearby walls.
+    #[inline]
+    pub fn density_gradient(&self, x: &Vector) -> Vector {
+        let mut gradient = Vector::zeros();
+        self.near(x, |d, n| gradient += n * self.lookup(&self.slope, d));
+        gradient
+    }
+
     /// The pressure acceleration the walls exert on a particle at `x` with
-    /// pressure `p` and density `rho`.
+    /// pressure `p` and density `rho`: `-(p / rho^2) grad rho_wall`.
     #[inline]
     pub fn pressure_acceleration(&self, x: &Vector, p: Real, rho: Real) -> Vector {
-        let weight = p / (rho * rho);
-        let mut a = Vector::zeros();
-        self.near(x, |d, n| a -= n * (weight * self.lookup(&self.slope, d)));
-        a
+        -self.density_gradient(x) * (p / (rho * rho))
     }
 }
 

@@ -2,12 +2,23 @@
 //! densities -> pressures -> pressure forces -> viscosity -> XSPH ->
 //! explicit integration with reflection off the domain walls.
 
+use super::dfsph::{DfsphParams, SolverScratch};
 use super::{BoxWalls, Tait};
 use crate::approx::{Kernel, KernelKind};
 use crate::math::{Real, Vector};
 use crate::neighbors::{NeighborList, UniformGrid};
 use crate::stats::{Stage, StageTimer};
 use rayon::prelude::*;
+
+/// Which pressure solver steps the fluid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PressureSolver {
+    /// Weakly compressible SPH with the Tait equation (Algorithm 5).
+    Wcsph,
+    /// Divergence-free SPH (Bender & Koschier 2015), iterated to a density
+    /// tolerance.
+    Dfsph(DfsphParams),
+}
 
 /// Physical and numerical parameters of one fluid.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -25,6 +36,9 @@ pub struct FluidParams {
     pub viscosity: Real,
     /// Mass of every particle, kg.
     pub mass: Real,
+    /// Initial particle spacing, m.
+    pub spacing: Real,
+    pub solver: PressureSolver,
 }
 
 impl FluidParams {
@@ -58,21 +72,27 @@ pub struct Fluid {
     pub densities: Vec<Real>,
     /// p_i from the last pressure pass, Pa.
     pub pressures: Vec<Real>,
-    accelerations: Vec<Vector>,
-    smoothed_velocities: Vec<Vector>,
+    pub(super) accelerations: Vec<Vector>,
+    pub(super) smoothed_velocities: Vec<Vector>,
     /// Solid walls of the domain, when the scene asks for them.
-    walls: Option<BoxWalls>,
+    pub(super) walls: Option<BoxWalls>,
     /// Müller's viscosity kernel, when the scene has viscosity.
-    viscosity_kernel: Option<Kernel>,
+    pub(super) viscosity_kernel: Option<Kernel>,
     grid: UniformGrid,
-    neighbors: NeighborList,
-    max_acceleration: Real,
+    pub(super) neighbors: NeighborList,
+    pub(super) max_acceleration: Real,
+    /// Scratch of the iterative solver, empty for WCSPH.
+    pub(super) solver: SolverScratch,
 }
 
 impl Fluid {
     /// Particle speeds above this multiple of the speed of sound count as
-    /// a blow-up.
+    /// a blow-up (WCSPH).
     pub const SPEED_LIMIT: Real = 100.0;
+    /// Speeds above this count as a blow-up for incompressible solvers,
+    /// which have no sound speed: no liquid flow a scene can describe
+    /// comes near it.
+    pub const INCOMPRESSIBLE_SPEED_LIMIT: Real = 1e4;
 
     /// A fluid with the given particles; `grid` must cover the domain with
     /// cells of the support radius.
@@ -102,12 +122,16 @@ impl Fluid {
             grid,
             neighbors: NeighborList::default(),
             max_acceleration: 0.0,
+            solver: SolverScratch::default(),
         };
         // Densities and pressures of the initial state, so frame 0 and the
         // first stability limit see real values.
         fluid.find_neighbors();
         fluid.compute_densities();
-        fluid.compute_pressures();
+        match params.solver {
+            PressureSolver::Wcsph => fluid.compute_pressures(),
+            PressureSolver::Dfsph(_) => fluid.prepare_dfsph(),
+        }
         fluid
     }
 
@@ -136,7 +160,11 @@ impl Fluid {
             .map(|v| v.norm_squared())
             .reduce(|| 0.0, Real::max)
             .sqrt();
-        let mut dt = cfl * h / (self.params.eos.sound_speed() + v_max);
+        let mut dt = match self.params.solver {
+            PressureSolver::Wcsph => cfl * h / (self.params.eos.sound_speed() + v_max),
+            // No sound speed: a particle moves at most `cfl` spacings.
+            PressureSolver::Dfsph(_) => cfl * self.params.spacing / v_max,
+        };
         if self.max_acceleration > 0.0 {
             dt = dt.min(cfl * (h / self.max_acceleration).sqrt());
         }
@@ -146,9 +174,26 @@ impl Fluid {
         dt
     }
 
-    /// One explicit sub-step of length `dt` (Algorithm 5), reflecting
+    /// One sub-step of length `dt` with the scene's solver, reflecting
     /// particles off the walls of `[min, max]`.
     pub fn substep(
+        &mut self,
+        dt: Real,
+        gravity: &Vector,
+        min: &Vector,
+        max: &Vector,
+        timer: &mut StageTimer,
+    ) {
+        match self.params.solver {
+            PressureSolver::Wcsph => self.wcsph_substep(dt, gravity, min, max, timer),
+            PressureSolver::Dfsph(params) => {
+                self.dfsph_substep(dt, gravity, min, max, &params, timer)
+            }
+        }
+    }
+
+    /// One explicit WCSPH sub-step (Algorithm 5).
+    fn wcsph_substep(
         &mut self,
         dt: Real,
         gravity: &Vector,
@@ -183,7 +228,7 @@ impl Fluid {
         timer.time(Stage::Integrate, || self.integrate(dt, min, max));
     }
 
-    fn find_neighbors(&mut self) {
+    pub(super) fn find_neighbors(&mut self) {
         self.grid.rebuild(&self.positions);
         self.neighbors
             .build(&self.grid, &self.positions, self.params.support_radius);
@@ -191,7 +236,7 @@ impl Fluid {
 
     /// `rho_i = sum_j m_j omega(|x_i - x_j|)` (Algorithm 5; poly6 by
     /// default), plus the walls' ghost layers (Eq. 55).
-    fn compute_densities(&mut self) {
+    pub(super) fn compute_densities(&mut self) {
         let (positions, neighbors, kernel, mass, walls) = (
             &self.positions,
             &self.neighbors,
@@ -217,7 +262,7 @@ impl Fluid {
     /// Laplacian viscosity (Eq. 52) with Müller's viscosity kernel:
     /// `a_i += (mu / rho_i) sum_j m_j (v_j - v_i) / rho_j Delta omega_ij`.
     /// Antisymmetric in each pair, so it conserves momentum.
-    fn apply_viscosity(&mut self, kernel: &Kernel) {
+    pub(super) fn apply_viscosity(&mut self, kernel: &Kernel) {
         let (positions, velocities, densities, neighbors) = (
             &self.positions,
             &self.velocities,
@@ -258,7 +303,7 @@ impl Fluid {
     /// written brakes uniform motion, every sub-step. The difference form
     /// leaves uniform motion alone and, with the pair-symmetric density,
     /// conserves momentum.
-    fn apply_xsph(&mut self) {
+    pub(super) fn apply_xsph(&mut self) {
         let (positions, velocities, densities, neighbors, kernel, mass) = (
             &self.positions,
             &self.velocities,
@@ -284,7 +329,7 @@ impl Fluid {
     }
 
     /// Eq. 58-59 (symplectic Euler), then reflection off the walls.
-    fn integrate(&mut self, dt: Real, min: &Vector, max: &Vector) {
+    pub(super) fn integrate(&mut self, dt: Real, min: &Vector, max: &Vector) {
         self.max_acceleration = self
             .accelerations
             .par_iter()
@@ -312,7 +357,10 @@ impl Fluid {
         let bad_vector = |v: &Vector| v.iter().any(|c| !c.is_finite() || c.abs() >= MAX);
         // NaN fails `is_finite`; infinities and huge values fail the bound.
         let bad_scalar = |s: &Real| !s.is_finite() || s.abs() >= MAX;
-        let max_speed = Self::SPEED_LIMIT * self.params.eos.sound_speed();
+        let max_speed = match self.params.solver {
+            PressureSolver::Wcsph => Self::SPEED_LIMIT * self.params.eos.sound_speed(),
+            PressureSolver::Dfsph(_) => Self::INCOMPRESSIBLE_SPEED_LIMIT,
+        };
         let found = |quantity, i: Option<usize>, value: Real| {
             i.map(|particle| Invalid {
                 quantity,
@@ -380,7 +428,7 @@ pub struct Invalid {
 /// Mirrors a particle that crossed a wall back inside and flips its normal
 /// velocity ("reflect them off solid boundaries", tutorial Section 6.4).
 #[inline]
-fn reflect(x: &mut Vector, v: &mut Vector, min: &Vector, max: &Vector) {
+pub(super) fn reflect(x: &mut Vector, v: &mut Vector, min: &Vector, max: &Vector) {
     for a in 0..3 {
         if x[a] < min[a] {
             x[a] = min[a] + (min[a] - x[a]);

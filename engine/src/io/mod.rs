@@ -58,6 +58,8 @@ pub(crate) mod test_frame {
             time: 0.5,
             substeps: 2,
             substep_dt: 0.25,
+            solver_iterations: 0,
+            density_error: 0.0,
             particle_count: 2,
             fields: vec![
                 FieldData {

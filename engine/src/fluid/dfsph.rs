@@ -1,0 +1,288 @@
+//! Divergence-free SPH (Bender & Koschier, "Divergence-free smoothed
+//! particle hydrodynamics", SCA 2015; TVCG 2017): an incompressible solver
+//! that iterates pressure until the predicted density error falls below a
+//! tolerance, so the time step follows the flow speed, not a sound speed.
+//!
+//! A sub-step: non-pressure accelerations (gravity, viscosity, XSPH) ->
+//! constant-density solve on the predicted velocities -> advection ->
+//! neighbour search, densities and factors -> divergence-free solve.
+//! Both solves share one update: with the factor
+//! `alpha_i = rho_i / (|sum_j m_j grad W_ij|^2 + sum_j |m_j grad W_ij|^2)`,
+//! a density source `s_i` becomes `kappa_i = s_i alpha_i / dt^k` and
+//! `v_i -= dt sum_j m_j (kappa_i / rho_i + kappa_j / rho_j) grad W_ij`, the
+//! symmetric pressure form of Eq. 51 with `kappa = p / rho`. Walls enter
+//! through the gradient of their density (see [`super::BoxWalls`]).
+
+use super::wcsph::{Fluid, reflect};
+use crate::math::{Real, Vector};
+use crate::stats::{Stage, StageTimer};
+use rayon::prelude::*;
+
+/// Parameters of the DFSPH solves.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DfsphParams {
+    /// Largest average density error the constant-density solve accepts,
+    /// as a fraction of the rest density (0.001 = 0.1 %).
+    pub density_tolerance: Real,
+    /// Largest average density change per sub-step the divergence solve
+    /// accepts, as a fraction of the rest density.
+    pub divergence_tolerance: Real,
+    /// Iteration cap of each solve; reaching it leaves the error above
+    /// tolerance (reported, not fatal).
+    pub max_iterations: u32,
+}
+
+/// What the solves of the last sub-step achieved.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SolveInfo {
+    pub density_iterations: u32,
+    /// Average density error after the constant-density solve (fraction).
+    pub density_error: Real,
+    pub divergence_iterations: u32,
+    /// Average density change rate times the sub-step after the
+    /// divergence solve (fraction).
+    pub divergence_error: Real,
+}
+
+/// Per-particle scratch of the solves.
+#[derive(Debug, Clone, Default)]
+pub struct SolverScratch {
+    /// `alpha_i`.
+    factors: Vec<Real>,
+    /// Gradient of the walls' density at each particle.
+    wall_gradients: Vec<Vector>,
+    /// The density source of the current iteration.
+    source: Vec<Real>,
+    kappa: Vec<Real>,
+    pub(super) last: SolveInfo,
+}
+
+/// Which density source a solve drives to zero.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Solve {
+    /// The density predicted after the sub-step, above rest density.
+    ConstantDensity,
+    /// The rate of compression.
+    DivergenceFree,
+}
+
+impl Fluid {
+    /// Allocates the solver scratch and computes the factors of the
+    /// initial state.
+    pub(super) fn prepare_dfsph(&mut self) {
+        let n = self.len();
+        let scratch = &mut self.solver;
+        scratch.factors.resize(n, 0.0);
+        scratch.wall_gradients.resize(n, Vector::zeros());
+        scratch.source.resize(n, 0.0);
+        scratch.kappa.resize(n, 0.0);
+        self.compute_factors();
+    }
+
+    /// One DFSPH sub-step of length `dt`.
+    pub(super) fn dfsph_substep(
+        &mut self,
+        dt: Real,
+        gravity: &Vector,
+        min: &Vector,
+        max: &Vector,
+        params: &DfsphParams,
+        timer: &mut StageTimer,
+    ) {
+        let g = *gravity;
+        self.accelerations.par_iter_mut().for_each(|a| *a = g);
+        if let Some(kernel) = self.viscosity_kernel {
+            timer.time(Stage::Viscosity, || self.apply_viscosity(&kernel));
+        }
+        if self.params.xsph > 0.0 {
+            timer.time(Stage::Xsph, || self.apply_xsph());
+        }
+        timer.time(Stage::Integrate, || {
+            self.max_acceleration = self
+                .accelerations
+                .par_iter()
+                .map(|a| a.norm_squared())
+                .reduce(|| 0.0, Real::max)
+                .sqrt();
+            self.velocities
+                .par_iter_mut()
+                .zip(self.accelerations.par_iter())
+                .for_each(|(v, a)| *v += a * dt);
+        });
+        self.pressures.par_iter_mut().for_each(|p| *p = 0.0);
+        let (density_iterations, density_error) = timer.time(Stage::PressureSolve, || {
+            self.solve(Solve::ConstantDensity, dt, params)
+        });
+        timer.time(Stage::Integrate, || {
+            self.positions
+                .par_iter_mut()
+                .zip(self.velocities.par_iter_mut())
+                .for_each(|(x, v)| {
+                    *x += *v * dt;
+                    reflect(x, v, min, max);
+                });
+        });
+        timer.time(Stage::NeighborSearch, || self.find_neighbors());
+        timer.time(Stage::Density, || {
+            self.compute_densities();
+            self.compute_factors();
+        });
+        let (divergence_iterations, divergence_error) = timer.time(Stage::DivergenceSolve, || {
+            self.solve(Solve::DivergenceFree, dt, params)
+        });
+        self.solver.last = SolveInfo {
+            density_iterations,
+            density_error,
+            divergence_iterations,
+            divergence_error,
+        };
+    }
+
+    /// `alpha_i` and the walls' density gradient at every particle.
+    fn compute_factors(&mut self) {
+        let (positions, densities, neighbors, kernel, mass, walls) = (
+            &self.positions,
+            &self.densities,
+            &self.neighbors,
+            &self.params.gradient_kernel,
+            self.params.mass,
+            self.walls.as_ref(),
+        );
+        let scratch = &mut self.solver;
+        scratch
+            .factors
+            .par_iter_mut()
+            .zip(scratch.wall_gradients.par_iter_mut())
+            .enumerate()
+            .for_each(|(i, (alpha, wall))| {
+                let xi = positions[i];
+                *wall = walls.map_or(Vector::zeros(), |w| w.density_gradient(&xi));
+                let mut sum = *wall;
+                let mut squares = 0.0;
+                for &j in neighbors.of(i) {
+                    let r = xi - positions[j as usize];
+                    let grad = kernel.gradient(&r, r.norm()) * mass;
+                    sum += grad;
+                    squares += grad.norm_squared();
+                }
+                let denominator = sum.norm_squared() + squares;
+                *alpha = if denominator > 0.0 {
+                    densities[i] / denominator
+                } else {
+                    0.0
+                };
+            });
+    }
+
+    /// Iterates one solve until its average error is below tolerance or
+    /// the cap is reached; returns the iterations and the error reached.
+    fn solve(&mut self, solve: Solve, dt: Real, params: &DfsphParams) -> (u32, Real) {
+        let rest = self.params.eos.rest_density;
+        let n = self.len().max(1) as Real;
+        let (tolerance, scale) = match solve {
+            Solve::ConstantDensity => (params.density_tolerance, 1.0 / dt / dt),
+            Solve::DivergenceFree => (params.divergence_tolerance, 1.0 / dt),
+        };
+        let mut iterations = 0;
+        loop {
+            self.compute_source(solve, dt);
+            let mean = self.solver.source.par_iter().sum::<Real>() / n;
+            let error = match solve {
+                Solve::ConstantDensity => mean / rest,
+                Solve::DivergenceFree => mean * dt / rest,
+            };
+            if error <= tolerance || iterations >= params.max_iterations {
+                return (iterations, error);
+            }
+            let scratch = &mut self.solver;
+            scratch
+                .kappa
+                .par_iter_mut()
+                .zip(scratch.source.par_iter())
+                .zip(scratch.factors.par_iter())
+                .for_each(|((kappa, s), alpha)| *kappa = s * alpha * scale);
+            // Both solves push with the pressure form of Eq. 51: the
+            // pressure a frame reports is their sum, `p = rho sum kappa`.
+            let kappa = &self.solver.kappa;
+            self.pressures
+                .par_iter_mut()
+                .zip(self.densities.par_iter())
+                .enumerate()
+                .for_each(|(i, (p, rho))| *p += kappa[i] * rho);
+            self.apply_kappa(dt);
+            iterations += 1;
+        }
+    }
+
+    /// The density source of each particle from the current velocities:
+    /// for the constant-density solve the predicted density excess
+    /// `max(rho_i + dt D rho_i / Dt - rho_0, 0)`, for the divergence solve
+    /// `max(D rho_i / Dt, 0)`, with
+    /// `D rho_i / Dt = sum_j m_j (v_i - v_j) . grad W_ij + v_i . grad rho_wall`.
+    /// Only compression is corrected: free surfaces may expand.
+    fn compute_source(&mut self, solve: Solve, dt: Real) {
+        let (positions, velocities, densities, neighbors, kernel, mass) = (
+            &self.positions,
+            &self.velocities,
+            &self.densities,
+            &self.neighbors,
+            &self.params.gradient_kernel,
+            self.params.mass,
+        );
+        let rest = self.params.eos.rest_density;
+        let scratch = &mut self.solver;
+        let walls = &scratch.wall_gradients;
+        scratch
+            .source
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, source)| {
+                let (xi, vi) = (positions[i], velocities[i]);
+                let mut rate = vi.dot(&walls[i]);
+                for &j in neighbors.of(i) {
+                    let j = j as usize;
+                    let r = xi - positions[j];
+                    rate += (vi - velocities[j]).dot(&kernel.gradient(&r, r.norm())) * mass;
+                }
+                *source = match solve {
+                    Solve::ConstantDensity => (densities[i] + dt * rate - rest).max(0.0),
+                    Solve::DivergenceFree => rate.max(0.0),
+                };
+            });
+    }
+
+    /// `v_i -= dt (sum_j m_j (kappa_i / rho_i + kappa_j / rho_j) grad W_ij
+    /// + kappa_i / rho_i grad rho_wall)`.
+    fn apply_kappa(&mut self, dt: Real) {
+        let (positions, densities, neighbors, kernel, mass) = (
+            &self.positions,
+            &self.densities,
+            &self.neighbors,
+            &self.params.gradient_kernel,
+            self.params.mass,
+        );
+        let (kappa, walls) = (&self.solver.kappa, &self.solver.wall_gradients);
+        self.velocities
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, v)| {
+                let xi = positions[i];
+                let ki = kappa[i] / densities[i];
+                let mut push = walls[i] * ki;
+                for &j in neighbors.of(i) {
+                    let j = j as usize;
+                    if j == i {
+                        continue;
+                    }
+                    let r = xi - positions[j];
+                    push += kernel.gradient(&r, r.norm()) * (mass * (ki + kappa[j] / densities[j]));
+                }
+                *v -= push * dt;
+            });
+    }
+
+    /// What the last sub-step's solves achieved (zero for WCSPH).
+    pub fn last_solve(&self) -> SolveInfo {
+        self.solver.last
+    }
+}
