@@ -4,39 +4,14 @@
 //! within 10 % for 1 <= T <= 3 with the shipped dam-break scene.
 
 use meshless_engine::approx::KernelKind;
-use meshless_engine::math::Vector;
+use meshless_engine::experiments::{
+    MARTIN_MOYCE_FRONT, dam_break_time_scale, interpolate, surge_front,
+};
 use meshless_engine::scene::{SolverKind, SystemSpec, WallModel};
 use meshless_engine::{BuildOptions, Scene};
 
 const A: f64 = 0.3;
 const G: f64 = 9.81;
-
-/// `(T, Z)` rows of the surge-front table.
-fn measured_front() -> Vec<(f64, f64)> {
-    include_str!("../data/dam_break_martin_moyce_1952.csv")
-        .lines()
-        .filter_map(|line| {
-            let mut cols = line.split(',');
-            (cols.next() == Some("front")).then(|| {
-                let t: f64 = cols.next().and_then(|c| c.parse().ok()).expect("T");
-                let z: f64 = cols.next().and_then(|c| c.parse().ok()).expect("Z");
-                (t, z)
-            })
-        })
-        .collect()
-}
-
-/// The front: a high percentile of x among particles near the floor, so
-/// one stray particle does not define it.
-fn front(positions: &[Vector]) -> f64 {
-    let mut xs: Vec<f64> = positions
-        .iter()
-        .filter(|p| p.y < A / 6.0)
-        .map(|p| p.x)
-        .collect();
-    xs.sort_by(f64::total_cmp);
-    xs[((xs.len() - 1) as f64 * 0.995).round() as usize]
-}
 
 /// Runs the shipped scene with the given wall model (and, for DFSPH, its
 /// solver and the consistent cubic spline pair) and returns the simulated
@@ -58,24 +33,17 @@ fn simulate(walls: WallModel, solver: SolverKind) -> (Vec<(f64, f64)>, f64) {
     );
     assert_eq!(fluid.blocks[0].region.max[1], 2.0 * A, "and 2a high");
     let mut world = scene.build(&BuildOptions::default()).expect("valid");
-    let scale = (2.0 * G / A).sqrt();
+    let scale = dam_break_time_scale(A, G);
     let mut curve = Vec::new();
     let mut density_error: f64 = 0.0;
     while world.clock().time * scale < 3.4 {
         let info = world.step().expect("stable");
         density_error = density_error.max(info.density_error);
         let fluid = world.fluid().expect("fluid");
-        curve.push((world.clock().time * scale, front(&fluid.positions) / A));
+        let front = surge_front(&fluid.positions, A).expect("water on the floor");
+        curve.push((world.clock().time * scale, front));
     }
     (curve, density_error)
-}
-
-fn interpolate(curve: &[(f64, f64)], t: f64) -> f64 {
-    let k = curve
-        .partition_point(|&(ct, _)| ct < t)
-        .clamp(1, curve.len() - 1);
-    let ((t0, z0), (t1, z1)) = (curve[k - 1], curve[k]);
-    z0 + (z1 - z0) * (t - t0) / (t1 - t0)
 }
 
 /// The shipped scene (WCSPH, solid walls) within 10 % of the experiment
@@ -91,8 +59,9 @@ fn dam_break_front_follows_martin_and_moyce() {
     let (dfsph, density_error) = simulate(WallModel::Solid, SolverKind::Dfsph);
     println!("    T   Z measured   WCSPH solid walls   WCSPH reflecting walls   DFSPH solid walls");
     let (mut worst, mut worst_reflect, mut worst_dfsph): (f64, f64, f64) = (0.0, 0.0, 0.0);
-    for (t, z) in measured_front() {
-        let [zs, zr, zd] = [&solid, &reflect, &dfsph].map(|c| interpolate(c, t));
+    for (t, z) in MARTIN_MOYCE_FRONT {
+        let [zs, zr, zd] =
+            [&solid, &reflect, &dfsph].map(|c| interpolate(c, t).expect("simulated up to T = 3.4"));
         let pct = |v: f64| 100.0 * (v - z) / z;
         println!(
             "{t:5.2}   {z:10.2}   {zs:6.2} ({:+5.1} %)     {zr:6.2} ({:+5.1} %)          {zd:6.2} ({:+5.1} %)",
