@@ -221,3 +221,56 @@ async fn demo_runs_the_whole_service_in_process() {
     let last = std::fs::read(out.join("frame_000010.ply")).expect("last frame");
     assert!(last.starts_with(b"ply\nformat binary_little_endian 1.0\n"));
 }
+
+/// `meshless study` sweeps a knob on a dam break, writes one CSV row per
+/// value with the front error against Martin & Moyce, and a PNG chart.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn study_writes_error_against_cost() {
+    let dir = TempDir::new("study");
+    let scene = dir.0.join("coarse.toml");
+    let coarse = include_str!("../../scenes/dam_break.toml")
+        .replace("spacing = 0.02", "spacing = 0.04")
+        .replace("support_radius = 0.04", "support_radius = 0.08");
+    std::fs::write(&scene, coarse).expect("scene file");
+    let output = meshless(&[
+        "study",
+        "--knob",
+        "cfl",
+        "--values",
+        "0.4,0.8",
+        "--scene",
+        scene.to_str().expect("utf-8"),
+        "--output",
+        dir.0.to_str().expect("utf-8"),
+    ])
+    .await;
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let csv = std::fs::read_to_string(dir.0.join("study_cfl.csv")).expect("csv");
+    let rows: Vec<&str> = csv.lines().collect();
+    assert_eq!(rows.len(), 3, "{csv}");
+    assert!(rows[0].starts_with("knob,value,particles"));
+    for row in &rows[1..] {
+        let cols: Vec<&str> = row.split(',').collect();
+        assert_eq!(cols[2], "735", "{row}");
+        let worst: f64 = cols[7].parse().expect("a front error");
+        assert!(worst.is_finite() && worst < 0.5, "{row}");
+        assert_eq!(cols[9], "ok");
+    }
+    // A larger Courant number means fewer sub-steps.
+    let substeps: Vec<u64> = rows[1..]
+        .iter()
+        .map(|r| {
+            r.split(',')
+                .nth(3)
+                .and_then(|s| s.parse().ok())
+                .expect("sub-steps")
+        })
+        .collect();
+    assert!(substeps[1] < substeps[0], "{substeps:?}");
+    let png = std::fs::read(dir.0.join("study_cfl.png")).expect("chart");
+    assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"));
+}

@@ -1,12 +1,16 @@
 //! Commands of the `meshless` binary.
 
 #[cfg(feature = "embedded")]
+mod chart;
+#[cfg(feature = "embedded")]
 mod demo;
 #[cfg(feature = "embedded")]
 mod output;
 #[cfg(feature = "embedded")]
 mod run;
 mod session;
+#[cfg(feature = "embedded")]
+mod study;
 mod watch;
 
 use clap::{Parser, Subcommand};
@@ -32,6 +36,10 @@ enum Command {
     /// Run a scene file in this process (no server) and write its frames.
     #[cfg(feature = "embedded")]
     Run(run::RunArgs),
+    /// Sweep one speed-against-accuracy knob on the dam break: front error
+    /// against Martin & Moyce and cost, as CSV and a PNG chart.
+    #[cfg(feature = "embedded")]
+    Study(study::StudyArgs),
     /// Create and drive sessions on a server.
     Session(session::SessionArgs),
     /// Print frame rates and particle counts of a session's zenoh stream.
@@ -48,6 +56,8 @@ pub async fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Demo(args) => demo::demo(args).await,
         #[cfg(feature = "embedded")]
         Command::Run(args) => run::run(args),
+        #[cfg(feature = "embedded")]
+        Command::Study(args) => study::study(args),
         Command::Session(args) => session::session(args).await,
         Command::Watch(args) => watch::watch(args).await,
     }

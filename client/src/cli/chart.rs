@@ -1,0 +1,91 @@
+//! PNG charts of error against cost, drawn with plotters.
+
+use anyhow::{Context, Result};
+use plotters::prelude::*;
+use plotters::style::FontStyle;
+use std::path::Path;
+use std::sync::OnceLock;
+
+/// One measured setting.
+#[derive(Debug, Clone)]
+pub struct Point {
+    /// Wall-clock seconds.
+    pub cost: f64,
+    /// Error in percent.
+    pub error: f64,
+    pub label: String,
+}
+
+/// Fonts tried in order after `$MESHLESS_FONT`.
+const FONT_PATHS: &[&str] = &[
+    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/TTF/DejaVuSans.ttf",
+    "/usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf",
+    "/System/Library/Fonts/Supplemental/Arial.ttf",
+    "C:\\Windows\\Fonts\\arial.ttf",
+];
+
+/// Registers a TrueType font for plotters once; false when none is found.
+fn font() -> bool {
+    static FOUND: OnceLock<bool> = OnceLock::new();
+    *FOUND.get_or_init(|| {
+        let env = std::env::var("MESHLESS_FONT").ok();
+        env.iter()
+            .map(String::as_str)
+            .chain(FONT_PATHS.iter().copied())
+            .filter_map(|path| std::fs::read(path).ok())
+            .any(|bytes| {
+                // plotters keeps fonts for the life of the process.
+                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+                plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).is_ok()
+            })
+    })
+}
+
+/// Draws `points` as error (y) against cost (x), each labelled. Returns
+/// false, drawing nothing, when no font is available for the text.
+///
+/// # Errors
+/// When the PNG cannot be written.
+pub fn error_against_cost(path: &Path, title: &str, points: &[Point]) -> Result<bool> {
+    if !font() {
+        return Ok(false);
+    }
+    let draw = || -> Result<(), Box<dyn std::error::Error>> {
+        let root = BitMapBackend::new(path, (900, 600)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let max_cost = points.iter().map(|p| p.cost).fold(0.0, f64::max).max(1e-3) * 1.15;
+        let max_error = points.iter().map(|p| p.error).fold(0.0, f64::max).max(1.0) * 1.2;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 22))
+            .margin(20)
+            .x_label_area_size(45)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..max_cost, 0.0..max_error)?;
+        chart
+            .configure_mesh()
+            .x_desc("wall-clock time [s]")
+            .y_desc("rms front error, 1 <= T <= 3 [%]")
+            .label_style(("sans-serif", 15))
+            .draw()?;
+        chart.draw_series(
+            points
+                .iter()
+                .map(|p| Circle::new((p.cost, p.error), 6, BLUE.filled())),
+        )?;
+        chart.draw_series(points.iter().map(|p| {
+            Text::new(
+                p.label.clone(),
+                (p.cost, p.error + 0.03 * max_error),
+                ("sans-serif", 16),
+            )
+        }))?;
+        root.present()?;
+        Ok(())
+    };
+    draw()
+        .map_err(|e| anyhow::anyhow!("{e}"))
+        .with_context(|| format!("cannot draw {}", path.display()))?;
+    Ok(true)
+}

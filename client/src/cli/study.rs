@@ -1,0 +1,291 @@
+//! `meshless study`: sweep one speed-against-accuracy knob on the dam break
+//! and report the surge-front error against Martin & Moyce (1952) and the
+//! cost of each setting, as CSV and a PNG chart.
+
+use super::chart;
+use anyhow::{Context, Result, bail};
+use indicatif::{ProgressBar, ProgressStyle};
+use meshless_engine::approx::KernelKind;
+use meshless_engine::experiments::{dam_break_time_scale, front_error, surge_front};
+use meshless_engine::scene::{FluidSpec, SolverKind, SystemSpec};
+use meshless_engine::{BuildOptions, Scene};
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// The built-in dam break.
+const DAM_BREAK: &str = include_str!("../../../scenes/dam_break.toml");
+
+/// Knobs that trade speed for accuracy.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Knob {
+    /// Particle spacing in m (support radius kept at twice the spacing).
+    Spacing,
+    /// Kernel pair: poly6 (with spiky gradients), cubic_spline, wendland_c2.
+    Kernel,
+    /// Courant number of the sub-step limit.
+    Cfl,
+    /// Pressure solver: wcsph or dfsph.
+    Solver,
+    /// DFSPH density tolerance (fraction of the rest density).
+    DensityTolerance,
+}
+
+impl Knob {
+    fn name(self) -> &'static str {
+        match self {
+            Self::Spacing => "spacing",
+            Self::Kernel => "kernel",
+            Self::Cfl => "cfl",
+            Self::Solver => "solver",
+            Self::DensityTolerance => "density_tolerance",
+        }
+    }
+
+    fn presets(self) -> &'static [&'static str] {
+        match self {
+            Self::Spacing => &["0.04", "0.03", "0.025", "0.02"],
+            Self::Kernel => &["poly6", "cubic_spline", "wendland_c2"],
+            Self::Cfl => &["0.2", "0.4", "0.6", "0.8"],
+            Self::Solver => &["wcsph", "dfsph"],
+            Self::DensityTolerance => &["0.01", "0.003", "0.001", "0.0003"],
+        }
+    }
+
+    /// Applies one value of the knob to the scene.
+    fn apply(self, value: &str, scene: &mut Scene) -> Result<()> {
+        let number = || -> Result<f64> {
+            value
+                .parse()
+                .with_context(|| format!("{}: {value:?} is not a number", self.name()))
+        };
+        let fluid = fluid(scene)?;
+        match self {
+            Self::Spacing => {
+                fluid.spacing = number()?;
+                fluid.support_radius = Some(2.0 * fluid.spacing);
+            }
+            Self::Kernel => {
+                let (density, gradient) = match value {
+                    "poly6" => (KernelKind::Poly6, KernelKind::Spiky),
+                    "cubic_spline" => (KernelKind::CubicSpline, KernelKind::CubicSpline),
+                    "wendland_c2" => (KernelKind::WendlandC2, KernelKind::WendlandC2),
+                    other => bail!("kernel: {other:?}; use poly6, cubic_spline or wendland_c2"),
+                };
+                fluid.density_kernel = density;
+                fluid.gradient_kernel = gradient;
+            }
+            Self::Cfl => scene.time.cfl = number()?,
+            Self::Solver => {
+                fluid.solver = match value {
+                    "wcsph" => SolverKind::Wcsph,
+                    "dfsph" => SolverKind::Dfsph,
+                    other => bail!("solver: {other:?}; use wcsph or dfsph"),
+                };
+            }
+            Self::DensityTolerance => {
+                fluid.solver = SolverKind::Dfsph;
+                fluid.density_tolerance = number()?;
+            }
+        }
+        Ok(())
+    }
+}
+
+fn fluid(scene: &mut Scene) -> Result<&mut FluidSpec> {
+    match scene.systems.first_mut() {
+        Some(SystemSpec::Fluid(fluid)) => Ok(fluid),
+        None => bail!("the scene has no fluid to study"),
+    }
+}
+
+#[derive(Debug, clap::Args)]
+pub struct StudyArgs {
+    /// The knob to sweep.
+    #[arg(long, value_enum)]
+    knob: Knob,
+    /// Values of the knob, comma separated (default: a preset per knob).
+    #[arg(long, value_delimiter = ',')]
+    values: Vec<String>,
+    /// A dam-break scene (a column of width a and height 2a against the
+    /// wall at x = min) instead of the built-in one.
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Folder for `study_{knob}.csv` and `study_{knob}.png`.
+    #[arg(long, short, default_value = "out/study")]
+    output: PathBuf,
+}
+
+/// One setting's outcome.
+#[derive(Debug, Clone)]
+struct Row {
+    value: String,
+    particles: usize,
+    substeps: u64,
+    iterations: u64,
+    seconds: f64,
+    /// Worst and rms front error for 1 <= T <= 3, when the run finished.
+    error: Option<(f64, f64)>,
+    status: String,
+}
+
+/// The column width `a`, checking the scene is a Martin & Moyce column.
+fn column_width(scene: &mut Scene) -> Result<f64> {
+    let domain_min = scene.domain.min;
+    let fluid = fluid(scene)?;
+    let column = fluid
+        .blocks
+        .first()
+        .context("the fluid has no block")?
+        .region;
+    let (a, height) = (column.max[0] - column.min[0], column.max[1] - column.min[1]);
+    if (column.min[0] - domain_min[0]).abs() > 1e-9
+        || (column.min[1] - domain_min[1]).abs() > 1e-9
+        || (height - 2.0 * a).abs() > 0.01 * a
+    {
+        bail!(
+            "the study compares with Martin & Moyce: the first block must be a column of width a \
+             and height 2a standing in the corner at the domain's min x and min y"
+        );
+    }
+    Ok(a)
+}
+
+/// Runs one setting to `T = 3.4`, measuring the front after every step.
+fn run_one(scene: &Scene, a: f64, bar: &ProgressBar) -> Row {
+    let scale = dam_break_time_scale(a, -scene.gravity[1]);
+    let mut row = Row {
+        value: String::new(),
+        particles: 0,
+        substeps: 0,
+        iterations: 0,
+        seconds: 0.0,
+        error: None,
+        status: "ok".into(),
+    };
+    let mut world = match scene.build(&BuildOptions::default()) {
+        Ok(world) => world,
+        Err(e) => {
+            row.status = format!("invalid: {e}");
+            return row;
+        }
+    };
+    row.particles = world.particle_count();
+    let start = Instant::now();
+    let mut curve = Vec::new();
+    while world.clock().time * scale < 3.4 {
+        match world.step() {
+            Ok(info) => {
+                row.substeps += u64::from(info.substeps);
+                row.iterations += u64::from(info.solver_iterations);
+            }
+            Err(e) => {
+                row.status = format!("failed: {e}");
+                break;
+            }
+        }
+        if let Some(z) = world.fluid().and_then(|f| surge_front(&f.positions, a)) {
+            curve.push((world.clock().time * scale, z));
+        }
+        bar.set_message(format!("T = {:.2}", world.clock().time * scale));
+    }
+    row.seconds = start.elapsed().as_secs_f64();
+    row.error = front_error(&curve);
+    row
+}
+
+pub fn study(args: StudyArgs) -> Result<()> {
+    let text = match &args.scene {
+        Some(path) => std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read {}", path.display()))?,
+        None => DAM_BREAK.to_owned(),
+    };
+    let base = Scene::from_toml_str(&text)?;
+    let values: Vec<String> = if args.values.is_empty() {
+        args.knob
+            .presets()
+            .iter()
+            .map(|v| (*v).to_owned())
+            .collect()
+    } else {
+        args.values.clone()
+    };
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("cannot create {}", args.output.display()))?;
+
+    let bar = ProgressBar::new(values.len() as u64).with_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} settings  {prefix} {msg}  [{elapsed}]")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut rows = Vec::new();
+    for value in &values {
+        let mut scene = base.clone();
+        args.knob.apply(value, &mut scene)?;
+        let a = column_width(&mut scene)?;
+        bar.set_prefix(format!("{} = {value}", args.knob.name()));
+        let mut row = run_one(&scene, a, &bar);
+        row.value = value.clone();
+        rows.push(row);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+
+    let name = args.knob.name();
+    let csv_path = args.output.join(format!("study_{name}.csv"));
+    let mut csv = String::from(
+        "knob,value,particles,substeps,solver_iterations,wall_seconds,particle_substeps_per_second,worst_front_error,rms_front_error,status\n",
+    );
+    println!("meshless study: dam break against Martin & Moyce (1952), sweeping {name}");
+    println!("  value        particles  sub-steps  iterations  wall [s]  worst error  rms error");
+    for r in &rows {
+        let rate = r.particles as f64 * r.substeps as f64 / r.seconds.max(1e-9);
+        let (worst, rms) = r.error.map_or((f64::NAN, f64::NAN), |e| e);
+        writeln!(
+            csv,
+            "{name},{},{},{},{},{:.3},{rate:.4e},{worst:.5},{rms:.5},{}",
+            r.value,
+            r.particles,
+            r.substeps,
+            r.iterations,
+            r.seconds,
+            r.status.replace(',', ";")
+        )?;
+        println!(
+            "  {:<12} {:>9}  {:>9}  {:>10}  {:>8.2}  {:>10.1} %  {:>7.1} %  {}",
+            r.value,
+            r.particles,
+            r.substeps,
+            r.iterations,
+            r.seconds,
+            100.0 * worst,
+            100.0 * rms,
+            if r.status == "ok" { "" } else { &r.status }
+        );
+    }
+    std::fs::write(&csv_path, csv)
+        .with_context(|| format!("cannot write {}", csv_path.display()))?;
+    println!("  table             {}", csv_path.display());
+
+    let points: Vec<chart::Point> = rows
+        .iter()
+        .filter_map(|r| {
+            r.error.map(|(_, rms)| chart::Point {
+                cost: r.seconds,
+                error: 100.0 * rms,
+                label: r.value.clone(),
+            })
+        })
+        .collect();
+    let png_path = args.output.join(format!("study_{name}.png"));
+    match chart::error_against_cost(
+        &png_path,
+        &format!("dam break: front error against cost, sweeping {name}"),
+        &points,
+    )? {
+        true => println!("  chart             {}", png_path.display()),
+        false => println!(
+            "  chart             not drawn: no TrueType font found (set MESHLESS_FONT to a .ttf file)"
+        ),
+    }
+    Ok(())
+}
