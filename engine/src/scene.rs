@@ -98,14 +98,14 @@ impl Aabb {
         self.max[axis] - self.min[axis]
     }
 
-    fn contains(&self, other: &Aabb, tolerance: Real) -> bool {
-        (0..3).all(|a| {
+    fn contains(&self, other: &Aabb, tolerance: Real, dim: usize) -> bool {
+        (0..dim).all(|a| {
             other.min[a] >= self.min[a] - tolerance && other.max[a] <= self.max[a] + tolerance
         })
     }
 
-    fn overlaps(&self, other: &Aabb) -> bool {
-        (0..3).all(|a| self.min[a] < other.max[a] && other.min[a] < self.max[a])
+    fn overlaps(&self, other: &Aabb, dim: usize) -> bool {
+        (0..dim).all(|a| self.min[a] < other.max[a] && other.min[a] < self.max[a])
     }
 }
 
@@ -268,30 +268,43 @@ impl FluidSpec {
             .unwrap_or(defaults::SUPPORT_RATIO * self.spacing)
     }
 
-    /// Lattice points per axis of a block. Points sit at the centres of
-    /// spacing-sized cells, so adjacent blocks tile without overlap.
-    fn lattice_dims(&self, block: &FluidBlock) -> [f64; 3] {
+    /// Lattice points per axis of a block in `dim` dimensions. Points sit
+    /// at the centres of spacing-sized cells, so adjacent blocks tile
+    /// without overlap; in 2D there is one layer, at z = 0.
+    fn lattice_dims(&self, block: &FluidBlock, dim: usize) -> [f64; 3] {
         [0, 1, 2].map(|a| {
-            (block.region.extent(a) / self.spacing + 1e-9)
-                .floor()
-                .max(0.0)
+            if a < dim {
+                (block.region.extent(a) / self.spacing + 1e-9)
+                    .floor()
+                    .max(0.0)
+            } else {
+                1.0
+            }
         })
     }
 
-    /// Number of particles the blocks create.
-    pub fn particle_count(&self) -> f64 {
+    /// Number of particles the blocks create in `dim` dimensions.
+    pub fn particle_count(&self, dim: usize) -> f64 {
         self.blocks
             .iter()
-            .map(|b| self.lattice_dims(b).iter().product::<f64>())
+            .map(|b| self.lattice_dims(b, dim).iter().product::<f64>())
             .sum()
     }
 
-    /// Lattice positions of all blocks, with each particle's block index.
-    pub fn lattice(&self) -> impl Iterator<Item = ([Real; 3], usize)> + '_ {
+    /// Lattice positions of all blocks in `dim` dimensions, with each
+    /// particle's block index.
+    pub fn lattice(&self, dim: usize) -> impl Iterator<Item = ([Real; 3], usize)> + '_ {
         self.blocks.iter().enumerate().flat_map(move |(b, block)| {
-            let [nx, ny, nz] = self.lattice_dims(block).map(|n| n as usize);
+            let [nx, ny, nz] = self.lattice_dims(block, dim).map(|n| n as usize);
             let s = self.spacing;
             let min = block.region.min;
+            let z = move |k: usize| {
+                if dim == 2 {
+                    0.0
+                } else {
+                    min[2] + (k as Real + 0.5) * s
+                }
+            };
             (0..nz).flat_map(move |k| {
                 (0..ny).flat_map(move |j| {
                     (0..nx).map(move |i| {
@@ -299,7 +312,7 @@ impl FluidSpec {
                             [
                                 min[0] + (i as Real + 0.5) * s,
                                 min[1] + (j as Real + 0.5) * s,
-                                min[2] + (k as Real + 0.5) * s,
+                                z(k),
                             ],
                             b,
                         )
@@ -323,6 +336,10 @@ pub enum SystemSpec {
 pub struct Scene {
     #[serde(default)]
     pub name: String,
+    /// 2 or 3. In 2D particles live in the plane z = 0 and the z extents
+    /// of the domain and blocks are ignored.
+    #[serde(default = "default_dimension")]
+    pub dimension: usize,
     /// The simulation box; particles reflect off its walls.
     pub domain: Aabb,
     /// m/s^2.
@@ -334,6 +351,9 @@ pub struct Scene {
     pub output: OutputSpec,
 }
 
+fn default_dimension() -> usize {
+    3
+}
 fn default_gravity() -> [Real; 3] {
     defaults::GRAVITY
 }
@@ -425,10 +445,11 @@ fn check_vector(field: &str, v: [Real; 3]) -> Result<(), SceneError> {
     Ok(())
 }
 
-fn check_box(field: &str, b: &Aabb) -> Result<(), SceneError> {
+/// Checks a box in the first `dim` axes (in 2D its z extent is ignored).
+fn check_box(field: &str, b: &Aabb, dim: usize) -> Result<(), SceneError> {
     check_vector(&format!("{field}.min"), b.min)?;
     check_vector(&format!("{field}.max"), b.max)?;
-    for (a, axis) in ["x", "y", "z"].iter().enumerate() {
+    for (a, axis) in ["x", "y", "z"].iter().enumerate().take(dim) {
         if b.max[a] <= b.min[a] {
             return Err(SceneError::invalid(
                 field,
@@ -472,7 +493,7 @@ impl Scene {
         self.systems
             .iter()
             .map(|s| match s {
-                SystemSpec::Fluid(f) => f.particle_count(),
+                SystemSpec::Fluid(f) => f.particle_count(self.dimension),
             })
             .sum()
     }
@@ -483,7 +504,13 @@ impl Scene {
     /// # Errors
     /// The first problem found, naming its field.
     pub fn validate(&self, options: &BuildOptions) -> Result<(), SceneError> {
-        check_box("domain", &self.domain)?;
+        if !(self.dimension == 2 || self.dimension == 3) {
+            return Err(SceneError::invalid(
+                "dimension",
+                format!("must be 2 or 3, got {}", self.dimension),
+            ));
+        }
+        check_box("domain", &self.domain, self.dimension)?;
         check_vector("gravity", self.gravity)?;
         check_positive("time.dt", self.time.dt)?;
         if self.time.max_substeps == 0 || self.time.max_substeps > 1_000_000 {
@@ -615,15 +642,15 @@ impl Scene {
         };
         for (b, block) in fluid.blocks.iter().enumerate() {
             let field = format!("{at}.blocks[{b}]");
-            check_box(&format!("{field}.region"), &block.region)?;
+            check_box(&format!("{field}.region"), &block.region, self.dimension)?;
             check_vector(&format!("{field}.velocity"), block.velocity)?;
-            if !domain.contains(&block.region, 1e-9 * fluid.spacing) {
+            if !domain.contains(&block.region, 1e-9 * fluid.spacing, self.dimension) {
                 return Err(SceneError::invalid(
                     format!("{field}.region"),
                     "must lie inside the domain",
                 ));
             }
-            if fluid.lattice_dims(block).contains(&0.0) {
+            if fluid.lattice_dims(block, self.dimension).contains(&0.0) {
                 return Err(SceneError::invalid(
                     format!("{field}.region"),
                     format!(
@@ -634,7 +661,7 @@ impl Scene {
             }
             if let Some(o) = fluid.blocks[..b]
                 .iter()
-                .position(|other| other.region.overlaps(&block.region))
+                .position(|other| other.region.overlaps(&block.region, self.dimension))
             {
                 return Err(SceneError::invalid(
                     format!("{field}.region"),
@@ -642,13 +669,27 @@ impl Scene {
                 ));
             }
         }
-        UniformGrid::new(
+        let (min, max) = self.simulation_box(h);
+        UniformGrid::new(min, max, h)
+            .map_err(|e: GridError| SceneError::invalid("domain", e.to_string()))?;
+        Ok(())
+    }
+
+    /// The box particles stay in. In 2D its z extent is `[-h, h]` around
+    /// the plane z = 0, whatever the scene says, so nothing acts along z.
+    pub fn simulation_box(
+        &self,
+        support_radius: Real,
+    ) -> (crate::math::Vector, crate::math::Vector) {
+        let (mut min, mut max) = (
             crate::math::vector(self.domain.min),
             crate::math::vector(self.domain.max),
-            h,
-        )
-        .map_err(|e: GridError| SceneError::invalid("domain", e.to_string()))?;
-        Ok(())
+        );
+        if self.dimension == 2 {
+            min.z = -support_radius;
+            max.z = support_radius;
+        }
+        (min, max)
     }
 
     /// Validates the scene and builds its world: only the systems and
@@ -708,7 +749,9 @@ mod tests {
         assert_eq!(f.support_radius(), 0.2);
         assert_eq!(f.gamma, defaults::GAMMA);
         assert_eq!(scene.particle_count(), 125.0);
-        assert_eq!(f.lattice().count(), 125);
+        assert_eq!(f.lattice(3).count(), 125);
+        assert_eq!(f.lattice(2).count(), 25);
+        assert!(f.lattice(2).all(|(x, _)| x[2] == 0.0));
     }
 
     #[test]

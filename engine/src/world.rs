@@ -136,7 +136,7 @@ impl World {
             fluid.save(&mut self.backup);
 
             let gravity = vector(self.scene.gravity);
-            let (min, max) = (vector(self.scene.domain.min), vector(self.scene.domain.max));
+            let (min, max) = self.scene.simulation_box(fluid.params.support_radius);
             let time = &self.scene.time;
             let mut elapsed = 0.0;
             while dt - elapsed > dt * 1e-9 {
@@ -225,8 +225,9 @@ impl World {
 
 fn build_fluid(scene: &Scene, spec: &FluidSpec) -> Fluid {
     let h = spec.support_radius();
-    let density_kernel = Kernel::new_3d(spec.density_kernel, h);
-    let gradient_kernel = Kernel::new_3d(spec.gradient_kernel, h);
+    let dim = scene.dimension;
+    let density_kernel = Kernel::new(spec.density_kernel, dim, h);
+    let gradient_kernel = Kernel::new(spec.gradient_kernel, dim, h);
     let params = FluidParams {
         support_radius: h,
         density_kernel,
@@ -250,7 +251,7 @@ fn build_fluid(scene: &Scene, spec: &FluidSpec) -> Fluid {
             }),
         },
     };
-    let (min, max) = (vector(scene.domain.min), vector(scene.domain.max));
+    let (min, max) = scene.simulation_box(h);
     let walls = match spec.walls {
         WallModel::Solid => Some(BoxWalls::new(
             min,
@@ -263,7 +264,7 @@ fn build_fluid(scene: &Scene, spec: &FluidSpec) -> Fluid {
         WallModel::Reflect => None,
     };
     let (positions, velocities): (Vec<Vector>, Vec<Vector>) = spec
-        .lattice()
+        .lattice(dim)
         .map(|(x, block)| (vector(x), vector(spec.blocks[block].velocity)))
         .unzip();
     let grid = UniformGrid::new(min, max, h).expect("validated by Scene::validate");

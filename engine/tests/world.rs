@@ -320,3 +320,31 @@ fn dfsph_keeps_a_resting_fluid_at_rest() {
         .fold(0.0, f64::max);
     assert!(fastest < 1e-3, "a resting fluid moved at {fastest} m/s");
 }
+
+/// 2D scenes: particles live in the plane z = 0 and stay there, with the
+/// 2D kernel normalisation giving the lattice the rest density.
+#[test]
+fn two_dimensional_scenes_stay_in_their_plane() {
+    let scene = Scene::from_toml_str(include_str!("../../scenes/dam_break_2d.toml"))
+        .expect("the shipped 2D scene parses");
+    let mut world = build(&scene);
+    assert_eq!(world.particle_count(), 15 * 30);
+    let mut densities = world.fluid().expect("fluid").densities.clone();
+    densities.sort_by(f64::total_cmp);
+    let median = densities[densities.len() / 2];
+    assert!(
+        (median - 1000.0).abs() < 5.0,
+        "median lattice density {median}"
+    );
+    for _ in 0..20 {
+        world.step().expect("stable");
+    }
+    let fluid = world.fluid().expect("fluid");
+    assert!(fluid.positions.iter().all(|x| x.z == 0.0));
+    assert!(fluid.velocities.iter().all(|v| v.z == 0.0));
+
+    let mut bad = scene.clone();
+    bad.dimension = 4;
+    let err = bad.validate(&BuildOptions::default()).expect_err("4D");
+    assert!(err.to_string().starts_with("dimension:"), "{err}");
+}

@@ -147,6 +147,7 @@ pub fn scene_from_proto(spec: v1::SceneSpec) -> Result<Scene> {
         time,
         systems,
         output,
+        dimension,
     } = spec;
     let v1::TimeSpec {
         dt,
@@ -174,6 +175,7 @@ pub fn scene_from_proto(spec: v1::SceneSpec) -> Result<Scene> {
     };
     Ok(Scene {
         name,
+        dimension: dimension.map_or(3, |d| d as usize),
         domain: aabb(domain, "domain")?,
         gravity: gravity.map_or(defaults::GRAVITY, vec3),
         time: TimeSpec {
@@ -262,6 +264,7 @@ fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
 pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
     v1::SceneSpec {
         name: scene.name.clone(),
+        dimension: Some(scene.dimension as u32),
         domain: Some(to_aabb(&scene.domain)),
         gravity: Some(to_vec3(scene.gravity)),
         time: Some(v1::TimeSpec {

@@ -200,3 +200,40 @@ async fn an_unreachable_server_is_a_connect_error() {
     .expect_err("nothing listens on port 1");
     assert!(matches!(err, ClientError::Connect { .. }), "{err}");
 }
+
+/// Every solver knob travels over the protocol: a DFSPH scene sent as a
+/// `SceneSpec` message runs, and its frames report the solver's
+/// iterations and the density error it reached, within tolerance.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn solver_knobs_travel_over_grpc_and_frames_report_them() {
+    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let client = server.client().await.expect("client");
+    let echo = within("create", client.create_session_toml(&small_scene()))
+        .await
+        .expect("ok");
+    let mut spec = echo.scene.expect("scene echo");
+    let Some(v1::system_spec::Kind::Fluid(fluid)) = spec.systems[0].kind.as_mut() else {
+        panic!("a fluid");
+    };
+    fluid.solver = Some(v1::SolverKind::Dfsph as i32);
+    fluid.density_tolerance = Some(0.002);
+    fluid.stiffness = 0.0;
+    let session = within("create DFSPH", client.create_session(spec))
+        .await
+        .expect("valid");
+    let scene = session.scene.as_ref().expect("scene");
+    let Some(v1::system_spec::Kind::Fluid(echoed)) = scene.systems[0].kind.as_ref() else {
+        panic!("a fluid");
+    };
+    assert_eq!(echoed.solver, Some(v1::SolverKind::Dfsph as i32));
+    assert_eq!(echoed.density_tolerance, Some(0.002));
+    within("step", client.step(&session.id, 10))
+        .await
+        .expect("steps");
+    let frame = within("latest", client.latest_frame(&session.id))
+        .await
+        .expect("frame");
+    assert_eq!(frame.step, 10);
+    assert!(frame.solver_iterations > 0, "{frame:?}");
+    assert!(frame.density_error <= 0.002, "{}", frame.density_error);
+}

@@ -71,6 +71,29 @@ fn an_undamped_tank_does_not_gain_energy() {
     );
 }
 
+/// DFSPH under gravity in a resting tank: the fluid must settle, not ring.
+/// (Sub-steps of twice the limit the solver now keeps made the water jump
+/// to the lid, at 1 m/s rms.)
+#[test]
+fn a_resting_dfsph_tank_settles() {
+    let mut world = tank("solver = \"dfsph\"\nxsph = 0.1");
+    let mut speeds = Vec::new();
+    for step in 1..=100 {
+        let info = world.step().expect("stable");
+        assert!(info.density_error <= 0.001, "{info:?}");
+        if step % 10 == 0 {
+            speeds.push(rms_speed(&world));
+        }
+    }
+    println!("DFSPH rms speed every 0.1 s: {speeds:.3?}");
+    assert!(
+        speeds[9] < 0.05,
+        "the tank still moves at {} m/s rms",
+        speeds[9]
+    );
+    assert!(speeds[9] < speeds[0]);
+}
+
 /// Settles the tank with XSPH and a little viscosity, then averages the
 /// pressure over 0.5 s and over horizontal layers of the bulk, and returns
 /// the worst deviation from `rho_0 g d` in units of `rho_0 g H` and the
@@ -142,8 +165,9 @@ fn hydrostatic_error(kernels: &str) -> (f64, f64) {
 /// predicts. Measured: WCSPH with the cubic spline pair within 2 % of
 /// `rho_0 g H`; with Müller's poly6/spiky pair about 10 %, its pressure
 /// gradient a quarter steeper than `rho_0 g` (the spiky gradient's lattice
-/// moment against poly6 densities is not 1 at h = 2 dx); DFSPH within 3 %,
-/// holding the average density error under its 0.1 % tolerance.
+/// moment against poly6 densities is not 1 at h = 2 dx); DFSPH within 7 %
+/// (its pressure is the sum of what its two solves applied), holding the
+/// average density error under its 0.1 % tolerance.
 #[test]
 fn hydrostatic_pressure_grows_as_rho_g_depth() {
     let cubic = "density_kernel = \"cubic_spline\"\ngradient_kernel = \"cubic_spline\"";
@@ -166,7 +190,7 @@ fn hydrostatic_pressure_grows_as_rho_g_depth() {
     );
     assert!(consistent < mixed);
     assert!(
-        dfsph < 0.05,
+        dfsph < 0.10,
         "DFSPH: off by {:.1} % of rho_0 g H",
         100.0 * dfsph
     );

@@ -216,10 +216,10 @@ impl Kernel {
     }
 
     /// `Delta omega_h(|x|) = omega'' + (d - 1) omega' / r`. At `r = 0` it is
-    /// the limit `d omega''(0)` for kernels smooth at the origin, and
-    /// `None`-like infinite for spiky and viscosity, whose Laplacian is
-    /// singular there: this returns 0 for them, so callers skip the
-    /// self-pair (the corrected operators never need it).
+    /// the limit `d omega''(0)` for kernels smooth at the origin; spiky and
+    /// viscosity are singular there, and this returns 0 for them, which
+    /// drops the self-pair from a sum (the corrected operators never need
+    /// it: their self-term has the factor `f_i - f_i`).
     #[inline]
     pub fn laplacian(&self, r: Real) -> Real {
         if r > Real::EPSILON * self.h {

@@ -54,6 +54,11 @@ pub struct SolverScratch {
     /// The density source of the current iteration.
     source: Vec<Real>,
     kappa: Vec<Real>,
+    /// The last sub-step's total `kappa` of each solve: `p / rho`, a
+    /// physical quantity independent of the step, so it warm-starts the
+    /// next solve (half of it, as is usual, to avoid overshoot).
+    density_kappa: Vec<Real>,
+    divergence_kappa: Vec<Real>,
     pub(super) last: SolveInfo,
 }
 
@@ -76,6 +81,8 @@ impl Fluid {
         scratch.wall_gradients.resize(n, Vector::zeros());
         scratch.source.resize(n, 0.0);
         scratch.kappa.resize(n, 0.0);
+        scratch.density_kappa.resize(n, 0.0);
+        scratch.divergence_kappa.resize(n, 0.0);
         self.compute_factors();
     }
 
@@ -98,12 +105,7 @@ impl Fluid {
             timer.time(Stage::Xsph, || self.apply_xsph());
         }
         timer.time(Stage::Integrate, || {
-            self.max_acceleration = self
-                .accelerations
-                .par_iter()
-                .map(|a| a.norm_squared())
-                .reduce(|| 0.0, Real::max)
-                .sqrt();
+            self.record_max_acceleration();
             self.velocities
                 .par_iter_mut()
                 .zip(self.accelerations.par_iter())
@@ -176,6 +178,10 @@ impl Fluid {
 
     /// Iterates one solve until its average error is below tolerance or
     /// the cap is reached; returns the iterations and the error reached.
+    /// Starts from half the previous sub-step's pressure (warm start):
+    /// without it, pressure has to be rebuilt from nothing every sub-step,
+    /// one particle layer per iteration, and a resting column under gravity
+    /// rings.
     fn solve(&mut self, solve: Solve, dt: Real, params: &DfsphParams) -> (u32, Real) {
         let rest = self.params.eos.rest_density;
         let n = self.len().max(1) as Real;
@@ -183,6 +189,22 @@ impl Fluid {
             Solve::ConstantDensity => (params.density_tolerance, 1.0 / dt / dt),
             Solve::DivergenceFree => (params.divergence_tolerance, 1.0 / dt),
         };
+        {
+            let scratch = &mut self.solver;
+            let total = match solve {
+                Solve::ConstantDensity => &mut scratch.density_kappa,
+                Solve::DivergenceFree => &mut scratch.divergence_kappa,
+            };
+            let keep = if solve == Solve::ConstantDensity {
+                0.5
+            } else {
+                0.0
+            };
+            total.par_iter_mut().for_each(|k| *k *= keep);
+            scratch.kappa.clone_from(total);
+        }
+        self.apply_kappa(dt);
+        self.add_pressure();
         let mut iterations = 0;
         loop {
             self.compute_source(solve, dt);
@@ -195,23 +217,35 @@ impl Fluid {
                 return (iterations, error);
             }
             let scratch = &mut self.solver;
+            let total = match solve {
+                Solve::ConstantDensity => &mut scratch.density_kappa,
+                Solve::DivergenceFree => &mut scratch.divergence_kappa,
+            };
             scratch
                 .kappa
                 .par_iter_mut()
+                .zip(total.par_iter_mut())
                 .zip(scratch.source.par_iter())
                 .zip(scratch.factors.par_iter())
-                .for_each(|((kappa, s), alpha)| *kappa = s * alpha * scale);
-            // Both solves push with the pressure form of Eq. 51: the
-            // pressure a frame reports is their sum, `p = rho sum kappa`.
-            let kappa = &self.solver.kappa;
-            self.pressures
-                .par_iter_mut()
-                .zip(self.densities.par_iter())
-                .enumerate()
-                .for_each(|(i, (p, rho))| *p += kappa[i] * rho);
+                .for_each(|(((kappa, total), s), alpha)| {
+                    *kappa = s * alpha * scale;
+                    *total += *kappa;
+                });
+            self.add_pressure();
             self.apply_kappa(dt);
             iterations += 1;
         }
+    }
+
+    /// Both solves push with the pressure form of Eq. 51, `kappa = p / rho`:
+    /// the pressure a frame reports is their sum, `p = rho sum kappa`.
+    fn add_pressure(&mut self) {
+        let kappa = &self.solver.kappa;
+        self.pressures
+            .par_iter_mut()
+            .zip(self.densities.par_iter())
+            .enumerate()
+            .for_each(|(i, (p, rho))| *p += kappa[i] * rho);
     }
 
     /// The density source of each particle from the current velocities:

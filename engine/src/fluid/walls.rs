@@ -34,6 +34,8 @@ pub struct BoxWalls {
     min: Vector,
     max: Vector,
     h: Real,
+    /// Axes with walls: 3, or 2 for a planar (2D) fluid.
+    axes: usize,
     /// `Phi(d)` with the density kernel, times `m / dx^3`: the density a
     /// wall adds at distance `d`.
     density: Vec<Real>,
@@ -41,25 +43,57 @@ pub struct BoxWalls {
     slope: Vec<Real>,
 }
 
-/// `P(z) = 2 pi int_z^h w(r) r dr` by Gauss–Legendre panels.
-fn plane_integral(kernel: &Kernel, z: Real) -> Real {
+/// `int_a^b f(x) dx` by 3-point Gauss–Legendre on 64 panels.
+fn integrate(a: Real, b: Real, f: impl Fn(Real) -> Real) -> Real {
+    let panels = 64;
+    let nodes = [-(0.6 as Real).sqrt(), 0.0, (0.6 as Real).sqrt()];
+    let weights = [5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0];
+    let width = (b - a) / panels as Real;
+    let mut sum = 0.0;
+    for p in 0..panels {
+        let mid = a + (p as Real + 0.5) * width;
+        for (x, w) in nodes.iter().zip(weights) {
+            sum += w * 0.5 * width * f(mid + 0.5 * width * x);
+        }
+    }
+    sum
+}
+
+/// `P(z)`: the kernel integrated over the plane (3D) or line (2D) at
+/// distance `z`.
+fn layer_integral(kernel: &Kernel, z: Real) -> Real {
     let h = kernel.support();
     if z >= h {
         return 0.0;
     }
-    let panels = 64;
-    let nodes = [-(0.6 as Real).sqrt(), 0.0, (0.6 as Real).sqrt()];
-    let weights = [5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0];
-    let width = (h - z) / panels as Real;
-    let mut sum = 0.0;
-    for p in 0..panels {
-        let mid = z + (p as Real + 0.5) * width;
-        for (x, w) in nodes.iter().zip(weights) {
-            let r = mid + 0.5 * width * x;
-            sum += w * 0.5 * width * kernel.value(r) * r;
-        }
+    if kernel.dim() == 2 {
+        2.0 * integrate(0.0, (h * h - z * z).sqrt(), |s| {
+            kernel.value((s * s + z * z).sqrt())
+        })
+    } else {
+        2.0 * PI * integrate(z, h, |r| kernel.value(r) * r)
     }
-    2.0 * PI * sum
+}
+
+/// `dP/dz`: in 3D `-2 pi w(z) z`; in 2D
+/// `2 int_0^sqrt(h^2 - z^2) w'(r) z / r ds` with `r = sqrt(s^2 + z^2)`.
+fn layer_slope(kernel: &Kernel, z: Real) -> Real {
+    let h = kernel.support();
+    if z >= h {
+        return 0.0;
+    }
+    if kernel.dim() == 2 {
+        2.0 * integrate(0.0, (h * h - z * z).sqrt(), |s| {
+            let r = (s * s + z * z).sqrt();
+            if r > 0.0 {
+                kernel.derivative(r) * z / r
+            } else {
+                0.0
+            }
+        })
+    } else {
+        -2.0 * PI * kernel.value(z) * z
+    }
 }
 
 impl BoxWalls {
@@ -74,7 +108,8 @@ impl BoxWalls {
         gradient_kernel: &Kernel,
     ) -> Self {
         let h = density_kernel.support();
-        let per_volume = mass / (spacing * spacing * spacing);
+        let axes = density_kernel.dim();
+        let per_volume = mass / spacing.powi(axes as i32);
         let layers = (h / spacing).ceil() as usize + 1;
         let sample = |i: usize| h * i as Real / (SAMPLES - 1) as Real;
         let layer_sum = |d: Real, term: &dyn Fn(Real) -> Real| {
@@ -83,18 +118,17 @@ impl BoxWalls {
                 .sum::<Real>()
         };
         let density = (0..SAMPLES)
-            .map(|i| per_volume * layer_sum(sample(i), &|z| plane_integral(density_kernel, z)))
+            .map(|i| per_volume * layer_sum(sample(i), &|z| layer_integral(density_kernel, z)))
             .collect();
         // d/dz P(z) = -2 pi w(z) z.
         let slope = (0..SAMPLES)
-            .map(|i| {
-                per_volume * layer_sum(sample(i), &|z| -2.0 * PI * gradient_kernel.value(z) * z)
-            })
+            .map(|i| per_volume * layer_sum(sample(i), &|z| layer_slope(gradient_kernel, z)))
             .collect();
         Self {
             min,
             max,
             h,
+            axes,
             density,
             slope,
         }
@@ -116,7 +150,7 @@ impl BoxWalls {
     /// `x`: its distance and inward normal.
     #[inline]
     fn near(&self, x: &Vector, mut visit: impl FnMut(Real, Vector)) {
-        for a in 0..3 {
+        for a in 0..self.axes {
             let mut n = Vector::zeros();
             let below = x[a] - self.min[a];
             if below < self.h {
@@ -166,45 +200,47 @@ mod tests {
     /// a lattice particle next to a wall, with the fluid's own neighbours
     /// on one side and the wall's table on the other, has the rest density
     /// (within the accuracy of integrating along the wall exactly rather
-    /// than summing a lattice).
+    /// than summing a lattice), in 2D and 3D.
     #[test]
     fn a_wall_completes_the_density_of_particles_beside_it() {
         let spacing = 0.02;
-        for kind in [
-            KernelKind::Poly6,
-            KernelKind::CubicSpline,
-            KernelKind::WendlandC2,
-        ] {
-            let kernel = Kernel::new_3d(kind, 2.0 * spacing);
-            let mass = FluidParams::lattice_mass(spacing, &kernel, 1000.0);
-            let walls = BoxWalls::new(
-                Vector::zeros(),
-                Vector::repeat(1.0),
-                spacing,
-                mass,
-                &kernel,
-                &Kernel::new_3d(KernelKind::Spiky, 2.0 * spacing),
-            );
-            for layer in 0..3 {
-                // A particle in layer `layer` above the floor, far from other walls.
-                let y = (layer as Real + 0.5) * spacing;
-                let mut rho = walls.density(&Vector::new(0.5, y, 0.5));
-                let reach = 3;
-                for i in -reach..=reach {
-                    for j in -reach..=reach {
-                        for k in -reach..=reach {
-                            let yj = y + j as Real * spacing;
-                            if yj > 0.0 {
-                                let d = Vector::new(i as Real, j as Real, k as Real) * spacing;
-                                rho += mass * kernel.value(d.norm());
+        for dim in [2, 3] {
+            for kind in [
+                KernelKind::Poly6,
+                KernelKind::CubicSpline,
+                KernelKind::WendlandC2,
+            ] {
+                let kernel = Kernel::new(kind, dim, 2.0 * spacing);
+                let mass = FluidParams::lattice_mass(spacing, &kernel, 1000.0);
+                let walls = BoxWalls::new(
+                    Vector::zeros(),
+                    Vector::repeat(1.0),
+                    spacing,
+                    mass,
+                    &kernel,
+                    &Kernel::new(KernelKind::Spiky, dim, 2.0 * spacing),
+                );
+                let depth = if dim == 2 { 0 } else { 3 };
+                for layer in 0..3 {
+                    // A particle in layer `layer` above the floor, far from other walls.
+                    let y = (layer as Real + 0.5) * spacing;
+                    let z = if dim == 2 { 0.0 } else { 0.5 };
+                    let mut rho = walls.density(&Vector::new(0.5, y, z));
+                    for i in -3..=3 {
+                        for j in -3..=3 {
+                            for k in -depth..=depth {
+                                if y + j as Real * spacing > 0.0 {
+                                    let d = Vector::new(i as Real, j as Real, k as Real) * spacing;
+                                    rho += mass * kernel.value(d.norm());
+                                }
                             }
                         }
                     }
+                    assert!(
+                        (rho - 1000.0).abs() < 5.0,
+                        "{kind:?} in {dim}D, layer {layer}: density {rho} beside the wall"
+                    );
                 }
-                assert!(
-                    (rho - 1000.0).abs() < 5.0,
-                    "{kind:?}, layer {layer}: density {rho} beside the wall"
-                );
             }
         }
     }
