@@ -4,9 +4,21 @@ The gRPC messages and stubs of package ``meshless.v1`` are generated from
 ``proto/meshless/v1/*.proto`` into ``meshless/v1`` (``scripts/test`` does it
 with ``grpc_tools.protoc -I proto``). Frames arrive over zenoh;
 :func:`decode_frame` turns one into numpy arrays without per-particle
-parsing.
+parsing. :class:`Client` drives a server over gRPC and :class:`Frames`
+subscribes to a session's frames.
 """
 
 from .frames import Frame, decode_frame, frames_key, latest_key, status_key
 
-__all__ = ["Frame", "decode_frame", "frames_key", "latest_key", "status_key"]
+
+def __getattr__(name: str):
+    # The client needs the generated modules; import it lazily so that
+    # `decode_frame` works before they are generated.
+    if name in ("Client", "Frames"):
+        from . import client
+
+        return getattr(client, name)
+    raise AttributeError(name)
+
+
+__all__ = ["Client", "Frame", "Frames", "decode_frame", "frames_key", "latest_key", "status_key"]

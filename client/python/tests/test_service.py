@@ -105,3 +105,27 @@ def test_a_bad_scene_is_invalid_argument_naming_the_field(server):
     with pytest.raises(grpc.RpcError) as error:
         sim.Step(pb.StepRequest(session_id="missing", steps=1), timeout=TIMEOUT)
     assert error.value.code() == grpc.StatusCode.NOT_FOUND
+
+
+def test_the_client_wrapper_drives_a_session(server):
+    from meshless import Client, Frames
+
+    with Client(server.grpc_target) as client:
+        info = client.server_info()
+        assert info.zenoh_locators == server.zenoh_endpoints
+        session = client.create_session(SCENE)
+        assert [s.id for s in client.list_sessions()] == [session.id]
+        with Frames(info.zenoh_locators, session.id) as frames:
+            assert frames.latest is not None and frames.latest.step == 0
+            client.run_until(session.id, 0.05)
+            steps = [frames.next().step for _ in range(5)]
+        assert steps == [1, 2, 3, 4, 5]
+        done = client.get_session(session.id)
+        assert done.status.step == 5
+        assert client.latest_frame(session.id).step == 5
+        client.reset(session.id)
+        assert client.get_session(session.id).status.step == 0
+        client.delete_session(session.id)
+        with pytest.raises(grpc.RpcError) as error:
+            client.get_session(session.id)
+        assert error.value.code() == grpc.StatusCode.NOT_FOUND
