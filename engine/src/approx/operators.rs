@@ -310,7 +310,7 @@ pub fn laplacian(
 mod tests {
     use super::*;
     use crate::approx::KernelKind;
-    use crate::neighbors::UniformGrid;
+    use crate::neighbors::{CandidateSearch, UniformGrid};
     use crate::testing::uniform;
 
     const REST_DENSITY: Real = 1000.0;

@@ -6,7 +6,7 @@ use super::dfsph::{DfsphParams, SolverScratch};
 use super::{BoxWalls, Tait};
 use crate::approx::{Kernel, KernelKind};
 use crate::math::{Real, Vector};
-use crate::neighbors::{NeighborList, UniformGrid};
+use crate::neighbors::{CandidateSearch, NeighborList, UniformGrid};
 use crate::stats::{Stage, StageTimer};
 use rayon::prelude::*;
 

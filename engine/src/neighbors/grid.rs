@@ -2,6 +2,7 @@
 //! support radius so that all neighbours of a particle lie in the 27 cells
 //! around it. Built by a counting sort: O(n), no hashing in the hot loop.
 
+use super::CandidateSearch;
 use crate::math::{Real, Vector};
 use rayon::prelude::*;
 
@@ -98,9 +99,11 @@ impl UniformGrid {
             cursor: vec![0; count + 1],
         })
     }
+}
 
+impl CandidateSearch for UniformGrid {
     /// Buckets `positions` by cell (counting sort). Reuses its buffers.
-    pub fn rebuild(&mut self, positions: &[Vector]) {
+    fn rebuild(&mut self, positions: &[Vector]) {
         let lattice = self.lattice;
         self.cell_of.resize(positions.len(), 0);
         self.cell_of
@@ -127,7 +130,7 @@ impl UniformGrid {
     /// A superset of the neighbours within one cell size; callers filter by
     /// distance.
     #[inline]
-    pub fn for_each_candidate(&self, p: &Vector, mut visit: impl FnMut(u32)) {
+    fn for_each_candidate(&self, p: &Vector, mut visit: impl FnMut(u32)) {
         let lattice = &self.lattice;
         let c = lattice.coords(p);
         let lo = |a: usize| c[a].saturating_sub(1);

@@ -1,7 +1,7 @@
 //! Flat (CSR) neighbour lists: `offsets` and one `indices` array, built once
 //! per sub-step and read-only while forces are computed.
 
-use super::UniformGrid;
+use super::CandidateSearch;
 use crate::math::{Real, Vector};
 use rayon::prelude::*;
 
@@ -9,7 +9,7 @@ use rayon::prelude::*;
 const CHUNK: usize = 256;
 
 /// For each particle `i`, the particles `j` (itself included) with
-/// `|x_i - x_j| < radius`, in grid order.
+/// `|x_i - x_j| < radius`, in the order the search visits them.
 #[derive(Debug, Clone, Default)]
 pub struct NeighborList {
     offsets: Vec<u32>,
@@ -20,10 +20,12 @@ pub struct NeighborList {
 }
 
 impl NeighborList {
-    /// Rebuilds the lists for `positions` from a grid already bucketed with
-    /// the same positions, in one pass over the candidates. Runs in
-    /// parallel; the result does not depend on the thread count.
-    pub fn build(&mut self, grid: &UniformGrid, positions: &[Vector], radius: Real) {
+    /// Rebuilds the lists for `positions` from a search already rebuilt
+    /// with the same positions (and for a radius of at least `radius`), in
+    /// one pass over the candidates, keeping those closer than `radius`.
+    /// Runs in parallel, one gather per particle; the result does not
+    /// depend on the thread count.
+    pub fn build<S: CandidateSearch>(&mut self, search: &S, positions: &[Vector], radius: Real) {
         let n = positions.len();
         let r2 = radius * radius;
         self.chunks.resize_with(n.div_ceil(CHUNK), Default::default);
@@ -36,7 +38,7 @@ impl NeighborList {
                 for i in c * CHUNK..((c + 1) * CHUNK).min(n) {
                     let before = found.len();
                     let xi = positions[i];
-                    grid.for_each_candidate(&xi, |j| {
+                    search.for_each_candidate(&xi, |j| {
                         if (positions[j as usize] - xi).norm_squared() < r2 {
                             found.push(j);
                         }
@@ -81,6 +83,7 @@ impl NeighborList {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::neighbors::UniformGrid;
     use crate::testing::uniform;
 
     fn brute_force(positions: &[Vector], i: usize, radius: Real) -> Vec<u32> {
