@@ -59,7 +59,12 @@ fn hash(c: [i64; 3], table_size: u64) -> u32 {
 /// The smallest prime at least `n` (trial division: n is about 2x the
 /// particle count, so this costs microseconds).
 fn next_prime(n: usize) -> usize {
-    let is_prime = |k: usize| k >= 2 && (2..).take_while(|d| d * d <= k).all(|d| k % d != 0);
+    let is_prime = |k: usize| {
+        k >= 2
+            && (2..)
+                .take_while(|d| d * d <= k)
+                .all(|d| !k.is_multiple_of(d))
+    };
     (n.max(2)..).find(|&k| is_prime(k)).unwrap_or(n)
 }
 
