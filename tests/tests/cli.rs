@@ -20,6 +20,15 @@ impl TempDir {
     }
 }
 
+impl TempDir {
+    /// Writes `text` to `name` in the folder and returns its path.
+    fn file(&self, name: &str, text: &str) -> PathBuf {
+        let path = self.0.join(name);
+        std::fs::write(&path, text).expect("a file in the temp dir");
+        path
+    }
+}
+
 impl Drop for TempDir {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.0);
@@ -37,8 +46,7 @@ async fn meshless(args: &[&str]) -> std::process::Output {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn run_writes_a_vtk_series() {
     let dir = TempDir::new("run");
-    let scene = dir.0.join("small.toml");
-    std::fs::write(&scene, small_scene()).expect("scene file");
+    let scene = dir.file("small.toml", &small_scene());
     let out = dir.0.join("frames");
     let output = meshless(&[
         "run",
@@ -71,12 +79,10 @@ async fn run_writes_a_vtk_series() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_bad_scene_file_fails_with_the_field_named() {
     let dir = TempDir::new("bad");
-    let scene = dir.0.join("bad.toml");
-    std::fs::write(
-        &scene,
-        small_scene().replace("spacing = 0.04", "spacing = 0.0"),
-    )
-    .expect("file");
+    let scene = dir.file(
+        "bad.toml",
+        &small_scene().replace("spacing = 0.04", "spacing = 0.0"),
+    );
     let output = meshless(&["run", scene.to_str().expect("utf-8")]).await;
     assert!(!output.status.success());
     let stderr = String::from_utf8_lossy(&output.stderr);
@@ -87,8 +93,7 @@ async fn a_bad_scene_file_fails_with_the_field_named() {
 async fn session_commands_drive_a_server() {
     let server = ServerProcess::spawn(&[]).await.expect("server starts");
     let dir = TempDir::new("session");
-    let scene = dir.0.join("small.toml");
-    std::fs::write(&scene, small_scene()).expect("scene file");
+    let scene = dir.file("small.toml", &small_scene());
     let url = server.grpc_url.clone();
     let with_server = |args: &[&str]| {
         let mut all: Vec<String> = args.iter().map(|a| (*a).to_owned()).collect();
@@ -190,8 +195,7 @@ async fn watch_counts_frames_from_zenoh() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn demo_runs_the_whole_service_in_process() {
     let dir = TempDir::new("demo");
-    let scene = dir.0.join("small.toml");
-    std::fs::write(&scene, small_scene()).expect("scene file");
+    let scene = dir.file("small.toml", &small_scene());
     let out = dir.0.join("frames");
     let output = meshless(&[
         "demo",
@@ -227,11 +231,10 @@ async fn demo_runs_the_whole_service_in_process() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn study_writes_error_against_cost() {
     let dir = TempDir::new("study");
-    let scene = dir.0.join("coarse.toml");
     let coarse = include_str!("../../scenes/dam_break.toml")
         .replace("spacing = 0.02", "spacing = 0.04")
         .replace("support_radius = 0.04", "support_radius = 0.08");
-    std::fs::write(&scene, coarse).expect("scene file");
+    let scene = dir.file("coarse.toml", &coarse);
     let output = meshless(&[
         "study",
         "--knob",

@@ -54,11 +54,10 @@ pub struct SolverScratch {
     /// The density source of the current iteration.
     source: Vec<Real>,
     kappa: Vec<Real>,
-    /// The last sub-step's total `kappa` of each solve: `p / rho`, a
-    /// physical quantity independent of the step, so it warm-starts the
-    /// next solve (half of it, as is usual, to avoid overshoot).
+    /// The last sub-step's total `kappa` of the constant-density solve:
+    /// `p / rho`, a physical quantity independent of the step, so half of
+    /// it warm-starts the next solve (as is usual, to avoid overshoot).
     density_kappa: Vec<Real>,
-    divergence_kappa: Vec<Real>,
     pub(super) last: SolveInfo,
 }
 
@@ -82,7 +81,6 @@ impl Fluid {
         scratch.source.resize(n, 0.0);
         scratch.kappa.resize(n, 0.0);
         scratch.density_kappa.resize(n, 0.0);
-        scratch.divergence_kappa.resize(n, 0.0);
         self.compute_factors();
     }
 
@@ -178,10 +176,11 @@ impl Fluid {
 
     /// Iterates one solve until its average error is below tolerance or
     /// the cap is reached; returns the iterations and the error reached.
-    /// Starts from half the previous sub-step's pressure (warm start):
-    /// without it, pressure has to be rebuilt from nothing every sub-step,
-    /// one particle layer per iteration, and a resting column under gravity
-    /// rings.
+    /// The constant-density solve starts from half the previous sub-step's
+    /// pressure (warm start): without it, pressure has to be rebuilt from
+    /// nothing every sub-step, one particle layer per iteration. The
+    /// divergence solve starts from zero: warm-starting it as well made a
+    /// resting tank blow up.
     fn solve(&mut self, solve: Solve, dt: Real, params: &DfsphParams) -> (u32, Real) {
         let rest = self.params.eos.rest_density;
         let n = self.len().max(1) as Real;
@@ -189,22 +188,13 @@ impl Fluid {
             Solve::ConstantDensity => (params.density_tolerance, 1.0 / dt / dt),
             Solve::DivergenceFree => (params.divergence_tolerance, 1.0 / dt),
         };
-        {
+        if solve == Solve::ConstantDensity {
             let scratch = &mut self.solver;
-            let total = match solve {
-                Solve::ConstantDensity => &mut scratch.density_kappa,
-                Solve::DivergenceFree => &mut scratch.divergence_kappa,
-            };
-            let keep = if solve == Solve::ConstantDensity {
-                0.5
-            } else {
-                0.0
-            };
-            total.par_iter_mut().for_each(|k| *k *= keep);
-            scratch.kappa.clone_from(total);
+            scratch.density_kappa.par_iter_mut().for_each(|k| *k *= 0.5);
+            scratch.kappa.clone_from(&scratch.density_kappa);
+            self.apply_kappa(dt);
+            self.add_pressure();
         }
-        self.apply_kappa(dt);
-        self.add_pressure();
         let mut iterations = 0;
         loop {
             self.compute_source(solve, dt);
@@ -217,20 +207,19 @@ impl Fluid {
                 return (iterations, error);
             }
             let scratch = &mut self.solver;
-            let total = match solve {
-                Solve::ConstantDensity => &mut scratch.density_kappa,
-                Solve::DivergenceFree => &mut scratch.divergence_kappa,
-            };
             scratch
                 .kappa
                 .par_iter_mut()
-                .zip(total.par_iter_mut())
                 .zip(scratch.source.par_iter())
                 .zip(scratch.factors.par_iter())
-                .for_each(|(((kappa, total), s), alpha)| {
-                    *kappa = s * alpha * scale;
-                    *total += *kappa;
-                });
+                .for_each(|((kappa, s), alpha)| *kappa = s * alpha * scale);
+            if solve == Solve::ConstantDensity {
+                scratch
+                    .density_kappa
+                    .par_iter_mut()
+                    .zip(scratch.kappa.par_iter())
+                    .for_each(|(total, kappa)| *total += kappa);
+            }
             self.add_pressure();
             self.apply_kappa(dt);
             iterations += 1;
