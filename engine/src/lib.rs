@@ -12,6 +12,7 @@ pub mod approx;
 pub mod experiments;
 pub mod fluid;
 pub mod frame;
+pub mod geometry;
 pub mod io;
 pub mod math;
 pub mod neighbors;
