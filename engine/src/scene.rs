@@ -6,6 +6,7 @@
 //! systems and fields the scene names.
 
 use crate::approx::KernelKind;
+use crate::fluid::ViscosityModel;
 use crate::math::Real;
 use crate::neighbors::{GridError, UniformGrid};
 use crate::world::World;
@@ -28,6 +29,10 @@ pub mod defaults {
     pub const XSPH: Real = 0.1;
     pub const FRAME_EVERY: u32 = 1;
     pub const VISCOSITY: Real = 0.0;
+    /// Morris's form matches the analytic decay of a Taylor–Green vortex
+    /// within a few per cent; Eq. 52's kernel Laplacian dissipates too
+    /// little (crate::fluid::ViscosityModel).
+    pub const VISCOSITY_MODEL: crate::fluid::ViscosityModel = crate::fluid::ViscosityModel::Morris;
     pub const SOLVER: super::SolverKind = super::SolverKind::Wcsph;
     pub const DENSITY_TOLERANCE: Real = 0.001;
     pub const DIVERGENCE_TOLERANCE: Real = 0.001;
@@ -185,6 +190,16 @@ pub struct FluidBlock {
     pub velocity: [Real; 3],
 }
 
+/// One particle placed by hand, besides the blocks' lattices.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParticleSpec {
+    pub position: [Real; 3],
+    /// Initial velocity, m/s.
+    #[serde(default)]
+    pub velocity: [Real; 3],
+}
+
 /// The pressure solver of a fluid.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -233,9 +248,12 @@ pub struct FluidSpec {
     /// XSPH factor xi (Eq. 53); 0 runs no XSPH pass.
     #[serde(default = "default_xsph")]
     pub xsph: Real,
-    /// Dynamic viscosity mu, Pa s (Eq. 52); 0 runs no viscosity pass.
+    /// Dynamic viscosity mu, Pa s; 0 runs no viscosity pass.
     #[serde(default = "default_viscosity")]
     pub viscosity: Real,
+    /// The SPH form of the viscous Laplacian.
+    #[serde(default = "default_viscosity_model")]
+    pub viscosity_model: ViscosityModel,
     /// How the fluid meets the domain's walls.
     #[serde(default = "default_walls")]
     pub walls: WallModel,
@@ -258,7 +276,12 @@ pub struct FluidSpec {
     /// Kernel of the pressure gradient.
     #[serde(default = "default_gradient_kernel")]
     pub gradient_kernel: KernelKind,
+    #[serde(default)]
     pub blocks: Vec<FluidBlock>,
+    /// Single particles besides the blocks (a measured state, a velocity
+    /// field); they take the blocks' particle mass.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub particles: Vec<ParticleSpec>,
 }
 
 impl FluidSpec {
@@ -283,12 +306,14 @@ impl FluidSpec {
         })
     }
 
-    /// Number of particles the blocks create in `dim` dimensions.
+    /// Number of particles the blocks and single particles create in
+    /// `dim` dimensions.
     pub fn particle_count(&self, dim: usize) -> f64 {
         self.blocks
             .iter()
             .map(|b| self.lattice_dims(b, dim).iter().product::<f64>())
-            .sum()
+            .sum::<f64>()
+            + self.particles.len() as f64
     }
 
     /// Lattice positions of all blocks in `dim` dimensions, with each
@@ -342,6 +367,11 @@ pub struct Scene {
     pub dimension: usize,
     /// The simulation box; particles reflect off its walls.
     pub domain: Aabb,
+    /// Periodic axes `[x, y, z]` of the domain: particles leaving through
+    /// one face re-enter through the opposite one, and those axes have no
+    /// walls. Ignored along z in 2D.
+    #[serde(default, skip_serializing_if = "is_not_periodic")]
+    pub periodic: [bool; 3],
     /// m/s^2.
     #[serde(default = "default_gravity")]
     pub gravity: [Real; 3],
@@ -351,6 +381,9 @@ pub struct Scene {
     pub output: OutputSpec,
 }
 
+fn is_not_periodic(axes: &[bool; 3]) -> bool {
+    !axes.contains(&true)
+}
 fn default_dimension() -> usize {
     3
 }
@@ -377,6 +410,9 @@ fn default_xsph() -> Real {
 }
 fn default_viscosity() -> Real {
     defaults::VISCOSITY
+}
+fn default_viscosity_model() -> ViscosityModel {
+    defaults::VISCOSITY_MODEL
 }
 fn default_solver() -> SolverKind {
     defaults::SOLVER
@@ -630,11 +666,31 @@ impl Scene {
                 "viscosity is infinite at zero distance; use poly6, cubic_spline, wendland_c2 or spiky",
             ));
         }
-        if fluid.blocks.is_empty() {
+        if fluid.blocks.is_empty() && fluid.particles.is_empty() {
             return Err(SceneError::invalid(
                 format!("{at}.blocks"),
-                "is empty; add at least one block of fluid",
+                "is empty and so is `particles`; add at least one block of fluid",
             ));
+        }
+        for (i, particle) in fluid.particles.iter().enumerate() {
+            let field = format!("{at}.particles[{i}]");
+            check_vector(&format!("{field}.position"), particle.position)?;
+            check_vector(&format!("{field}.velocity"), particle.velocity)?;
+            let outside = (0..self.dimension).find(|&a| {
+                particle.position[a] < self.domain.min[a]
+                    || particle.position[a] > self.domain.max[a]
+            });
+            if let Some(a) = outside {
+                let axis = ["x", "y", "z"][a];
+                return Err(SceneError::invalid(
+                    format!("{field}.position"),
+                    format!(
+                        "lies outside the domain: {axis} = {} is not in [{}, {}]; move the particle \
+                         inside or widen the domain",
+                        particle.position[a], self.domain.min[a], self.domain.max[a]
+                    ),
+                ));
+            }
         }
         let domain = Aabb {
             min: self.domain.min,
@@ -670,9 +726,33 @@ impl Scene {
             }
         }
         let (min, max) = self.simulation_box(h);
-        UniformGrid::new(min, max, h)
+        let periodic = self.periodic_axes();
+        for (a, axis) in ["x", "y", "z"].iter().enumerate() {
+            let period = max[a] - min[a];
+            let needed = UniformGrid::MIN_PERIODIC_CELLS as Real * h;
+            if periodic[a] && period < needed {
+                return Err(SceneError::invalid(
+                    format!("periodic.{axis}"),
+                    format!(
+                        "the domain spans {period} m along {axis}, below {} support radii \
+                         ({needed} m); widen the domain or make {axis} non-periodic",
+                        UniformGrid::MIN_PERIODIC_CELLS
+                    ),
+                ));
+            }
+        }
+        UniformGrid::with_periodic(min, max, h, periodic)
             .map_err(|e: GridError| SceneError::invalid("domain", e.to_string()))?;
         Ok(())
+    }
+
+    /// The periodic axes in effect: those the scene names, less z in 2D.
+    pub fn periodic_axes(&self) -> [bool; 3] {
+        let mut axes = self.periodic;
+        if self.dimension == 2 {
+            axes[2] = false;
+        }
+        axes
     }
 
     /// The box particles stay in. In 2D its z extent is `[-h, h]` around
@@ -796,6 +876,28 @@ mod tests {
         let block = fluid(&mut s).blocks[0].clone();
         fluid(&mut s).blocks.push(block);
         assert_eq!(rejected_field(&s), "systems[0].blocks[1].region");
+
+        let mut s = small();
+        fluid(&mut s).particles.push(ParticleSpec {
+            position: [0.5, 1.5, 0.5],
+            velocity: [0.0; 3],
+        });
+        assert_eq!(rejected_field(&s), "systems[0].particles[0].position");
+
+        let mut s = small();
+        fluid(&mut s).particles.push(ParticleSpec {
+            position: [0.5, 0.5, 0.5],
+            velocity: [0.0, Real::NAN, 0.0],
+        });
+        assert_eq!(rejected_field(&s), "systems[0].particles[0].velocity.y");
+
+        // Three support radii (0.6 m) fit in the 1 m box; 0.5 m does not.
+        let mut s = small();
+        s.periodic = [false, true, false];
+        assert!(s.validate(&BuildOptions::default()).is_ok());
+        s.domain.max[1] = 0.5;
+        fluid(&mut s).blocks[0].region.max[1] = 0.5;
+        assert_eq!(rejected_field(&s), "periodic.y");
 
         let mut s = small();
         s.systems.clear();

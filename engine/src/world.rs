@@ -4,7 +4,7 @@ use crate::approx::Kernel;
 use crate::fluid::{BoxWalls, DfsphParams, Fluid, FluidParams, FluidState, PressureSolver, Tait};
 use crate::frame::{FieldData, Frame};
 use crate::math::{Real, Vector, vector};
-use crate::neighbors::UniformGrid;
+use crate::neighbors::{Periodic, UniformGrid};
 use crate::scene::{FieldKind, FluidSpec, Scene, SolverKind, SystemSpec, WallModel};
 use crate::stats::StageTimer;
 
@@ -240,6 +240,7 @@ fn build_fluid(scene: &Scene, spec: &FluidSpec) -> Fluid {
         },
         xsph: spec.xsph,
         viscosity: spec.viscosity,
+        viscosity_model: spec.viscosity_model,
         mass: FluidParams::lattice_mass(spec.spacing, &density_kernel, spec.rest_density),
         spacing: spec.spacing,
         solver: match spec.solver {
@@ -252,21 +253,34 @@ fn build_fluid(scene: &Scene, spec: &FluidSpec) -> Fluid {
         },
     };
     let (min, max) = scene.simulation_box(h);
+    let periodic_axes = scene.periodic_axes();
     let walls = match spec.walls {
-        WallModel::Solid => Some(BoxWalls::new(
-            min,
-            max,
-            spec.spacing,
-            params.mass,
-            &density_kernel,
-            &gradient_kernel,
-        )),
+        WallModel::Solid => Some(
+            BoxWalls::new(
+                min,
+                max,
+                spec.spacing,
+                params.mass,
+                &density_kernel,
+                &gradient_kernel,
+            )
+            .without_axes(periodic_axes),
+        ),
         WallModel::Reflect => None,
     };
     let (positions, velocities): (Vec<Vector>, Vec<Vector>) = spec
         .lattice(dim)
         .map(|(x, block)| (vector(x), vector(spec.blocks[block].velocity)))
+        .chain(spec.particles.iter().map(|p| {
+            let (mut x, mut v) = (vector(p.position), vector(p.velocity));
+            if dim == 2 {
+                (x.z, v.z) = (0.0, 0.0);
+            }
+            (x, v)
+        }))
         .unzip();
-    let grid = UniformGrid::new(min, max, h).expect("validated by Scene::validate");
-    Fluid::new(params, positions, velocities, walls, grid)
+    let grid = UniformGrid::with_periodic(min, max, h, periodic_axes)
+        .expect("validated by Scene::validate");
+    let periodic = Periodic::new(min, max, periodic_axes);
+    Fluid::new(params, positions, velocities, walls, grid, periodic)
 }

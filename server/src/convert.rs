@@ -4,8 +4,10 @@
 
 use crate::error::ServiceError;
 use meshless_engine::approx::KernelKind;
+use meshless_engine::fluid::ViscosityModel;
 use meshless_engine::scene::{
-    Aabb, FluidBlock, FluidSpec, OutputSpec, SolverKind, SystemSpec, TimeSpec, WallModel, defaults,
+    Aabb, FluidBlock, FluidSpec, OutputSpec, ParticleSpec, SolverKind, SystemSpec, TimeSpec,
+    WallModel, defaults,
 };
 use meshless_engine::{FieldKind, Frame, Scene};
 use meshless_proto::v1;
@@ -91,6 +93,26 @@ fn wall_model(value: Option<i32>, field: &str) -> Result<WallModel> {
     }
 }
 
+/// Engine viscosity model of a proto enum value; unset gives the default.
+fn viscosity_model(value: Option<i32>, field: &str) -> Result<ViscosityModel> {
+    match value.map(v1::ViscosityModel::try_from) {
+        None => Ok(defaults::VISCOSITY_MODEL),
+        Some(Ok(v1::ViscosityModel::Morris)) => Ok(ViscosityModel::Morris),
+        Some(Ok(v1::ViscosityModel::KernelLaplacian)) => Ok(ViscosityModel::KernelLaplacian),
+        Some(Ok(v1::ViscosityModel::Unspecified) | Err(_)) => Err(ServiceError::invalid(
+            field,
+            format!("unknown viscosity model {value:?}; use morris or kernel_laplacian"),
+        )),
+    }
+}
+
+fn to_viscosity_model(model: ViscosityModel) -> v1::ViscosityModel {
+    match model {
+        ViscosityModel::Morris => v1::ViscosityModel::Morris,
+        ViscosityModel::KernelLaplacian => v1::ViscosityModel::KernelLaplacian,
+    }
+}
+
 /// Engine solver of a proto enum value; unset gives the default.
 fn solver_kind(value: Option<i32>, field: &str) -> Result<SolverKind> {
     match value.map(v1::SolverKind::try_from) {
@@ -148,6 +170,7 @@ pub fn scene_from_proto(spec: v1::SceneSpec) -> Result<Scene> {
         systems,
         output,
         dimension,
+        periodic,
     } = spec;
     let v1::TimeSpec {
         dt,
@@ -177,6 +200,7 @@ pub fn scene_from_proto(spec: v1::SceneSpec) -> Result<Scene> {
         name,
         dimension: dimension.map_or(3, |d| d as usize),
         domain: aabb(domain, "domain")?,
+        periodic: periodic.map_or([false; 3], |v1::Periodic { x, y, z }| [x, y, z]),
         gravity: gravity.map_or(defaults::GRAVITY, vec3),
         time: TimeSpec {
             dt,
@@ -219,7 +243,23 @@ fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
         density_tolerance,
         divergence_tolerance,
         max_solver_iterations,
+        particles,
+        viscosity_model: model,
     } = fluid;
+    let particles = particles
+        .into_iter()
+        .enumerate()
+        .map(|(i, particle)| {
+            let v1::Particle { position, velocity } = particle;
+            Ok(ParticleSpec {
+                position: vec3(required(
+                    position,
+                    &format!("{field}.particles[{i}].position"),
+                )?),
+                velocity: velocity.map_or([0.0; 3], vec3),
+            })
+        })
+        .collect::<Result<_>>()?;
     let blocks = blocks
         .into_iter()
         .enumerate()
@@ -241,6 +281,7 @@ fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
             .unwrap_or(defaults::NEGATIVE_PRESSURE_SCALE),
         xsph: xsph.unwrap_or(defaults::XSPH),
         viscosity: viscosity.unwrap_or(defaults::VISCOSITY),
+        viscosity_model: viscosity_model(model, &format!("{field}.viscosity_model"))?,
         walls: wall_model(walls, &format!("{field}.walls"))?,
         solver: solver_kind(solver, &format!("{field}.solver"))?,
         density_tolerance: density_tolerance.unwrap_or(defaults::DENSITY_TOLERANCE),
@@ -257,6 +298,7 @@ fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
             &format!("{field}.gradient_kernel"),
         )?,
         blocks,
+        particles,
     })
 }
 
@@ -266,6 +308,11 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
         name: scene.name.clone(),
         dimension: Some(scene.dimension as u32),
         domain: Some(to_aabb(&scene.domain)),
+        periodic: scene.periodic.contains(&true).then_some(v1::Periodic {
+            x: scene.periodic[0],
+            y: scene.periodic[1],
+            z: scene.periodic[2],
+        }),
         gravity: Some(to_vec3(scene.gravity)),
         time: Some(v1::TimeSpec {
             dt: scene.time.dt,
@@ -288,6 +335,7 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
                         density_kernel: Some(to_kernel_kind(f.density_kernel) as i32),
                         gradient_kernel: Some(to_kernel_kind(f.gradient_kernel) as i32),
                         viscosity: Some(f.viscosity),
+                        viscosity_model: Some(to_viscosity_model(f.viscosity_model) as i32),
                         walls: Some(to_wall_model(f.walls) as i32),
                         solver: Some(to_solver_kind(f.solver) as i32),
                         density_tolerance: Some(f.density_tolerance),
@@ -299,6 +347,14 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
                             .map(|b| v1::FluidBlock {
                                 region: Some(to_aabb(&b.region)),
                                 velocity: Some(to_vec3(b.velocity)),
+                            })
+                            .collect(),
+                        particles: f
+                            .particles
+                            .iter()
+                            .map(|p| v1::Particle {
+                                position: Some(to_vec3(p.position)),
+                                velocity: Some(to_vec3(p.velocity)),
                             })
                             .collect(),
                     }),
@@ -368,6 +424,19 @@ mod tests {
         assert_eq!(back, explicit);
         back.validate(&BuildOptions::default())
             .expect("still valid");
+
+        // Periodic axes and single particles survive the trip too.
+        let mut scene = explicit;
+        scene.periodic = [true, false, true];
+        let SystemSpec::Fluid(f) = &mut scene.systems[0];
+        f.particles.push(ParticleSpec {
+            position: [3.5, 0.5, 0.5],
+            velocity: [-1.0, 0.0, 0.25],
+        });
+        assert_eq!(
+            scene_from_proto(scene_to_proto(&scene)).expect("round trip"),
+            scene
+        );
     }
 
     #[test]

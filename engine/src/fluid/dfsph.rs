@@ -13,7 +13,7 @@
 //! symmetric pressure form of Eq. 51 with `kappa = p / rho`. Walls enter
 //! through the gradient of their density (see [`super::BoxWalls`]).
 
-use super::wcsph::{Fluid, reflect};
+use super::wcsph::{Fluid, confine};
 use crate::math::{Real, Vector};
 use crate::stats::{Stage, StageTimer};
 use rayon::prelude::*;
@@ -97,7 +97,8 @@ impl Fluid {
         let g = *gravity;
         self.accelerations.par_iter_mut().for_each(|a| *a = g);
         if let Some(kernel) = self.viscosity_kernel {
-            timer.time(Stage::Viscosity, || self.apply_viscosity(&kernel));
+            let model = self.params.viscosity_model;
+            timer.time(Stage::Viscosity, || self.apply_viscosity(model, &kernel));
         }
         if self.params.xsph > 0.0 {
             timer.time(Stage::Xsph, || self.apply_xsph());
@@ -114,12 +115,13 @@ impl Fluid {
             self.solve(Solve::ConstantDensity, dt, params)
         });
         timer.time(Stage::Integrate, || {
+            let periodic = self.periodic.as_ref();
             self.positions
                 .par_iter_mut()
                 .zip(self.velocities.par_iter_mut())
                 .for_each(|(x, v)| {
                     *x += *v * dt;
-                    reflect(x, v, min, max);
+                    confine(x, v, min, max, periodic);
                 });
         });
         timer.time(Stage::NeighborSearch, || self.find_neighbors());
@@ -159,8 +161,7 @@ impl Fluid {
                 *wall = walls.map_or(Vector::zeros(), |w| w.density_gradient(&xi));
                 let mut sum = *wall;
                 let mut squares = 0.0;
-                for &j in neighbors.of(i) {
-                    let r = xi - positions[j as usize];
+                for (_, r) in neighbors.pairs(i, positions) {
                     let grad = kernel.gradient(&r, r.norm()) * mass;
                     sum += grad;
                     squares += grad.norm_squared();
@@ -260,11 +261,9 @@ impl Fluid {
             .par_iter_mut()
             .enumerate()
             .for_each(|(i, source)| {
-                let (xi, vi) = (positions[i], velocities[i]);
+                let vi = velocities[i];
                 let mut rate = vi.dot(&walls[i]);
-                for &j in neighbors.of(i) {
-                    let j = j as usize;
-                    let r = xi - positions[j];
+                for (j, r) in neighbors.pairs(i, positions) {
                     rate += (vi - velocities[j]).dot(&kernel.gradient(&r, r.norm())) * mass;
                 }
                 *source = match solve {
@@ -289,15 +288,12 @@ impl Fluid {
             .par_iter_mut()
             .enumerate()
             .for_each(|(i, v)| {
-                let xi = positions[i];
                 let ki = kappa[i] / densities[i];
                 let mut push = walls[i] * ki;
-                for &j in neighbors.of(i) {
-                    let j = j as usize;
+                for (j, r) in neighbors.pairs(i, positions) {
                     if j == i {
                         continue;
                     }
-                    let r = xi - positions[j];
                     push += kernel.gradient(&r, r.norm()) * (mass * (ki + kappa[j] / densities[j]));
                 }
                 *v -= push * dt;

@@ -3,10 +3,12 @@
 
 mod dfsph;
 mod eos;
+mod viscosity;
 mod walls;
 mod wcsph;
 
 pub use dfsph::{DfsphParams, SolveInfo};
 pub use eos::Tait;
+pub use viscosity::ViscosityModel;
 pub use walls::BoxWalls;
 pub use wcsph::{Fluid, FluidParams, FluidState, Invalid, PressureSolver};

@@ -34,8 +34,9 @@ pub struct BoxWalls {
     min: Vector,
     max: Vector,
     h: Real,
-    /// Axes with walls: 3, or 2 for a planar (2D) fluid.
-    axes: usize,
+    /// Axes with walls: x, y and z, less z for a planar (2D) fluid and
+    /// less the periodic axes.
+    walled: [bool; 3],
     /// `Phi(d)` with the density kernel, times `m / dx^3`: the density a
     /// wall adds at distance `d`.
     density: Vec<Real>,
@@ -128,10 +129,18 @@ impl BoxWalls {
             min,
             max,
             h,
-            axes,
+            walled: [true, true, axes == 3],
             density,
             slope,
         }
+    }
+
+    /// Removes the walls of the `open` axes (periodic axes have none).
+    pub fn without_axes(mut self, open: [bool; 3]) -> Self {
+        for (walled, open) in self.walled.iter_mut().zip(open) {
+            *walled &= !open;
+        }
+        self
     }
 
     /// Linear interpolation in a table at distance `d`.
@@ -150,7 +159,7 @@ impl BoxWalls {
     /// `x`: its distance and inward normal.
     #[inline]
     fn near(&self, x: &Vector, mut visit: impl FnMut(Real, Vector)) {
-        for a in 0..self.axes {
+        for a in (0..3).filter(|&a| self.walled[a]) {
             let mut n = Vector::zeros();
             let below = x[a] - self.min[a];
             if below < self.h {

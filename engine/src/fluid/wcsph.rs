@@ -3,10 +3,10 @@
 //! explicit integration with reflection off the domain walls.
 
 use super::dfsph::{DfsphParams, SolverScratch};
-use super::{BoxWalls, Tait};
+use super::{BoxWalls, Tait, ViscosityModel};
 use crate::approx::{Kernel, KernelKind};
 use crate::math::{Real, Vector};
-use crate::neighbors::{CandidateSearch, NeighborList, UniformGrid};
+use crate::neighbors::{CandidateSearch, NeighborList, Periodic, UniformGrid};
 use crate::stats::{Stage, StageTimer};
 use rayon::prelude::*;
 
@@ -32,8 +32,10 @@ pub struct FluidParams {
     pub eos: Tait,
     /// XSPH factor xi (Eq. 53); 0 skips the XSPH pass.
     pub xsph: Real,
-    /// Dynamic viscosity mu, Pa s (Eq. 52); 0 skips the viscosity pass.
+    /// Dynamic viscosity mu, Pa s; 0 skips the viscosity pass.
     pub viscosity: Real,
+    /// How the viscous Laplacian is approximated.
+    pub viscosity_model: ViscosityModel,
     /// Mass of every particle, kg.
     pub mass: Real,
     /// Initial particle spacing, m.
@@ -77,9 +79,11 @@ pub struct Fluid {
     pub(super) smoothed_velocities: Vec<Vector>,
     /// Solid walls of the domain, when the scene asks for them.
     pub(super) walls: Option<BoxWalls>,
-    /// Müller's viscosity kernel, when the scene has viscosity.
+    /// The kernel of the viscosity pass, when the scene has viscosity.
     pub(super) viscosity_kernel: Option<Kernel>,
     grid: UniformGrid,
+    /// Periodic axes of the domain, when the scene names any.
+    pub(super) periodic: Option<Periodic>,
     pub(super) neighbors: NeighborList,
     pub(super) max_acceleration: Real,
     /// Scratch of the iterative solver, empty for WCSPH.
@@ -96,13 +100,15 @@ impl Fluid {
     pub const INCOMPRESSIBLE_SPEED_LIMIT: Real = 1e4;
 
     /// A fluid with the given particles; `grid` must cover the domain with
-    /// cells of the support radius.
+    /// cells of at least the support radius and wrap around the same
+    /// `periodic` axes.
     pub fn new(
         params: FluidParams,
         positions: Vec<Vector>,
         velocities: Vec<Vector>,
         walls: Option<BoxWalls>,
         grid: UniformGrid,
+        periodic: Option<Periodic>,
     ) -> Self {
         let n = positions.len();
         let mut fluid = Self {
@@ -118,14 +124,16 @@ impl Fluid {
                 Vec::new()
             },
             walls,
-            viscosity_kernel: (params.viscosity > 0.0).then(|| {
-                Kernel::new(
+            viscosity_kernel: (params.viscosity > 0.0).then(|| match params.viscosity_model {
+                ViscosityModel::Morris => params.gradient_kernel,
+                ViscosityModel::KernelLaplacian => Kernel::new(
                     KernelKind::Viscosity,
                     params.density_kernel.dim(),
                     params.support_radius,
-                )
+                ),
             }),
             grid,
+            periodic,
             neighbors: NeighborList::default(),
             max_acceleration: 0.0,
             solver: SolverScratch::default(),
@@ -158,7 +166,7 @@ impl Fluid {
     /// `cfl * h / (c_0 + |v|_max)` and the force condition
     /// `cfl * sqrt(h / |a|_max)` (Monaghan 1992). DFSPH: `cfl * dx / |v|_max`
     /// and `0.25 cfl sqrt(dx / |a|_max)`. With viscosity, also the diffusion
-    /// condition `0.125 h^2 rho_0 / mu` (Morris et al. 1997).
+    /// condition `0.125 (h/2)^2 rho_0 / mu` (Morris et al. 1997).
     pub fn stable_dt(&self, cfl: Real) -> Real {
         let h = self.params.support_radius;
         let v_max = self
@@ -183,7 +191,15 @@ impl Fluid {
             });
         }
         if self.params.viscosity > 0.0 {
-            dt = dt.min(0.125 * h * h * self.params.eos.rest_density / self.params.viscosity);
+            // Morris et al. state the condition with the smoothing length
+            // of kernels whose support is twice it, so here with `h / 2`;
+            // the support radius itself made a Taylor–Green vortex blow up
+            // (tests/tests/validation_periodic.rs).
+            let smoothing = 0.5 * h;
+            dt = dt.min(
+                0.125 * smoothing * smoothing * self.params.eos.rest_density
+                    / self.params.viscosity,
+            );
         }
         dt
     }
@@ -234,7 +250,8 @@ impl Fluid {
             );
         });
         if let Some(kernel) = self.viscosity_kernel {
-            timer.time(Stage::Viscosity, || self.apply_viscosity(&kernel));
+            let model = self.params.viscosity_model;
+            timer.time(Stage::Viscosity, || self.apply_viscosity(model, &kernel));
         }
         if self.params.xsph > 0.0 {
             timer.time(Stage::Xsph, || self.apply_xsph());
@@ -244,8 +261,12 @@ impl Fluid {
 
     pub(super) fn find_neighbors(&mut self) {
         self.grid.rebuild(&self.positions);
-        self.neighbors
-            .build(&self.grid, &self.positions, self.params.support_radius);
+        self.neighbors.build_periodic(
+            &self.grid,
+            &self.positions,
+            self.params.support_radius,
+            self.periodic,
+        );
     }
 
     /// `rho_i = sum_j m_j omega(|x_i - x_j|)` (Algorithm 5; poly6 by
@@ -262,39 +283,12 @@ impl Fluid {
             .par_iter_mut()
             .enumerate()
             .for_each(|(i, rho)| {
-                let xi = positions[i];
                 *rho = mass
                     * neighbors
-                        .of(i)
-                        .iter()
-                        .map(|&j| kernel.value_sq((xi - positions[j as usize]).norm_squared()))
+                        .pairs(i, positions)
+                        .map(|(_, r)| kernel.value_sq(r.norm_squared()))
                         .sum::<Real>()
-                    + walls.map_or(0.0, |w| w.density(&xi));
-            });
-    }
-
-    /// Laplacian viscosity (Eq. 52) with Müller's viscosity kernel:
-    /// `a_i += (mu / rho_i) sum_j m_j (v_j - v_i) / rho_j Delta omega_ij`.
-    /// Antisymmetric in each pair, so it conserves momentum.
-    pub(super) fn apply_viscosity(&mut self, kernel: &Kernel) {
-        let (positions, velocities, densities, neighbors) = (
-            &self.positions,
-            &self.velocities,
-            &self.densities,
-            &self.neighbors,
-        );
-        let (mass, mu) = (self.params.mass, self.params.viscosity);
-        self.accelerations
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(i, a)| {
-                let (xi, vi) = (positions[i], velocities[i]);
-                let sum = neighbors.of(i).iter().fold(Vector::zeros(), |acc, &j| {
-                    let j = j as usize;
-                    let r = (xi - positions[j]).norm();
-                    acc + (velocities[j] - vi) * (kernel.laplacian(r) / densities[j])
-                });
-                *a += sum * (mu * mass / densities[i]);
+                    + walls.map_or(0.0, |w| w.density(&positions[i]));
             });
     }
 
@@ -331,12 +325,14 @@ impl Fluid {
             .par_iter_mut()
             .enumerate()
             .for_each(|(i, out)| {
-                let (xi_pos, vi, rho_i) = (positions[i], velocities[i], densities[i]);
-                let correction = neighbors.of(i).iter().fold(Vector::zeros(), |acc, &j| {
-                    let j = j as usize;
-                    let w = kernel.value_sq((xi_pos - positions[j]).norm_squared());
-                    acc + (velocities[j] - vi) * (2.0 * mass / (rho_i + densities[j]) * w)
-                });
+                let (vi, rho_i) = (velocities[i], densities[i]);
+                let correction =
+                    neighbors
+                        .pairs(i, positions)
+                        .fold(Vector::zeros(), |acc, (j, r)| {
+                            let w = kernel.value_sq(r.norm_squared());
+                            acc + (velocities[j] - vi) * (2.0 * mass / (rho_i + densities[j]) * w)
+                        });
                 *out = vi + correction * xi;
             });
         std::mem::swap(&mut self.velocities, &mut self.smoothed_velocities);
@@ -345,6 +341,7 @@ impl Fluid {
     /// Eq. 58-59 (symplectic Euler), then reflection off the walls.
     pub(super) fn integrate(&mut self, dt: Real, min: &Vector, max: &Vector) {
         self.record_max_acceleration();
+        let periodic = self.periodic.as_ref();
         self.positions
             .par_iter_mut()
             .zip(self.velocities.par_iter_mut())
@@ -352,7 +349,7 @@ impl Fluid {
             .for_each(|((x, v), a)| {
                 *v += a * dt;
                 *x += *v * dt;
-                reflect(x, v, min, max);
+                confine(x, v, min, max, periodic);
             });
     }
 
@@ -445,6 +442,24 @@ pub struct Invalid {
     pub value: Real,
 }
 
+/// Keeps a particle in the domain: wraps it around the periodic axes, then
+/// reflects it off the walls of the others.
+#[inline]
+pub(super) fn confine(
+    x: &mut Vector,
+    v: &mut Vector,
+    min: &Vector,
+    max: &Vector,
+    periodic: Option<&Periodic>,
+) {
+    if let Some(p) = periodic {
+        // Wrapped coordinates lie in [min, max), where reflection is a
+        // no-op: only the walled axes reflect.
+        p.wrap(x);
+    }
+    reflect(x, v, min, max);
+}
+
 /// Mirrors a particle that crossed a wall back inside and flips its normal
 /// velocity ("reflect them off solid boundaries", tutorial Section 6.4).
 #[inline]
@@ -483,12 +498,10 @@ pub(crate) fn pressure_accelerations(
         let xi = positions[i];
         let pi = pressures[i] / (densities[i] * densities[i]);
         let mut sum = Vector::zeros();
-        for &j in neighbors.of(i) {
-            let j = j as usize;
+        for (j, r) in neighbors.pairs(i, positions) {
             if j == i {
                 continue;
             }
-            let r = xi - positions[j];
             let pj = pressures[j] / (densities[j] * densities[j]);
             sum += kernel.gradient(&r, r.norm()) * (pi + pj);
         }

@@ -18,15 +18,19 @@ pub struct GridError {
     pub limit: usize,
 }
 
-/// The geometry of the grid: where cell (0, 0, 0) starts, the cell size
+/// The geometry of the grid: where cell (0, 0, 0) starts, the cell sizes
 /// and the cell counts. Particles outside the box are clamped into its
 /// border cells, which keeps queries exact: clamping never separates two
-/// cells by more than it separated the unclamped ones.
+/// cells by more than it separated the unclamped ones. Along a periodic
+/// axis the cells tile the period exactly (so they are at least the
+/// requested size) and the last cell neighbours the first.
 #[derive(Debug, Clone, Copy)]
 struct Lattice {
     origin: Vector,
-    inv_cell: Real,
+    /// Inverse cell size per axis.
+    inv_cell: Vector,
     dims: [usize; 3],
+    periodic: [bool; 3],
 }
 
 impl Lattice {
@@ -35,7 +39,7 @@ impl Lattice {
     fn coords(&self, p: &Vector) -> [usize; 3] {
         let mut c = [0usize; 3];
         for axis in 0..3 {
-            let f = ((p[axis] - self.origin[axis]) * self.inv_cell).floor();
+            let f = ((p[axis] - self.origin[axis]) * self.inv_cell[axis]).floor();
             // NaN and negative values clamp to 0 (`as` saturates).
             c[axis] = (f.max(0.0) as usize).min(self.dims[axis] - 1);
         }
@@ -45,6 +49,23 @@ impl Lattice {
     #[inline]
     fn linear(&self, c: [usize; 3]) -> usize {
         (c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]
+    }
+
+    /// The cells next to coordinate `c` along `axis` (itself included):
+    /// `lo..=hi` as one run, or, where a periodic axis wraps, up to three
+    /// single-cell runs. Returns the runs and how many there are.
+    #[inline]
+    fn runs(&self, axis: usize, c: usize) -> ([(usize, usize); 3], usize) {
+        let d = self.dims[axis];
+        if self.periodic[axis] && (c == 0 || c + 1 == d) {
+            let prev = (c + d - 1) % d;
+            let next = (c + 1) % d;
+            ([(prev, prev), (c, c), (next, next)], 3)
+        } else {
+            let lo = c.saturating_sub(1);
+            let hi = (c + 1).min(d - 1);
+            ([(lo, hi), (0, 0), (0, 0)], 1)
+        }
     }
 }
 
@@ -65,14 +86,41 @@ pub struct UniformGrid {
 impl UniformGrid {
     /// Upper bound on the number of cells (16 Mi cells, 64 MiB of starts).
     pub const MAX_CELLS: usize = 1 << 24;
+    /// Fewest cells along a periodic axis: with fewer, a cell's left and
+    /// right neighbours would be the same cell and be visited twice.
+    pub const MIN_PERIODIC_CELLS: usize = 3;
 
     /// A grid covering `[min, max]` with cubic cells of `cell_size`.
     ///
     /// # Errors
     /// [`GridError`] when the box would need more than [`Self::MAX_CELLS`].
     pub fn new(min: Vector, max: Vector, cell_size: Real) -> Result<Self, GridError> {
+        Self::with_periodic(min, max, cell_size, [false; 3])
+    }
+
+    /// A grid over `[min, max]` whose `periodic` axes wrap around. Along
+    /// those axes the period is split into `floor(extent / cell_size)`
+    /// cells, at least three so that a cell's neighbours are distinct
+    /// (callers check [`Self::MIN_PERIODIC_CELLS`]).
+    ///
+    /// # Errors
+    /// [`GridError`] when the box would need more than [`Self::MAX_CELLS`].
+    pub fn with_periodic(
+        min: Vector,
+        max: Vector,
+        cell_size: Real,
+        periodic: [bool; 3],
+    ) -> Result<Self, GridError> {
         let extent = max - min;
-        let per_axis = extent.map(|e| (e / cell_size).ceil().max(1.0));
+        let mut per_axis = Vector::zeros();
+        for a in 0..3 {
+            let cells = extent[a] / cell_size;
+            per_axis[a] = if periodic[a] {
+                cells.floor().max(Self::MIN_PERIODIC_CELLS as Real)
+            } else {
+                cells.ceil().max(1.0)
+            };
+        }
         let cells = per_axis.x * per_axis.y * per_axis.z;
         if cells.is_nan() || cells > Self::MAX_CELLS as f64 {
             return Err(GridError {
@@ -86,12 +134,19 @@ impl UniformGrid {
             per_axis.y as usize,
             per_axis.z as usize,
         ];
+        let mut inv_cell = Vector::repeat(1.0 / cell_size);
+        for a in 0..3 {
+            if periodic[a] {
+                inv_cell[a] = per_axis[a] / extent[a];
+            }
+        }
         let count = dims[0] * dims[1] * dims[2];
         Ok(Self {
             lattice: Lattice {
                 origin: min,
-                inv_cell: 1.0 / cell_size,
+                inv_cell,
                 dims,
+                periodic,
             },
             cell_start: vec![0; count + 1],
             sorted: Vec::new(),
@@ -126,23 +181,31 @@ impl CandidateSearch for UniformGrid {
         }
     }
 
-    /// Calls `visit(j)` for every particle `j` in the 27 cells around `p`.
-    /// A superset of the neighbours within one cell size; callers filter by
-    /// distance.
+    /// Calls `visit(j)` for every particle `j` in the 27 cells around `p`
+    /// (wrapping around periodic axes). A superset of the neighbours within
+    /// one cell size; callers filter by distance.
     #[inline]
     fn for_each_candidate(&self, p: &Vector, mut visit: impl FnMut(u32)) {
         let lattice = &self.lattice;
         let c = lattice.coords(p);
-        let lo = |a: usize| c[a].saturating_sub(1);
-        let hi = |a: usize| (c[a] + 1).min(lattice.dims[a] - 1);
-        for z in lo(2)..=hi(2) {
-            for y in lo(1)..=hi(1) {
-                let row = lattice.linear([0, y, z]);
-                let start = self.cell_start[row + lo(0)] as usize;
-                let end = self.cell_start[row + hi(0) + 1] as usize;
-                // Cells along x are contiguous: one run covers all three.
-                for &j in &self.sorted[start..end] {
-                    visit(j);
+        let (xs, nx) = lattice.runs(0, c[0]);
+        let (ys, ny) = lattice.runs(1, c[1]);
+        let (zs, nz) = lattice.runs(2, c[2]);
+        for &(z0, z1) in &zs[..nz] {
+            for z in z0..=z1 {
+                for &(y0, y1) in &ys[..ny] {
+                    for y in y0..=y1 {
+                        let row = lattice.linear([0, y, z]);
+                        // Cells along x are contiguous: one run covers all
+                        // three unless the x axis wraps here.
+                        for &(x0, x1) in &xs[..nx] {
+                            let start = self.cell_start[row + x0] as usize;
+                            let end = self.cell_start[row + x1 + 1] as usize;
+                            for &j in &self.sorted[start..end] {
+                                visit(j);
+                            }
+                        }
+                    }
                 }
             }
         }

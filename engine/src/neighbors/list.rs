@@ -1,7 +1,7 @@
 //! Flat (CSR) neighbour lists: `offsets` and one `indices` array, built once
 //! per sub-step and read-only while forces are computed.
 
-use super::CandidateSearch;
+use super::{CandidateSearch, Periodic};
 use crate::math::{Real, Vector};
 use rayon::prelude::*;
 
@@ -9,11 +9,14 @@ use rayon::prelude::*;
 const CHUNK: usize = 256;
 
 /// For each particle `i`, the particles `j` (itself included) with
-/// `|x_i - x_j| < radius`, in the order the search visits them.
+/// `|x_i - x_j| < radius` (through the nearest periodic image where axes
+/// are periodic), in the order the search visits them.
 #[derive(Debug, Clone, Default)]
 pub struct NeighborList {
     offsets: Vec<u32>,
     indices: Vec<u32>,
+    /// Periodic axes of the last build, applied to pair separations.
+    periodic: Option<Periodic>,
     /// Per work item: neighbour counts and indices of its particles, kept
     /// between builds so that rebuilding does not allocate.
     chunks: Vec<(Vec<u32>, Vec<u32>)>,
@@ -26,6 +29,20 @@ impl NeighborList {
     /// Runs in parallel, one gather per particle; the result does not
     /// depend on the thread count.
     pub fn build<S: CandidateSearch>(&mut self, search: &S, positions: &[Vector], radius: Real) {
+        self.build_periodic(search, positions, radius, None);
+    }
+
+    /// [`Self::build`] in a box with `periodic` axes: distances are taken
+    /// to the nearest periodic image, and [`Self::pairs`] yields those
+    /// images' separations. The search must wrap around the same axes.
+    pub fn build_periodic<S: CandidateSearch>(
+        &mut self,
+        search: &S,
+        positions: &[Vector],
+        radius: Real,
+        periodic: Option<Periodic>,
+    ) {
+        self.periodic = periodic;
         let n = positions.len();
         let r2 = radius * radius;
         self.chunks.resize_with(n.div_ceil(CHUNK), Default::default);
@@ -39,7 +56,9 @@ impl NeighborList {
                     let before = found.len();
                     let xi = positions[i];
                     search.for_each_candidate(&xi, |j| {
-                        if (positions[j as usize] - xi).norm_squared() < r2 {
+                        let d = positions[j as usize] - xi;
+                        let d = periodic.map_or(d, |p| p.image(d));
+                        if d.norm_squared() < r2 {
                             found.push(j);
                         }
                     });
@@ -63,6 +82,25 @@ impl NeighborList {
     #[inline]
     pub fn of(&self, i: usize) -> &[u32] {
         &self.indices[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    }
+
+    /// Neighbours `j` of particle `i` (itself included) with the
+    /// separation `x_i - x_j`, taken to the nearest periodic image where
+    /// the list was built with periodic axes. `positions` must be those
+    /// the list was built from.
+    #[inline]
+    pub fn pairs<'a>(
+        &'a self,
+        i: usize,
+        positions: &'a [Vector],
+    ) -> impl Iterator<Item = (usize, Vector)> + 'a {
+        let xi = positions[i];
+        let periodic = self.periodic;
+        self.of(i).iter().map(move |&j| {
+            let j = j as usize;
+            let d = xi - positions[j];
+            (j, periodic.map_or(d, |p| p.image(d)))
+        })
     }
 
     /// Number of particles the lists were built for.

@@ -13,11 +13,13 @@ mod grid;
 mod hash;
 mod kdtree;
 mod list;
+mod periodic;
 
 pub use grid::{GridError, UniformGrid};
 pub use hash::{HashCell, SpatialHash};
 pub use kdtree::KdTree;
 pub use list::NeighborList;
+pub use periodic::Periodic;
 
 use crate::math::Vector;
 
