@@ -1,6 +1,12 @@
 //! Geometry shared by the systems: triangle meshes (boundaries, obstacles,
-//! reconstructed surfaces, embedded high-resolution surfaces).
+//! reconstructed surfaces, embedded high-resolution surfaces), read from
+//! OBJ and PLY files, checked for closure, measured by signed distance and
+//! sampled with particles.
 
+mod error;
 mod mesh;
+pub mod read;
 
+pub use error::MeshError;
 pub use mesh::TriMesh;
+pub use read::LoadedMesh;
