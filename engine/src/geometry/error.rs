@@ -58,6 +58,20 @@ pub enum MeshError {
         dropped: usize,
     },
 
+    /// A mesh built in code (not read from a file) that refers to a vertex
+    /// it does not have.
+    #[error(
+        "triangle {triangle} refers to vertex {index}, but the mesh has {vertex_count} vertices"
+    )]
+    BadTriangle {
+        triangle: usize,
+        index: u32,
+        vertex_count: usize,
+    },
+
+    #[error("vertex {vertex} has a non-finite coordinate; every vertex needs finite x, y, z")]
+    NonFiniteVertex { vertex: usize },
+
     /// The mesh is not a closed, consistently oriented 2-manifold, which
     /// signed distances and volume filling need.
     #[error(

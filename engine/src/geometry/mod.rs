@@ -3,10 +3,14 @@
 //! OBJ and PLY files, checked for closure, measured by signed distance and
 //! sampled with particles.
 
+mod closest;
 mod error;
 mod mesh;
 pub mod read;
+mod shapes;
+mod topology;
 
 pub use error::MeshError;
 pub use mesh::TriMesh;
 pub use read::LoadedMesh;
+pub use topology::EdgeReport;
