@@ -3,14 +3,17 @@
 //! OBJ and PLY files, checked for closure, measured by signed distance and
 //! sampled with particles.
 
+mod bvh;
 mod closest;
 mod error;
 mod mesh;
 pub mod read;
+mod sdf;
 mod shapes;
 mod topology;
 
 pub use error::MeshError;
 pub use mesh::TriMesh;
 pub use read::LoadedMesh;
+pub use sdf::{Closest, MeshSdf};
 pub use topology::EdgeReport;
