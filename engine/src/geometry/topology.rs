@@ -3,6 +3,7 @@
 //! distance need.
 
 use super::{MeshError, TriMesh};
+use crate::math::Real;
 
 /// How the undirected edges of a mesh are used.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -140,6 +141,27 @@ pub(crate) fn neighbours(mesh: &TriMesh) -> Result<Vec<[u32; 3]>, MeshError> {
         across[b.triangle as usize][b.corner as usize] = a.triangle;
     }
     Ok(across)
+}
+
+/// Edges that mark a sharp feature of the surface: boundary and
+/// non-manifold edges, and edges whose two faces' normals differ by more
+/// than the angle whose cosine is `cos_angle`. Each as `(a, b)`, `a < b`.
+pub(crate) fn feature_edges(mesh: &TriMesh, cos_angle: Real) -> Vec<(u32, u32)> {
+    let normal = |t: u32| {
+        let [a, b, c] = mesh.corners(t as usize);
+        (b - a).cross(&(c - a)).try_normalize(0.0)
+    };
+    sorted_half_edges(mesh)
+        .chunk_by(|a, b| a.key == b.key)
+        .filter(|group| match group {
+            [a, b] => match (normal(a.triangle), normal(b.triangle)) {
+                (Some(n), Some(m)) => n.dot(&m) < cos_angle,
+                _ => false,
+            },
+            _ => true,
+        })
+        .map(|group| group[0].key)
+        .collect()
 }
 
 #[cfg(test)]
