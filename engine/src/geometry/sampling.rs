@@ -55,13 +55,7 @@ pub fn sample_surface(mesh: &TriMesh, spacing: Real) -> Result<Vec<Vector>, Mesh
     mesh.validate()?;
     let area = mesh.area();
     let estimated = CANDIDATES_PER_DISK * area / (DISK_FRACTION * spacing).powi(2);
-    if !(estimated <= MAX_SAMPLES as Real) {
-        return Err(MeshError::TooManySamples {
-            spacing,
-            estimated,
-            limit: MAX_SAMPLES,
-        });
-    }
+    check_count(spacing, estimated)?;
     let mut disks = DiskSet::new(DISK_FRACTION * spacing);
     let mut rng = SplitMix(0x5EED);
 
@@ -120,13 +114,7 @@ pub fn sample_volume(sdf: &MeshSdf, spacing: Real) -> Result<Vec<Vector>, MeshEr
     let (min, max) = sdf.bounds();
     let counts = (max - min).map(|extent| (extent / spacing).ceil().max(1.0));
     let estimated = counts.product();
-    if !(estimated <= MAX_SAMPLES as Real) {
-        return Err(MeshError::TooManySamples {
-            spacing,
-            estimated,
-            limit: MAX_SAMPLES,
-        });
-    }
+    check_count(spacing, estimated)?;
     let [nx, ny, nz] = [0, 1, 2].map(|a| counts[a] as usize);
     let origin = min + Vector::repeat(spacing / 2.0);
     Ok((0..nx * ny * nz)
@@ -145,6 +133,18 @@ fn check_spacing(spacing: Real) -> Result<(), MeshError> {
     } else {
         Err(MeshError::InvalidSpacing { spacing })
     }
+}
+
+/// Refuses work beyond [`MAX_SAMPLES`] (or a count that overflowed to NaN).
+fn check_count(spacing: Real, estimated: Real) -> Result<(), MeshError> {
+    if estimated.is_nan() || estimated > MAX_SAMPLES as Real {
+        return Err(MeshError::TooManySamples {
+            spacing,
+            estimated,
+            limit: MAX_SAMPLES,
+        });
+    }
+    Ok(())
 }
 
 /// Accepted points with a hash grid of cell `radius`, so a candidate is

@@ -49,8 +49,10 @@ pub fn load(path: &Path) -> Result<LoadedMesh, MeshError> {
     };
     match extension.as_str() {
         "obj" => {
-            let text = std::fs::read_to_string(path).map_err(unreadable)?;
-            obj::parse(path, &text)
+            // Lossy: a stray Latin-1 byte in a comment or name is no reason
+            // to refuse the geometry.
+            let bytes = std::fs::read(path).map_err(unreadable)?;
+            obj::parse(path, &String::from_utf8_lossy(&bytes))
         }
         "ply" => {
             let file = std::fs::File::open(path).map_err(unreadable)?;

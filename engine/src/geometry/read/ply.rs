@@ -91,13 +91,13 @@ pub(super) fn parse(path: &Path, reader: &mut impl BufRead) -> Result<LoadedMesh
     let mut faces = Vec::new();
     for element in header.elements.values() {
         let location = format!("element '{}'", element.name);
+        // The parser folds end-of-file into its message text, so the hint
+        // names both causes.
         let read_error = |e: std::io::Error| {
-            let hint = if e.kind() == std::io::ErrorKind::UnexpectedEof {
-                " (the file is shorter than its header says)"
-            } else {
-                ""
-            };
-            parse_error(&location, format!("{e}{hint}"))
+            parse_error(
+                &location,
+                format!("{e} (is the file truncated, or does it not match its header?)"),
+            )
         };
         match element.name.as_str() {
             "vertex" => {
@@ -231,10 +231,7 @@ mod tests {
                 SQUARE.replace("0 1 0 4\n", "0 1 zero 4\n"),
                 "element 'vertex'",
             ),
-            (
-                SQUARE.replace("4 0 1 2 3\n0 1\n", ""),
-                "shorter than its header",
-            ),
+            (SQUARE.replace("4 0 1 2 3\n0 1\n", ""), "truncated"),
             (SQUARE.replace("4 0 1 2 3", "4 0 1 2 9"), "face 0"),
             (SQUARE.replace("4 0 1 2 3", "2 0 1"), "at least three"),
         ];
