@@ -72,6 +72,9 @@ pub enum MeshError {
     #[error("vertex {vertex} has a non-finite coordinate; every vertex needs finite x, y, z")]
     NonFiniteVertex { vertex: usize },
 
+    #[error("mesh has no triangles; a signed distance needs a closed surface")]
+    Empty,
+
     /// The mesh is not a closed, consistently oriented 2-manifold, which
     /// signed distances and volume filling need.
     #[error(

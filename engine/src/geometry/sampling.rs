@@ -10,6 +10,7 @@ use super::{MeshError, MeshSdf, TriMesh};
 use crate::math::{Real, Vector};
 use rayon::prelude::*;
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 /// The most samples (or lattice points tried) one call may make: a
 /// spacing far too small for the mesh is an error, not an abort.
@@ -103,8 +104,11 @@ pub fn sample_surface(mesh: &TriMesh, spacing: Real) -> Result<Vec<Vector>, Mesh
 /// centre of a cube of side `spacing` and a box whose sides are multiples
 /// of the spacing is filled exactly, `spacing / 2` from its walls; in
 /// general the count times `spacing^3` is a midpoint-rule estimate of the
-/// volume. Runs in parallel (rayon); the order (x fastest, then y, then z)
-/// does not depend on the thread count.
+/// volume. Along each lattice row a point within the last query's
+/// |distance| of it takes that query's sign, so a thick solid costs about
+/// one query per surface crossing rather than one per point. Runs in
+/// parallel (rayon); the order (x fastest, then y, then z) does not depend
+/// on the thread count.
 ///
 /// # Errors
 /// [`MeshError::InvalidSpacing`], [`MeshError::TooManySamples`] when the
@@ -117,12 +121,26 @@ pub fn sample_volume(sdf: &MeshSdf, spacing: Real) -> Result<Vec<Vector>, MeshEr
     check_count(spacing, estimated)?;
     let [nx, ny, nz] = [0, 1, 2].map(|a| counts[a] as usize);
     let origin = min + Vector::repeat(spacing / 2.0);
-    Ok((0..nx * ny * nz)
+    Ok((0..ny * nz)
         .into_par_iter()
-        .filter_map(|i| {
-            let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
-            let p = origin + Vector::new(x as Real, y as Real, z as Real) * spacing;
-            (sdf.distance(&p) < 0.0).then_some(p)
+        .flat_map_iter(|row| {
+            let (y, z) = (row % ny, row / ny);
+            // The signed distance is 1-Lipschitz, so a point nearer to the
+            // last queried one than that one's |distance| is on the same
+            // side: deep inside, one query settles many points of the row.
+            let mut last: Option<(Real, Real)> = None;
+            (0..nx).filter_map(move |x| {
+                let p = origin + Vector::new(x as Real, y as Real, z as Real) * spacing;
+                let inside = match last {
+                    Some((at, d)) if d.abs() > (p.x - at).abs() => d < 0.0,
+                    _ => {
+                        let d = sdf.distance(&p);
+                        last = Some((p.x, d));
+                        d < 0.0
+                    }
+                };
+                inside.then_some(p)
+            })
         })
         .collect())
 }
@@ -152,7 +170,34 @@ fn check_count(spacing: Real, estimated: Real) -> Result<(), MeshError> {
 struct DiskSet {
     radius: Real,
     points: Vec<Vector>,
-    cells: HashMap<[i64; 3], Vec<u32>>,
+    cells: HashMap<(i64, i64, i64), Vec<u32>, BuildHasherDefault<CellHasher>>,
+}
+
+/// A multiply-rotate hash for grid cells: the keys are small integers the
+/// program makes, so SipHash's defence against chosen keys buys nothing
+/// and costs most of a candidate test.
+#[derive(Debug, Default)]
+struct CellHasher(u64);
+
+impl Hasher for CellHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(u64::from(b));
+        }
+    }
+
+    fn write_u64(&mut self, x: u64) {
+        // An odd constant near 2^64 / golden ratio spreads the bits.
+        self.0 = (self.0.rotate_left(26) ^ x).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    }
+
+    fn write_i64(&mut self, x: i64) {
+        self.write_u64(x as u64);
+    }
 }
 
 impl DiskSet {
@@ -160,22 +205,23 @@ impl DiskSet {
         DiskSet {
             radius,
             points: Vec::new(),
-            cells: HashMap::new(),
+            cells: HashMap::default(),
         }
     }
 
-    fn cell(&self, p: &Vector) -> [i64; 3] {
-        [0, 1, 2].map(|a| (p[a] / self.radius).floor() as i64)
+    fn cell(&self, p: &Vector) -> (i64, i64, i64) {
+        let [i, j, k] = [0, 1, 2].map(|a| (p[a] / self.radius).floor() as i64);
+        (i, j, k)
     }
 
     /// Keeps `p` when no kept point is nearer than `radius`.
     fn offer(&mut self, p: Vector) {
-        let [i, j, k] = self.cell(&p);
+        let (i, j, k) = self.cell(&p);
         let r2 = self.radius * self.radius;
         for di in -1..=1 {
             for dj in -1..=1 {
                 for dk in -1..=1 {
-                    if let Some(members) = self.cells.get(&[i + di, j + dj, k + dk])
+                    if let Some(members) = self.cells.get(&(i + di, j + dj, k + dk))
                         && members
                             .iter()
                             .any(|&m| (self.points[m as usize] - p).norm_squared() < r2)
@@ -186,7 +232,7 @@ impl DiskSet {
             }
         }
         self.cells
-            .entry([i, j, k])
+            .entry((i, j, k))
             .or_default()
             .push(self.points.len() as u32);
         self.points.push(p);

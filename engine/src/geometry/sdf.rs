@@ -60,19 +60,15 @@ impl MeshSdf {
     ///
     /// # Errors
     /// [`MeshError::BadTriangle`] / [`MeshError::NonFiniteVertex`] for a
-    /// malformed mesh, [`MeshError::NoTriangles`]-like emptiness as
-    /// [`MeshError::NotClosed`], [`MeshError::NotClosed`] when some edge is
+    /// malformed mesh, [`MeshError::Empty`] without triangles,
+    /// [`MeshError::NotClosed`] when some edge is
     /// not shared by two oppositely oriented triangles,
     /// [`MeshError::ZeroAreaTriangle`] for a degenerate triangle, and
     /// [`MeshError::InsideOut`] when the faces point inward.
     pub fn new(mesh: &TriMesh) -> Result<MeshSdf, MeshError> {
         mesh.validate()?;
         if mesh.triangles.is_empty() {
-            return Err(MeshError::NotClosed {
-                boundary: 0,
-                non_manifold: 0,
-                misoriented: 0,
-            });
+            return Err(MeshError::Empty);
         }
         let across = neighbours(mesh)?;
         let mut face_normals = Vec::with_capacity(mesh.triangles.len());
