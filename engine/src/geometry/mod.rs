@@ -1,6 +1,21 @@
 //! Geometry shared by the systems: triangle meshes (boundaries, obstacles,
-//! reconstructed surfaces, embedded high-resolution surfaces).
+//! reconstructed surfaces, embedded high-resolution surfaces), read from
+//! OBJ and PLY files, checked for closure, measured by signed distance and
+//! sampled with particles.
 
+mod bvh;
+mod closest;
+mod error;
 mod mesh;
+pub mod read;
+mod sampling;
+mod sdf;
+mod shapes;
+mod topology;
 
+pub use error::MeshError;
 pub use mesh::TriMesh;
+pub use read::LoadedMesh;
+pub use sampling::{MAX_SAMPLES, sample_surface, sample_volume};
+pub use sdf::{Closest, MeshSdf};
+pub use topology::EdgeReport;

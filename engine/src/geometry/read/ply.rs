@@ -1,0 +1,243 @@
+//! PLY (Stanford) meshes, ASCII or binary of either byte order, parsed by
+//! `ply-rs-bw` into the two elements a surface needs: `vertex` with scalar
+//! `x`, `y`, `z` (any numeric type) and `face` with an integer list
+//! `vertex_indices` (or `vertex_index`). Other elements and properties
+//! (normals, colours, edges, materials) are read past and ignored.
+
+use super::{LoadedMesh, Triangulator, non_finite};
+use crate::geometry::MeshError;
+use crate::math::{Real, Vector};
+use ply_rs_bw::parser::Parser;
+use ply_rs_bw::ply::{ElementDef, Property, PropertyAccess, PropertyType, ScalarType};
+use std::io::BufRead;
+use std::path::Path;
+
+const FACE_LISTS: [&str; 2] = ["vertex_indices", "vertex_index"];
+
+/// One `vertex` element: its position; other properties are skipped.
+struct PlyVertex([Real; 3]);
+
+impl PropertyAccess for PlyVertex {
+    fn new() -> Self {
+        Self([0.0; 3])
+    }
+
+    fn set_property(&mut self, name: &str, property: Property) {
+        let axis = match name {
+            "x" => 0,
+            "y" => 1,
+            "z" => 2,
+            _ => return,
+        };
+        // The header check admits only scalar coordinates.
+        self.0[axis] = match property {
+            Property::Char(v) => v.into(),
+            Property::UChar(v) => v.into(),
+            Property::Short(v) => v.into(),
+            Property::UShort(v) => v.into(),
+            Property::Int(v) => v.into(),
+            Property::UInt(v) => v.into(),
+            Property::Float(v) => v.into(),
+            Property::Double(v) => v,
+            _ => Real::NAN,
+        };
+    }
+}
+
+/// One `face` element: its corner indices, widened so that negative and
+/// out-of-range values can be reported rather than wrapped.
+struct PlyFace(Vec<i64>);
+
+impl PropertyAccess for PlyFace {
+    fn new() -> Self {
+        Self(Vec::new())
+    }
+
+    fn set_property(&mut self, name: &str, property: Property) {
+        if !FACE_LISTS.contains(&name) {
+            return;
+        }
+        self.0 = match property {
+            Property::ListChar(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListUChar(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListShort(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListUShort(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListInt(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListUInt(v) => v.into_iter().map(i64::from).collect(),
+            _ => Vec::new(),
+        };
+    }
+}
+
+/// Any other element, read past.
+struct Skipped;
+
+impl PropertyAccess for Skipped {
+    fn new() -> Self {
+        Self
+    }
+}
+
+pub(super) fn parse(path: &Path, reader: &mut impl BufRead) -> Result<LoadedMesh, MeshError> {
+    let parse_error = |location: &str, message: String| MeshError::Parse {
+        path: path.to_path_buf(),
+        location: location.to_string(),
+        message,
+    };
+    let header = Parser::<Skipped>::new()
+        .read_header(reader)
+        .map_err(|e| parse_error("header", e.to_string()))?;
+    let mut vertices = Vec::new();
+    let mut faces = Vec::new();
+    for element in header.elements.values() {
+        let location = format!("element '{}'", element.name);
+        // The parser folds end-of-file into its message text, so the hint
+        // names both causes.
+        let read_error = |e: std::io::Error| {
+            parse_error(
+                &location,
+                format!("{e} (is the file truncated, or does it not match its header?)"),
+            )
+        };
+        match element.name.as_str() {
+            "vertex" => {
+                check_vertex_header(element).map_err(|m| parse_error("header", m))?;
+                vertices = Parser::<PlyVertex>::new()
+                    .read_payload_for_element(reader, element, &header)
+                    .map_err(read_error)?;
+            }
+            "face" => {
+                check_face_header(element).map_err(|m| parse_error("header", m))?;
+                faces = Parser::<PlyFace>::new()
+                    .read_payload_for_element(reader, element, &header)
+                    .map_err(read_error)?;
+            }
+            _ => {
+                Parser::<Skipped>::new()
+                    .read_payload_for_element(reader, element, &header)
+                    .map_err(read_error)?;
+            }
+        }
+    }
+    let vertices: Vec<Vector> = vertices.into_iter().map(|v| Vector::from(v.0)).collect();
+    if let Some((i, value)) = vertices
+        .iter()
+        .enumerate()
+        .find_map(|(i, v)| non_finite(v).map(|value| (i, value)))
+    {
+        return Err(MeshError::NonFinite {
+            path: path.to_path_buf(),
+            location: format!("vertex {i}"),
+            value,
+        });
+    }
+    let mut triangulator = Triangulator::default();
+    let mut polygon = Vec::new();
+    for (f, face) in faces.iter().enumerate() {
+        if face.0.len() < 3 {
+            return Err(parse_error(
+                &format!("face {f}"),
+                format!(
+                    "a face needs at least three corners, found {}",
+                    face.0.len()
+                ),
+            ));
+        }
+        polygon.clear();
+        for &index in &face.0 {
+            match u32::try_from(index) {
+                Ok(i) if (i as usize) < vertices.len() => polygon.push(i),
+                _ => {
+                    return Err(MeshError::IndexOutOfRange {
+                        path: path.to_path_buf(),
+                        location: format!("face {f}"),
+                        index,
+                        vertex_count: vertices.len(),
+                    });
+                }
+            }
+        }
+        triangulator.add_polygon(&polygon);
+    }
+    triangulator.finish(path, vertices)
+}
+
+fn check_vertex_header(element: &ElementDef) -> Result<(), String> {
+    for axis in ["x", "y", "z"] {
+        match element.properties.get(axis).map(|p| &p.data_type) {
+            Some(PropertyType::Scalar(_)) => {}
+            Some(PropertyType::List(..)) => {
+                return Err(format!(
+                    "vertex property '{axis}' is a list; it must be a number"
+                ));
+            }
+            None => return Err(format!("vertex element has no property '{axis}'")),
+        }
+    }
+    Ok(())
+}
+
+fn check_face_header(element: &ElementDef) -> Result<(), String> {
+    let list = FACE_LISTS
+        .iter()
+        .find_map(|name| element.properties.get(*name))
+        .ok_or("face element has no list property 'vertex_indices' (or 'vertex_index')")?;
+    match &list.data_type {
+        PropertyType::List(_, ScalarType::Float | ScalarType::Double) | PropertyType::Scalar(_) => {
+            Err(format!(
+                "face property '{}' must be a list of integers",
+                list.name
+            ))
+        }
+        PropertyType::List(..) => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
+        parse(Path::new("test.ply"), &mut &bytes[..])
+    }
+
+    const SQUARE: &str = "ply\nformat ascii 1.0\ncomment unit square\nelement vertex 4\n\
+        property double x\nproperty double y\nproperty double z\nproperty uchar red\n\
+        element face 1\nproperty list uchar int vertex_indices\nelement edge 1\n\
+        property int vertex1\nproperty int vertex2\nend_header\n\
+        0 0 0 1\n1 0 0 2\n1 1 0 3\n0 1 0 4\n4 0 1 2 3\n0 1\n";
+
+    #[test]
+    fn reads_ascii_quads_skipping_other_properties_and_elements() {
+        let loaded = read(SQUARE.as_bytes()).expect("valid ply");
+        assert_eq!(loaded.mesh.triangles, vec![[0, 1, 2], [0, 2, 3]]);
+        assert_eq!(loaded.mesh.vertices[2], Vector::new(1.0, 1.0, 0.0));
+    }
+
+    #[test]
+    fn bad_headers_and_bodies_are_errors() {
+        let cases = [
+            (SQUARE.replace("ply\n", "plx\n"), "header"),
+            (SQUARE.replace("property double z\n", ""), "no property 'z'"),
+            (
+                SQUARE.replace("vertex_indices", "corners"),
+                "vertex_indices",
+            ),
+            (
+                SQUARE.replace("list uchar int", "list uchar float"),
+                "list of integers",
+            ),
+            (
+                SQUARE.replace("0 1 0 4\n", "0 1 zero 4\n"),
+                "element 'vertex'",
+            ),
+            (SQUARE.replace("4 0 1 2 3\n0 1\n", ""), "truncated"),
+            (SQUARE.replace("4 0 1 2 3", "4 0 1 2 9"), "face 0"),
+            (SQUARE.replace("4 0 1 2 3", "2 0 1"), "at least three"),
+        ];
+        for (text, what) in cases {
+            let err = read(text.as_bytes()).expect_err(what);
+            assert!(err.to_string().contains(what), "{what}: {err}");
+        }
+    }
+}
