@@ -20,6 +20,7 @@ search.
 import argparse
 import json
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -184,6 +185,7 @@ def main():
     )
     sys.stdout.flush()
     base.cleanup()
+    shutil.rmtree(work, ignore_errors=True)
 
 
 if __name__ == "__main__":

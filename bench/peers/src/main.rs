@@ -9,7 +9,8 @@
 //! Options: `--python PATH` and `--box-obj PATH` (SPlisHSPlasH; without
 //! them it is skipped), `--volume-maps` (also SPlisHSPlasH with volume-map
 //! boundaries), `--spacings 0.05,0.0237`, `--warmup 12`, `--steps 12`,
-//! `--threads 1,N`, `--csv target/bench-peers.csv`.
+//! `--threads 1,N`, `--csv target/bench-peers.csv`,
+//! `--engines meshless,salva3d,splishsplash`.
 
 mod meshless;
 mod report;
@@ -29,6 +30,8 @@ struct Options {
     steps: usize,
     threads: Vec<usize>,
     csv: PathBuf,
+    /// Which of `meshless`, `salva3d`, `splishsplash` run.
+    engines: Vec<String>,
 }
 
 fn parse() -> Result<Options, String> {
@@ -42,6 +45,9 @@ fn parse() -> Result<Options, String> {
         steps: 12,
         threads: if cores > 1 { vec![1, cores] } else { vec![1] },
         csv: PathBuf::from("target/bench-peers.csv"),
+        engines: ["meshless", "salva3d", "splishsplash"]
+            .map(String::from)
+            .to_vec(),
     };
     let mut args = std::env::args().skip(1);
     while let Some(flag) = args.next() {
@@ -64,6 +70,7 @@ fn parse() -> Result<Options, String> {
             "--steps" => o.steps = value()?.parse().map_err(|e| format!("{flag}: {e}"))?,
             "--threads" => o.threads = list(value()?)?.into_iter().map(|t| t as usize).collect(),
             "--csv" => o.csv = value()?.into(),
+            "--engines" => o.engines = value()?.split(',').map(|e| e.trim().into()).collect(),
             other => return Err(format!("unknown option {other} (see src/main.rs)")),
         }
     }
@@ -98,19 +105,27 @@ fn main() {
                 .num_threads(threads)
                 .build()
                 .expect("a thread pool");
-            let (run, capped) = pool.install(|| meshless::run(&d, threads));
-            if capped > 0 {
-                notes.push(format!(
-                    "meshless, spacing {spacing}, {threads} thread(s): {capped} of {} steps \
-                     exceeded its CFL limit (held at dt anyway)",
-                    d.steps
-                ));
+            let wanted = |engine: &str| options.engines.iter().any(|e| e == engine);
+            if wanted("meshless") {
+                let (run, capped) = pool.install(|| meshless::run(&d, threads));
+                if capped > 0 {
+                    notes.push(format!(
+                        "meshless, spacing {spacing}, {threads} thread(s): {capped} of {} steps \
+                         exceeded its CFL limit (held at dt anyway)",
+                        d.steps
+                    ));
+                }
+                report::progress(&run);
+                runs.push(run);
             }
-            report::progress(&run);
-            runs.push(run);
-            let run = pool.install(|| salva::run(&d, threads));
-            report::progress(&run);
-            runs.push(run);
+            if wanted("salva3d") {
+                let run = pool.install(|| salva::run(&d, threads));
+                report::progress(&run);
+                runs.push(run);
+            }
+            if !wanted("splishsplash") {
+                continue;
+            }
             if let (Some(python), Some(box_obj)) = (&options.python, &options.box_obj) {
                 let mut boundaries = vec![splishsplash::Boundary::Particles];
                 if options.volume_maps {
@@ -128,7 +143,8 @@ fn main() {
             }
         }
     }
-    if options.python.is_none() || options.box_obj.is_none() {
+    let sph_wanted = options.engines.iter().any(|e| e == "splishsplash");
+    if sph_wanted && (options.python.is_none() || options.box_obj.is_none()) {
         notes.push(
             "SPlisHSPlasH skipped: no --python and --box-obj (scripts/bench-peers sets them)"
                 .into(),

@@ -33,7 +33,7 @@ pub fn print(runs: &[Run], notes: &[String], warmup: usize) {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "\n| engine | particles | threads | steps | particle-steps/s (wall) | per core (per CPU-s) | fluid pairs/s | pressure it./step | divergence it./step | solver density error | measured density error | meshless per core ÷ this |"
+        "\n| engine | particles | threads | steps | particle-steps/s (wall) | per core (per CPU-s) | fluid pairs per CPU-s | pressure it./step | divergence it./step | solver density error | measured density error | meshless per core ÷ this |"
     );
     let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|");
     for r in runs {
@@ -49,7 +49,7 @@ pub fn print(runs: &[Run], notes: &[String], warmup: usize) {
             r.steps,
             r.rate(),
             r.per_core(),
-            r.fluid_pairs / r.seconds,
+            r.fluid_pairs / r.cpu_seconds,
             per_step(r.pressure_iterations, r.steps),
             per_step(r.divergence_iterations, r.steps),
             percent(r.solver_error),
@@ -121,7 +121,7 @@ pub fn write_csv(runs: &[Run], path: &Path) -> std::io::Result<()> {
         std::fs::create_dir_all(dir)?;
     }
     let mut text = String::from(
-        "engine,particles,threads,steps,seconds,cpu_seconds,particle_steps_per_s,per_core,fluid_pairs_per_s,pressure_iterations_per_step,divergence_iterations_per_step,solver_density_error,measured_density_error\n",
+        "engine,particles,threads,steps,seconds,cpu_seconds,particle_steps_per_s,per_core,fluid_pairs_per_cpu_s,pressure_iterations_per_step,divergence_iterations_per_step,solver_density_error,measured_density_error\n",
     );
     let opt = |x: Option<f64>| x.map_or(String::new(), |x| format!("{x:e}"));
     for r in runs {
@@ -137,7 +137,7 @@ pub fn write_csv(runs: &[Run], path: &Path) -> std::io::Result<()> {
             r.cpu_seconds,
             r.rate(),
             r.per_core(),
-            r.fluid_pairs / r.seconds,
+            r.fluid_pairs / r.cpu_seconds,
             opt(r.pressure_iterations.map(|i| i as f64 / steps)),
             opt(r.divergence_iterations.map(|i| i as f64 / steps)),
             opt(r.solver_error),
