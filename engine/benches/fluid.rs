@@ -4,7 +4,8 @@
 //!
 //!     cargo bench -p meshless-engine --bench fluid
 //!
-//! Peers (SPlisHSPlasH, salva3d) are not yet run beside it; see README.
+//! The peers (SPlisHSPlasH, salva3d) run beside meshless in `bench/peers`
+//! (`scripts/bench-peers`); see README.
 
 use meshless_engine::approx::KernelKind;
 use meshless_engine::scene::{SolverKind, SystemSpec};
