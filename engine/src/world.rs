@@ -133,6 +133,7 @@ impl World {
             density_error: 0.0,
         };
         if let Some(fluid) = &mut self.fluid {
+            fluid.reorder_if_due();
             fluid.save(&mut self.backup);
 
             let gravity = vector(self.scene.gravity);
@@ -212,8 +213,15 @@ impl World {
         let Some(fluid) = &self.fluid else {
             return Vec::new();
         };
-        let vectors = |v: &[Vector]| v.iter().flat_map(|p| p.iter().map(|&c| c as f32)).collect();
-        let scalars = |s: &[Real]| s.iter().map(|&c| c as f32).collect();
+        // Frames list particles by id, whatever order the fluid keeps.
+        let vectors = |v: &[Vector]| {
+            let slots: Vec<f32> = v.iter().flat_map(|p| p.iter().map(|&c| c as f32)).collect();
+            fluid.in_id_order(&slots, 3)
+        };
+        let scalars = |s: &[Real]| {
+            let slots: Vec<f32> = s.iter().map(|&c| c as f32).collect();
+            fluid.in_id_order(&slots, 1)
+        };
         match kind {
             FieldKind::Position => vectors(&fluid.positions),
             FieldKind::Velocity => vectors(&fluid.velocities),

@@ -73,6 +73,13 @@ enum Solve {
 impl Fluid {
     /// Allocates the solver scratch and computes the factors of the
     /// initial state.
+    /// Follows a reordering of the particles (see `reorder.rs`): the
+    /// warm-start pressures move with their particles; everything else is
+    /// recomputed before it is read.
+    pub(super) fn permute_solver(&mut self, order: &[u32]) {
+        super::reorder::gather(&mut self.solver.density_kappa, order);
+    }
+
     pub(super) fn prepare_dfsph(&mut self) {
         let n = self.len();
         let scratch = &mut self.solver;
@@ -141,7 +148,7 @@ impl Fluid {
     }
 
     /// `alpha_i` and the walls' density gradient at every particle.
-    fn compute_factors(&mut self) {
+    pub(super) fn compute_factors(&mut self) {
         let (positions, densities, neighbors, kernel, mass, walls) = (
             &self.positions,
             &self.densities,

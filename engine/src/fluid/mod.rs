@@ -3,6 +3,7 @@
 
 mod dfsph;
 mod eos;
+mod reorder;
 mod viscosity;
 mod walls;
 mod wcsph;

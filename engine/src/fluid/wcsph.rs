@@ -81,10 +81,14 @@ pub struct Fluid {
     pub(super) walls: Option<BoxWalls>,
     /// The kernel of the viscosity pass, when the scene has viscosity.
     pub(super) viscosity_kernel: Option<Kernel>,
-    grid: UniformGrid,
+    pub(super) grid: UniformGrid,
     /// Periodic axes of the domain, when the scene names any.
     pub(super) periodic: Option<Periodic>,
     pub(super) neighbors: NeighborList,
+    /// Each slot's particle id (its index in the scene's order): the
+    /// arrays are kept in Z order (see `reorder.rs`).
+    pub(super) ids: Vec<u32>,
+    pub(super) substeps_since_reorder: u32,
     pub(super) max_acceleration: Real,
     /// Scratch of the iterative solver, empty for WCSPH.
     pub(super) solver: SolverScratch,
@@ -135,6 +139,8 @@ impl Fluid {
             grid,
             periodic,
             neighbors: NeighborList::default(),
+            ids: (0..n as u32).collect(),
+            substeps_since_reorder: 0,
             max_acceleration: 0.0,
             solver: SolverScratch::default(),
         };
@@ -146,6 +152,7 @@ impl Fluid {
             PressureSolver::Wcsph => fluid.compute_pressures(),
             PressureSolver::Dfsph(_) => fluid.prepare_dfsph(),
         }
+        fluid.reorder();
         fluid
     }
 
@@ -214,6 +221,7 @@ impl Fluid {
         max: &Vector,
         timer: &mut StageTimer,
     ) {
+        self.substeps_since_reorder += 1;
         match self.params.solver {
             PressureSolver::Wcsph => self.wcsph_substep(dt, gravity, min, max, timer),
             PressureSolver::Dfsph(params) => {
@@ -379,9 +387,9 @@ impl Fluid {
             PressureSolver::Dfsph(_) => Self::INCOMPRESSIBLE_SPEED_LIMIT,
         };
         let found = |quantity, i: Option<usize>, value: Real| {
-            i.map(|particle| Invalid {
+            i.map(|slot| Invalid {
                 quantity,
-                particle,
+                particle: self.ids[slot] as usize,
                 value,
             })
         };

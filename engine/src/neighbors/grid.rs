@@ -156,6 +156,13 @@ impl UniformGrid {
     }
 }
 
+impl UniformGrid {
+    /// The corner where cell (0, 0, 0) starts.
+    pub fn origin(&self) -> Vector {
+        self.lattice.origin
+    }
+}
+
 impl CandidateSearch for UniformGrid {
     /// Buckets `positions` by cell (counting sort). Reuses its buffers.
     fn rebuild(&mut self, positions: &[Vector]) {

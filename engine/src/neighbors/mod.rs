@@ -14,12 +14,14 @@ mod hash;
 mod kdtree;
 mod list;
 mod periodic;
+mod zorder;
 
 pub use grid::{GridError, UniformGrid};
 pub use hash::{HashCell, SpatialHash};
 pub use kdtree::KdTree;
 pub use list::NeighborList;
 pub use periodic::Periodic;
+pub use zorder::{morton, zorder};
 
 use crate::math::Vector;
 
