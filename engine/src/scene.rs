@@ -1169,6 +1169,108 @@ mod tests {
         );
     }
 
+    fn with_body(body: &str) -> Scene {
+        Scene::from_toml_str(&format!(
+            "{SMALL}\n[[systems]]\nkind = \"rigid_body\"\n{body}"
+        ))
+        .expect("parses")
+    }
+
+    /// A valid body builds; each bad body spec is rejected naming its
+    /// field, with the scene path of the body (systems[1]).
+    #[test]
+    fn bad_bodies_name_their_field() {
+        let ball = "shape = { type = \"sphere\", radius = 0.1 }\nposition = [0.7, 0.7, 0.7]";
+        let s = with_body(&format!("{ball}\nmotion = \"dynamic\"\ndensity = 500.0"));
+        let world = s.build(&BuildOptions::default()).expect("valid body");
+        assert_eq!(world.frame().bodies.len(), 1);
+        assert_eq!(
+            Scene::from_toml_str(&s.to_toml_string()).expect("round trip"),
+            s
+        );
+
+        let cases = [
+            (
+                "shape = { type = \"sphere\", radius = 0.0 }\nposition = [0.5, 0.5, 0.5]",
+                "systems[1].shape.radius",
+            ),
+            (
+                "shape = { type = \"box\", half_extents = [0.1, -0.1, 0.1] }\nposition = [0.5, 0.5, 0.5]",
+                "systems[1].shape.half_extents.y",
+            ),
+            (
+                "shape = { type = \"capsule\", half_length = -1.0, radius = 0.1 }\nposition = [0.5, 0.5, 0.5]",
+                "systems[1].shape.half_length",
+            ),
+            (
+                "shape = { type = \"plane\", normal = [0.0, 0.0, 0.0] }\nposition = [0.5, 0.1, 0.5]",
+                "systems[1].shape.normal",
+            ),
+            (
+                "shape = { type = \"plane\", normal = [0.0, 1.0, 0.0] }\nposition = [0.5, 2.0, 0.5]",
+                "systems[1]",
+            ),
+            (
+                "shape = { type = \"sphere\", radius = 0.1 }\nposition = [1.5, 0.5, 0.5]",
+                "systems[1].position",
+            ),
+            (
+                "shape = { type = \"sphere\", radius = 10.0 }\nposition = [0.5, 0.5, 0.5]",
+                "systems[1].shape",
+            ),
+            (
+                &format!("{ball}\nmotion = \"dynamic\""),
+                "systems[1].density",
+            ),
+            (
+                &format!("{ball}\nmotion = \"dynamic\"\ndensity = -1.0"),
+                "systems[1].density",
+            ),
+            (&format!("{ball}\ndensity = 500.0"), "systems[1].density"),
+            (
+                &format!("{ball}\nvelocity = [1.0, 0.0, 0.0]"),
+                "systems[1].motion",
+            ),
+            (
+                &format!("{ball}\nmotion = \"dynamic\"\ndensity = 500.0\nhollow = true"),
+                "systems[1].hollow",
+            ),
+            (
+                &format!(
+                    "{ball}\nmotion = \"kinematic\"\noscillation = {{ amplitude = [0.1, 0.0, 0.0], frequency = 0.0 }}"
+                ),
+                "systems[1].oscillation.frequency",
+            ),
+            (&format!("{ball}\nslip = \"no\""), "systems[1].viscosity"),
+            (
+                &format!("{ball}\norientation = [0.0, 0.0, nan]"),
+                "systems[1].orientation.z",
+            ),
+            (
+                "shape = { type = \"plane\", normal = [0.0, 1.0, 0.0] }\nposition = [0.5, 0.1, 0.5]\nmotion = \"dynamic\"\ndensity = 1.0",
+                "systems[1].motion",
+            ),
+        ];
+        for (body, field) in cases {
+            assert_eq!(rejected_field(&with_body(body)), field, "{body}");
+        }
+
+        let mut planar = with_body(&format!("{ball}\norientation = [0.3, 0.0, 0.0]"));
+        planar.dimension = 2;
+        assert_eq!(rejected_field(&planar), "systems[1].orientation");
+
+        // A body without a fluid.
+        let mut lonely = with_body(ball);
+        lonely.systems.remove(0);
+        assert_eq!(rejected_field(&lonely), "systems[0]");
+        // An unknown shape key is a parse error naming it.
+        let err = Scene::from_toml_str(&format!(
+            "{SMALL}\n[[systems]]\nkind = \"rigid_body\"\nshape = {{ type = \"sphere\", radius = 0.1, radios = 1.0 }}\nposition = [0.5, 0.5, 0.5]"
+        ))
+        .expect_err("unknown key");
+        assert!(err.to_string().contains("radios"), "{err}");
+    }
+
     #[test]
     fn unknown_systems_and_keys_are_parse_errors() {
         let text = SMALL.replace("kind = \"fluid\"", "kind = \"plasma\"");

@@ -70,7 +70,8 @@ pub struct RigidBodies {
     velocities: Vec<Vector>,
     /// `psi_b = rho_0 V_b`, kg.
     psi: Vec<Real>,
-    /// Largest distance of a sample from its body's centre, per body.
+    /// Largest distance of a point of a body's surface from its centre
+    /// (near the domain, for planes), per body.
     reach: Vec<Real>,
     /// Body index of each sample.
     body_of: Vec<u32>,
@@ -82,6 +83,8 @@ pub struct RigidBodies {
     density_kernel: Kernel,
     gradient_kernel: Kernel,
     rest_density: Real,
+    /// Depth of the samples beneath the surface, m.
+    inset: Real,
     /// Loads the fluid exerted since the bodies last advanced.
     loads: Loads,
     /// Fluid particles the reflection constraint had to put back, since
@@ -121,6 +124,7 @@ impl RigidBodies {
             rest_density,
             loads: no_loads(bodies.len()),
             projections: 0,
+            inset: 0.5 * spacing,
             bodies,
         };
         for (k, body) in set.bodies.iter().enumerate() {
@@ -144,11 +148,13 @@ impl RigidBodies {
                 .extend(samples.into_iter().filter(|p| bounded || near_domain(p)));
             set.ranges.push(start..set.local.len());
             set.body_of.resize(set.local.len(), k as u32);
+            // Every surface point lies within `sqrt(3) inset` of a sample.
             set.reach.push(
                 set.local[start..]
                     .iter()
                     .map(|p| p.norm())
-                    .fold(0.0, Real::max),
+                    .fold(0.0, Real::max)
+                    + (3.0 as Real).sqrt() * set.inset,
             );
         }
         set.place_samples();
@@ -361,7 +367,10 @@ impl RigidBodies {
                     .iter()
                     .map(|p| s.position + s.orientation.transform_vector(p))
                     .collect();
-                body.contain(&world, min, max);
+                // The samples sit `inset` beneath the surface: walls that
+                // far in stop the surface itself.
+                let inset = Vector::repeat(self.inset);
+                body.contain(&world, &(min + inset), &(max - inset));
             }
         }
         self.loads = no_loads(self.bodies.len());
@@ -388,8 +397,8 @@ impl RigidBodies {
         }
     }
 
-    /// The reflection constraint: every fluid particle in a body is put on
-    /// its surface and loses its velocity into the body (relative to the
+    /// The reflection constraint: every fluid particle in a body is put
+    /// (just outside) on its surface and loses its velocity into the body (relative to the
     /// body's surface), the impulse kept for the body (see [`Self::kick`]).
     pub fn enforce(
         &mut self,
@@ -399,6 +408,7 @@ impl RigidBodies {
         dt: Real,
     ) {
         let this = &*self;
+        let margin = 1e-6 * this.inset;
         let (loads, hits) = positions
             .par_iter_mut()
             .zip(velocities.par_iter_mut())
@@ -416,7 +426,8 @@ impl RigidBodies {
                         }
                         hits += 1;
                         let n = body.fluid_normal(x);
-                        *x -= n * d;
+                        // Just outside, so that round-off cannot leave it in.
+                        *x -= n * (d - margin);
                         let approach = (*v - body.point_velocity(x)).dot(&n);
                         if approach < 0.0 {
                             *v -= n * approach;
