@@ -28,6 +28,8 @@ pub struct FrameView {
     /// Worst average density error of the last step's solves (fraction).
     pub density_error: f64,
     pub fields: Vec<FieldView>,
+    /// Every rigid body's pose, in scene order (empty without bodies).
+    pub bodies: Vec<v1::BodyPose>,
 }
 
 impl FrameView {
@@ -46,7 +48,11 @@ impl FrameView {
     /// [`ClientError::Decode`] for a missing header, an unknown scalar
     /// type, or a field whose size does not match the particle count.
     pub fn from_proto(frame: v1::Frame) -> Result<Self, ClientError> {
-        let v1::Frame { header, fields } = frame;
+        let v1::Frame {
+            header,
+            fields,
+            bodies,
+        } = frame;
         let v1::FrameHeader {
             session_id,
             step,
@@ -105,6 +111,7 @@ impl FrameView {
             solver_iterations,
             density_error,
             fields,
+            bodies,
         })
     }
 
@@ -139,6 +146,7 @@ mod tests {
                     .map(|i| if i % 4 == 3 { 0x3f } else { 0 })
                     .collect(),
             }],
+            bodies: Vec::new(),
         }
     }
 

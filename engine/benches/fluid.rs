@@ -31,7 +31,9 @@ region = {{ min = [0.0, 0.0, 0.0], max = [1.0, 2.0, 1.0] }}
 "#
     );
     let mut scene = Scene::from_toml_str(&text).expect("bench scene");
-    let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+    let SystemSpec::Fluid(fluid) = &mut scene.systems[0] else {
+        panic!("the first system is the fluid")
+    };
     fluid.solver = solver;
     fluid.density_kernel = KernelKind::CubicSpline;
     fluid.gradient_kernel = KernelKind::CubicSpline;

@@ -28,6 +28,24 @@ pub struct Frame {
     pub particle_count: usize,
     /// Positions first, then the requested fields in scene order.
     pub fields: Vec<FieldData>,
+    /// Every rigid body's pose, in scene order (empty without bodies).
+    pub bodies: Vec<BodyPose>,
+}
+
+/// Where a rigid body is and how it moves, in the world frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BodyPose {
+    /// Index of the body's system in the scene.
+    pub system: usize,
+    /// Centre (of mass), m.
+    pub position: [Real; 3],
+    /// Unit quaternion `[x, y, z, w]` turning the body frame into the
+    /// world frame.
+    pub orientation: [Real; 4],
+    /// Velocity of the centre, m/s.
+    pub velocity: [Real; 3],
+    /// rad/s.
+    pub angular_velocity: [Real; 3],
 }
 
 impl Frame {

@@ -22,6 +22,6 @@ pub mod stats;
 mod testing;
 pub mod world;
 
-pub use frame::{FieldData, Frame};
+pub use frame::{BodyPose, FieldData, Frame};
 pub use scene::{BuildOptions, FieldKind, Scene, SceneError};
 pub use world::{Clock, StepError, StepInfo, World};

@@ -38,6 +38,8 @@ pub mod defaults {
     pub const DIVERGENCE_TOLERANCE: Real = 0.001;
     pub const MAX_SOLVER_ITERATIONS: u32 = 100;
     pub const WALLS: super::WallModel = super::WallModel::Solid;
+    pub const MOTION: super::MotionKind = super::MotionKind::Static;
+    pub const SLIP: super::SlipKind = super::SlipKind::Free;
     /// The same kernel for densities and pressure gradients keeps the
     /// pressure force the gradient of the internal energy: an undamped
     /// fluid then neither gains nor loses energy, and a tank at rest holds
@@ -353,6 +355,110 @@ impl FluidSpec {
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum SystemSpec {
     Fluid(FluidSpec),
+    RigidBody(RigidBodySpec),
+}
+
+/// The solid shape of a rigid body, in its body frame, centred on the
+/// body's position (see [`crate::geometry::Shape`]). In 2D a shape stands
+/// for its cross-section in the plane z = 0.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ShapeSpec {
+    /// Half the side lengths, m (z ignored in 2D).
+    Box {
+        half_extents: [Real; 3],
+    },
+    Sphere {
+        radius: Real,
+    },
+    /// A cylinder of length `2 half_length` along the body's y axis with
+    /// hemispherical caps of `radius`.
+    Capsule {
+        half_length: Real,
+        radius: Real,
+    },
+    /// The half-space `normal . x <= offset` in the body frame; `normal`
+    /// points out of the solid (it need not be unit length).
+    Plane {
+        normal: [Real; 3],
+        #[serde(default)]
+        offset: Real,
+    },
+}
+
+/// How a rigid body moves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MotionKind {
+    /// Fixed in place.
+    Static,
+    /// Prescribed: constant `velocity` and `angular_velocity` plus an
+    /// optional `oscillation`, whatever the fluid does.
+    Kinematic,
+    /// Moved by gravity and the fluid, which it moves in turn; needs a
+    /// `density`.
+    Dynamic,
+}
+
+/// The tangential condition where the fluid meets a body.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SlipKind {
+    /// The fluid slides along the surface freely.
+    Free,
+    /// The fluid sticks to the surface through a viscous wall term.
+    No,
+}
+
+/// A prescribed displacement `amplitude sin(2 pi frequency t)`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OscillationSpec {
+    /// m, world frame.
+    pub amplitude: [Real; 3],
+    /// Hz.
+    pub frequency: Real,
+}
+
+/// A rigid body in the fluid: a boundary the fluid cannot enter, sampled
+/// with particles on its surface (Akinci et al. 2012). Needs a fluid in the
+/// scene, whose spacing and kernels it uses.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RigidBodySpec {
+    pub shape: ShapeSpec,
+    /// Centre (of mass), m; z is ignored in 2D.
+    pub position: [Real; 3],
+    /// Rotation vector (axis times angle in radians) from the shape's
+    /// frame to the world; in 2D only about z.
+    #[serde(default)]
+    pub orientation: [Real; 3],
+    #[serde(default = "default_motion")]
+    pub motion: MotionKind,
+    /// kg/m^3; required by dynamic bodies, which take their mass and
+    /// inertia from it and their shape.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub density: Option<Real>,
+    /// Initial (dynamic) or constant (kinematic) velocity, m/s.
+    #[serde(default)]
+    pub velocity: [Real; 3],
+    /// Initial (dynamic) or constant (kinematic) angular velocity about
+    /// the centre, rad/s, world frame.
+    #[serde(default)]
+    pub angular_velocity: [Real; 3],
+    /// Kinematic only: added to the path.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub oscillation: Option<OscillationSpec>,
+    #[serde(default = "default_slip")]
+    pub slip: SlipKind,
+    /// Dynamic viscosity of the no-slip wall term, Pa s; default: the
+    /// fluid's viscosity.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub viscosity: Option<Real>,
+    /// The fluid fills the inside of the shape, which is then a container
+    /// (static or kinematic only).
+    #[serde(default)]
+    pub hollow: bool,
 }
 
 /// A complete scene.
@@ -437,6 +543,12 @@ fn default_gradient_kernel() -> KernelKind {
 }
 fn default_frame_every() -> u32 {
     defaults::FRAME_EVERY
+}
+fn default_motion() -> MotionKind {
+    defaults::MOTION
+}
+fn default_slip() -> SlipKind {
+    defaults::SLIP
 }
 
 /// Checks that `value` is finite and inside `[lo, hi]` (`hi` may be infinite).
@@ -530,6 +642,7 @@ impl Scene {
             .iter()
             .map(|s| match s {
                 SystemSpec::Fluid(f) => f.particle_count(self.dimension),
+                SystemSpec::RigidBody(_) => 0.0,
             })
             .sum()
     }
@@ -582,6 +695,23 @@ impl Scene {
                     }
                     self.validate_fluid(&format!("systems[{s}]"), fluid)?
                 }
+                SystemSpec::RigidBody(body) => {
+                    if self.periodic_axes().contains(&true) {
+                        return Err(SceneError::invalid(
+                            format!("systems[{s}]"),
+                            "rigid bodies do not wrap around periodic faces; make the domain \
+                             non-periodic (periodic = [false, false, false]) or remove the body",
+                        ));
+                    }
+                    let Some(fluid) = self.fluid() else {
+                        return Err(SceneError::invalid(
+                            format!("systems[{s}]"),
+                            "a rigid body is a boundary of the fluid and takes its spacing and \
+                             kernels from it; add a system with kind = \"fluid\"",
+                        ));
+                    };
+                    self.validate_body(&format!("systems[{s}]"), body, fluid)?
+                }
             }
         }
         let count = self.particle_count();
@@ -590,6 +720,212 @@ impl Scene {
                 count: count.min(u64::MAX as f64) as u64,
                 limit: options.max_particles,
             });
+        }
+        Ok(())
+    }
+
+    /// The scene's fluid, if it has one.
+    pub fn fluid(&self) -> Option<&FluidSpec> {
+        self.systems.iter().find_map(|s| match s {
+            SystemSpec::Fluid(f) => Some(f),
+            SystemSpec::RigidBody(_) => None,
+        })
+    }
+
+    fn validate_body(
+        &self,
+        at: &str,
+        body: &RigidBodySpec,
+        fluid: &FluidSpec,
+    ) -> Result<(), SceneError> {
+        let dim = self.dimension;
+        let planar = dim == 2;
+        let shape_at = format!("{at}.shape");
+        match &body.shape {
+            ShapeSpec::Box { half_extents } => {
+                check_vector(&format!("{shape_at}.half_extents"), *half_extents)?;
+                for (a, axis) in ["x", "y", "z"].iter().enumerate().take(dim) {
+                    check_positive(&format!("{shape_at}.half_extents.{axis}"), half_extents[a])?;
+                }
+            }
+            ShapeSpec::Sphere { radius } => check_positive(&format!("{shape_at}.radius"), *radius)?,
+            ShapeSpec::Capsule {
+                half_length,
+                radius,
+            } => {
+                check_positive(&format!("{shape_at}.radius"), *radius)?;
+                check_range(
+                    &format!("{shape_at}.half_length"),
+                    *half_length,
+                    0.0,
+                    Real::INFINITY,
+                )?;
+            }
+            ShapeSpec::Plane { normal, offset } => {
+                check_vector(&format!("{shape_at}.normal"), *normal)?;
+                check_range(&format!("{shape_at}.offset"), *offset, Real::MIN, Real::MAX)?;
+                let in_plane = if planar { 2 } else { 3 };
+                if normal[..in_plane].iter().all(|&c| c == 0.0) {
+                    return Err(SceneError::invalid(
+                        format!("{shape_at}.normal"),
+                        "must not be zero: it is the direction out of the solid",
+                    ));
+                }
+                if planar && normal[2] != 0.0 {
+                    return Err(SceneError::invalid(
+                        format!("{shape_at}.normal"),
+                        format!("must lie in the plane in 2D (z = 0), got z = {}", normal[2]),
+                    ));
+                }
+            }
+        }
+        check_vector(&format!("{at}.position"), body.position)?;
+        check_vector(&format!("{at}.orientation"), body.orientation)?;
+        check_vector(&format!("{at}.velocity"), body.velocity)?;
+        check_vector(&format!("{at}.angular_velocity"), body.angular_velocity)?;
+        if planar {
+            for (field, v) in [
+                ("orientation", body.orientation),
+                ("angular_velocity", body.angular_velocity),
+            ] {
+                if v[0] != 0.0 || v[1] != 0.0 {
+                    return Err(SceneError::invalid(
+                        format!("{at}.{field}"),
+                        "in 2D a body only turns about z; set x and y to 0",
+                    ));
+                }
+            }
+        }
+        let plane = matches!(body.shape, ShapeSpec::Plane { .. });
+        let domain_diagonal = (0..dim)
+            .map(|a| self.domain.extent(a).powi(2))
+            .sum::<Real>()
+            .sqrt();
+        if !plane {
+            let inside = (0..dim).all(|a| {
+                body.position[a] > self.domain.min[a] && body.position[a] < self.domain.max[a]
+            });
+            if !inside {
+                return Err(SceneError::invalid(
+                    format!("{at}.position"),
+                    format!("{:?} must lie inside the domain", body.position),
+                ));
+            }
+            let size = crate::world::body_shape(&body.shape, dim).bounding_radius(dim);
+            if size > domain_diagonal {
+                return Err(SceneError::invalid(
+                    shape_at,
+                    format!(
+                        "reaches {size} m from its centre, beyond the domain's diagonal \
+                         ({domain_diagonal} m); make it smaller"
+                    ),
+                ));
+            }
+        } else {
+            // The plane must cut the domain, or it has no surface there.
+            let shape = crate::world::body_shape(&body.shape, dim);
+            let pose = crate::world::body_pose(body, dim);
+            let corners = (0..1 << dim).map(|c: usize| {
+                crate::math::Vector::from_fn(|a, _| {
+                    if a >= dim {
+                        0.0
+                    } else if c >> a & 1 == 1 {
+                        self.domain.max[a]
+                    } else {
+                        self.domain.min[a]
+                    }
+                })
+            });
+            let sides: Vec<Real> = corners
+                .map(|x| {
+                    let local = pose.1.inverse_transform_vector(&(x - pose.0));
+                    shape.signed_distance(&local, dim)
+                })
+                .collect();
+            if sides.iter().all(|&d| d < 0.0) || sides.iter().all(|&d| d > 0.0) {
+                return Err(SceneError::invalid(
+                    at,
+                    "the plane misses the domain (every corner lies on one side); move it \
+                     with position or shape.offset",
+                ));
+            }
+        }
+        let moving = body.velocity != [0.0; 3]
+            || body.angular_velocity != [0.0; 3]
+            || body.oscillation.is_some();
+        match body.motion {
+            MotionKind::Static => {
+                if moving {
+                    return Err(SceneError::invalid(
+                        format!("{at}.motion"),
+                        "a static body has no velocity, angular velocity or oscillation; \
+                         use motion = \"kinematic\" to prescribe them",
+                    ));
+                }
+            }
+            MotionKind::Kinematic => {
+                if let Some(o) = &body.oscillation {
+                    check_vector(&format!("{at}.oscillation.amplitude"), o.amplitude)?;
+                    check_positive(&format!("{at}.oscillation.frequency"), o.frequency)?;
+                }
+                if plane && body.angular_velocity != [0.0; 3] {
+                    return Err(SceneError::invalid(
+                        format!("{at}.angular_velocity"),
+                        "a plane is infinite and cannot turn; set it to 0",
+                    ));
+                }
+            }
+            MotionKind::Dynamic => {
+                if plane {
+                    return Err(SceneError::invalid(
+                        format!("{at}.motion"),
+                        "a plane is infinite and has no mass; make it static or kinematic",
+                    ));
+                }
+                if body.hollow {
+                    return Err(SceneError::invalid(
+                        format!("{at}.hollow"),
+                        "a hollow body (a container) can be static or kinematic, not dynamic",
+                    ));
+                }
+                if body.oscillation.is_some() {
+                    return Err(SceneError::invalid(
+                        format!("{at}.oscillation"),
+                        "only kinematic bodies follow an oscillation",
+                    ));
+                }
+                let Some(density) = body.density else {
+                    return Err(SceneError::invalid(
+                        format!("{at}.density"),
+                        "is required by a dynamic body (kg/m^3; water is 1000)",
+                    ));
+                };
+                check_positive(&format!("{at}.density"), density)?;
+                // Lighter than this, the explicit coupling is stiff beyond any
+                // sub-step: the body's acceleration outruns the fluid's.
+                check_range(
+                    &format!("{at}.density"),
+                    density,
+                    1e-3 * fluid.rest_density,
+                    1e6,
+                )?;
+            }
+        }
+        if body.motion != MotionKind::Dynamic && body.density.is_some() {
+            return Err(SceneError::invalid(
+                format!("{at}.density"),
+                "only dynamic bodies have a density; remove it or set motion = \"dynamic\"",
+            ));
+        }
+        if let Some(mu) = body.viscosity {
+            check_range(&format!("{at}.viscosity"), mu, 0.0, 1e4)?;
+        }
+        if body.slip == SlipKind::No && body.viscosity.unwrap_or(fluid.viscosity) <= 0.0 {
+            return Err(SceneError::invalid(
+                format!("{at}.viscosity"),
+                "no-slip needs a viscosity (Pa s) for its wall term: set it here or the \
+                 fluid's viscosity",
+            ));
         }
         Ok(())
     }
@@ -816,6 +1152,7 @@ mod tests {
     fn fluid(scene: &mut Scene) -> &mut FluidSpec {
         match &mut scene.systems[0] {
             SystemSpec::Fluid(f) => f,
+            SystemSpec::RigidBody(_) => panic!("the first system is the fluid"),
         }
     }
 
@@ -939,6 +1276,111 @@ mod tests {
             matches!(err, SceneError::TooManyParticles { limit: 1000, .. }),
             "{err}"
         );
+    }
+
+    fn with_body(body: &str) -> Scene {
+        Scene::from_toml_str(&format!(
+            "{SMALL}\n[[systems]]\nkind = \"rigid_body\"\n{body}"
+        ))
+        .expect("parses")
+    }
+
+    /// A valid body builds; each bad body spec is rejected naming its
+    /// field, with the scene path of the body (systems[1]).
+    #[test]
+    fn bad_bodies_name_their_field() {
+        let ball = "shape = { type = \"sphere\", radius = 0.1 }\nposition = [0.7, 0.7, 0.7]";
+        let s = with_body(&format!("{ball}\nmotion = \"dynamic\"\ndensity = 500.0"));
+        let world = s.build(&BuildOptions::default()).expect("valid body");
+        assert_eq!(world.frame().bodies.len(), 1);
+        assert_eq!(
+            Scene::from_toml_str(&s.to_toml_string()).expect("round trip"),
+            s
+        );
+        let mut periodic = s.clone();
+        periodic.periodic = [true, false, false];
+        assert_eq!(rejected_field(&periodic), "systems[1]");
+
+        let cases = [
+            (
+                "shape = { type = \"sphere\", radius = 0.0 }\nposition = [0.5, 0.5, 0.5]",
+                "systems[1].shape.radius",
+            ),
+            (
+                "shape = { type = \"box\", half_extents = [0.1, -0.1, 0.1] }\nposition = [0.5, 0.5, 0.5]",
+                "systems[1].shape.half_extents.y",
+            ),
+            (
+                "shape = { type = \"capsule\", half_length = -1.0, radius = 0.1 }\nposition = [0.5, 0.5, 0.5]",
+                "systems[1].shape.half_length",
+            ),
+            (
+                "shape = { type = \"plane\", normal = [0.0, 0.0, 0.0] }\nposition = [0.5, 0.1, 0.5]",
+                "systems[1].shape.normal",
+            ),
+            (
+                "shape = { type = \"plane\", normal = [0.0, 1.0, 0.0] }\nposition = [0.5, 2.0, 0.5]",
+                "systems[1]",
+            ),
+            (
+                "shape = { type = \"sphere\", radius = 0.1 }\nposition = [1.5, 0.5, 0.5]",
+                "systems[1].position",
+            ),
+            (
+                "shape = { type = \"sphere\", radius = 10.0 }\nposition = [0.5, 0.5, 0.5]",
+                "systems[1].shape",
+            ),
+            (
+                &format!("{ball}\nmotion = \"dynamic\""),
+                "systems[1].density",
+            ),
+            (
+                &format!("{ball}\nmotion = \"dynamic\"\ndensity = -1.0"),
+                "systems[1].density",
+            ),
+            (&format!("{ball}\ndensity = 500.0"), "systems[1].density"),
+            (
+                &format!("{ball}\nvelocity = [1.0, 0.0, 0.0]"),
+                "systems[1].motion",
+            ),
+            (
+                &format!("{ball}\nmotion = \"dynamic\"\ndensity = 500.0\nhollow = true"),
+                "systems[1].hollow",
+            ),
+            (
+                &format!(
+                    "{ball}\nmotion = \"kinematic\"\noscillation = {{ amplitude = [0.1, 0.0, 0.0], frequency = 0.0 }}"
+                ),
+                "systems[1].oscillation.frequency",
+            ),
+            (&format!("{ball}\nslip = \"no\""), "systems[1].viscosity"),
+            (
+                &format!("{ball}\norientation = [0.0, 0.0, nan]"),
+                "systems[1].orientation.z",
+            ),
+            (
+                "shape = { type = \"plane\", normal = [0.0, 1.0, 0.0] }\nposition = [0.5, 0.1, 0.5]\nmotion = \"dynamic\"\ndensity = 1.0",
+                "systems[1].motion",
+            ),
+        ];
+        for (body, field) in cases {
+            assert_eq!(rejected_field(&with_body(body)), field, "{body}");
+        }
+
+        let mut planar = with_body(&format!("{ball}\norientation = [0.3, 0.0, 0.0]"));
+        planar.dimension = 2;
+        assert_eq!(rejected_field(&planar), "systems[1].orientation");
+
+        // A body without a fluid.
+        let mut lonely = with_body(ball);
+        lonely.systems.remove(0);
+        assert_eq!(rejected_field(&lonely), "systems[0]");
+        // An unknown shape key is a parse error naming it.
+        let err = Scene::from_toml_str(&format!(
+            "{SMALL}\n[[systems]]\nkind = \"rigid_body\"\nshape = {{ type = \"sphere\", radius = 0.1, radios = 1.0 }}\nposition = [0.5, 0.5, 0.5]"
+        ))
+        .expect_err("unknown key");
+        assert!(err.to_string().contains("radios"), "{err}");
     }
 
     #[test]

@@ -1,11 +1,18 @@
 //! The running world: the systems a scene built, the clock, and the step.
 
 use crate::approx::Kernel;
-use crate::fluid::{BoxWalls, DfsphParams, Fluid, FluidParams, FluidState, PressureSolver, Tait};
-use crate::frame::{FieldData, Frame};
+use crate::fluid::{
+    BodyState, BoxWalls, DfsphParams, Fluid, FluidParams, FluidState, Motion, Oscillation,
+    PressureSolver, RigidBodies, RigidBody, Rotation, Slip, Tait,
+};
+use crate::frame::{BodyPose, FieldData, Frame};
+use crate::geometry::Shape;
 use crate::math::{Real, Vector, vector};
 use crate::neighbors::{Periodic, UniformGrid};
-use crate::scene::{FieldKind, FluidSpec, Scene, SolverKind, SystemSpec, WallModel};
+use crate::scene::{
+    FieldKind, FluidSpec, MotionKind, RigidBodySpec, Scene, ShapeSpec, SlipKind, SolverKind,
+    SystemSpec, WallModel,
+};
 use crate::stats::StageTimer;
 
 /// Where a world is in time.
@@ -68,12 +75,19 @@ pub struct World {
 impl World {
     /// Builds the world of an already validated scene (see [`Scene::build`]).
     pub(crate) fn new(scene: Scene) -> Self {
-        let mut fluid = None;
-        for system in &scene.systems {
-            match system {
-                SystemSpec::Fluid(spec) => fluid = Some(build_fluid(&scene, spec)),
-            }
-        }
+        // Bodies after the fluid: they take its spacing and kernels.
+        let fluid = scene.fluid().map(|spec| {
+            let bodies: Vec<(usize, &RigidBodySpec)> = scene
+                .systems
+                .iter()
+                .enumerate()
+                .filter_map(|(s, system)| match system {
+                    SystemSpec::RigidBody(body) => Some((s, body)),
+                    SystemSpec::Fluid(_) => None,
+                })
+                .collect();
+            build_fluid(&scene, spec, &bodies)
+        });
         let mut frame_fields = vec![FieldKind::Position];
         for &kind in &scene.output.fields {
             if !frame_fields.contains(&kind) {
@@ -110,6 +124,12 @@ impl World {
 
     pub fn fluid(&self) -> Option<&Fluid> {
         self.fluid.as_ref()
+    }
+
+    /// The fluid, to set up an initial state a scene cannot describe (a
+    /// velocity field, say) before stepping.
+    pub fn fluid_mut(&mut self) -> Option<&mut Fluid> {
+        self.fluid.as_mut()
     }
 
     pub fn particle_count(&self) -> usize {
@@ -206,7 +226,29 @@ impl World {
             density_error: self.last_step.density_error,
             particle_count: self.particle_count(),
             fields,
+            bodies: self.body_poses(),
         }
+    }
+
+    /// Pose and velocity of every rigid body, in scene order.
+    pub fn body_poses(&self) -> Vec<BodyPose> {
+        let Some(rigid) = self.fluid.as_ref().and_then(Fluid::bodies) else {
+            return Vec::new();
+        };
+        rigid
+            .bodies()
+            .iter()
+            .map(|b| {
+                let q = b.state.orientation.into_inner();
+                BodyPose {
+                    system: b.system,
+                    position: b.state.position.into(),
+                    orientation: [q.i, q.j, q.k, q.w],
+                    velocity: b.state.velocity.into(),
+                    angular_velocity: b.state.angular_velocity.into(),
+                }
+            })
+            .collect()
     }
 
     fn field_values(&self, kind: FieldKind) -> Vec<f32> {
@@ -231,7 +273,95 @@ impl World {
     }
 }
 
-fn build_fluid(scene: &Scene, spec: &FluidSpec) -> Fluid {
+/// The engine shape of a scene's shape; in 2D a box's z extent is unused.
+pub(crate) fn body_shape(spec: &ShapeSpec, dim: usize) -> Shape {
+    match spec {
+        ShapeSpec::Box { half_extents } => Shape::Box {
+            half_extents: vector(*half_extents),
+        },
+        ShapeSpec::Sphere { radius } => Shape::Sphere { radius: *radius },
+        ShapeSpec::Capsule {
+            half_length,
+            radius,
+        } => Shape::Capsule {
+            half_length: *half_length,
+            radius: *radius,
+        },
+        ShapeSpec::Plane { normal, offset } => {
+            let mut n = vector(*normal);
+            if dim == 2 {
+                n.z = 0.0;
+            }
+            // Scaling the normal to unit length scales the offset with it.
+            let length = n.norm();
+            Shape::Plane {
+                normal: n / length,
+                offset: offset / length,
+            }
+        }
+    }
+}
+
+/// A body's initial position and orientation; in 2D in the plane z = 0.
+pub(crate) fn body_pose(spec: &RigidBodySpec, dim: usize) -> (Vector, Rotation) {
+    let mut position = vector(spec.position);
+    if dim == 2 {
+        position.z = 0.0;
+    }
+    (
+        position,
+        Rotation::from_scaled_axis(vector(spec.orientation)),
+    )
+}
+
+fn build_body(system: usize, spec: &RigidBodySpec, fluid: &FluidSpec, dim: usize) -> RigidBody {
+    let shape = body_shape(&spec.shape, dim);
+    let motion = match spec.motion {
+        MotionKind::Static => Motion::Static,
+        MotionKind::Kinematic => Motion::Kinematic {
+            velocity: vector(spec.velocity),
+            angular_velocity: vector(spec.angular_velocity),
+            oscillation: spec.oscillation.map(|o| Oscillation {
+                amplitude: vector(o.amplitude),
+                frequency: o.frequency,
+            }),
+        },
+        MotionKind::Dynamic => {
+            // Validated: dynamic bodies are bounded and have a density.
+            let density = spec.density.unwrap_or(fluid.rest_density);
+            Motion::Dynamic {
+                mass: density * shape.volume(dim).unwrap_or(0.0),
+                inertia: shape.inertia(density, dim).unwrap_or_else(Vector::zeros),
+            }
+        }
+    };
+    let slip = match spec.slip {
+        SlipKind::Free => Slip::Free,
+        SlipKind::No => Slip::No {
+            viscosity: spec.viscosity.unwrap_or(fluid.viscosity),
+        },
+    };
+    let (position, orientation) = body_pose(spec, dim);
+    let velocity = if spec.motion == MotionKind::Dynamic {
+        vector(spec.velocity)
+    } else {
+        Vector::zeros()
+    };
+    let state = BodyState {
+        position,
+        orientation,
+        velocity,
+        angular_velocity: if spec.motion == MotionKind::Dynamic {
+            vector(spec.angular_velocity)
+        } else {
+            Vector::zeros()
+        },
+        time: 0.0,
+    };
+    RigidBody::new(shape, motion, slip, spec.hollow, system, dim, state)
+}
+
+fn build_fluid(scene: &Scene, spec: &FluidSpec, body_specs: &[(usize, &RigidBodySpec)]) -> Fluid {
     let h = spec.support_radius();
     let dim = scene.dimension;
     let density_kernel = Kernel::new(spec.density_kernel, dim, h);
@@ -276,6 +406,13 @@ fn build_fluid(scene: &Scene, spec: &FluidSpec) -> Fluid {
         ),
         WallModel::Reflect => None,
     };
+    let bodies: Vec<RigidBody> = body_specs
+        .iter()
+        .map(|&(s, body)| build_body(s, body, spec, dim))
+        .collect();
+    // Bodies carve the fluid blocks: no particle starts within half a
+    // spacing of a body's surface or inside it.
+    let clear = 0.5 * spec.spacing;
     let (positions, velocities): (Vec<Vector>, Vec<Vector>) = spec
         .lattice(dim)
         .map(|(x, block)| (vector(x), vector(spec.blocks[block].velocity)))
@@ -286,9 +423,14 @@ fn build_fluid(scene: &Scene, spec: &FluidSpec) -> Fluid {
             }
             (x, v)
         }))
+        .filter(|(x, _)| bodies.iter().all(|b| b.excluded_distance(x) >= clear))
         .unzip();
     let grid = UniformGrid::with_periodic(min, max, h, periodic_axes)
         .expect("validated by Scene::validate");
     let periodic = Periodic::new(min, max, periodic_axes);
-    Fluid::new(params, positions, velocities, walls, grid, periodic)
+    let mut fluid = Fluid::new(params, positions, velocities, walls, grid.clone(), periodic);
+    if !bodies.is_empty() {
+        fluid.attach_bodies(RigidBodies::new(bodies, &params, &min, &max, grid));
+    }
+    fluid
 }

@@ -9,7 +9,9 @@ use meshless_engine::{BuildOptions, FieldKind, Scene, StepError, World};
 fn dam_break() -> Scene {
     let mut scene = Scene::from_toml_str(include_str!("../../scenes/dam_break.toml"))
         .expect("the shipped scene parses");
-    let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+    let SystemSpec::Fluid(fluid) = &mut scene.systems[0] else {
+        panic!("the first system is the fluid")
+    };
     fluid.spacing = 0.04;
     fluid.support_radius = Some(0.08);
     scene
@@ -76,7 +78,9 @@ fn long_steps_are_substepped_and_reported() {
 #[test]
 fn a_blow_up_is_reported_and_the_last_good_state_kept() {
     let mut scene = dam_break();
-    let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+    let SystemSpec::Fluid(fluid) = &mut scene.systems[0] else {
+        panic!("the first system is the fluid")
+    };
     fluid.stiffness = 1e12;
     scene.time.max_substeps = 1;
     let mut world = build(&scene);
@@ -114,7 +118,9 @@ fn passes_run_only_when_the_scene_names_them() {
     world.step().expect("step");
     assert!(world.stages().get(Stage::Xsph).runs > 0);
 
-    let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+    let SystemSpec::Fluid(fluid) = &mut scene.systems[0] else {
+        panic!("the first system is the fluid")
+    };
     fluid.xsph = 0.0;
     let mut world = build(&scene);
     world.step().expect("step");
@@ -156,7 +162,9 @@ fn xsph_leaves_uniform_motion_alone() {
     let mut scene = dam_break();
     scene.gravity = [0.0; 3];
     scene.domain.max = [4.0, 4.0, 4.0];
-    let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+    let SystemSpec::Fluid(fluid) = &mut scene.systems[0] else {
+        panic!("the first system is the fluid")
+    };
     fluid.blocks[0].region.min = [1.0, 1.0, 1.0];
     fluid.blocks[0].region.max = [1.4, 1.4, 1.4];
     fluid.blocks[0].velocity = [0.5, -0.25, 0.1];
@@ -179,7 +187,9 @@ fn viscosity_conserves_momentum_and_damps_shear() {
     let mut scene = dam_break();
     scene.gravity = [0.0; 3];
     scene.domain.max = [4.0, 4.0, 4.0];
-    let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+    let SystemSpec::Fluid(fluid) = &mut scene.systems[0] else {
+        panic!("the first system is the fluid")
+    };
     let lower = fluid.blocks[0].clone();
     fluid.blocks = vec![lower.clone(), lower];
     fluid.blocks[0].region.min = [1.0, 1.0, 1.0];
@@ -211,7 +221,9 @@ fn viscosity_conserves_momentum_and_damps_shear() {
     inviscid.step().expect("step");
     assert_eq!(inviscid.stages().get(Stage::Viscosity).runs, 0);
 
-    let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+    let SystemSpec::Fluid(fluid) = &mut scene.systems[0] else {
+        panic!("the first system is the fluid")
+    };
     fluid.viscosity = 20.0;
     let mut viscous = build(&scene);
     let (p0, s0) = (momentum(&viscous), shear(&viscous));
@@ -253,7 +265,9 @@ fn extremes_run_or_fail_cleanly() {
     };
     for stiffness in [1e2, 1e4, 1e5, 1e7] {
         let mut scene = dam_break();
-        let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+        let SystemSpec::Fluid(fluid) = &mut scene.systems[0] else {
+            panic!("the first system is the fluid")
+        };
         fluid.stiffness = stiffness;
         let mut world = build(&scene);
         for _ in 0..5 {
@@ -279,7 +293,9 @@ fn extremes_run_or_fail_cleanly() {
 
     // One particle: it falls and bounces off the floor, forever finite.
     let mut scene = dam_break();
-    let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+    let SystemSpec::Fluid(fluid) = &mut scene.systems[0] else {
+        panic!("the first system is the fluid")
+    };
     fluid.blocks[0].region.max = [0.04, 0.5, 0.04];
     fluid.blocks[0].region.min = [0.0, 0.46, 0.0];
     let mut world = build(&scene);
@@ -296,7 +312,9 @@ fn extremes_run_or_fail_cleanly() {
     // the mass: finite, inside the box, and still together.
     for solver in [SolverKind::Wcsph, SolverKind::Dfsph] {
         let mut scene = dam_break();
-        let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+        let SystemSpec::Fluid(fluid) = &mut scene.systems[0] else {
+            panic!("the first system is the fluid")
+        };
         fluid.solver = solver;
         for position in [
             [0.6, 0.7, 0.15],
@@ -329,7 +347,9 @@ fn extremes_run_or_fail_cleanly() {
 fn dfsph_keeps_a_resting_fluid_at_rest() {
     let mut scene = dam_break();
     scene.gravity = [0.0; 3];
-    let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+    let SystemSpec::Fluid(fluid) = &mut scene.systems[0] else {
+        panic!("the first system is the fluid")
+    };
     fluid.solver = meshless_engine::scene::SolverKind::Dfsph;
     fluid.density_kernel = meshless_engine::approx::KernelKind::CubicSpline;
     fluid.gradient_kernel = meshless_engine::approx::KernelKind::CubicSpline;

@@ -6,8 +6,8 @@ use crate::error::ServiceError;
 use meshless_engine::approx::KernelKind;
 use meshless_engine::fluid::ViscosityModel;
 use meshless_engine::scene::{
-    Aabb, FluidBlock, FluidSpec, OutputSpec, ParticleSpec, SolverKind, SystemSpec, TimeSpec,
-    WallModel, defaults,
+    Aabb, FluidBlock, FluidSpec, MotionKind, OscillationSpec, OutputSpec, ParticleSpec,
+    RigidBodySpec, ShapeSpec, SlipKind, SolverKind, SystemSpec, TimeSpec, WallModel, defaults,
 };
 use meshless_engine::{FieldKind, Frame, Scene};
 use meshless_proto::v1;
@@ -218,10 +218,168 @@ fn system_from_proto(system: v1::SystemSpec, field: &str) -> Result<SystemSpec> 
         Some(v1::system_spec::Kind::Fluid(fluid)) => {
             Ok(SystemSpec::Fluid(fluid_from_proto(fluid, field)?))
         }
+        Some(v1::system_spec::Kind::RigidBody(body)) => {
+            Ok(SystemSpec::RigidBody(body_from_proto(body, field)?))
+        }
         None => Err(ServiceError::invalid(
             format!("{field}.kind"),
-            "unknown or missing system kind; this server simulates: fluid",
+            "unknown or missing system kind; this server simulates: fluid, rigid_body",
         )),
+    }
+}
+
+fn shape_from_proto(shape: Option<v1::Shape>, field: &str) -> Result<ShapeSpec> {
+    let v1::Shape { kind } = required(shape, field)?;
+    match kind {
+        Some(v1::shape::Kind::Box(v1::BoxShape { half_extents })) => Ok(ShapeSpec::Box {
+            half_extents: vec3(required(half_extents, &format!("{field}.half_extents"))?),
+        }),
+        Some(v1::shape::Kind::Sphere(v1::SphereShape { radius })) => {
+            Ok(ShapeSpec::Sphere { radius })
+        }
+        Some(v1::shape::Kind::Capsule(v1::CapsuleShape {
+            half_length,
+            radius,
+        })) => Ok(ShapeSpec::Capsule {
+            half_length,
+            radius,
+        }),
+        Some(v1::shape::Kind::Plane(v1::PlaneShape { normal, offset })) => Ok(ShapeSpec::Plane {
+            normal: vec3(required(normal, &format!("{field}.normal"))?),
+            offset,
+        }),
+        None => Err(ServiceError::invalid(
+            format!("{field}.kind"),
+            "unknown or missing shape; use box, sphere, capsule or plane",
+        )),
+    }
+}
+
+fn to_shape(shape: &ShapeSpec) -> v1::Shape {
+    let kind = match shape {
+        ShapeSpec::Box { half_extents } => v1::shape::Kind::Box(v1::BoxShape {
+            half_extents: Some(to_vec3(*half_extents)),
+        }),
+        ShapeSpec::Sphere { radius } => {
+            v1::shape::Kind::Sphere(v1::SphereShape { radius: *radius })
+        }
+        ShapeSpec::Capsule {
+            half_length,
+            radius,
+        } => v1::shape::Kind::Capsule(v1::CapsuleShape {
+            half_length: *half_length,
+            radius: *radius,
+        }),
+        ShapeSpec::Plane { normal, offset } => v1::shape::Kind::Plane(v1::PlaneShape {
+            normal: Some(to_vec3(*normal)),
+            offset: *offset,
+        }),
+    };
+    v1::Shape { kind: Some(kind) }
+}
+
+/// Engine motion of a proto enum value; unset gives the default.
+fn motion_kind(value: i32, field: &str) -> Result<MotionKind> {
+    match v1::RigidMotion::try_from(value) {
+        Ok(v1::RigidMotion::Unspecified) => Ok(defaults::MOTION),
+        Ok(v1::RigidMotion::Static) => Ok(MotionKind::Static),
+        Ok(v1::RigidMotion::Kinematic) => Ok(MotionKind::Kinematic),
+        Ok(v1::RigidMotion::Dynamic) => Ok(MotionKind::Dynamic),
+        Err(_) => Err(ServiceError::invalid(
+            field,
+            format!("unknown motion {value}; use static, kinematic or dynamic"),
+        )),
+    }
+}
+
+fn to_motion_kind(motion: MotionKind) -> v1::RigidMotion {
+    match motion {
+        MotionKind::Static => v1::RigidMotion::Static,
+        MotionKind::Kinematic => v1::RigidMotion::Kinematic,
+        MotionKind::Dynamic => v1::RigidMotion::Dynamic,
+    }
+}
+
+/// Engine slip condition of a proto enum value; unset gives the default.
+fn slip_kind(value: i32, field: &str) -> Result<SlipKind> {
+    match v1::SlipCondition::try_from(value) {
+        Ok(v1::SlipCondition::Unspecified) => Ok(defaults::SLIP),
+        Ok(v1::SlipCondition::Free) => Ok(SlipKind::Free),
+        Ok(v1::SlipCondition::No) => Ok(SlipKind::No),
+        Err(_) => Err(ServiceError::invalid(
+            field,
+            format!("unknown slip condition {value}; use free or no"),
+        )),
+    }
+}
+
+fn to_slip_kind(slip: SlipKind) -> v1::SlipCondition {
+    match slip {
+        SlipKind::Free => v1::SlipCondition::Free,
+        SlipKind::No => v1::SlipCondition::No,
+    }
+}
+
+fn body_from_proto(body: v1::RigidBodySpec, field: &str) -> Result<RigidBodySpec> {
+    let v1::RigidBodySpec {
+        shape,
+        position,
+        orientation,
+        motion,
+        density,
+        velocity,
+        angular_velocity,
+        oscillation,
+        slip,
+        viscosity,
+        hollow,
+    } = body;
+    let oscillation = oscillation
+        .map(|o| {
+            let v1::Oscillation {
+                amplitude,
+                frequency,
+            } = o;
+            Ok::<_, ServiceError>(OscillationSpec {
+                amplitude: vec3(required(
+                    amplitude,
+                    &format!("{field}.oscillation.amplitude"),
+                )?),
+                frequency,
+            })
+        })
+        .transpose()?;
+    Ok(RigidBodySpec {
+        shape: shape_from_proto(shape, &format!("{field}.shape"))?,
+        position: vec3(required(position, &format!("{field}.position"))?),
+        orientation: orientation.map_or([0.0; 3], vec3),
+        motion: motion_kind(motion, &format!("{field}.motion"))?,
+        density,
+        velocity: velocity.map_or([0.0; 3], vec3),
+        angular_velocity: angular_velocity.map_or([0.0; 3], vec3),
+        oscillation,
+        slip: slip_kind(slip, &format!("{field}.slip"))?,
+        viscosity,
+        hollow,
+    })
+}
+
+fn to_body(b: &RigidBodySpec) -> v1::RigidBodySpec {
+    v1::RigidBodySpec {
+        shape: Some(to_shape(&b.shape)),
+        position: Some(to_vec3(b.position)),
+        orientation: Some(to_vec3(b.orientation)),
+        motion: to_motion_kind(b.motion) as i32,
+        density: b.density,
+        velocity: Some(to_vec3(b.velocity)),
+        angular_velocity: Some(to_vec3(b.angular_velocity)),
+        oscillation: b.oscillation.map(|o| v1::Oscillation {
+            amplitude: Some(to_vec3(o.amplitude)),
+            frequency: o.frequency,
+        }),
+        slip: to_slip_kind(b.slip) as i32,
+        viscosity: b.viscosity,
+        hollow: b.hollow,
     }
 }
 
@@ -358,6 +516,7 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
                             })
                             .collect(),
                     }),
+                    SystemSpec::RigidBody(b) => v1::system_spec::Kind::RigidBody(to_body(b)),
                 }),
             })
             .collect(),
@@ -401,6 +560,20 @@ pub fn frame_to_proto(session_id: &str, frame: &Frame) -> v1::Frame {
                 data: f.values.iter().flat_map(|v| v.to_le_bytes()).collect(),
             })
             .collect(),
+        bodies: frame
+            .bodies
+            .iter()
+            .map(|b| {
+                let [x, y, z, w] = b.orientation;
+                v1::BodyPose {
+                    system: b.system as u32,
+                    position: Some(to_vec3(b.position)),
+                    orientation: Some(v1::Quaternion { x, y, z, w }),
+                    velocity: Some(to_vec3(b.velocity)),
+                    angular_velocity: Some(to_vec3(b.angular_velocity)),
+                }
+            })
+            .collect(),
     }
 }
 
@@ -419,7 +592,9 @@ mod tests {
         let scene = dam_break();
         let back = scene_from_proto(scene_to_proto(&scene)).expect("round trip");
         let mut explicit = scene.clone();
-        let SystemSpec::Fluid(f) = &mut explicit.systems[0];
+        let SystemSpec::Fluid(f) = &mut explicit.systems[0] else {
+            panic!("the first system is the fluid")
+        };
         f.support_radius = Some(f.support_radius());
         assert_eq!(back, explicit);
         back.validate(&BuildOptions::default())
@@ -428,7 +603,9 @@ mod tests {
         // Periodic axes and single particles survive the trip too.
         let mut scene = explicit;
         scene.periodic = [true, false, true];
-        let SystemSpec::Fluid(f) = &mut scene.systems[0];
+        let SystemSpec::Fluid(f) = &mut scene.systems[0] else {
+            panic!("the dam break is a fluid")
+        };
         f.particles.push(ParticleSpec {
             position: [3.5, 0.5, 0.5],
             velocity: [-1.0, 0.0, 0.25],
@@ -437,6 +614,29 @@ mod tests {
             scene_from_proto(scene_to_proto(&scene)).expect("round trip"),
             scene
         );
+    }
+
+    /// Rigid bodies survive engine -> proto -> engine, and frames carry
+    /// their poses.
+    #[test]
+    fn bodies_round_trip_and_frames_carry_poses() {
+        let scene = Scene::from_toml_str(include_str!("../../scenes/floating_box.toml"))
+            .expect("shipped scene");
+        let back = scene_from_proto(scene_to_proto(&scene)).expect("round trip");
+        assert_eq!(back.systems[1..], scene.systems[1..]);
+        let world = back.build(&BuildOptions::default()).expect("valid");
+        let wire = frame_to_proto("s", &world.frame());
+        assert_eq!(wire.bodies.len(), 2);
+        assert_eq!(wire.bodies[0].system, 1);
+        let q = wire.bodies[0].orientation.expect("orientation");
+        assert!((q.z - 0.15f64.sin()).abs() < 1e-12 && (q.w - 0.15f64.cos()).abs() < 1e-12);
+
+        let mut spec = scene_to_proto(&scene);
+        if let Some(v1::system_spec::Kind::RigidBody(b)) = &mut spec.systems[1].kind {
+            b.shape = None;
+        }
+        let err = scene_from_proto(spec).expect_err("no shape");
+        assert!(err.to_string().starts_with("systems[1].shape:"), "{err}");
     }
 
     #[test]

@@ -40,7 +40,7 @@ async fn small_spec(client: &Client) -> v1::SceneSpec {
 fn fluid(spec: &mut v1::SceneSpec) -> &mut v1::FluidSpec {
     match spec.systems[0].kind.as_mut() {
         Some(v1::system_spec::Kind::Fluid(f)) => f,
-        None => panic!("a fluid"),
+        Some(v1::system_spec::Kind::RigidBody(_)) | None => panic!("a fluid"),
     }
 }
 

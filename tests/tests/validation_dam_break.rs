@@ -27,7 +27,9 @@ fn simulate_scene(
     walls: WallModel,
     solver: SolverKind,
 ) -> (Vec<(f64, f64)>, f64) {
-    let SystemSpec::Fluid(fluid) = &mut scene.systems[0];
+    let SystemSpec::Fluid(fluid) = &mut scene.systems[0] else {
+        panic!("the first system is the fluid")
+    };
     fluid.walls = walls;
     fluid.solver = solver;
     if solver == SolverKind::Dfsph {
@@ -118,7 +120,9 @@ fn dam_break_2d_front_follows_martin_and_moyce() {
         Scene::from_toml_str(include_str!("../../scenes/dam_break_2d.toml")).expect("scene");
     assert_eq!(scene.dimension, 2);
     let mut fine = scene.clone();
-    let SystemSpec::Fluid(fluid) = &mut fine.systems[0];
+    let SystemSpec::Fluid(fluid) = &mut fine.systems[0] else {
+        panic!("the first system is the fluid")
+    };
     fluid.spacing /= 2.0;
     fluid.support_radius = Some(2.0 * fluid.spacing);
     let (curve, _) = simulate_scene(scene, WallModel::Solid, SolverKind::Wcsph);

@@ -4,7 +4,7 @@
 use anyhow::{Context, Result};
 use meshless_client::{FrameView, v1};
 use meshless_engine::io::{ExportFormat, write_frame};
-use meshless_engine::{FieldData, FieldKind, Frame};
+use meshless_engine::{BodyPose, FieldData, FieldKind, Frame};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
 use std::thread::JoinHandle;
@@ -127,5 +127,31 @@ pub fn engine_frame(frame: FrameView) -> Frame {
         density_error: frame.density_error,
         particle_count: frame.particle_count,
         fields,
+        bodies: frame.bodies.iter().map(body_pose).collect(),
+    }
+}
+
+/// An engine body pose of a wire one; missing vectors read as zero.
+fn body_pose(pose: &v1::BodyPose) -> BodyPose {
+    let v1::BodyPose {
+        system,
+        position,
+        orientation,
+        velocity,
+        angular_velocity,
+    } = pose;
+    let vec3 = |v: &Option<v1::Vec3>| v.map_or([0.0; 3], |v| [v.x, v.y, v.z]);
+    let q = orientation.unwrap_or(v1::Quaternion {
+        x: 0.0,
+        y: 0.0,
+        z: 0.0,
+        w: 1.0,
+    });
+    BodyPose {
+        system: *system as usize,
+        position: vec3(position),
+        orientation: [q.x, q.y, q.z, q.w],
+        velocity: vec3(velocity),
+        angular_velocity: vec3(angular_velocity),
     }
 }

@@ -95,7 +95,9 @@ impl Knob {
 fn fluid(scene: &mut Scene) -> Result<&mut FluidSpec> {
     match scene.systems.first_mut() {
         Some(SystemSpec::Fluid(fluid)) => Ok(fluid),
-        None => bail!("the scene has no fluid to study"),
+        Some(SystemSpec::RigidBody(_)) | None => {
+            bail!("the scene's first system is no fluid to study")
+        }
     }
 }
 

@@ -49,8 +49,15 @@ pub struct SolveInfo {
 pub struct SolverScratch {
     /// `alpha_i`.
     factors: Vec<Real>,
-    /// Gradient of the walls' density at each particle.
+    /// Gradient of the density of the walls and rigid bodies at each
+    /// particle.
     wall_gradients: Vec<Vector>,
+    /// With rigid bodies: `sum_b psi_b v_b . grad W_ib`, the density change
+    /// the bodies' motion causes (empty without bodies).
+    boundary_flux: Vec<Real>,
+    /// With rigid bodies: the divergence solve's `kappa` summed over its
+    /// iterations, whose reaction the bodies feel (empty without bodies).
+    divergence_kappa: Vec<Real>,
     /// The density source of the current iteration.
     source: Vec<Real>,
     kappa: Vec<Real>,
@@ -88,6 +95,9 @@ impl Fluid {
         scratch.source.resize(n, 0.0);
         scratch.kappa.resize(n, 0.0);
         scratch.density_kappa.resize(n, 0.0);
+        let coupled = if self.rigid.is_some() { n } else { 0 };
+        scratch.boundary_flux.resize(coupled, 0.0);
+        scratch.divergence_kappa.resize(coupled, 0.0);
         self.compute_factors();
     }
 
@@ -107,6 +117,19 @@ impl Fluid {
             let model = self.params.viscosity_model;
             timer.time(Stage::Viscosity, || self.apply_viscosity(model, &kernel));
         }
+        if let Some(rigid) = &mut self.rigid {
+            // No-slip bodies' viscosity; pressure comes from the solves.
+            timer.time(Stage::Viscosity, || {
+                rigid.add_forces(
+                    &self.positions,
+                    &self.velocities,
+                    &self.densities,
+                    None,
+                    self.params.mass,
+                    &mut self.accelerations,
+                )
+            });
+        }
         if self.params.xsph > 0.0 {
             timer.time(Stage::Xsph, || self.apply_xsph());
         }
@@ -121,6 +144,15 @@ impl Fluid {
         let (density_iterations, density_error) = timer.time(Stage::PressureSolve, || {
             self.solve(Solve::ConstantDensity, dt, params)
         });
+        if let Some(rigid) = &mut self.rigid {
+            // The solve's total kappa is what `density_kappa` now holds.
+            rigid.add_pressure_reaction(
+                &self.positions,
+                &self.densities,
+                &self.solver.density_kappa,
+                self.params.mass,
+            );
+        }
         timer.time(Stage::Integrate, || {
             let periodic = self.periodic.as_ref();
             self.positions
@@ -130,6 +162,7 @@ impl Fluid {
                     *x += *v * dt;
                     confine(x, v, min, max, periodic);
                 });
+            self.move_bodies(dt, gravity, min, max);
         });
         timer.time(Stage::NeighborSearch, || self.find_neighbors());
         timer.time(Stage::Density, || {
@@ -139,6 +172,17 @@ impl Fluid {
         let (divergence_iterations, divergence_error) = timer.time(Stage::DivergenceSolve, || {
             self.solve(Solve::DivergenceFree, dt, params)
         });
+        if let Some(rigid) = &mut self.rigid {
+            // The fluid's velocities changed at the end of the sub-step;
+            // so do the bodies'.
+            rigid.add_pressure_reaction(
+                &self.positions,
+                &self.densities,
+                &self.solver.divergence_kappa,
+                self.params.mass,
+            );
+            rigid.kick(dt);
+        }
         self.solver.last = SolveInfo {
             density_iterations,
             density_error,
@@ -149,13 +193,14 @@ impl Fluid {
 
     /// `alpha_i` and the walls' density gradient at every particle.
     pub(super) fn compute_factors(&mut self) {
-        let (positions, densities, neighbors, kernel, mass, walls) = (
+        let (positions, densities, neighbors, kernel, mass, walls, rigid) = (
             &self.positions,
             &self.densities,
             &self.neighbors,
             &self.params.gradient_kernel,
             self.params.mass,
             self.walls.as_ref(),
+            self.rigid.as_ref(),
         );
         let scratch = &mut self.solver;
         scratch
@@ -165,7 +210,8 @@ impl Fluid {
             .enumerate()
             .for_each(|(i, (alpha, wall))| {
                 let xi = positions[i];
-                *wall = walls.map_or(Vector::zeros(), |w| w.density_gradient(&xi));
+                *wall = walls.map_or(Vector::zeros(), |w| w.density_gradient(&xi))
+                    + rigid.map_or(Vector::zeros(), |r| r.density_gradient(i, &xi));
                 let mut sum = *wall;
                 let mut squares = 0.0;
                 for (_, r) in neighbors.pairs(i, positions) {
@@ -196,6 +242,19 @@ impl Fluid {
             Solve::ConstantDensity => (params.density_tolerance, 1.0 / dt / dt),
             Solve::DivergenceFree => (params.divergence_tolerance, 1.0 / dt),
         };
+        if let Some(rigid) = &self.rigid {
+            let positions = &self.positions;
+            let scratch = &mut self.solver;
+            scratch
+                .boundary_flux
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(i, flux)| *flux = rigid.velocity_flux(i, &positions[i]));
+            scratch
+                .divergence_kappa
+                .par_iter_mut()
+                .for_each(|k| *k = 0.0);
+        }
         if solve == Solve::ConstantDensity {
             let scratch = &mut self.solver;
             scratch.density_kappa.par_iter_mut().for_each(|k| *k *= 0.5);
@@ -221,13 +280,15 @@ impl Fluid {
                 .zip(scratch.source.par_iter())
                 .zip(scratch.factors.par_iter())
                 .for_each(|((kappa, s), alpha)| *kappa = s * alpha * scale);
-            if solve == Solve::ConstantDensity {
-                scratch
-                    .density_kappa
-                    .par_iter_mut()
-                    .zip(scratch.kappa.par_iter())
-                    .for_each(|(total, kappa)| *total += kappa);
-            }
+            let total = match solve {
+                Solve::ConstantDensity => &mut scratch.density_kappa,
+                // Empty without rigid bodies: nothing to sum.
+                Solve::DivergenceFree => &mut scratch.divergence_kappa,
+            };
+            total
+                .par_iter_mut()
+                .zip(scratch.kappa.par_iter())
+                .for_each(|(total, kappa)| *total += kappa);
             self.add_pressure();
             self.apply_kappa(dt);
             iterations += 1;
@@ -249,7 +310,8 @@ impl Fluid {
     /// for the constant-density solve the predicted density excess
     /// `max(rho_i + dt D rho_i / Dt - rho_0, 0)`, for the divergence solve
     /// `max(D rho_i / Dt, 0)`, with
-    /// `D rho_i / Dt = sum_j m_j (v_i - v_j) . grad W_ij + v_i . grad rho_wall`.
+    /// `D rho_i / Dt = sum_j m_j (v_i - v_j) . grad W_ij + v_i . grad rho_wall`,
+    /// less `sum_b psi_b v_b . grad W_ib` where rigid bodies move.
     /// Only compression is corrected: free surfaces may expand.
     fn compute_source(&mut self, solve: Solve, dt: Real) {
         let (positions, velocities, densities, neighbors, kernel, mass) = (
@@ -262,14 +324,14 @@ impl Fluid {
         );
         let rest = self.params.eos.rest_density;
         let scratch = &mut self.solver;
-        let walls = &scratch.wall_gradients;
+        let (walls, flux) = (&scratch.wall_gradients, &scratch.boundary_flux);
         scratch
             .source
             .par_iter_mut()
             .enumerate()
             .for_each(|(i, source)| {
                 let vi = velocities[i];
-                let mut rate = vi.dot(&walls[i]);
+                let mut rate = vi.dot(&walls[i]) - flux.get(i).copied().unwrap_or(0.0);
                 for (j, r) in neighbors.pairs(i, positions) {
                     rate += (vi - velocities[j]).dot(&kernel.gradient(&r, r.norm())) * mass;
                 }

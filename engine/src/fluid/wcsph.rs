@@ -3,7 +3,8 @@
 //! explicit integration with reflection off the domain walls.
 
 use super::dfsph::{DfsphParams, SolverScratch};
-use super::{BoxWalls, Tait, ViscosityModel};
+use super::rigid_body::BodyState;
+use super::{BoxWalls, RigidBodies, Tait, ViscosityModel};
 use crate::approx::{Kernel, KernelKind};
 use crate::math::{Real, Vector};
 use crate::neighbors::{CandidateSearch, NeighborList, Periodic, UniformGrid};
@@ -81,6 +82,8 @@ pub struct Fluid {
     pub(super) walls: Option<BoxWalls>,
     /// The kernel of the viscosity pass, when the scene has viscosity.
     pub(super) viscosity_kernel: Option<Kernel>,
+    /// Rigid bodies in the fluid, when the scene has any.
+    pub(super) rigid: Option<RigidBodies>,
     pub(super) grid: UniformGrid,
     /// Periodic axes of the domain, when the scene names any.
     pub(super) periodic: Option<Periodic>,
@@ -136,6 +139,7 @@ impl Fluid {
                     params.support_radius,
                 ),
             }),
+            rigid: None,
             grid,
             periodic,
             neighbors: NeighborList::default(),
@@ -154,6 +158,23 @@ impl Fluid {
         }
         fluid.reorder();
         fluid
+    }
+
+    /// Puts rigid bodies into the fluid and recomputes the densities,
+    /// pressures and solver factors they change.
+    pub fn attach_bodies(&mut self, bodies: RigidBodies) {
+        self.rigid = Some(bodies);
+        self.find_neighbors();
+        self.compute_densities();
+        match self.params.solver {
+            PressureSolver::Wcsph => self.compute_pressures(),
+            PressureSolver::Dfsph(_) => self.prepare_dfsph(),
+        }
+    }
+
+    /// The rigid bodies in the fluid, if any.
+    pub fn bodies(&self) -> Option<&RigidBodies> {
+        self.rigid.as_ref()
     }
 
     pub fn len(&self) -> usize {
@@ -181,7 +202,8 @@ impl Fluid {
             .par_iter()
             .map(|v| v.norm_squared())
             .reduce(|| 0.0, Real::max)
-            .sqrt();
+            .sqrt()
+            .max(self.rigid.as_ref().map_or(0.0, RigidBodies::max_speed));
         let mut dt = match self.params.solver {
             PressureSolver::Wcsph => cfl * h / (self.params.eos.sound_speed() + v_max),
             // No sound speed: a particle moves at most `cfl` spacings.
@@ -256,6 +278,16 @@ impl Fluid {
                 gravity,
                 &mut self.accelerations,
             );
+            if let Some(rigid) = &mut self.rigid {
+                rigid.add_forces(
+                    &self.positions,
+                    &self.velocities,
+                    &self.densities,
+                    Some(&self.pressures),
+                    self.params.mass,
+                    &mut self.accelerations,
+                );
+            }
         });
         if let Some(kernel) = self.viscosity_kernel {
             let model = self.params.viscosity_model;
@@ -264,7 +296,10 @@ impl Fluid {
         if self.params.xsph > 0.0 {
             timer.time(Stage::Xsph, || self.apply_xsph());
         }
-        timer.time(Stage::Integrate, || self.integrate(dt, min, max));
+        timer.time(Stage::Integrate, || {
+            self.integrate(dt, min, max);
+            self.move_bodies(dt, gravity, min, max);
+        });
     }
 
     pub(super) fn find_neighbors(&mut self) {
@@ -275,17 +310,35 @@ impl Fluid {
             self.params.support_radius,
             self.periodic,
         );
+        if let Some(rigid) = &mut self.rigid {
+            rigid.find_neighbors(&self.positions);
+        }
+    }
+
+    /// Advances the rigid bodies by `dt` under the loads the fluid put on
+    /// them, then puts fluid particles that ended up in a body back out.
+    pub(super) fn move_bodies(&mut self, dt: Real, gravity: &Vector, min: &Vector, max: &Vector) {
+        if let Some(rigid) = &mut self.rigid {
+            rigid.advance(dt, gravity, min, max);
+            rigid.enforce(
+                &mut self.positions,
+                &mut self.velocities,
+                self.params.mass,
+                dt,
+            );
+        }
     }
 
     /// `rho_i = sum_j m_j omega(|x_i - x_j|)` (Algorithm 5; poly6 by
     /// default), plus the walls' ghost layers (Eq. 55).
     pub(super) fn compute_densities(&mut self) {
-        let (positions, neighbors, kernel, mass, walls) = (
+        let (positions, neighbors, kernel, mass, walls, rigid) = (
             &self.positions,
             &self.neighbors,
             &self.params.density_kernel,
             self.params.mass,
             self.walls.as_ref(),
+            self.rigid.as_ref(),
         );
         self.densities
             .par_iter_mut()
@@ -296,7 +349,8 @@ impl Fluid {
                         .pairs(i, positions)
                         .map(|(_, r)| kernel.value_sq(r.norm_squared()))
                         .sum::<Real>()
-                    + walls.map_or(0.0, |w| w.density(&positions[i]));
+                    + walls.map_or(0.0, |w| w.density(&positions[i]))
+                    + rigid.map_or(0.0, |r| r.density(i, &positions[i]));
             });
     }
 
@@ -409,7 +463,15 @@ impl Fluid {
             return Some(v);
         }
         let i = self.pressures.par_iter().position_first(bad_scalar);
-        found("pressure", i, i.map_or(0.0, |i| self.pressures[i]))
+        if let Some(v) = found("pressure", i, i.map_or(0.0, |i| self.pressures[i])) {
+            return Some(v);
+        }
+        let (k, quantity, value) = self.rigid.as_ref()?.first_invalid()?;
+        Some(Invalid {
+            quantity,
+            particle: k,
+            value,
+        })
     }
 
     /// Copies the evolving state into `backup`, reusing its buffers.
@@ -419,6 +481,9 @@ impl Fluid {
         backup.densities.clone_from(&self.densities);
         backup.pressures.clone_from(&self.pressures);
         backup.max_acceleration = self.max_acceleration;
+        if let Some(rigid) = &self.rigid {
+            rigid.save(&mut backup.bodies);
+        }
     }
 
     /// Puts back a state saved by [`Fluid::save`].
@@ -428,6 +493,9 @@ impl Fluid {
         self.densities.clone_from(&backup.densities);
         self.pressures.clone_from(&backup.pressures);
         self.max_acceleration = backup.max_acceleration;
+        if let Some(rigid) = &mut self.rigid {
+            rigid.restore(&backup.bodies);
+        }
     }
 }
 
@@ -439,12 +507,15 @@ pub struct FluidState {
     densities: Vec<Real>,
     pressures: Vec<Real>,
     max_acceleration: Real,
+    bodies: Vec<BodyState>,
 }
 
 /// A particle quantity that left its valid range.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Invalid {
     pub quantity: &'static str,
+    /// The particle (or, for a body quantity, the body's index among the
+    /// fluid's bodies).
     pub particle: usize,
     /// The offending value (a norm for vectors).
     pub value: Real,

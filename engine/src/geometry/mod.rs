@@ -1,16 +1,17 @@
 //! Geometry shared by the systems: triangle meshes (boundaries, obstacles,
 //! reconstructed surfaces, embedded high-resolution surfaces), read from
 //! OBJ and PLY files, checked for closure, measured by signed distance and
-//! sampled with particles.
+//! sampled with particles; and the analytic solid shapes of rigid bodies.
 
 mod bvh;
 mod closest;
 mod error;
 mod mesh;
+mod mesh_shapes;
 pub mod read;
 mod sampling;
 mod sdf;
-mod shapes;
+mod shape;
 mod topology;
 
 pub use error::MeshError;
@@ -18,4 +19,5 @@ pub use mesh::TriMesh;
 pub use read::LoadedMesh;
 pub use sampling::{MAX_SAMPLES, sample_surface, sample_volume};
 pub use sdf::{Closest, MeshSdf};
+pub use shape::Shape;
 pub use topology::EdgeReport;

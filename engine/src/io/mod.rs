@@ -73,6 +73,7 @@ pub(crate) mod test_frame {
                     values: vec![1000.0, 1001.5],
                 },
             ],
+            bodies: Vec::new(),
         }
     }
 }

@@ -42,8 +42,24 @@ impl NeighborList {
         radius: Real,
         periodic: Option<Periodic>,
     ) {
+        self.build_between(search, positions, positions, radius, periodic);
+    }
+
+    /// Rebuilds the lists of points `queries` against another set,
+    /// `targets`, that `search` was rebuilt with: `of(i)` then lists the
+    /// targets within `radius` of query `i` (rigid boundary samples near
+    /// each fluid particle, say), through the nearest image along
+    /// `periodic` axes. Parallel like [`Self::build`].
+    pub fn build_between<S: CandidateSearch>(
+        &mut self,
+        search: &S,
+        queries: &[Vector],
+        targets: &[Vector],
+        radius: Real,
+        periodic: Option<Periodic>,
+    ) {
         self.periodic = periodic;
-        let n = positions.len();
+        let n = queries.len();
         let r2 = radius * radius;
         self.chunks.resize_with(n.div_ceil(CHUNK), Default::default);
         self.chunks
@@ -52,11 +68,10 @@ impl NeighborList {
             .for_each(|(c, (counts, found))| {
                 counts.clear();
                 found.clear();
-                for i in c * CHUNK..((c + 1) * CHUNK).min(n) {
+                for &xi in &queries[c * CHUNK..((c + 1) * CHUNK).min(n)] {
                     let before = found.len();
-                    let xi = positions[i];
                     search.for_each_candidate(&xi, |j| {
-                        let d = positions[j as usize] - xi;
+                        let d = targets[j as usize] - xi;
                         let d = periodic.map_or(d, |p| p.image(d));
                         if d.norm_squared() < r2 {
                             found.push(j);
@@ -168,6 +183,34 @@ mod tests {
             let mut found = list.of(i).to_vec();
             found.sort_unstable();
             assert_eq!(found, brute_force(&positions, i, radius), "particle {i}");
+        }
+    }
+
+    /// Lists between two sets (fluid particles against boundary samples)
+    /// match a brute-force scan of the targets.
+    #[test]
+    fn cross_lists_match_brute_force() {
+        let mut seed = 5;
+        let radius = 0.1;
+        let mut cloud = |n: usize| -> Vec<Vector> {
+            (0..n)
+                .map(|_| Vector::new(uniform(&mut seed), uniform(&mut seed), uniform(&mut seed)))
+                .collect()
+        };
+        let (queries, targets) = (cloud(700), cloud(300));
+        let mut grid =
+            UniformGrid::new(Vector::zeros(), Vector::repeat(1.0), radius).expect("grid");
+        grid.rebuild(&targets);
+        let mut list = NeighborList::default();
+        list.build_between(&grid, &queries, &targets, radius, None);
+        assert_eq!(list.len(), queries.len());
+        for (i, q) in queries.iter().enumerate() {
+            let mut found = list.of(i).to_vec();
+            found.sort_unstable();
+            let expected: Vec<u32> = (0..targets.len() as u32)
+                .filter(|&j| (targets[j as usize] - q).norm() < radius)
+                .collect();
+            assert_eq!(found, expected, "query {i}");
         }
     }
 
