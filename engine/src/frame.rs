@@ -1,5 +1,6 @@
 //! Frames: immutable snapshots of the particle fields a scene asked for.
 
+use crate::geometry::TriMesh;
 use crate::math::Real;
 use crate::scene::FieldKind;
 
@@ -28,6 +29,8 @@ pub struct Frame {
     pub particle_count: usize,
     /// Positions first, then the requested fields in scene order.
     pub fields: Vec<FieldData>,
+    /// The fluid's surface, when the scene asks for it (`output.surface`).
+    pub surface: Option<TriMesh>,
 }
 
 impl Frame {

@@ -3,10 +3,12 @@
 use crate::approx::Kernel;
 use crate::fluid::{BoxWalls, DfsphParams, Fluid, FluidParams, FluidState, PressureSolver, Tait};
 use crate::frame::{FieldData, Frame};
+use crate::geometry::TriMesh;
 use crate::math::{Real, Vector, vector};
 use crate::neighbors::UniformGrid;
 use crate::scene::{FieldKind, FluidSpec, Scene, SolverKind, SystemSpec, WallModel};
 use crate::stats::StageTimer;
+use crate::surface::SurfaceExtractor;
 
 /// Where a world is in time.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -63,15 +65,34 @@ pub struct World {
     backup: FluidState,
     timer: StageTimer,
     frame_fields: Vec<FieldKind>,
+    /// Meshes the fluid's surface into each frame, when the scene asks.
+    surface: Option<SurfaceExtractor>,
 }
 
 impl World {
     /// Builds the world of an already validated scene (see [`Scene::build`]).
     pub(crate) fn new(scene: Scene) -> Self {
         let mut fluid = None;
+        let mut surface = None;
         for system in &scene.systems {
             match system {
-                SystemSpec::Fluid(spec) => fluid = Some(build_fluid(&scene, spec)),
+                SystemSpec::Fluid(spec) => {
+                    let built = build_fluid(&scene, spec);
+                    if let Some(wanted) = &scene.output.surface {
+                        let (min, max) = scene.simulation_box(built.params.support_radius);
+                        surface = Some(
+                            SurfaceExtractor::new(
+                                built.params.density_kernel,
+                                wanted.cell(spec.spacing),
+                                wanted.iso,
+                                min,
+                                max,
+                            )
+                            .expect("validated by Scene::validate"),
+                        );
+                    }
+                    fluid = Some(built);
+                }
             }
         }
         let mut frame_fields = vec![FieldKind::Position];
@@ -88,6 +109,7 @@ impl World {
             backup: FluidState::default(),
             timer: StageTimer::default(),
             frame_fields,
+            surface,
         }
     }
 
@@ -205,7 +227,21 @@ impl World {
             density_error: self.last_step.density_error,
             particle_count: self.particle_count(),
             fields,
+            surface: self.surface_mesh(),
         }
+    }
+
+    /// The surface of the fluid, when the scene asks for one: the colour
+    /// field with each particle's volume `m / rho_i` from the last density
+    /// pass.
+    fn surface_mesh(&self) -> Option<TriMesh> {
+        let (surface, fluid) = (self.surface.as_ref()?, self.fluid.as_ref()?);
+        let volumes: Vec<Real> = fluid
+            .densities
+            .iter()
+            .map(|&rho| fluid.params.mass / rho)
+            .collect();
+        Some(surface.extract(&fluid.positions, &volumes))
     }
 
     fn field_values(&self, kind: FieldKind) -> Vec<f32> {
