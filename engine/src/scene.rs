@@ -523,6 +523,15 @@ impl Scene {
         toml::to_string(self).unwrap_or_else(|e| format!("# cannot serialise scene: {e}"))
     }
 
+    /// The scene's fluid, if it has one (at most one, see [`Scene::validate`]).
+    // A `find_map` because the fluid is one system kind among those to come.
+    #[allow(clippy::unnecessary_find_map)]
+    pub fn fluid(&self) -> Option<&FluidSpec> {
+        self.systems.iter().find_map(|s| match s {
+            SystemSpec::Fluid(f) => Some(f),
+        })
+    }
+
     /// Total particle count over all systems.
     pub fn particle_count(&self) -> f64 {
         self.systems
@@ -605,9 +614,7 @@ impl Scene {
                 "surfaces are meshed in 3D only (marching cubes); remove it or set dimension = 3",
             ));
         }
-        let Some(fluid) = self.systems.iter().find_map(|s| match s {
-            SystemSpec::Fluid(f) => Some(f),
-        }) else {
+        let Some(fluid) = self.fluid() else {
             return Err(SceneError::invalid(
                 "output.surface",
                 "the scene has no fluid to mesh",

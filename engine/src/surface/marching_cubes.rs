@@ -7,7 +7,7 @@
 //! corner configuration, each of the cube's six faces is a marching square
 //! whose edge crossings are joined into segments; the segments of all faces
 //! chain into closed loops around the cube, and each loop is fanned into
-//! triangles. Two rules make the result watertight and oriented:
+//! triangles. Three rules make the result watertight and oriented:
 //!
 //! - A face with four crossings (inside corners on one diagonal, the
 //!   ambiguous face Dürst pointed out in 1988 against the original table)
@@ -19,6 +19,10 @@
 //!   That puts the inside on the right of every segment seen from outside
 //!   the cube, so every loop, fanned in its tracing order, has its normal
 //!   pointing from the inside (field above the iso value) to the outside.
+//! - Each loop is fanned from a crossing whose diagonals all pass through
+//!   the cube's interior. A diagonal joining two crossings of one face
+//!   (possible on an ambiguous face) could be drawn by the neighbouring
+//!   cell too, and its edge would then belong to four triangles.
 //!
 //! A grid edge with a crossing gets one vertex, shared by the four cells
 //! around it, so the mesh is indexed and closed wherever the field is below
@@ -335,8 +339,8 @@ mod tests {
                 );
             }
             if !crossings.is_empty() {
-                let loops2 = crossings.len() - tris.len();
-                assert!(loops2 >= 2 && loops2 % 2 == 0, "case {case:08b}");
+                let twice_loops = crossings.len() - tris.len();
+                assert!(twice_loops >= 2 && twice_loops.is_multiple_of(2), "case {case:08b}");
             }
         }
     }

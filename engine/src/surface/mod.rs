@@ -78,7 +78,7 @@ impl SurfaceExtractor {
             .add_scalar(2.0 * pad)
             .map(|e| (e / cell).ceil() + 1.0);
         let nodes = per_axis.x * per_axis.y * per_axis.z;
-        if !(nodes <= Self::MAX_NODES as f64) {
+        if nodes.is_nan() || nodes > Self::MAX_NODES as f64 {
             return Err(SurfaceError::TooManyNodes {
                 nodes,
                 cell,
