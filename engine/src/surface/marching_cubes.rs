@@ -340,7 +340,10 @@ mod tests {
             }
             if !crossings.is_empty() {
                 let twice_loops = crossings.len() - tris.len();
-                assert!(twice_loops >= 2 && twice_loops.is_multiple_of(2), "case {case:08b}");
+                assert!(
+                    twice_loops >= 2 && twice_loops.is_multiple_of(2),
+                    "case {case:08b}"
+                );
             }
         }
     }
