@@ -14,6 +14,63 @@ pub struct FieldView {
     pub values: Vec<f32>,
 }
 
+/// A decoded surface mesh: counter-clockwise triangles facing out of the
+/// fluid.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SurfaceView {
+    pub vertices: Vec<[f32; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl SurfaceView {
+    /// Unpacks a surface message.
+    ///
+    /// # Errors
+    /// [`ClientError::Decode`] when a byte count is not whole vertices or
+    /// triangles, or a triangle names a vertex that does not exist.
+    pub fn from_proto(surface: v1::SurfaceMesh) -> Result<Self, ClientError> {
+        let v1::SurfaceMesh {
+            vertices,
+            triangles,
+        } = surface;
+        if vertices.len() % 12 != 0 || triangles.len() % 12 != 0 {
+            return Err(ClientError::Decode(format!(
+                "surface has {} vertex bytes and {} triangle bytes; both must be multiples of 12",
+                vertices.len(),
+                triangles.len()
+            )));
+        }
+        let words = |bytes: &[u8]| -> Vec<[u8; 4]> {
+            bytes
+                .chunks_exact(4)
+                .map(|c| [c[0], c[1], c[2], c[3]])
+                .collect()
+        };
+        let vertices: Vec<[f32; 3]> = words(&vertices)
+            .chunks_exact(3)
+            .map(|v| [0, 1, 2].map(|c| f32::from_le_bytes(v[c])))
+            .collect();
+        let triangles: Vec<[u32; 3]> = words(&triangles)
+            .chunks_exact(3)
+            .map(|t| [0, 1, 2].map(|c| u32::from_le_bytes(t[c])))
+            .collect();
+        if let Some(t) = triangles
+            .iter()
+            .position(|t| t.iter().any(|&i| i as usize >= vertices.len()))
+        {
+            return Err(ClientError::Decode(format!(
+                "surface triangle {t} is {:?}, but there are {} vertices",
+                triangles[t],
+                vertices.len()
+            )));
+        }
+        Ok(Self {
+            vertices,
+            triangles,
+        })
+    }
+}
+
 /// A decoded frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameView {
@@ -30,6 +87,8 @@ pub struct FrameView {
     pub fields: Vec<FieldView>,
     /// Every rigid body's pose, in scene order (empty without bodies).
     pub bodies: Vec<v1::BodyPose>,
+    /// The fluid's surface, when the scene's output asks for one.
+    pub surface: Option<SurfaceView>,
 }
 
 impl FrameView {
@@ -46,12 +105,14 @@ impl FrameView {
     ///
     /// # Errors
     /// [`ClientError::Decode`] for a missing header, an unknown scalar
-    /// type, or a field whose size does not match the particle count.
+    /// type, a field whose size does not match the particle count, or an
+    /// inconsistent surface.
     pub fn from_proto(frame: v1::Frame) -> Result<Self, ClientError> {
         let v1::Frame {
             header,
             fields,
             bodies,
+            surface,
         } = frame;
         let v1::FrameHeader {
             session_id,
@@ -112,6 +173,7 @@ impl FrameView {
             density_error,
             fields,
             bodies,
+            surface: surface.map(SurfaceView::from_proto).transpose()?,
         })
     }
 
@@ -147,6 +209,7 @@ mod tests {
                     .collect(),
             }],
             bodies: Vec::new(),
+            surface: None,
         }
     }
 
@@ -165,5 +228,35 @@ mod tests {
         let mut no_header = wire(2, 8);
         no_header.header = None;
         assert!(FrameView::from_proto(no_header).is_err());
+    }
+
+    fn le<T: Copy, const N: usize>(values: &[T], bytes: impl Fn(T) -> [u8; N]) -> Vec<u8> {
+        values.iter().flat_map(|&v| bytes(v)).collect()
+    }
+
+    #[test]
+    fn surfaces_decode_and_are_checked() {
+        let mut frame = wire(2, 8);
+        frame.surface = Some(v1::SurfaceMesh {
+            vertices: le(
+                &[0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+                f32::to_le_bytes,
+            ),
+            triangles: le(&[0u32, 1, 2], u32::to_le_bytes),
+        });
+        let surface = FrameView::from_proto(frame.clone())
+            .expect("valid")
+            .surface
+            .expect("a surface");
+        assert_eq!(surface.vertices[1], [1.0, 0.0, 0.0]);
+        assert_eq!(surface.triangles, vec![[0, 1, 2]]);
+
+        let mut bad = frame.clone();
+        bad.surface.as_mut().expect("surface").triangles = le(&[0u32, 1, 3], u32::to_le_bytes);
+        let err = FrameView::from_proto(bad).expect_err("vertex 3 does not exist");
+        assert!(err.to_string().contains("3 vertices"), "{err}");
+        let mut bad = frame;
+        bad.surface.as_mut().expect("surface").vertices.pop();
+        assert!(FrameView::from_proto(bad).is_err());
     }
 }

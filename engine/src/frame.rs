@@ -1,5 +1,6 @@
 //! Frames: immutable snapshots of the particle fields a scene asked for.
 
+use crate::geometry::TriMesh;
 use crate::math::Real;
 use crate::scene::FieldKind;
 
@@ -30,6 +31,8 @@ pub struct Frame {
     pub fields: Vec<FieldData>,
     /// Every rigid body's pose, in scene order (empty without bodies).
     pub bodies: Vec<BodyPose>,
+    /// The fluid's surface, when the scene asks for it (`output.surface`).
+    pub surface: Option<TriMesh>,
 }
 
 /// Where a rigid body is and how it moves, in the world frame.

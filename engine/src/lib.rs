@@ -18,6 +18,7 @@ pub mod math;
 pub mod neighbors;
 pub mod scene;
 pub mod stats;
+pub mod surface;
 #[cfg(test)]
 mod testing;
 pub mod world;

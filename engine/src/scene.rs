@@ -9,6 +9,7 @@ use crate::approx::KernelKind;
 use crate::fluid::ViscosityModel;
 use crate::math::Real;
 use crate::neighbors::{GridError, UniformGrid};
+use crate::surface::SurfaceExtractor;
 use crate::world::World;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -28,6 +29,12 @@ pub mod defaults {
     pub const NEGATIVE_PRESSURE_SCALE: Real = 0.0;
     pub const XSPH: Real = 0.1;
     pub const FRAME_EVERY: u32 = 1;
+    /// Surface grid cell as a multiple of the particle spacing: two nodes
+    /// per spacing resolve the half-spacing band the surface lies in.
+    pub const SURFACE_CELL_RATIO: Real = 0.5;
+    /// Colour-field level of the surface: halfway between inside (1) and
+    /// outside (0), where the particles' volumes end.
+    pub const SURFACE_ISO: Real = 0.5;
     pub const VISCOSITY: Real = 0.0;
     /// Morris's form matches the analytic decay of a Taylor–Green vortex
     /// within a few per cent; Eq. 52's kernel Laplacian dissipates too
@@ -171,6 +178,9 @@ pub struct OutputSpec {
     /// A frame every this many steps.
     #[serde(default = "default_frame_every")]
     pub frame_every: u32,
+    /// The fluid's surface mesh in every frame; none when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface: Option<SurfaceSpec>,
 }
 
 impl Default for OutputSpec {
@@ -178,7 +188,29 @@ impl Default for OutputSpec {
         Self {
             fields: Vec::new(),
             frame_every: defaults::FRAME_EVERY,
+            surface: None,
         }
+    }
+}
+
+/// The fluid surface each frame carries: the iso-surface of the SPH colour
+/// field, meshed by marching cubes (see [`crate::surface`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SurfaceSpec {
+    /// Grid cell, m; default half the fluid's particle spacing. Halving it
+    /// gives four times the triangles and eight times the field nodes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cell: Option<Real>,
+    /// Colour-field level of the surface, in (0, 1).
+    #[serde(default = "default_surface_iso")]
+    pub iso: Real,
+}
+
+impl SurfaceSpec {
+    /// The grid cell, with its default for a fluid of `spacing` applied.
+    pub fn cell(&self, spacing: Real) -> Real {
+        self.cell.unwrap_or(defaults::SURFACE_CELL_RATIO * spacing)
     }
 }
 
@@ -550,6 +582,9 @@ fn default_motion() -> MotionKind {
 fn default_slip() -> SlipKind {
     defaults::SLIP
 }
+fn default_surface_iso() -> Real {
+    defaults::SURFACE_ISO
+}
 
 /// Checks that `value` is finite and inside `[lo, hi]` (`hi` may be infinite).
 fn check_range(field: &str, value: Real, lo: Real, hi: Real) -> Result<(), SceneError> {
@@ -713,6 +748,9 @@ impl Scene {
                     self.validate_body(&format!("systems[{s}]"), body, fluid)?
                 }
             }
+        }
+        if let Some(surface) = &self.output.surface {
+            self.validate_surface(surface)?;
         }
         let count = self.particle_count();
         if count > options.max_particles as f64 {
@@ -927,6 +965,44 @@ impl Scene {
                  fluid's viscosity",
             ));
         }
+        Ok(())
+    }
+
+    /// The surface needs a 3D fluid, a positive cell, an iso value inside
+    /// (0, 1) and a grid over the domain within the node limit.
+    fn validate_surface(&self, surface: &SurfaceSpec) -> Result<(), SceneError> {
+        if self.dimension != 3 {
+            return Err(SceneError::invalid(
+                "output.surface",
+                "surfaces are meshed in 3D only (marching cubes); remove it or set dimension = 3",
+            ));
+        }
+        let Some(fluid) = self.fluid() else {
+            return Err(SceneError::invalid(
+                "output.surface",
+                "the scene has no fluid to mesh",
+            ));
+        };
+        if let Some(cell) = surface.cell {
+            check_positive("output.surface.cell", cell)?;
+        }
+        if !(surface.iso > 0.0 && surface.iso < 1.0) {
+            return Err(SceneError::invalid(
+                "output.surface.iso",
+                format!(
+                    "must lie strictly between 0 and 1 (1 inside the fluid, 0 outside), got {}",
+                    surface.iso
+                ),
+            ));
+        }
+        let kernel = crate::approx::Kernel::new(
+            fluid.density_kernel,
+            self.dimension,
+            fluid.support_radius(),
+        );
+        let (min, max) = self.simulation_box(fluid.support_radius());
+        SurfaceExtractor::new(kernel, surface.cell(fluid.spacing), surface.iso, min, max)
+            .map_err(|e| SceneError::invalid("output.surface.cell", e.to_string()))?;
         Ok(())
     }
 
@@ -1381,6 +1457,45 @@ mod tests {
         ))
         .expect_err("unknown key");
         assert!(err.to_string().contains("radios"), "{err}");
+    }
+
+    /// A surface is optional, defaults its cell to half the spacing, and
+    /// names its field when out of range, in 2D or too fine for the domain.
+    #[test]
+    fn surfaces_are_validated() {
+        let text = SMALL.replace("[time]", "[output]\nsurface = {}\n[time]");
+        let s = Scene::from_toml_str(&text).expect("surface with defaults");
+        let surface = s.output.surface.clone().expect("a surface");
+        assert_eq!((surface.cell(0.1), surface.iso), (0.05, 0.5));
+        s.validate(&BuildOptions::default()).expect("valid");
+        assert_eq!(
+            Scene::from_toml_str(&s.to_toml_string()).expect("round trip"),
+            s
+        );
+        assert_eq!(small().output.surface, None);
+
+        let with = |cell: Option<Real>, iso: Real| {
+            let mut s = s.clone();
+            s.output.surface = Some(SurfaceSpec { cell, iso });
+            s
+        };
+        assert_eq!(rejected_field(&with(Some(0.0), 0.5)), "output.surface.cell");
+        assert_eq!(
+            rejected_field(&with(Some(Real::NAN), 0.5)),
+            "output.surface.cell"
+        );
+        assert_eq!(rejected_field(&with(None, 1.0)), "output.surface.iso");
+        assert_eq!(rejected_field(&with(None, 0.0)), "output.surface.iso");
+        let err = with(Some(1e-4), 0.5)
+            .validate(&BuildOptions::default())
+            .expect_err("10^12 nodes");
+        assert!(err.to_string().starts_with("output.surface.cell:"), "{err}");
+        assert!(err.to_string().contains("limit"), "{err}");
+
+        let mut flat = s.clone();
+        flat.dimension = 2;
+        let err = flat.validate(&BuildOptions::default()).expect_err("2D");
+        assert!(err.to_string().contains("3D only"), "{err}");
     }
 
     #[test]

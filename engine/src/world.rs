@@ -6,7 +6,7 @@ use crate::fluid::{
     PressureSolver, RigidBodies, RigidBody, Rotation, Slip, Tait,
 };
 use crate::frame::{BodyPose, FieldData, Frame};
-use crate::geometry::Shape;
+use crate::geometry::{Shape, TriMesh};
 use crate::math::{Real, Vector, vector};
 use crate::neighbors::{Periodic, UniformGrid};
 use crate::scene::{
@@ -14,6 +14,7 @@ use crate::scene::{
     SystemSpec, WallModel,
 };
 use crate::stats::StageTimer;
+use crate::surface::SurfaceExtractor;
 
 /// Where a world is in time.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -70,6 +71,8 @@ pub struct World {
     backup: FluidState,
     timer: StageTimer,
     frame_fields: Vec<FieldKind>,
+    /// Meshes the fluid's surface into each frame, when the scene asks.
+    surface: Option<SurfaceExtractor>,
 }
 
 impl World {
@@ -88,6 +91,22 @@ impl World {
                 .collect();
             build_fluid(&scene, spec, &bodies)
         });
+        let surface = match (&scene.output.surface, &fluid, scene.fluid()) {
+            (Some(wanted), Some(built), Some(spec)) => {
+                let (min, max) = scene.simulation_box(built.params.support_radius);
+                Some(
+                    SurfaceExtractor::new(
+                        built.params.density_kernel,
+                        wanted.cell(spec.spacing),
+                        wanted.iso,
+                        min,
+                        max,
+                    )
+                    .expect("validated by Scene::validate"),
+                )
+            }
+            _ => None,
+        };
         let mut frame_fields = vec![FieldKind::Position];
         for &kind in &scene.output.fields {
             if !frame_fields.contains(&kind) {
@@ -102,6 +121,7 @@ impl World {
             backup: FluidState::default(),
             timer: StageTimer::default(),
             frame_fields,
+            surface,
         }
     }
 
@@ -227,7 +247,21 @@ impl World {
             particle_count: self.particle_count(),
             fields,
             bodies: self.body_poses(),
+            surface: self.surface_mesh(),
         }
+    }
+
+    /// The surface of the fluid, when the scene asks for one: the colour
+    /// field with each particle's volume `m / rho_i` from the last density
+    /// pass.
+    fn surface_mesh(&self) -> Option<TriMesh> {
+        let (surface, fluid) = (self.surface.as_ref()?, self.fluid.as_ref()?);
+        let volumes: Vec<Real> = fluid
+            .densities
+            .iter()
+            .map(|&rho| fluid.params.mass / rho)
+            .collect();
+        Some(surface.extract(&fluid.positions, &volumes))
     }
 
     /// Pose and velocity of every rigid body, in scene order.

@@ -248,8 +248,13 @@ density = 2000.0
     );
     let sinking = (heights[3] - heights[5]) / 0.5;
     println!("mean sinking speed over the last 0.5 s: {sinking:.4} m/s");
+    // Contact is resolved at the surface samples, which sit half a
+    // spacing (0.01 m) inside the faces; a box tilted by theta reaches
+    // `inset (cos theta + sin theta - 1)` further down at a corner, up to
+    // (sqrt(2) - 1) inset = 4.1 mm.
+    let tilt_allowance = (2.0f64.sqrt() - 1.0) * 0.01;
     assert!(
-        (0.0..0.02).contains(&lowest),
+        (-tilt_allowance..0.02).contains(&lowest),
         "lowest corner at {lowest} m, the floor is at 0"
     );
     assert!(sinking.abs() < 0.02, "still sinking at {sinking} m/s");

@@ -7,7 +7,8 @@ use meshless_engine::approx::KernelKind;
 use meshless_engine::fluid::ViscosityModel;
 use meshless_engine::scene::{
     Aabb, FluidBlock, FluidSpec, MotionKind, OscillationSpec, OutputSpec, ParticleSpec,
-    RigidBodySpec, ShapeSpec, SlipKind, SolverKind, SystemSpec, TimeSpec, WallModel, defaults,
+    RigidBodySpec, ShapeSpec, SlipKind, SolverKind, SurfaceSpec, SystemSpec, TimeSpec, WallModel,
+    defaults,
 };
 use meshless_engine::{FieldKind, Frame, Scene};
 use meshless_proto::v1;
@@ -187,6 +188,7 @@ pub fn scene_from_proto(spec: v1::SceneSpec) -> Result<Scene> {
         Some(v1::OutputSpec {
             fields,
             frame_every,
+            surface,
         }) => OutputSpec {
             fields: fields
                 .into_iter()
@@ -194,6 +196,13 @@ pub fn scene_from_proto(spec: v1::SceneSpec) -> Result<Scene> {
                 .map(|(i, f)| field_kind(f, &format!("output.fields[{i}]")))
                 .collect::<Result<_>>()?,
             frame_every: frame_every.unwrap_or(defaults::FRAME_EVERY),
+            surface: surface.map(|surface| {
+                let v1::SurfaceSpec { cell, iso } = surface;
+                SurfaceSpec {
+                    cell,
+                    iso: iso.unwrap_or(defaults::SURFACE_ISO),
+                }
+            }),
         },
     };
     Ok(Scene {
@@ -528,6 +537,13 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
                 .map(|&k| to_field_kind(k) as i32)
                 .collect(),
             frame_every: Some(scene.output.frame_every),
+            surface: scene.output.surface.as_ref().map(|surface| {
+                let spacing = scene.fluid().map(|f| f.spacing);
+                v1::SurfaceSpec {
+                    cell: spacing.map_or(surface.cell, |dx| Some(surface.cell(dx))),
+                    iso: Some(surface.iso),
+                }
+            }),
         }),
     }
 }
@@ -574,6 +590,18 @@ pub fn frame_to_proto(session_id: &str, frame: &Frame) -> v1::Frame {
                 }
             })
             .collect(),
+        surface: frame.surface.as_ref().map(|mesh| v1::SurfaceMesh {
+            vertices: mesh
+                .vertices
+                .iter()
+                .flat_map(|v| v.iter().flat_map(|&c| (c as f32).to_le_bytes()))
+                .collect(),
+            triangles: mesh
+                .triangles
+                .iter()
+                .flat_map(|t| t.iter().flat_map(|i| i.to_le_bytes()))
+                .collect(),
+        }),
     }
 }
 
@@ -671,5 +699,47 @@ mod tests {
         let x0 = f32::from_le_bytes(positions.data[0..4].try_into().expect("4 bytes"));
         assert_eq!(x0, frame.fields[0].values[0]);
         assert_eq!(wire.header.expect("header").fields.len(), wire.fields.len());
+        assert_eq!(wire.surface, None, "no surface unless the scene asks");
+    }
+
+    /// A surface request crosses with its default cell made explicit, and
+    /// a frame's mesh goes out as packed f32 vertices and u32 indices.
+    #[test]
+    fn surfaces_cross_the_protocol() {
+        let mut scene = dam_break();
+        scene.output.surface = Some(SurfaceSpec {
+            cell: None,
+            iso: 0.4,
+        });
+        let spec = scene_to_proto(&scene);
+        let wire = spec
+            .output
+            .as_ref()
+            .and_then(|o| o.surface)
+            .expect("surface");
+        assert_eq!((wire.cell, wire.iso), (Some(0.01), Some(0.4)));
+        let back = scene_from_proto(spec).expect("round trip");
+        assert_eq!(
+            back.output.surface,
+            Some(SurfaceSpec {
+                cell: Some(0.01),
+                iso: 0.4
+            })
+        );
+
+        let frame = back.build(&BuildOptions::default()).expect("world").frame();
+        let mesh = frame.surface.as_ref().expect("a surface");
+        let wire = frame_to_proto("s", &frame).surface.expect("on the wire");
+        assert_eq!(wire.vertices.len(), 12 * mesh.vertices.len());
+        assert_eq!(wire.triangles.len(), 12 * mesh.triangles.len());
+        let last = mesh.vertices.len() - 1;
+        let z = f32::from_le_bytes(
+            wire.vertices[12 * last + 8..12 * last + 12]
+                .try_into()
+                .expect("4"),
+        );
+        assert_eq!(z, mesh.vertices[last].z as f32);
+        let t = u32::from_le_bytes(wire.triangles[4..8].try_into().expect("4 bytes"));
+        assert_eq!(t, mesh.triangles[0][1]);
     }
 }

@@ -76,6 +76,49 @@ async fn run_writes_a_vtk_series() {
     assert!(first.windows(16).any(|w| w == b"POINTS 125 float"));
 }
 
+/// A scene that asks for a surface gets a mesh file beside each frame, in
+/// the format `--surface-format` names.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn run_writes_surfaces_beside_the_frames() {
+    let dir = TempDir::new("surface");
+    let scene = dir.file(
+        "surface.toml",
+        &small_scene().replace("[output]", "[output]\nsurface = { cell = 0.02 }"),
+    );
+    let out = dir.0.join("frames");
+    let output = meshless(&[
+        "run",
+        scene.to_str().expect("utf-8"),
+        "--until",
+        "0.02",
+        "--format",
+        "ply",
+        "--surface-format",
+        "ply",
+        "--output",
+        out.to_str().expect("utf-8"),
+    ])
+    .await;
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(stdout.contains("surface_*.ply  (3 files)"), "{stdout}");
+    let mut files: Vec<_> = std::fs::read_dir(&out)
+        .expect("output folder")
+        .map(|e| e.expect("entry").file_name().into_string().expect("utf-8"))
+        .collect();
+    files.sort();
+    let mut expected: Vec<_> = (0..=2).map(|s| format!("frame_{s:06}.ply")).collect();
+    expected.extend((0..=2).map(|s| format!("surface_{s:06}.ply")));
+    assert_eq!(files, expected);
+    let mesh = std::fs::read(out.join("surface_000002.ply")).expect("surface file");
+    assert!(mesh.starts_with(b"ply\nformat binary_little_endian 1.0\n"));
+    assert!(mesh.windows(13).any(|w| w == b"element face "));
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_bad_scene_file_fails_with_the_field_named() {
     let dir = TempDir::new("bad");

@@ -25,8 +25,18 @@ def latest_key(session_id: str) -> str:
 
 
 @dataclass
+class Surface:
+    """A fluid surface mesh: ``(v, 3)`` float32 vertices and ``(t, 3)``
+    uint32 triangles, counter-clockwise seen from outside the fluid."""
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+
+
+@dataclass
 class Frame:
-    """A decoded frame: header values and one ``(n, components)`` array per field."""
+    """A decoded frame: header values, one ``(n, components)`` array per
+    field, and the surface when the scene asks for one."""
 
     session_id: str
     step: int
@@ -34,6 +44,22 @@ class Frame:
     particle_count: int
     substeps: int
     fields: dict[str, np.ndarray] = field(default_factory=dict)
+    surface: Surface | None = None
+
+
+def decode_surface(message) -> Surface:
+    """Unpacks a ``meshless.v1.SurfaceMesh``; ``ValueError`` when a byte
+    count is not whole vertices or triangles or an index is out of range."""
+    if len(message.vertices) % 12 or len(message.triangles) % 12:
+        raise ValueError(
+            f"surface: {len(message.vertices)} vertex bytes and {len(message.triangles)} "
+            "triangle bytes, both must be multiples of 12"
+        )
+    vertices = np.frombuffer(message.vertices, dtype="<f4").reshape(-1, 3)
+    triangles = np.frombuffer(message.triangles, dtype="<u4").reshape(-1, 3)
+    if triangles.size and int(triangles.max()) >= len(vertices):
+        raise ValueError(f"surface: index {int(triangles.max())} but {len(vertices)} vertices")
+    return Surface(vertices=vertices, triangles=triangles)
 
 
 def decode_frame(data: bytes) -> Frame:
@@ -64,4 +90,5 @@ def decode_frame(data: bytes) -> Frame:
         particle_count=n,
         substeps=header.substeps,
         fields=fields,
+        surface=decode_surface(message.surface) if message.HasField("surface") else None,
     )

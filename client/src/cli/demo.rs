@@ -3,7 +3,7 @@
 //! break; this command drives it as any remote client would: gRPC for
 //! control and status, zenoh for frames.
 
-use super::output::{Format, FrameFiles, engine_frame};
+use super::output::{Format, FrameFiles, SurfaceFormat, engine_frame};
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use meshless_client::{Client, ZenohLink, v1};
@@ -31,6 +31,9 @@ pub struct DemoArgs {
     output: PathBuf,
     #[arg(long, value_enum, default_value = "vtk")]
     format: Format,
+    /// Format of the surface files, when the scene asks for a surface.
+    #[arg(long, value_enum, default_value = "obj")]
+    surface_format: SurfaceFormat,
 }
 
 pub async fn demo(args: DemoArgs) -> Result<()> {
@@ -64,7 +67,7 @@ async fn drive(
 
     let link = ZenohLink::connect(&info.zenoh_locators).await?;
     let frames = link.frames(&id).await?;
-    let files = FrameFiles::start(&args.output, args.format)?;
+    let files = FrameFiles::start(&args.output, args.format, args.surface_format)?;
     let mut received = 0usize;
     let mut last_step = 0;
     if let Some(first) = link.latest_frame(&id).await? {
@@ -108,7 +111,7 @@ async fn drive(
     }
     let wall = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    let pattern = files.pattern();
+    let (pattern, surfaces) = (files.pattern(), files.surface_pattern());
     let written = files.finish()?;
     let end = client.get_session(&id).await?;
     let status = end.status.unwrap_or_default();
@@ -135,6 +138,15 @@ async fn drive(
         "  frames received   {received} of {published} over zenoh (key {}/frames)",
         session.zenoh_key_prefix
     );
-    println!("  output            {pattern}  ({written} files; ParaView opens them as a series)");
+    println!(
+        "  output            {pattern}  ({} files; ParaView opens them as a series)",
+        written.frames
+    );
+    if written.surfaces > 0 {
+        println!(
+            "  surfaces          {surfaces}  ({} files)",
+            written.surfaces
+        );
+    }
     Ok(())
 }

@@ -3,7 +3,9 @@
 
 use anyhow::{Context, Result};
 use meshless_client::{FrameView, v1};
-use meshless_engine::io::{ExportFormat, write_frame};
+use meshless_engine::geometry::TriMesh;
+use meshless_engine::io::{ExportFormat, MeshFormat, write_frame, write_surface};
+use meshless_engine::math::Vector;
 use meshless_engine::{BodyPose, FieldData, FieldKind, Frame};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
@@ -27,23 +29,52 @@ impl From<Format> for ExportFormat {
     }
 }
 
-/// A background writer of frame files.
+/// The `--surface-format` flag: how surface meshes are written, when the
+/// scene's frames carry them (`[output] surface`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum SurfaceFormat {
+    /// Wavefront OBJ text, opened by nearly every 3D tool.
+    Obj,
+    /// Binary PLY with faces, smaller; Blender, MeshLab and ParaView.
+    Ply,
+}
+
+impl From<SurfaceFormat> for MeshFormat {
+    fn from(format: SurfaceFormat) -> Self {
+        match format {
+            SurfaceFormat::Obj => MeshFormat::Obj,
+            SurfaceFormat::Ply => MeshFormat::Ply,
+        }
+    }
+}
+
+/// Files a writer produced.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Written {
+    pub frames: usize,
+    pub surfaces: usize,
+}
+
+/// A background writer of frame files, and of surface files for frames
+/// that carry a surface.
 #[derive(Debug)]
 pub struct FrameFiles {
     dir: PathBuf,
     format: ExportFormat,
+    surface_format: MeshFormat,
     frames: mpsc::Sender<Frame>,
-    thread: JoinHandle<Result<usize>>,
+    thread: JoinHandle<Result<Written>>,
 }
 
 impl FrameFiles {
-    /// Creates `dir` and removes frame files an earlier run left there, so
-    /// the folder holds one series.
+    /// Creates `dir` and removes frame and surface files an earlier run
+    /// left there, so the folder holds one series.
     ///
     /// # Errors
     /// When the folder cannot be created or cleaned.
-    pub fn start(dir: &Path, format: Format) -> Result<Self> {
+    pub fn start(dir: &Path, format: Format, surface_format: SurfaceFormat) -> Result<Self> {
         let format = ExportFormat::from(format);
+        let surface_format = MeshFormat::from(surface_format);
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         for entry in std::fs::read_dir(dir)? {
             let path = entry?.path();
@@ -51,7 +82,11 @@ impl FrameFiles {
                 .file_name()
                 .and_then(|n| n.to_str())
                 .unwrap_or_default();
-            if name.starts_with("frame_") && (name.ends_with(".vtk") || name.ends_with(".ply")) {
+            let frame =
+                name.starts_with("frame_") && [".vtk", ".ply"].iter().any(|e| name.ends_with(e));
+            let surface =
+                name.starts_with("surface_") && [".obj", ".ply"].iter().any(|e| name.ends_with(e));
+            if frame || surface {
                 std::fs::remove_file(&path)
                     .with_context(|| format!("cannot remove {}", path.display()))?;
             }
@@ -59,16 +94,21 @@ impl FrameFiles {
         let (frames, received) = mpsc::channel::<Frame>();
         let out = dir.to_path_buf();
         let thread = std::thread::spawn(move || {
-            let mut written = 0;
+            let mut written = Written::default();
             for frame in received {
                 write_frame(&out, format, &frame)?;
-                written += 1;
+                written.frames += 1;
+                if let Some(mesh) = &frame.surface {
+                    write_surface(&out, surface_format, frame.step, mesh)?;
+                    written.surfaces += 1;
+                }
             }
             Ok(written)
         });
         Ok(Self {
             dir: dir.to_path_buf(),
             format,
+            surface_format,
             frames,
             thread,
         })
@@ -81,11 +121,12 @@ impl FrameFiles {
         let _ = self.frames.send(frame);
     }
 
-    /// Waits for every queued frame and returns how many were written.
+    /// Waits for every queued frame and returns how many files were
+    /// written.
     ///
     /// # Errors
     /// The first write error.
-    pub fn finish(self) -> Result<usize> {
+    pub fn finish(self) -> Result<Written> {
         drop(self.frames);
         self.thread
             .join()
@@ -95,6 +136,15 @@ impl FrameFiles {
     /// `dir/frame_*.ext`, for the summary.
     pub fn pattern(&self) -> String {
         format!("{}/frame_*.{}", self.dir.display(), self.format.extension())
+    }
+
+    /// `dir/surface_*.ext`, for the summary.
+    pub fn surface_pattern(&self) -> String {
+        format!(
+            "{}/surface_*.{}",
+            self.dir.display(),
+            self.surface_format.extension()
+        )
     }
 }
 
@@ -128,6 +178,14 @@ pub fn engine_frame(frame: FrameView) -> Frame {
         particle_count: frame.particle_count,
         fields,
         bodies: frame.bodies.iter().map(body_pose).collect(),
+        surface: frame.surface.map(|surface| TriMesh {
+            vertices: surface
+                .vertices
+                .iter()
+                .map(|v| Vector::from(v.map(f64::from)))
+                .collect(),
+            triangles: surface.triangles,
+        }),
     }
 }
 

@@ -1,6 +1,6 @@
 //! `meshless run SCENE`: the engine in this process, no server.
 
-use super::output::{Format, FrameFiles};
+use super::output::{Format, FrameFiles, SurfaceFormat};
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use meshless_engine::{BuildOptions, Scene};
@@ -19,6 +19,10 @@ pub struct RunArgs {
     output: PathBuf,
     #[arg(long, value_enum, default_value = "vtk")]
     format: Format,
+    /// Format of the surface files, written as surface_STEP.EXT beside the
+    /// frames when the scene asks for a surface ([output] surface).
+    #[arg(long, value_enum, default_value = "obj")]
+    surface_format: SurfaceFormat,
     /// Worker threads for the engine (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
@@ -40,7 +44,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     let scene = Scene::from_toml_file(&args.scene)?;
     let mut world = scene.build(&BuildOptions::default())?;
     let steps = (args.until / scene.time.dt - 1e-9).ceil() as u64;
-    let files = FrameFiles::start(&args.output, args.format)?;
+    let files = FrameFiles::start(&args.output, args.format, args.surface_format)?;
     files.write(world.frame());
 
     let bar = ProgressBar::new(steps).with_style(
@@ -65,7 +69,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     bar.finish_and_clear();
     let wall = start.elapsed().as_secs_f64();
-    let pattern = files.pattern();
+    let (pattern, surfaces) = (files.pattern(), files.surface_pattern());
     let written = files.finish()?;
     let particles = world.particle_count() as f64;
     println!("meshless run: {}", args.scene.display());
@@ -95,6 +99,15 @@ pub fn run(args: RunArgs) -> Result<()> {
             stats.runs
         );
     }
-    println!("  output            {pattern}  ({written} files; ParaView opens them as a series)");
+    println!(
+        "  output            {pattern}  ({} files; ParaView opens them as a series)",
+        written.frames
+    );
+    if written.surfaces > 0 {
+        println!(
+            "  surfaces          {surfaces}  ({} files)",
+            written.surfaces
+        );
+    }
     Ok(())
 }

@@ -1,13 +1,15 @@
 //! Frame export in formats standard tools open: legacy VTK for ParaView
 //! (a numbered series opens as one time series) and PLY point clouds for
-//! Blender and MeshLab.
+//! Blender and MeshLab; surface meshes as OBJ or PLY.
 
+mod mesh;
 mod ply;
 mod vtk;
 
 use crate::frame::Frame;
 use std::path::{Path, PathBuf};
 
+pub use mesh::{MeshFormat, write_mesh_ply, write_obj, write_surface};
 pub use ply::write_ply;
 pub use vtk::write_vtk;
 
@@ -74,6 +76,7 @@ pub(crate) mod test_frame {
                 },
             ],
             bodies: Vec::new(),
+            surface: None,
         }
     }
 }
