@@ -34,6 +34,19 @@ class Surface:
 
 
 @dataclass
+class Body:
+    """A rigid body's pose: ``system`` is its index in the scene's
+    systems; ``orientation`` the unit quaternion ``(x, y, z, w)`` turning
+    the body frame into the world frame; float64 arrays."""
+
+    system: int
+    position: np.ndarray
+    orientation: np.ndarray
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+
+
+@dataclass
 class Frame:
     """A decoded frame: header values, one ``(n, components)`` array per
     field, and the surface when the scene asks for one."""
@@ -45,6 +58,7 @@ class Frame:
     substeps: int
     fields: dict[str, np.ndarray] = field(default_factory=dict)
     surface: Surface | None = None
+    bodies: list[Body] = field(default_factory=list)
 
 
 def decode_surface(message) -> Surface:
@@ -60,6 +74,22 @@ def decode_surface(message) -> Surface:
     if triangles.size and int(triangles.max()) >= len(vertices):
         raise ValueError(f"surface: index {int(triangles.max())} but {len(vertices)} vertices")
     return Surface(vertices=vertices, triangles=triangles)
+
+
+def decode_body(pose) -> Body:
+    """Unpacks a ``meshless.v1.BodyPose``."""
+
+    def vec3(v) -> np.ndarray:
+        return np.array([v.x, v.y, v.z], dtype=np.float64)
+
+    q = pose.orientation
+    return Body(
+        system=pose.system,
+        position=vec3(pose.position),
+        orientation=np.array([q.x, q.y, q.z, q.w], dtype=np.float64),
+        velocity=vec3(pose.velocity),
+        angular_velocity=vec3(pose.angular_velocity),
+    )
 
 
 def decode_frame(data: bytes) -> Frame:
@@ -91,4 +121,5 @@ def decode_frame(data: bytes) -> Frame:
         substeps=header.substeps,
         fields=fields,
         surface=decode_surface(message.surface) if message.HasField("surface") else None,
+        bodies=[decode_body(pose) for pose in message.bodies],
     )

@@ -160,3 +160,33 @@ def test_frames_carry_the_surface_the_scene_asks_for(server):
     plain = sim.CreateSession(pb.CreateSessionRequest(scene_toml=SCENE), timeout=TIMEOUT)
     latest = sim.GetLatestFrame(pb.SessionRef(session_id=plain.id), timeout=TIMEOUT)
     assert decode_frame(latest.SerializeToString()).surface is None
+
+
+def test_frames_carry_rigid_body_poses(server):
+    from meshless.v1 import simulation_pb2 as pb
+
+    sim = stub(server)
+    ball = """
+[[systems]]
+kind = "rigid_body"
+shape = { type = "sphere", radius = 0.05 }
+position = [0.35, 0.44, 0.25]
+motion = "dynamic"
+density = 500.0
+"""
+    session = sim.CreateSession(pb.CreateSessionRequest(scene_toml=SCENE + ball), timeout=TIMEOUT)
+    sim.Step(pb.StepRequest(session_id=session.id, steps=5), timeout=TIMEOUT)
+    frame = decode_frame(
+        sim.GetLatestFrame(pb.SessionRef(session_id=session.id), timeout=TIMEOUT).SerializeToString()
+    )
+    assert len(frame.bodies) == 1
+    body = frame.bodies[0]
+    assert body.system == 1
+    assert np.isclose(np.linalg.norm(body.orientation), 1.0)
+    # Five steps of 0.01 s in free fall, out of the water's reach. The
+    # symplectic Euler sub-steps give v = g t exactly, and a drop between
+    # g t^2 / 2 and g t^2 / 2 + g t dt / 2 for sub-steps no longer than dt.
+    g, t = 9.81, 0.05
+    assert abs(body.velocity[1] + g * t) < 1e-9, body.velocity
+    drop = 0.44 - body.position[1]
+    assert 0.5 * g * t * t < drop <= 0.5 * g * t * (t + 0.01), body.position
