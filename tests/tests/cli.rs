@@ -43,12 +43,33 @@ async fn meshless(args: &[&str]) -> std::process::Output {
         .expect("runs")
 }
 
+/// Runs `meshless` and returns its stdout, failing with its stderr.
+async fn meshless_ok(args: &[&str]) -> String {
+    let output = meshless(args).await;
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    String::from_utf8_lossy(&output.stdout).into_owned()
+}
+
+/// The names of the files in `dir`, sorted.
+fn listing(dir: &std::path::Path) -> Vec<String> {
+    let mut files: Vec<_> = std::fs::read_dir(dir)
+        .expect("output folder")
+        .map(|e| e.expect("entry").file_name().into_string().expect("utf-8"))
+        .collect();
+    files.sort();
+    files
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn run_writes_a_vtk_series() {
     let dir = TempDir::new("run");
     let scene = dir.file("small.toml", &small_scene());
     let out = dir.0.join("frames");
-    let output = meshless(&[
+    let stdout = meshless_ok(&[
         "run",
         scene.to_str().expect("utf-8"),
         "--until",
@@ -57,18 +78,8 @@ async fn run_writes_a_vtk_series() {
         out.to_str().expect("utf-8"),
     ])
     .await;
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(stdout.contains("particles         125"), "{stdout}");
-    let mut files: Vec<_> = std::fs::read_dir(&out)
-        .expect("output folder")
-        .map(|e| e.expect("entry").file_name().into_string().expect("utf-8"))
-        .collect();
-    files.sort();
+    let files = listing(&out);
     let expected: Vec<_> = (0..=5).map(|s| format!("frame_{s:06}.vtk")).collect();
     assert_eq!(files, expected);
     let first = std::fs::read(out.join("frame_000005.vtk")).expect("frame file");
@@ -86,7 +97,7 @@ async fn run_writes_surfaces_beside_the_frames() {
         &small_scene().replace("[output]", "[output]\nsurface = { cell = 0.02 }"),
     );
     let out = dir.0.join("frames");
-    let output = meshless(&[
+    let stdout = meshless_ok(&[
         "run",
         scene.to_str().expect("utf-8"),
         "--until",
@@ -99,18 +110,8 @@ async fn run_writes_surfaces_beside_the_frames() {
         out.to_str().expect("utf-8"),
     ])
     .await;
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(stdout.contains("surface_*.ply  (3 files)"), "{stdout}");
-    let mut files: Vec<_> = std::fs::read_dir(&out)
-        .expect("output folder")
-        .map(|e| e.expect("entry").file_name().into_string().expect("utf-8"))
-        .collect();
-    files.sort();
+    let files = listing(&out);
     let mut expected: Vec<_> = (0..=2).map(|s| format!("frame_{s:06}.ply")).collect();
     expected.extend((0..=2).map(|s| format!("surface_{s:06}.ply")));
     assert_eq!(files, expected);
@@ -240,7 +241,7 @@ async fn demo_runs_the_whole_service_in_process() {
     let dir = TempDir::new("demo");
     let scene = dir.file("small.toml", &small_scene());
     let out = dir.0.join("frames");
-    let output = meshless(&[
+    let stdout = meshless_ok(&[
         "demo",
         "--scene",
         scene.to_str().expect("utf-8"),
@@ -252,12 +253,6 @@ async fn demo_runs_the_whole_service_in_process() {
         out.to_str().expect("utf-8"),
     ])
     .await;
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(
         stdout.contains("simulated         0.100 s in 10 steps"),
         "{stdout}"
@@ -278,7 +273,7 @@ async fn study_writes_error_against_cost() {
         .replace("spacing = 0.02", "spacing = 0.04")
         .replace("support_radius = 0.04", "support_radius = 0.08");
     let scene = dir.file("coarse.toml", &coarse);
-    let output = meshless(&[
+    meshless_ok(&[
         "study",
         "--knob",
         "cfl",
@@ -290,11 +285,6 @@ async fn study_writes_error_against_cost() {
         dir.0.to_str().expect("utf-8"),
     ])
     .await;
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
     let csv = std::fs::read_to_string(dir.0.join("study_cfl.csv")).expect("csv");
     let rows: Vec<&str> = csv.lines().collect();
     assert_eq!(rows.len(), 3, "{csv}");

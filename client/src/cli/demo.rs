@@ -138,15 +138,6 @@ async fn drive(
         "  frames received   {received} of {published} over zenoh (key {}/frames)",
         session.zenoh_key_prefix
     );
-    println!(
-        "  output            {pattern}  ({} files; ParaView opens them as a series)",
-        written.frames
-    );
-    if written.surfaces > 0 {
-        println!(
-            "  surfaces          {surfaces}  ({} files)",
-            written.surfaces
-        );
-    }
+    written.print(&pattern, &surfaces);
     Ok(())
 }

@@ -55,6 +55,22 @@ pub struct Written {
     pub surfaces: usize,
 }
 
+impl Written {
+    /// The summary lines naming the files, for `run` and `demo`.
+    pub fn print(&self, pattern: &str, surface_pattern: &str) {
+        println!(
+            "  output            {pattern}  ({} files; ParaView opens them as a series)",
+            self.frames
+        );
+        if self.surfaces > 0 {
+            println!(
+                "  surfaces          {surface_pattern}  ({} files)",
+                self.surfaces
+            );
+        }
+    }
+}
+
 /// A background writer of frame files, and of surface files for frames
 /// that carry a surface.
 #[derive(Debug)]

@@ -99,15 +99,6 @@ pub fn run(args: RunArgs) -> Result<()> {
             stats.runs
         );
     }
-    println!(
-        "  output            {pattern}  ({} files; ParaView opens them as a series)",
-        written.frames
-    );
-    if written.surfaces > 0 {
-        println!(
-            "  surfaces          {surfaces}  ({} files)",
-            written.surfaces
-        );
-    }
+    written.print(&pattern, &surfaces);
     Ok(())
 }
