@@ -80,7 +80,12 @@ impl Polynomial {
                 }
             }
         }
-        Self { dim, constant, linear, quadratic }
+        Self {
+            dim,
+            constant,
+            linear,
+            quadratic,
+        }
     }
 
     fn value(&self, x: &Vector) -> Real {
@@ -116,13 +121,17 @@ fn reproduction(dim: usize, order: Order, jitter: Real, seed: &mut u64) -> Error
         let f = Polynomial::random(dim, order, seed);
         let values: Vec<Real> = nodes.iter().map(|x| f.value(x)).collect();
         let value_scale = values.iter().fold(0.0, |m: Real, v| m.max(v.abs()));
-        let gradient_scale = nodes.iter().fold(1e-300, |m: Real, x| m.max(f.gradient(x).norm()));
+        let gradient_scale = nodes
+            .iter()
+            .fold(1e-300, |m: Real, x| m.max(f.gradient(x).norm()));
         for _ in 0..20 {
             let mut x = centre(dim);
             for a in 0..dim {
                 x[a] += 1.5 * spacing * (2.0 * uniform(seed) - 1.0);
             }
-            let fit = mls.shape_functions(&x, &nodes, &mut shape).expect("support");
+            let fit = mls
+                .shape_functions(&x, &nodes, &mut shape)
+                .expect("support");
             assert_eq!(fit.order, order, "{dim}D {order:?} at {x:?}: fell back");
             assert!(shape.values().iter().all(|v| v.is_finite()));
             let value_error = (shape.interpolate(&values) - f.value(&x)).abs() / value_scale;
@@ -174,8 +183,15 @@ fn mls_reproduces_polynomials_of_its_order() {
                     e.value,
                     e.gradient
                 );
-                for (what, error) in [("value", e.value), ("gradient", e.gradient), ("direct gradient", e.direct)] {
-                    assert!(error < 1e-10, "{dim}D {order:?} {layout}: {what} error {error:e}");
+                for (what, error) in [
+                    ("value", e.value),
+                    ("gradient", e.gradient),
+                    ("direct gradient", e.direct),
+                ] {
+                    assert!(
+                        error < 1e-10,
+                        "{dim}D {order:?} {layout}: {what} error {error:e}"
+                    );
                 }
             }
         }
@@ -213,10 +229,14 @@ fn lagrangian_gradients_recover_affine_deformations() {
     for order in [Order::Linear, Order::Quadratic] {
         let mls = Mls::new(3, MlsParams::new(order, h)).expect("valid parameters");
         for kind in [GradientKind::Direct, GradientKind::ShapeFunctions] {
-            let pre = LagrangianGradients::build(&mls, kind, &positions, &list).expect("precompute");
+            let pre =
+                LagrangianGradients::build(&mls, kind, &positions, &list).expect("precompute");
             assert_eq!(pre.len(), positions.len());
             let lowered = pre.orders().iter().filter(|&&o| o != order).count();
-            println!("{order:?} {kind:?}: {lowered} of {} particles fell back", pre.len());
+            println!(
+                "{order:?} {kind:?}: {lowered} of {} particles fell back",
+                pre.len()
+            );
             assert!(pre.orders().iter().all(|&o| o >= Order::Linear));
 
             let mut shape = ShapeFunctions::new();
@@ -230,7 +250,8 @@ fn lagrangian_gradients_recover_affine_deformations() {
                         direct.weights()
                     }
                     GradientKind::ShapeFunctions => {
-                        mls.shape_functions(&positions[i], &nodes, &mut shape).expect("support");
+                        mls.shape_functions(&positions[i], &nodes, &mut shape)
+                            .expect("support");
                         shape.gradients()
                     }
                 };
@@ -240,7 +261,10 @@ fn lagrangian_gradients_recover_affine_deformations() {
             pre.vector_gradients(&displacement, &mut gradients);
             for (i, g) in gradients.iter().enumerate() {
                 let error = (g - a).norm() / a.norm();
-                assert!(error < 1e-10, "{order:?} {kind:?}: particle {i} gradient error {error:e}\n{g}");
+                assert!(
+                    error < 1e-10,
+                    "{order:?} {kind:?}: particle {i} gradient error {error:e}\n{g}"
+                );
             }
         }
     }

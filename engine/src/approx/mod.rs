@@ -8,4 +8,7 @@ pub mod mls;
 pub mod operators;
 
 pub use kernels::{Kernel, KernelKind};
-pub use mls::{Fit, GradientKind, GradientWeights, LagrangianGradients, Mls, MlsError, MlsParams, Order, ShapeFunctions};
+pub use mls::{
+    Fit, GradientKind, GradientWeights, LagrangianGradients, Mls, MlsError, MlsParams, Order,
+    ShapeFunctions,
+};

@@ -102,11 +102,17 @@ mod tests {
     /// The sizes are those of complete polynomial spaces, `C(d + n, n)`.
     #[test]
     fn sizes_are_binomial() {
-        let binomial = |n: usize, k: usize| -> usize { (1..=k).map(|i| (n + 1 - i)).product::<usize>() / (1..=k).product::<usize>() };
+        let binomial = |n: usize, k: usize| -> usize {
+            (1..=k).map(|i| n + 1 - i).product::<usize>() / (1..=k).product::<usize>()
+        };
         for dim in 1..=3 {
             for order in Order::ALL {
                 let n = order.degree();
-                assert_eq!(order.basis_size(dim), binomial(dim + n, n), "{dim}D {order:?}");
+                assert_eq!(
+                    order.basis_size(dim),
+                    binomial(dim + n, n),
+                    "{dim}D {order:?}"
+                );
             }
         }
     }
@@ -129,7 +135,10 @@ mod tests {
                 );
                 for n in 0..m {
                     let fd = (bp.p[n] - bm.p[n]) / (2.0 * eps);
-                    assert!((fd - b.dp[k][n]).abs() < 1e-8, "{dim}D d/ds_{k} of monomial {n}");
+                    assert!(
+                        (fd - b.dp[k][n]).abs() < 1e-8,
+                        "{dim}D d/ds_{k} of monomial {n}"
+                    );
                 }
             }
         }

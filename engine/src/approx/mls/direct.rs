@@ -46,7 +46,11 @@ impl GradientWeights {
 
     /// `sum_j g_j (f_j - f_x)`.
     pub fn gradient(&self, f: &[Real], f_x: Real) -> Vector {
-        self.weights.iter().zip(f).map(|(g, f)| g * (*f - f_x)).sum()
+        self.weights
+            .iter()
+            .zip(f)
+            .map(|(g, f)| g * (*f - f_x))
+            .sum()
     }
 }
 

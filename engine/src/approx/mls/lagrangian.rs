@@ -86,46 +86,54 @@ impl LagrangianGradients {
         // Split the flat weights into one contiguous slice per chunk.
         let mut items = Vec::with_capacity(n.div_ceil(CHUNK));
         let mut rest = weights.as_mut_slice();
-        for ((c, orders), conditions) in orders.chunks_mut(CHUNK).enumerate().zip(conditions.chunks_mut(CHUNK)) {
+        for ((c, orders), conditions) in orders
+            .chunks_mut(CHUNK)
+            .enumerate()
+            .zip(conditions.chunks_mut(CHUNK))
+        {
             let first = c * CHUNK;
             let len = (offsets[first + orders.len()] - offsets[first]) as usize;
             let (chunk, tail) = rest.split_at_mut(len);
             rest = tail;
             items.push((first, chunk, orders, conditions));
         }
-        items.into_par_iter().try_for_each(|(first, chunk, orders, conditions)| {
-            let mut nodes = Vec::new();
-            let mut shape = ShapeFunctions::new();
-            let mut direct = GradientWeights::new();
-            let base = offsets[first] as usize;
-            for (k, (order, condition)) in orders.iter_mut().zip(conditions.iter_mut()).enumerate() {
-                let i = first + k;
-                let (lo, hi) = (offsets[i] as usize, offsets[i + 1] as usize);
-                nodes.clear();
-                nodes.extend(neighbours[lo..hi].iter().map(|&j| positions[j as usize]));
-                let out = &mut chunk[lo - base..hi - base];
-                let fit: Fit = match kind {
-                    GradientKind::Direct => {
-                        let fit = mls.gradient_weights(&positions[i], &nodes, &mut direct);
-                        out.copy_from_slice(direct.weights());
-                        fit
-                    }
-                    GradientKind::ShapeFunctions => {
-                        let fit = mls
-                            .shape_functions(&positions[i], &nodes, &mut shape)
-                            .map_err(|e| MlsError::AtParticle {
-                                particle: i,
-                                source: Box::new(e),
-                            })?;
-                        out.copy_from_slice(shape.gradients());
-                        fit
-                    }
-                };
-                *order = fit.order;
-                *condition = fit.condition;
-            }
-            Ok(())
-        })?;
+        items
+            .into_par_iter()
+            .try_for_each(|(first, chunk, orders, conditions)| {
+                let mut nodes = Vec::new();
+                let mut shape = ShapeFunctions::new();
+                let mut direct = GradientWeights::new();
+                let base = offsets[first] as usize;
+                for (k, (order, condition)) in
+                    orders.iter_mut().zip(conditions.iter_mut()).enumerate()
+                {
+                    let i = first + k;
+                    let (lo, hi) = (offsets[i] as usize, offsets[i + 1] as usize);
+                    nodes.clear();
+                    nodes.extend(neighbours[lo..hi].iter().map(|&j| positions[j as usize]));
+                    let out = &mut chunk[lo - base..hi - base];
+                    let fit: Fit = match kind {
+                        GradientKind::Direct => {
+                            let fit = mls.gradient_weights(&positions[i], &nodes, &mut direct);
+                            out.copy_from_slice(direct.weights());
+                            fit
+                        }
+                        GradientKind::ShapeFunctions => {
+                            let fit = mls
+                                .shape_functions(&positions[i], &nodes, &mut shape)
+                                .map_err(|e| MlsError::AtParticle {
+                                    particle: i,
+                                    source: Box::new(e),
+                                })?;
+                            out.copy_from_slice(shape.gradients());
+                            fit
+                        }
+                    };
+                    *order = fit.order;
+                    *condition = fit.condition;
+                }
+                Ok(())
+            })?;
         Ok(Self {
             offsets,
             neighbours,
@@ -163,7 +171,10 @@ impl LagrangianGradients {
     /// `grad f (x_i) = sum_j (f_j - f_i) g_ij` of a scalar field.
     pub fn scalar_gradient(&self, i: usize, f: &[Real]) -> Vector {
         let (js, gs) = self.of(i);
-        js.iter().zip(gs).map(|(&j, g)| g * (f[j as usize] - f[i])).sum()
+        js.iter()
+            .zip(gs)
+            .map(|(&j, g)| g * (f[j as usize] - f[i]))
+            .sum()
     }
 
     /// `grad u (x_i) = sum_j (u_j - u_i) g_ij^T`, entry `(a, b) = du_a /
@@ -185,10 +196,12 @@ impl LagrangianGradients {
     pub fn vector_gradients(&self, u: &[Vector], out: &mut [Matrix3<Real>]) {
         assert_eq!(u.len(), self.len(), "one displacement per particle");
         assert_eq!(out.len(), self.len(), "one gradient per particle");
-        out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, chunk)| {
-            for (k, g) in chunk.iter_mut().enumerate() {
-                *g = self.vector_gradient(c * CHUNK + k, u);
-            }
-        });
+        out.par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(c, chunk)| {
+                for (k, g) in chunk.iter_mut().enumerate() {
+                    *g = self.vector_gradient(c * CHUNK + k, u);
+                }
+            });
     }
 }

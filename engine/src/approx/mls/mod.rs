@@ -65,10 +65,17 @@ pub enum MlsError {
         "MLS at {at:?}: none of the {nodes} nodes lies within the support radius h = {h}; \
          increase h or add nodes near this point"
     )]
-    NoSupport { at: [Real; 3], nodes: usize, h: Real },
+    NoSupport {
+        at: [Real; 3],
+        nodes: usize,
+        h: Real,
+    },
     /// A parameter is out of range.
     #[error("MLS parameter `{field}`: {message}")]
-    InvalidParameter { field: &'static str, message: String },
+    InvalidParameter {
+        field: &'static str,
+        message: String,
+    },
     /// Inputs of different lengths.
     #[error("MLS precomputation: {what}")]
     LengthMismatch { what: String },
@@ -145,15 +152,27 @@ impl Mls {
     pub fn new(dim: usize, params: MlsParams) -> Result<Self, MlsError> {
         let invalid = |field, message: String| Err(MlsError::InvalidParameter { field, message });
         if !(1..=3).contains(&dim) {
-            return invalid("dim", format!("is {dim}; MLS works in 1, 2 or 3 dimensions"));
+            return invalid(
+                "dim",
+                format!("is {dim}; MLS works in 1, 2 or 3 dimensions"),
+            );
         }
         if !(params.h.is_finite() && params.h > 0.0) {
-            return invalid("h", format!("is {}; the support radius must be positive and finite", params.h));
+            return invalid(
+                "h",
+                format!(
+                    "is {}; the support radius must be positive and finite",
+                    params.h
+                ),
+            );
         }
         if !(params.rank_tolerance > 0.0 && params.rank_tolerance < 1.0) {
             return invalid(
                 "rank_tolerance",
-                format!("is {}; use a small positive number such as 1e-10", params.rank_tolerance),
+                format!(
+                    "is {}; use a small positive number such as 1e-10",
+                    params.rank_tolerance
+                ),
             );
         }
         if !params.weight.smooth_at_origin() {
@@ -187,11 +206,12 @@ impl Mls {
     fn weight(&self, d: &[Real; 3]) -> Option<(Real, [Real; 3])> {
         let r = d[..self.dim].iter().map(|v| v * v).sum::<Real>().sqrt();
         let q = r * self.inv_h;
-        if !(q < 1.0) {
+        // Also false for a NaN distance.
+        if q.is_nan() || q >= 1.0 {
             return None;
         }
         let [w, dw_dq, _] = self.params.weight.profile(q);
-        if !(w > 0.0) {
+        if w.is_nan() || w <= 0.0 {
             return None;
         }
         let mut grad = [0.0; 3];

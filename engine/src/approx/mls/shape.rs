@@ -100,7 +100,9 @@ impl Mls {
         for a in 0..n {
             c[a] = inv[a * n];
         }
-        let dot = |u: &[Real], v: &[Real]| -> Real { u[..n].iter().zip(&v[..n]).map(|(a, b)| a * b).sum() };
+        let dot = |u: &[Real], v: &[Real]| -> Real {
+            u[..n].iter().zip(&v[..n]).map(|(a, b)| a * b).sum()
+        };
         let dim = self.dim;
         let inv_h = self.inv_h;
         // (dM/dx_k) c for each k.
@@ -108,12 +110,12 @@ impl Mls {
         for node in &s.nodes {
             let p = &node.basis.p;
             let pc = dot(p, &c);
-            for k in 0..dim {
+            for (k, dm_c) in dm_c.iter_mut().enumerate().take(dim) {
                 let dp = &node.basis.dp[k];
                 let dpc = dot(dp, &c);
                 // dp_j/dx_k = -(1/h) dp/ds_k.
                 for a in 0..n {
-                    dm_c[k][a] += node.dw[k] * pc * p[a] - node.w * inv_h * (dp[a] * pc + p[a] * dpc);
+                    dm_c[a] += node.dw[k] * pc * p[a] - node.w * inv_h * (dp[a] * pc + p[a] * dpc);
                 }
             }
         }

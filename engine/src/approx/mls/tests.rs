@@ -47,12 +47,19 @@ fn mls(dim: usize, order: Order, h: Real) -> Mls {
 #[test]
 fn gradients_match_finite_differences() {
     let mut seed = 11;
-    for weight in [KernelKind::Poly6, KernelKind::CubicSpline, KernelKind::WendlandC2] {
+    for weight in [
+        KernelKind::Poly6,
+        KernelKind::CubicSpline,
+        KernelKind::WendlandC2,
+    ] {
         for dim in 1..=3 {
             let nodes = lattice(dim, 3, 0.3, &mut seed);
             for order in Order::ALL {
                 let h = 2.3;
-                let params = MlsParams { weight, ..MlsParams::new(order, h) };
+                let params = MlsParams {
+                    weight,
+                    ..MlsParams::new(order, h)
+                };
                 let mls = Mls::new(dim, params).expect("valid");
                 let mut at = ShapeFunctions::new();
                 let (mut plus, mut minus) = (ShapeFunctions::new(), ShapeFunctions::new());
@@ -64,8 +71,10 @@ fn gradients_match_finite_differences() {
                     for k in 0..dim {
                         let mut e = Vector::zeros();
                         e[k] = eps;
-                        mls.shape_functions(&(x + e), &nodes, &mut plus).expect("support");
-                        mls.shape_functions(&(x - e), &nodes, &mut minus).expect("support");
+                        mls.shape_functions(&(x + e), &nodes, &mut plus)
+                            .expect("support");
+                        mls.shape_functions(&(x - e), &nodes, &mut minus)
+                            .expect("support");
                         for i in 0..nodes.len() {
                             let fd = (plus.values()[i] - minus.values()[i]) / (2.0 * eps);
                             let g = at.gradients()[i][k];
@@ -95,18 +104,34 @@ fn partition_of_unity_and_linear_completeness() {
                 let x = random_point(dim, 1.0, &mut seed);
                 mls.shape_functions(&x, &nodes, &mut out).expect("support");
                 let sum: Real = out.values().iter().sum();
-                assert!((sum - 1.0).abs() < 1e-12, "{dim}D {order:?}: sum phi = {sum}");
+                assert!(
+                    (sum - 1.0).abs() < 1e-12,
+                    "{dim}D {order:?}: sum phi = {sum}"
+                );
                 let first: Vector = out.values().iter().zip(&nodes).map(|(p, xi)| xi * *p).sum();
-                assert!((first - x).norm() < 1e-12, "{dim}D {order:?}: sum phi x = {first:?}, x = {x:?}");
+                assert!(
+                    (first - x).norm() < 1e-12,
+                    "{dim}D {order:?}: sum phi x = {first:?}, x = {x:?}"
+                );
                 let grad_sum: Vector = out.gradients().iter().sum();
-                assert!(grad_sum.norm() < 1e-12, "{dim}D {order:?}: sum grad phi = {grad_sum:?}");
-                let jacobian: Matrix3<Real> =
-                    out.gradients().iter().zip(&nodes).map(|(g, xi)| xi * g.transpose()).sum();
+                assert!(
+                    grad_sum.norm() < 1e-12,
+                    "{dim}D {order:?}: sum grad phi = {grad_sum:?}"
+                );
+                let jacobian: Matrix3<Real> = out
+                    .gradients()
+                    .iter()
+                    .zip(&nodes)
+                    .map(|(g, xi)| xi * g.transpose())
+                    .sum();
                 let mut identity = Matrix3::zeros();
                 for a in 0..dim {
                     identity[(a, a)] = 1.0;
                 }
-                assert!((jacobian - identity).norm() < 1e-12, "{dim}D {order:?}: {jacobian}");
+                assert!(
+                    (jacobian - identity).norm() < 1e-12,
+                    "{dim}D {order:?}: {jacobian}"
+                );
             }
         }
     }
@@ -114,9 +139,15 @@ fn partition_of_unity_and_linear_completeness() {
 
 /// Asserts that every value and gradient is finite.
 fn assert_finite(out: &ShapeFunctions, what: &str) {
-    assert!(out.values().iter().all(|v| v.is_finite()), "{what}: values {:?}", out.values());
     assert!(
-        out.gradients().iter().all(|g| g.iter().all(|v| v.is_finite())),
+        out.values().iter().all(|v| v.is_finite()),
+        "{what}: values {:?}",
+        out.values()
+    );
+    assert!(
+        out.gradients()
+            .iter()
+            .all(|g| g.iter().all(|v| v.is_finite())),
         "{what}: gradients {:?}",
         out.gradients()
     );
@@ -150,7 +181,9 @@ fn nodes_on_a_plane_fall_back_to_constant() {
         assert!(direct.weights().iter().all(|g| *g == Vector::zeros()));
     }
     // In 2D the same layout is full rank.
-    let fit = mls(2, Order::Quadratic, 2.0).shape_functions(&x, &nodes, &mut out).expect("support");
+    let fit = mls(2, Order::Quadratic, 2.0)
+        .shape_functions(&x, &nodes, &mut out)
+        .expect("support");
     assert_eq!(fit.order, Order::Quadratic);
 }
 
@@ -164,12 +197,16 @@ fn nodes_on_a_line_fall_back_to_constant() {
     let mut out = ShapeFunctions::new();
     for dim in [2, 3] {
         for order in [Order::Linear, Order::Quadratic] {
-            let fit = mls(dim, order, 1.6).shape_functions(&x, &nodes, &mut out).expect("support");
+            let fit = mls(dim, order, 1.6)
+                .shape_functions(&x, &nodes, &mut out)
+                .expect("support");
             assert_eq!(fit.order, Order::Constant, "{dim}D {order:?}");
             assert_finite(&out, "line");
         }
     }
-    let along: Vec<Vector> = (-4..=4).map(|k| Vector::new(0.5 * k as Real, 0.0, 0.0)).collect();
+    let along: Vec<Vector> = (-4..=4)
+        .map(|k| Vector::new(0.5 * k as Real, 0.0, 0.0))
+        .collect();
     let fit = mls(1, Order::Quadratic, 1.6)
         .shape_functions(&Vector::new(0.3, 0.0, 0.0), &along, &mut out)
         .expect("support");
@@ -189,7 +226,9 @@ fn too_few_neighbours_lower_the_order() {
     ];
     let x = Vector::new(0.1, 0.1, 0.0);
     let mut out = ShapeFunctions::new();
-    let fit = mls(2, Order::Quadratic, 1.0).shape_functions(&x, &nodes, &mut out).expect("support");
+    let fit = mls(2, Order::Quadratic, 1.0)
+        .shape_functions(&x, &nodes, &mut out)
+        .expect("support");
     assert_eq!(fit.order, Order::Linear);
     assert_finite(&out, "four nodes");
     let f = |p: &Vector| 2.0 - 3.0 * p.x + 0.5 * p.y;
@@ -197,7 +236,9 @@ fn too_few_neighbours_lower_the_order() {
     assert!((out.interpolate(&values) - f(&x)).abs() < 1e-12);
     assert!((out.gradient(&values) - Vector::new(-3.0, 0.5, 0.0)).norm() < 1e-12);
 
-    let fit = mls(2, Order::Quadratic, 1.0).shape_functions(&x, &nodes[..2], &mut out).expect("support");
+    let fit = mls(2, Order::Quadratic, 1.0)
+        .shape_functions(&x, &nodes[..2], &mut out)
+        .expect("support");
     assert_eq!(fit.order, Order::Constant);
     assert_finite(&out, "two nodes");
 }
@@ -212,7 +253,9 @@ fn single_and_missing_neighbours() {
     for dim in 1..=3 {
         for order in Order::ALL {
             let mls = mls(dim, order, 1.0);
-            let fit = mls.shape_functions(&Vector::zeros(), &node, &mut out).expect("support");
+            let fit = mls
+                .shape_functions(&Vector::zeros(), &node, &mut out)
+                .expect("support");
             assert_eq!(fit.order, Order::Constant);
             assert!((out.values()[0] - 1.0).abs() < 1e-15, "{:?}", out.values());
             assert_eq!(out.gradients()[0], Vector::zeros());
@@ -223,7 +266,9 @@ fn single_and_missing_neighbours() {
                 (&[][..], Vector::zeros()),
                 (&node[..], Vector::repeat(Real::NAN)),
             ] {
-                let err = mls.shape_functions(&x, nodes, &mut out).expect_err("no support");
+                let err = mls
+                    .shape_functions(&x, nodes, &mut out)
+                    .expect_err("no support");
                 assert!(matches!(err, MlsError::NoSupport { .. }), "{err}");
                 assert!(err.to_string().contains("support radius h = 1"), "{err}");
                 assert_finite(&out, "no support");
@@ -253,7 +298,10 @@ fn conditioning_does_not_depend_on_scale() {
             };
             let (unit, small, large) = (condition(1.0), condition(1e-3), condition(1e3));
             for c in [small, large] {
-                assert!((c - unit).abs() < 1e-8 * unit, "{dim}D {order:?}: {c} vs {unit} at scale 1");
+                assert!(
+                    (c - unit).abs() < 1e-8 * unit,
+                    "{dim}D {order:?}: {c} vs {unit} at scale 1"
+                );
             }
             assert!(unit < 1e4, "{dim}D {order:?}: condition {unit}");
         }
@@ -270,7 +318,10 @@ fn linear_direct_gradient_is_eq_37() {
     let h = 1.8;
     let mls = mls(3, Order::Linear, h);
     let xi = nodes[nodes.len() / 2 + 1];
-    let f: Vec<Real> = nodes.iter().map(|p| (p.x * 1.3).sin() + p.y * p.z).collect();
+    let f: Vec<Real> = nodes
+        .iter()
+        .map(|p| (p.x * 1.3).sin() + p.y * p.z)
+        .collect();
     let fi = (xi.x * 1.3).sin() + xi.y * xi.z;
     let mut direct = GradientWeights::new();
     let fit = mls.gradient_weights(&xi, &nodes, &mut direct);
@@ -287,7 +338,10 @@ fn linear_direct_gradient_is_eq_37() {
     }
     let expected = a.try_inverse().expect("invertible") * rhs;
     let got = direct.gradient(&f, fi);
-    assert!((got - expected).norm() < 1e-12 * expected.norm(), "{got:?} vs {expected:?}");
+    assert!(
+        (got - expected).norm() < 1e-12 * expected.norm(),
+        "{got:?} vs {expected:?}"
+    );
 }
 
 #[test]
@@ -301,7 +355,34 @@ fn invalid_parameters_name_the_field() {
     assert_eq!(field(0, ok), "dim");
     assert_eq!(field(3, MlsParams { h: 0.0, ..ok }), "h");
     assert_eq!(field(3, MlsParams { h: Real::NAN, ..ok }), "h");
-    assert_eq!(field(3, MlsParams { rank_tolerance: 0.0, ..ok }), "rank_tolerance");
-    assert_eq!(field(3, MlsParams { weight: KernelKind::Spiky, ..ok }), "weight");
-    assert_eq!(field(3, MlsParams { weight: KernelKind::Viscosity, ..ok }), "weight");
+    assert_eq!(
+        field(
+            3,
+            MlsParams {
+                rank_tolerance: 0.0,
+                ..ok
+            }
+        ),
+        "rank_tolerance"
+    );
+    assert_eq!(
+        field(
+            3,
+            MlsParams {
+                weight: KernelKind::Spiky,
+                ..ok
+            }
+        ),
+        "weight"
+    );
+    assert_eq!(
+        field(
+            3,
+            MlsParams {
+                weight: KernelKind::Viscosity,
+                ..ok
+            }
+        ),
+        "weight"
+    );
 }
