@@ -233,8 +233,9 @@ fn lagrangian_gradients_recover_affine_deformations() {
                 LagrangianGradients::build(&mls, kind, &positions, &list).expect("precompute");
             assert_eq!(pre.len(), positions.len());
             let lowered = pre.orders().iter().filter(|&&o| o != order).count();
+            let worst = pre.conditions().iter().fold(0.0, |m: Real, &c| m.max(c));
             println!(
-                "{order:?} {kind:?}: {lowered} of {} particles fell back",
+                "{order:?} {kind:?}: {lowered} of {} particles fell back, largest condition {worst:.1e}",
                 pre.len()
             );
             assert!(pre.orders().iter().all(|&o| o >= Order::Linear));
@@ -266,6 +267,88 @@ fn lagrangian_gradients_recover_affine_deformations() {
                     "{order:?} {kind:?}: particle {i} gradient error {error:e}\n{g}"
                 );
             }
+        }
+    }
+}
+
+/// A block with a detached single-layer plate (all its neighbours on one
+/// plane) and an isolated particle: their fits fall back to the constant
+/// order, reported per particle, and their gradients stay finite: zero
+/// for the direct form (no direction resolved), Shepard's for the shape
+/// functions (summing to zero). The block's particles still recover `A`
+/// to rounding, which grows with each fit's condition number.
+#[test]
+fn lagrangian_gradients_fall_back_on_degenerate_particles() {
+    let mut seed = 7;
+    let spacing = 0.05;
+    let h = 2.2 * spacing;
+    let mut positions = lattice(3, 3, spacing, 0.2, &mut seed);
+    let block = positions.len();
+    let plate_origin = centre(3) + Vector::new(0.0, 0.0, 0.4);
+    for i in -2..=2 {
+        for j in -2..=2 {
+            positions.push(plate_origin + Vector::new(i as Real, j as Real, 0.0) * spacing);
+        }
+    }
+    let isolated = positions.len();
+    positions.push(centre(3) + Vector::new(0.0, 0.0, -0.4));
+    let radius = h;
+    let mut grid = UniformGrid::new(
+        centre(3) - Vector::repeat(0.5),
+        centre(3) + Vector::repeat(0.5),
+        radius,
+    )
+    .expect("small grid");
+    grid.rebuild(&positions);
+    let mut list = NeighborList::default();
+    list.build(&grid, &positions, radius);
+
+    let a = Matrix3::new(0.3, -0.2, 0.05, 0.1, 0.25, -0.4, -0.15, 0.35, 0.2);
+    let displacement: Vec<Vector> = positions.iter().map(|x| a * x).collect();
+    let mut gradients = vec![Matrix3::zeros(); positions.len()];
+    for order in [Order::Linear, Order::Quadratic] {
+        let mls = Mls::new(3, MlsParams::new(order, h)).expect("valid parameters");
+        for kind in [GradientKind::Direct, GradientKind::ShapeFunctions] {
+            let pre =
+                LagrangianGradients::build(&mls, kind, &positions, &list).expect("precompute");
+            pre.vector_gradients(&displacement, &mut gradients);
+            for (i, g) in gradients.iter().enumerate() {
+                assert!(
+                    g.iter().all(|v| v.is_finite()),
+                    "{order:?} {kind:?}: particle {i}: {g}"
+                );
+                assert!(
+                    pre.conditions()[i].is_finite(),
+                    "{order:?} {kind:?}: particle {i}"
+                );
+                if i < block {
+                    // Rounding grows with the conditioning: a corner fits
+                    // 9 quadratic coefficients to 9 neighbours (condition
+                    // ~2e7, error ~1e-9).
+                    let condition = pre.conditions()[i];
+                    let error = (g - a).norm() / a.norm();
+                    assert!(
+                        error < 1e-12 + 1e-15 * condition,
+                        "{order:?} {kind:?}: particle {i}: error {error:e}, condition {condition:e}"
+                    );
+                } else {
+                    assert_eq!(
+                        pre.orders()[i],
+                        Order::Constant,
+                        "{order:?} {kind:?}: particle {i}"
+                    );
+                    match kind {
+                        GradientKind::Direct => assert_eq!(*g, Matrix3::zeros(), "particle {i}"),
+                        // Shepard's gradients: only constants are
+                        // reproduced, sum_j grad phi_j = 0.
+                        GradientKind::ShapeFunctions => {
+                            let sum: Vector = pre.of(i).1.iter().sum();
+                            assert!(sum.norm() < 1e-12 / h, "{order:?}: particle {i}: {sum:?}");
+                        }
+                    }
+                }
+            }
+            assert_eq!(pre.of(isolated).0, &[isolated as u32]);
         }
     }
 }

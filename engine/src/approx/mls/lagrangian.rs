@@ -31,7 +31,9 @@ pub enum GradientKind {
     /// what the elastic solids use.
     Direct,
     /// `grad phi_j(x_i)`, the derivative of the MLS approximation
-    /// (Eq. 30-32).
+    /// (Eq. 30-32). Where the fit falls back to the constant order these
+    /// are Shepard's gradients: they annihilate constants only, and are
+    /// not first-order accurate (the direct form gives zero there).
     ShapeFunctions,
 }
 

@@ -245,7 +245,9 @@ fn too_few_neighbours_lower_the_order() {
 
 /// One node: Shepard's `phi = 1`, zero gradient, at every requested
 /// order. No node within `h` (or none at all, or a non-finite point): the
-/// documented error, and zeros in the output.
+/// documented error, and zeros in the output. The direct gradient has no
+/// error case: with no other node in the support it is zero, at the
+/// constant order.
 #[test]
 fn single_and_missing_neighbours() {
     let node = [Vector::new(0.3, 0.2, 0.1)];
@@ -260,6 +262,12 @@ fn single_and_missing_neighbours() {
             assert!((out.values()[0] - 1.0).abs() < 1e-15, "{:?}", out.values());
             assert_eq!(out.gradients()[0], Vector::zeros());
 
+            // The direct form at the node itself resolves no direction.
+            let mut direct = GradientWeights::new();
+            let fit = mls.gradient_weights(&node[0], &node, &mut direct);
+            assert_eq!((fit.order, fit.support), (Order::Constant, 1));
+            assert_eq!(direct.weights(), &[Vector::zeros()]);
+
             let far = [Vector::new(5.0, 0.0, 0.0)];
             for (nodes, x) in [
                 (&far[..], Vector::zeros()),
@@ -272,6 +280,9 @@ fn single_and_missing_neighbours() {
                 assert!(matches!(err, MlsError::NoSupport { .. }), "{err}");
                 assert!(err.to_string().contains("support radius h = 1"), "{err}");
                 assert_finite(&out, "no support");
+                let fit = mls.gradient_weights(&x, nodes, &mut direct);
+                assert_eq!((fit.order, fit.support), (Order::Constant, 0));
+                assert!(direct.weights().iter().all(|g| *g == Vector::zeros()));
             }
         }
     }
