@@ -67,7 +67,7 @@ impl KernelKind {
 
     /// The profile and its first two derivatives in `q`, for `0 < q < 1`.
     #[inline]
-    fn profile(self, q: Real) -> [Real; 3] {
+    pub(crate) fn profile(self, q: Real) -> [Real; 3] {
         match self {
             Self::Poly6 => {
                 let s = 1.0 - q * q;
@@ -108,7 +108,7 @@ impl KernelKind {
 
     /// Whether the profile has zero slope at the origin, so that the
     /// Laplacian there is finite (`d * w''(0)`).
-    fn smooth_at_origin(self) -> bool {
+    pub(crate) fn smooth_at_origin(self) -> bool {
         matches!(self, Self::Poly6 | Self::CubicSpline | Self::WendlandC2)
     }
 }

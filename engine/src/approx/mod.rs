@@ -1,8 +1,14 @@
 //! Approximation building blocks: SPH smoothing kernels (Adams–Wicke
 //! tutorial, Section 2 and Appendix A) and the SPH operators built on them
-//! (Section 2.2).
+//! (Section 2.2), and moving-least-squares shape functions and gradients
+//! with safe inversion and rank fallback (Section 3).
 
 pub mod kernels;
+pub mod mls;
 pub mod operators;
 
 pub use kernels::{Kernel, KernelKind};
+pub use mls::{
+    Fit, GradientKind, GradientWeights, LagrangianGradients, Mls, MlsError, MlsParams, Order,
+    ShapeFunctions,
+};

@@ -1,0 +1,130 @@
+//! MLS gradients for Lagrangian solids: the one-off precomputation of
+//! per-particle gradient weights (`LagrangianGradients::build`) and one
+//! displacement-gradient pass (`vector_gradients`), on jittered cubic
+//! lattices of about 1k, 10k and 100k particles (support h = 2 spacings,
+//! about 33 neighbours), for the direct Eq. 37-38 weights at orders 1
+//! and 2 and the shape-function gradients at order 2, on one thread and
+//! on all cores. Prints a table; asserts nothing.
+//!
+//!     cargo bench -p meshless-engine --bench mls
+
+use meshless_engine::approx::{GradientKind, LagrangianGradients, Mls, MlsParams, Order};
+use meshless_engine::neighbors::{CandidateSearch, NeighborList, UniformGrid};
+use nalgebra::{Matrix3, Vector3};
+use std::time::Instant;
+
+type Vector = Vector3<f64>;
+
+/// Deterministic numbers in [0, 1) (SplitMix64).
+fn uniform(seed: &mut u64) -> f64 {
+    *seed = seed.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let mut z = *seed;
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    (z ^ (z >> 31)) as f64 / u64::MAX as f64
+}
+
+/// `count`^3 points of unit spacing, each jittered by up to a quarter
+/// spacing per axis.
+fn lattice(count: usize, seed: &mut u64) -> Vec<Vector> {
+    let mut points = Vec::with_capacity(count * count * count);
+    for i in 0..count {
+        for j in 0..count {
+            for k in 0..count {
+                let mut p = Vector::new(i as f64, j as f64, k as f64);
+                for a in 0..3 {
+                    p[a] += (uniform(seed) - 0.5) * 0.5;
+                }
+                points.push(p);
+            }
+        }
+    }
+    points
+}
+
+/// Median seconds of `run` over `repeats` runs.
+fn median(repeats: usize, mut run: impl FnMut()) -> f64 {
+    let mut seconds: Vec<f64> = (0..repeats)
+        .map(|_| {
+            let start = Instant::now();
+            run();
+            start.elapsed().as_secs_f64()
+        })
+        .collect();
+    seconds.sort_by(f64::total_cmp);
+    seconds[repeats / 2]
+}
+
+fn main() {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let mut threads = vec![1];
+    if cores > 1 {
+        threads.push(cores);
+    }
+    let h = 2.0;
+    let cases = [
+        (Order::Linear, GradientKind::Direct),
+        (Order::Quadratic, GradientKind::Direct),
+        (Order::Quadratic, GradientKind::ShapeFunctions),
+    ];
+    println!(
+        "{:>9} {:>6} {:<9} {:<14} {:>7} {:>13} {:>9} {:>13} {:>8}",
+        "particles",
+        "pairs/p",
+        "order",
+        "kind",
+        "threads",
+        "precompute ms",
+        "us/part",
+        "gradient ms",
+        "ns/pair"
+    );
+    let mut seed = 7;
+    for count in [10, 22, 46] {
+        let positions = lattice(count, &mut seed);
+        let n = positions.len();
+        let pad = Vector::repeat(1.0);
+        let max = Vector::repeat(count as f64) + pad;
+        let mut grid = UniformGrid::new(-pad, max, h).expect("bench grid");
+        grid.rebuild(&positions);
+        let mut list = NeighborList::default();
+        list.build(&grid, &positions, h);
+        let pairs = list.pair_count();
+        let a = Matrix3::new(0.01, 0.002, 0.0, -0.003, 0.02, 0.001, 0.0, 0.004, -0.01);
+        let displacement: Vec<Vector> = positions.iter().map(|x| a * x).collect();
+        let mut gradients = vec![Matrix3::zeros(); n];
+        for (order, kind) in cases {
+            let mls = Mls::new(3, MlsParams::new(order, h)).expect("bench parameters");
+            for &t in &threads {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(t)
+                    .build()
+                    .expect("thread pool");
+                let (pre_s, pass_s) = pool.install(|| {
+                    let mut pre = None;
+                    let pre_s = median(3, || {
+                        pre = Some(
+                            LagrangianGradients::build(&mls, kind, &positions, &list)
+                                .expect("precompute"),
+                        );
+                    });
+                    let pre = pre.expect("built");
+                    let pass_s = median(7, || pre.vector_gradients(&displacement, &mut gradients));
+                    (pre_s, pass_s)
+                });
+                println!(
+                    "{:>9} {:>6.1} {:<9} {:<14} {:>7} {:>13.1} {:>9.2} {:>13.2} {:>8.2}",
+                    n,
+                    pairs as f64 / n as f64,
+                    format!("{order:?}"),
+                    format!("{kind:?}"),
+                    t,
+                    pre_s * 1e3,
+                    pre_s * 1e6 / n as f64,
+                    pass_s * 1e3,
+                    pass_s * 1e9 / pairs as f64
+                );
+            }
+        }
+    }
+}
