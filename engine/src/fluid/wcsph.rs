@@ -413,13 +413,19 @@ impl Fluid {
         backup.max_acceleration = self.max_acceleration;
     }
 
-    /// Puts back a state saved by [`Fluid::save`].
+    /// Puts back a state saved by [`Fluid::save`], with the neighbour
+    /// lists (and DFSPH's factors and pair gradients) of its positions, so
+    /// that the next step starts from the saved state alone.
     pub fn restore(&mut self, backup: &FluidState) {
         self.positions.clone_from(&backup.positions);
         self.velocities.clone_from(&backup.velocities);
         self.densities.clone_from(&backup.densities);
         self.pressures.clone_from(&backup.pressures);
         self.max_acceleration = backup.max_acceleration;
+        self.find_neighbors();
+        if let PressureSolver::Dfsph(_) = self.params.solver {
+            self.compute_factors();
+        }
     }
 }
 
