@@ -314,14 +314,14 @@ impl RigidBodies {
     }
 
     /// Keeps the reaction of a DFSPH pressure solve, which changed each
-    /// fluid velocity by `-dt (kappa_i / rho_i) sum_b psi_b grad W_ib`
-    /// (`kappa` summed over the solve's iterations): the body feels
-    /// `m (kappa_i / rho_i) psi_b grad W_ib` at each sample.
+    /// fluid velocity by `-dt (kappa_i / rho_i) sum_b psi_b grad W_ib`:
+    /// the body feels `m (kappa_i / rho_i) psi_b grad W_ib` at each sample.
+    /// `kappa_over_rho` is `kappa_i / rho_i` summed over the solve's
+    /// iterations, as the solver keeps it.
     pub fn add_pressure_reaction(
         &mut self,
         positions: &[Vector],
-        densities: &[Real],
-        kappa: &[Real],
+        kappa_over_rho: &[Real],
         mass: Real,
     ) {
         let this = &*self;
@@ -332,7 +332,7 @@ impl RigidBodies {
                 || no_loads(this.bodies.len()),
                 |mut loads, i| {
                     let xi = positions[i];
-                    let scale = mass * kappa[i] / densities[i];
+                    let scale = mass * kappa_over_rho[i];
                     if scale == 0.0 {
                         return loads;
                     }

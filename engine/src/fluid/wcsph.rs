@@ -486,7 +486,9 @@ impl Fluid {
         }
     }
 
-    /// Puts back a state saved by [`Fluid::save`].
+    /// Puts back a state saved by [`Fluid::save`], with the neighbour
+    /// lists (and DFSPH's factors and pair gradients) of its positions, so
+    /// that the next step starts from the saved state alone.
     pub fn restore(&mut self, backup: &FluidState) {
         self.positions.clone_from(&backup.positions);
         self.velocities.clone_from(&backup.velocities);
@@ -495,6 +497,10 @@ impl Fluid {
         self.max_acceleration = backup.max_acceleration;
         if let Some(rigid) = &mut self.rigid {
             rigid.restore(&backup.bodies);
+        }
+        self.find_neighbors();
+        if let PressureSolver::Dfsph(_) = self.params.solver {
+            self.compute_factors();
         }
     }
 }

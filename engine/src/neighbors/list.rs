@@ -96,7 +96,15 @@ impl NeighborList {
     /// Neighbours of particle `i`, itself included.
     #[inline]
     pub fn of(&self, i: usize) -> &[u32] {
-        &self.indices[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+        &self.indices[self.range(i)]
+    }
+
+    /// Where the neighbours of particle `i` lie in the flat list of all
+    /// pairs (particle after particle): per-pair data kept in an array
+    /// aligned with that list is read with the same range.
+    #[inline]
+    pub fn range(&self, i: usize) -> std::ops::Range<usize> {
+        self.offsets[i] as usize..self.offsets[i + 1] as usize
     }
 
     /// Neighbours `j` of particle `i` (itself included) with the
