@@ -257,9 +257,12 @@ fn shape_from_proto(shape: Option<v1::Shape>, field: &str) -> Result<ShapeSpec> 
             normal: vec3(required(normal, &format!("{field}.normal"))?),
             offset,
         }),
+        Some(v1::shape::Kind::Mesh(v1::MeshShape { path, scale })) => {
+            Ok(ShapeSpec::Mesh { path, scale })
+        }
         None => Err(ServiceError::invalid(
             format!("{field}.kind"),
-            "unknown or missing shape; use box, sphere, capsule or plane",
+            "unknown or missing shape; use box, sphere, capsule, plane or mesh",
         )),
     }
 }
@@ -282,6 +285,10 @@ fn to_shape(shape: &ShapeSpec) -> v1::Shape {
         ShapeSpec::Plane { normal, offset } => v1::shape::Kind::Plane(v1::PlaneShape {
             normal: Some(to_vec3(*normal)),
             offset: *offset,
+        }),
+        ShapeSpec::Mesh { path, scale } => v1::shape::Kind::Mesh(v1::MeshShape {
+            path: path.clone(),
+            scale: *scale,
         }),
     };
     v1::Shape { kind: Some(kind) }
