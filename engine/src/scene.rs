@@ -725,10 +725,9 @@ impl Scene {
                 shape: ShapeSpec::Mesh { path: mesh, .. },
                 ..
             }) = system
+                && Path::new(mesh.as_str()).is_relative()
             {
-                if Path::new(mesh.as_str()).is_relative() {
-                    *mesh = base.join(mesh.as_str()).to_string_lossy().into_owned();
-                }
+                *mesh = base.join(mesh.as_str()).to_string_lossy().into_owned();
             }
         }
         Ok(scene)

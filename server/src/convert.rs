@@ -674,6 +674,25 @@ mod tests {
         assert!(err.to_string().starts_with("systems[1].shape:"), "{err}");
     }
 
+    /// Mesh shapes cross with their path and scale (the path as the
+    /// scene file's directory made it), and the world built from the wire
+    /// reads the same files.
+    #[test]
+    fn mesh_bodies_round_trip() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/mesh_body.toml");
+        let scene = Scene::from_toml_file(&path).expect("shipped scene");
+        assert!(matches!(
+            &scene.systems[1],
+            SystemSpec::RigidBody(RigidBodySpec { shape: ShapeSpec::Mesh { scale: Some(s), .. }, .. })
+                if *s == 0.06
+        ));
+        let back = scene_from_proto(scene_to_proto(&scene)).expect("round trip");
+        assert_eq!(back.systems[1..], scene.systems[1..]);
+        let world = back.build(&BuildOptions::default()).expect("valid");
+        assert_eq!(frame_to_proto("s", &world.frame()).bodies.len(), 2);
+    }
+
     #[test]
     fn missing_messages_name_their_field() {
         let mut spec = scene_to_proto(&dam_break());
