@@ -43,7 +43,8 @@ pub struct BodyPose {
     /// Centre (of mass), m.
     pub position: [Real; 3],
     /// Unit quaternion `[x, y, z, w]` turning the body frame into the
-    /// world frame.
+    /// world frame; for a mesh body, the frame of its file (moved to the
+    /// centroid), as the scene's orientation gives it.
     pub orientation: [Real; 4],
     /// Velocity of the centre, m/s.
     pub velocity: [Real; 3],

@@ -7,6 +7,7 @@
 
 use crate::approx::KernelKind;
 use crate::fluid::ViscosityModel;
+use crate::geometry::{MeshError, MeshSolid, Shape, TriMesh};
 use crate::math::Real;
 use crate::neighbors::{GridError, UniformGrid};
 use crate::surface::SurfaceExtractor;
@@ -416,6 +417,20 @@ pub enum ShapeSpec {
         #[serde(default)]
         offset: Real,
     },
+    /// A closed triangle mesh read from an OBJ or PLY file (3D only), its
+    /// coordinates multiplied by `scale` (default 1). The body's
+    /// `position` is where the mesh's centroid (its centre of mass) goes
+    /// and `orientation` turns the mesh about it from the axes of the file.
+    ///
+    /// A relative `path` is taken from the directory of the scene file when
+    /// the scene is read with [`Scene::from_toml_file`] (which rewrites it
+    /// so), otherwise from the working directory of the process that builds
+    /// the world; a server reads it on its own machine.
+    Mesh {
+        path: String,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        scale: Option<Real>,
+    },
 }
 
 /// How a rigid body moves.
@@ -646,6 +661,42 @@ fn check_box(field: &str, b: &Aabb, dim: usize) -> Result<(), SceneError> {
     Ok(())
 }
 
+/// Reads the mesh of a `shape = { type = "mesh" }` at field `at`, scales
+/// it and puts it in its principal frame. Every failure names
+/// `{at}.path` (or `{at}` for a bad mesh) and the file it tried.
+pub(crate) fn mesh_shape(path: &str, scale: Option<Real>, at: &str) -> Result<Shape, SceneError> {
+    let field = format!("{at}.path");
+    let file = Path::new(path);
+    let mut mesh = TriMesh::from_path(file).map_err(|e| {
+        let tried = std::path::absolute(file).unwrap_or_else(|_| file.to_path_buf());
+        SceneError::invalid(
+            &field,
+            format!("cannot load the mesh (tried {}): {e}", tried.display()),
+        )
+    })?;
+    let scale = scale.unwrap_or(1.0);
+    for v in &mut mesh.vertices {
+        *v *= scale;
+    }
+    let solid = MeshSolid::new(&mesh).map_err(|e| {
+        let what = match e {
+            MeshError::NotClosed {
+                boundary,
+                non_manifold,
+                misoriented,
+            } => format!(
+                "{path}: the mesh must be closed to bound a solid, but {} edges are open \
+                 ({boundary} boundary, {non_manifold} non-manifold, {misoriented} misoriented); \
+                 close the holes, weld duplicated vertices and orient the faces outward",
+                boundary + non_manifold + misoriented
+            ),
+            other => format!("{path}: {other}"),
+        };
+        SceneError::invalid(&field, what)
+    })?;
+    Ok(Shape::Mesh(solid))
+}
+
 impl Scene {
     /// Parses a scene from TOML text.
     ///
@@ -659,11 +710,27 @@ impl Scene {
     ///
     /// # Errors
     /// [`SceneError::Parse`] naming the file.
+    ///
+    /// Relative mesh paths (`shape = { type = "mesh", path = ... }`) are
+    /// resolved against the scene file's directory, so a scene finds its
+    /// meshes wherever it is run from.
     pub fn from_toml_file(path: &Path) -> Result<Self, SceneError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| SceneError::Parse(format!("cannot read {}: {e}", path.display())))?;
-        Self::from_toml_str(&text)
-            .map_err(|e| SceneError::Parse(format!("{}: {e}", path.display())))
+        let mut scene = Self::from_toml_str(&text)
+            .map_err(|e| SceneError::Parse(format!("{}: {e}", path.display())))?;
+        let base = path.parent().unwrap_or(Path::new(""));
+        for system in &mut scene.systems {
+            if let SystemSpec::RigidBody(RigidBodySpec {
+                shape: ShapeSpec::Mesh { path: mesh, .. },
+                ..
+            }) = system
+                && Path::new(mesh.as_str()).is_relative()
+            {
+                *mesh = base.join(mesh.as_str()).to_string_lossy().into_owned();
+            }
+        }
+        Ok(scene)
     }
 
     /// The scene as TOML text.
@@ -688,6 +755,13 @@ impl Scene {
     /// # Errors
     /// The first problem found, naming its field.
     pub fn validate(&self, options: &BuildOptions) -> Result<(), SceneError> {
+        self.checked_shapes(options).map(|_| ())
+    }
+
+    /// [`Self::validate`], keeping the engine shape of each rigid body
+    /// (by system index; `None` for other systems), so that a mesh file is
+    /// read once per build.
+    fn checked_shapes(&self, options: &BuildOptions) -> Result<Vec<Option<Shape>>, SceneError> {
         if !(self.dimension == 2 || self.dimension == 3) {
             return Err(SceneError::invalid(
                 "dimension",
@@ -718,7 +792,9 @@ impl Scene {
             ));
         }
         let mut fluids = 0;
+        let mut shapes = Vec::with_capacity(self.systems.len());
         for (s, system) in self.systems.iter().enumerate() {
+            shapes.push(None);
             match system {
                 SystemSpec::Fluid(fluid) => {
                     fluids += 1;
@@ -745,7 +821,7 @@ impl Scene {
                              kernels from it; add a system with kind = \"fluid\"",
                         ));
                     };
-                    self.validate_body(&format!("systems[{s}]"), body, fluid)?
+                    shapes[s] = Some(self.validate_body(&format!("systems[{s}]"), body, fluid)?);
                 }
             }
         }
@@ -759,7 +835,7 @@ impl Scene {
                 limit: options.max_particles,
             });
         }
-        Ok(())
+        Ok(shapes)
     }
 
     /// The scene's fluid, if it has one.
@@ -770,12 +846,13 @@ impl Scene {
         })
     }
 
+    /// Checks a rigid body and makes its engine shape (reading its mesh).
     fn validate_body(
         &self,
         at: &str,
         body: &RigidBodySpec,
         fluid: &FluidSpec,
-    ) -> Result<(), SceneError> {
+    ) -> Result<Shape, SceneError> {
         let dim = self.dimension;
         let planar = dim == 2;
         let shape_at = format!("{at}.shape");
@@ -816,6 +893,33 @@ impl Scene {
                     ));
                 }
             }
+            ShapeSpec::Mesh { scale, .. } => {
+                if planar {
+                    return Err(SceneError::invalid(
+                        shape_at,
+                        "mesh bodies are 3D only; set dimension = 3 or use a box, sphere, \
+                         capsule or plane",
+                    ));
+                }
+                if let Some(scale) = scale {
+                    check_positive(&format!("{shape_at}.scale"), *scale)?;
+                }
+            }
+        }
+        let shape = crate::world::body_shape(&body.shape, dim, &shape_at)?;
+        if let Shape::Mesh(solid) = &shape {
+            let candidates = crate::geometry::surface_candidates(solid.area(), fluid.spacing);
+            if candidates > crate::geometry::MAX_SAMPLES as Real {
+                return Err(SceneError::invalid(
+                    format!("{shape_at}.path"),
+                    format!(
+                        "the mesh's surface ({} m^2) is too large to sample at the fluid's \
+                         spacing {} m; scale it down or raise the spacing",
+                        solid.area(),
+                        fluid.spacing
+                    ),
+                ));
+            }
         }
         check_vector(&format!("{at}.position"), body.position)?;
         check_vector(&format!("{at}.orientation"), body.orientation)?;
@@ -849,7 +953,7 @@ impl Scene {
                     format!("{:?} must lie inside the domain", body.position),
                 ));
             }
-            let size = crate::world::body_shape(&body.shape, dim).bounding_radius(dim);
+            let size = shape.bounding_radius(dim);
             if size > domain_diagonal {
                 return Err(SceneError::invalid(
                     shape_at,
@@ -861,8 +965,7 @@ impl Scene {
             }
         } else {
             // The plane must cut the domain, or it has no surface there.
-            let shape = crate::world::body_shape(&body.shape, dim);
-            let pose = crate::world::body_pose(body, dim);
+            let pose = crate::world::body_pose(body, &shape, dim);
             let corners = (0..1 << dim).map(|c: usize| {
                 crate::math::Vector::from_fn(|a, _| {
                     if a >= dim {
@@ -965,7 +1068,7 @@ impl Scene {
                  fluid's viscosity",
             ));
         }
-        Ok(())
+        Ok(shape)
     }
 
     /// The surface needs a 3D fluid, a positive cell, an iso value inside
@@ -1190,8 +1293,8 @@ impl Scene {
     /// # Errors
     /// See [`Scene::validate`].
     pub fn build(&self, options: &BuildOptions) -> Result<World, SceneError> {
-        self.validate(options)?;
-        Ok(World::new(self.clone()))
+        let shapes = self.checked_shapes(options)?;
+        Ok(World::new(self.clone(), shapes))
     }
 }
 

@@ -10,8 +10,8 @@ use crate::geometry::{Shape, TriMesh};
 use crate::math::{Real, Vector, vector};
 use crate::neighbors::{Periodic, UniformGrid};
 use crate::scene::{
-    FieldKind, FluidSpec, MotionKind, RigidBodySpec, Scene, ShapeSpec, SlipKind, SolverKind,
-    SystemSpec, WallModel,
+    FieldKind, FluidSpec, MotionKind, RigidBodySpec, Scene, SceneError, ShapeSpec, SlipKind,
+    SolverKind, SystemSpec, WallModel,
 };
 use crate::stats::StageTimer;
 use crate::surface::SurfaceExtractor;
@@ -77,19 +77,20 @@ pub struct World {
 
 impl World {
     /// Builds the world of an already validated scene (see [`Scene::build`]).
-    pub(crate) fn new(scene: Scene) -> Self {
+    /// `shapes` holds the engine shape of each rigid body by system index.
+    pub(crate) fn new(scene: Scene, mut shapes: Vec<Option<Shape>>) -> Self {
         // Bodies after the fluid: they take its spacing and kernels.
         let fluid = scene.fluid().map(|spec| {
-            let bodies: Vec<(usize, &RigidBodySpec)> = scene
+            let bodies: Vec<(usize, &RigidBodySpec, Shape)> = scene
                 .systems
                 .iter()
                 .enumerate()
                 .filter_map(|(s, system)| match system {
-                    SystemSpec::RigidBody(body) => Some((s, body)),
+                    SystemSpec::RigidBody(body) => Some((s, body, shapes.get_mut(s)?.take()?)),
                     SystemSpec::Fluid(_) => None,
                 })
                 .collect();
-            build_fluid(&scene, spec, &bodies)
+            build_fluid(&scene, spec, bodies)
         });
         let surface = match (&scene.output.surface, &fluid, scene.fluid()) {
             (Some(wanted), Some(built), Some(spec)) => {
@@ -273,7 +274,8 @@ impl World {
             .bodies()
             .iter()
             .map(|b| {
-                let q = b.state.orientation.into_inner();
+                // The frame the scene gave the shape in, about the centre.
+                let q = (b.state.orientation * shape_axes(&b.shape).inverse()).into_inner();
                 BodyPose {
                     system: b.system,
                     position: b.state.position.into(),
@@ -307,9 +309,14 @@ impl World {
     }
 }
 
-/// The engine shape of a scene's shape; in 2D a box's z extent is unused.
-pub(crate) fn body_shape(spec: &ShapeSpec, dim: usize) -> Shape {
-    match spec {
+/// The engine shape of a scene's shape (the shape at field `at`); in 2D a
+/// box's z extent is unused. Reads mesh files.
+///
+/// # Errors
+/// A mesh that cannot be read or does not bound a solid (see
+/// [`crate::scene::mesh_shape`]).
+pub(crate) fn body_shape(spec: &ShapeSpec, dim: usize, at: &str) -> Result<Shape, SceneError> {
+    Ok(match spec {
         ShapeSpec::Box { half_extents } => Shape::Box {
             half_extents: vector(*half_extents),
         },
@@ -333,23 +340,40 @@ pub(crate) fn body_shape(spec: &ShapeSpec, dim: usize) -> Shape {
                 offset: offset / length,
             }
         }
+        ShapeSpec::Mesh { path, scale } => crate::scene::mesh_shape(path, *scale, at)?,
+    })
+}
+
+/// The rotation from a body's frame to the frame its shape was given in:
+/// a mesh's principal axes in its file, the identity for the primitives.
+fn shape_axes(shape: &Shape) -> Rotation {
+    match shape {
+        Shape::Mesh(solid) => solid.axes(),
+        _ => Rotation::identity(),
     }
 }
 
 /// A body's initial position and orientation; in 2D in the plane z = 0.
-pub(crate) fn body_pose(spec: &RigidBodySpec, dim: usize) -> (Vector, Rotation) {
+/// The scene's orientation turns the shape as given (a mesh as in its
+/// file); the body frame is turned further onto the shape's principal axes.
+pub(crate) fn body_pose(spec: &RigidBodySpec, shape: &Shape, dim: usize) -> (Vector, Rotation) {
     let mut position = vector(spec.position);
     if dim == 2 {
         position.z = 0.0;
     }
     (
         position,
-        Rotation::from_scaled_axis(vector(spec.orientation)),
+        Rotation::from_scaled_axis(vector(spec.orientation)) * shape_axes(shape),
     )
 }
 
-fn build_body(system: usize, spec: &RigidBodySpec, fluid: &FluidSpec, dim: usize) -> RigidBody {
-    let shape = body_shape(&spec.shape, dim);
+fn build_body(
+    system: usize,
+    spec: &RigidBodySpec,
+    shape: Shape,
+    fluid: &FluidSpec,
+    dim: usize,
+) -> RigidBody {
     let motion = match spec.motion {
         MotionKind::Static => Motion::Static,
         MotionKind::Kinematic => Motion::Kinematic {
@@ -375,7 +399,7 @@ fn build_body(system: usize, spec: &RigidBodySpec, fluid: &FluidSpec, dim: usize
             viscosity: spec.viscosity.unwrap_or(fluid.viscosity),
         },
     };
-    let (position, orientation) = body_pose(spec, dim);
+    let (position, orientation) = body_pose(spec, &shape, dim);
     let velocity = if spec.motion == MotionKind::Dynamic {
         vector(spec.velocity)
     } else {
@@ -395,7 +419,11 @@ fn build_body(system: usize, spec: &RigidBodySpec, fluid: &FluidSpec, dim: usize
     RigidBody::new(shape, motion, slip, spec.hollow, system, dim, state)
 }
 
-fn build_fluid(scene: &Scene, spec: &FluidSpec, body_specs: &[(usize, &RigidBodySpec)]) -> Fluid {
+fn build_fluid(
+    scene: &Scene,
+    spec: &FluidSpec,
+    body_specs: Vec<(usize, &RigidBodySpec, Shape)>,
+) -> Fluid {
     let h = spec.support_radius();
     let dim = scene.dimension;
     let density_kernel = Kernel::new(spec.density_kernel, dim, h);
@@ -441,8 +469,8 @@ fn build_fluid(scene: &Scene, spec: &FluidSpec, body_specs: &[(usize, &RigidBody
         WallModel::Reflect => None,
     };
     let bodies: Vec<RigidBody> = body_specs
-        .iter()
-        .map(|&(s, body)| build_body(s, body, spec, dim))
+        .into_iter()
+        .map(|(s, body, shape)| build_body(s, body, shape, spec, dim))
         .collect();
     // Bodies carve the fluid blocks: no particle starts within half a
     // spacing of a body's surface or inside it.

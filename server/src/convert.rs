@@ -257,9 +257,12 @@ fn shape_from_proto(shape: Option<v1::Shape>, field: &str) -> Result<ShapeSpec> 
             normal: vec3(required(normal, &format!("{field}.normal"))?),
             offset,
         }),
+        Some(v1::shape::Kind::Mesh(v1::MeshShape { path, scale })) => {
+            Ok(ShapeSpec::Mesh { path, scale })
+        }
         None => Err(ServiceError::invalid(
             format!("{field}.kind"),
-            "unknown or missing shape; use box, sphere, capsule or plane",
+            "unknown or missing shape; use box, sphere, capsule, plane or mesh",
         )),
     }
 }
@@ -282,6 +285,10 @@ fn to_shape(shape: &ShapeSpec) -> v1::Shape {
         ShapeSpec::Plane { normal, offset } => v1::shape::Kind::Plane(v1::PlaneShape {
             normal: Some(to_vec3(*normal)),
             offset: *offset,
+        }),
+        ShapeSpec::Mesh { path, scale } => v1::shape::Kind::Mesh(v1::MeshShape {
+            path: path.clone(),
+            scale: *scale,
         }),
     };
     v1::Shape { kind: Some(kind) }
@@ -665,6 +672,25 @@ mod tests {
         }
         let err = scene_from_proto(spec).expect_err("no shape");
         assert!(err.to_string().starts_with("systems[1].shape:"), "{err}");
+    }
+
+    /// Mesh shapes cross with their path and scale (the path as the
+    /// scene file's directory made it), and the world built from the wire
+    /// reads the same files.
+    #[test]
+    fn mesh_bodies_round_trip() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/mesh_body.toml");
+        let scene = Scene::from_toml_file(&path).expect("shipped scene");
+        assert!(matches!(
+            &scene.systems[1],
+            SystemSpec::RigidBody(RigidBodySpec { shape: ShapeSpec::Mesh { scale: Some(s), .. }, .. })
+                if *s == 0.06
+        ));
+        let back = scene_from_proto(scene_to_proto(&scene)).expect("round trip");
+        assert_eq!(back.systems[1..], scene.systems[1..]);
+        let world = back.build(&BuildOptions::default()).expect("valid");
+        assert_eq!(frame_to_proto("s", &world.frame()).bodies.len(), 2);
     }
 
     #[test]

@@ -8,6 +8,7 @@ mod closest;
 mod error;
 mod mesh;
 mod mesh_shapes;
+mod mesh_solid;
 pub mod read;
 mod sampling;
 mod sdf;
@@ -16,8 +17,9 @@ mod topology;
 
 pub use error::MeshError;
 pub use mesh::TriMesh;
+pub use mesh_solid::MeshSolid;
 pub use read::LoadedMesh;
-pub use sampling::{MAX_SAMPLES, sample_surface, sample_volume};
+pub use sampling::{MAX_SAMPLES, sample_surface, sample_volume, surface_candidates};
 pub use sdf::{Closest, MeshSdf};
 pub use shape::Shape;
 pub use topology::EdgeReport;

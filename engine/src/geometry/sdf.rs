@@ -49,7 +49,8 @@ pub struct Closest {
     pub distance: Real,
     /// Unit gradient of the signed distance: from the closest point towards
     /// the query point when outside, away from it when inside, and the
-    /// feature's pseudo-normal on the surface. Points outward.
+    /// feature's pseudo-normal on the surface (within round-off of it).
+    /// Points outward.
     pub normal: Vector,
     /// The triangle holding the closest point.
     pub triangle: usize,
@@ -163,7 +164,9 @@ impl MeshSdf {
         let outside = offset.dot(&pseudo_normal) >= 0.0;
         let length = offset.norm();
         let sign = if outside { 1.0 } else { -1.0 };
-        let normal = if length > 0.0 {
+        // Within round-off of the surface the offset's direction is noise;
+        // the feature's pseudo-normal is the surface's own.
+        let normal = if length > 1e-12 * (self.max - self.min).norm() {
             offset * (sign / length)
         } else {
             pseudo_normal.normalize()

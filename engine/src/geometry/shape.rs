@@ -12,7 +12,12 @@
 //! rectangle, a sphere for a disc, a capsule for a stadium, a plane for a
 //! line), its volume is the area (per metre of depth) and its inertia the
 //! polar moment about z. A box's z extent is ignored in 2D.
+//!
+//! A mesh is a solid of its own ([`MeshSolid`]), in 3D only: centred on its
+//! centroid and turned onto its principal axes when it was built, it then
+//! answers like the primitives.
 
+use super::MeshSolid;
 use crate::math::{Real, Vector};
 use std::f64::consts::PI;
 
@@ -31,6 +36,9 @@ pub enum Shape {
     /// pointing out of the solid, into the fluid). Infinite: no volume, and
     /// only the part of its surface near the domain is sampled.
     Plane { normal: Vector, offset: Real },
+    /// A closed triangle mesh in its principal frame (3D only; `dim` is
+    /// not consulted).
+    Mesh(MeshSolid),
 }
 
 /// Golden angle, the azimuth step of a Fibonacci lattice.
@@ -61,6 +69,7 @@ impl Shape {
                 (p - axis).norm() - radius
             }
             Self::Plane { normal, offset } => normal.dot(p) - offset,
+            Self::Mesh(solid) => solid.signed_distance(p),
         }
     }
 
@@ -105,6 +114,7 @@ impl Shape {
                 unit_or(p - axis, Vector::x())
             }
             Self::Plane { normal, .. } => *normal,
+            Self::Mesh(solid) => solid.normal(p),
         }
     }
 
@@ -132,12 +142,13 @@ impl Shape {
                 2.0 * PI * r * r * l + 4.0 / 3.0 * PI * r.powi(3)
             }),
             Self::Plane { .. } => None,
+            Self::Mesh(solid) => Some(solid.volume()),
         }
     }
 
     /// Principal moments of inertia of a solid of uniform `density` about
     /// its centre, in the body frame (the body axes are principal for all
-    /// these shapes), kg m^2. In 2D only the z moment (the polar moment of
+    /// these shapes, and a mesh is turned onto its principal axes), kg m^2. In 2D only the z moment (the polar moment of
     /// the cross-section, per metre of depth) is meaningful; the others
     /// are set equal to it. `None` for the plane.
     pub fn inertia(&self, density: Real, dim: usize) -> Option<Vector> {
@@ -180,6 +191,7 @@ impl Shape {
                 }
             }
             Self::Plane { .. } => return None,
+            Self::Mesh(solid) => solid.inertia(density),
         };
         Some(moments)
     }
@@ -206,11 +218,12 @@ impl Shape {
                 normal: *normal,
                 offset: offset - depth,
             },
+            Self::Mesh(solid) => return solid.inset(depth).map(Self::Mesh),
         };
         let empty = match &shape {
             Self::Box { half_extents } => half_extents.xy().min() <= 0.0,
             Self::Sphere { radius } | Self::Capsule { radius, .. } => *radius <= 0.0,
-            Self::Plane { .. } => false,
+            Self::Plane { .. } | Self::Mesh(_) => false,
         };
         (!empty).then_some(shape)
     }
@@ -232,6 +245,7 @@ impl Shape {
                 radius,
             } => half_length + radius,
             Self::Plane { .. } => Real::INFINITY,
+            Self::Mesh(solid) => solid.bounding_radius(),
         }
     }
 
@@ -242,7 +256,9 @@ impl Shape {
     ///
     /// Boxes are sampled on a lattice that includes their edges and
     /// corners, spheres and capsule caps on Fibonacci lattices (equal area
-    /// per point), circles and cylinders on rings.
+    /// per point), circles and cylinders on rings, meshes by Poisson-disk
+    /// sampling ([`MeshSolid::sample_surface`]; none when the spacing would
+    /// make too many, which scene validation rules out).
     pub fn sample_surface(
         &self,
         spacing: Real,
@@ -335,6 +351,7 @@ impl Shape {
                     }
                 }
             }
+            Self::Mesh(solid) => points = solid.sample_surface(spacing).unwrap_or_default(),
         }
         points
     }
