@@ -11,6 +11,9 @@ use meshless_engine::math::{Real, Vector};
 use meshless_engine::{BuildOptions, Scene, SceneError, World};
 use std::path::{Path, PathBuf};
 
+mod common;
+use common::{body, max_speed, particles_inside};
+
 const G: Real = 9.81;
 
 fn repo(relative: &str) -> PathBuf {
@@ -54,34 +57,6 @@ fn build(text: &str) -> World {
         .expect("scene parses")
         .build(&BuildOptions::default())
         .expect("scene is valid")
-}
-
-fn body(world: &World) -> &RigidBody {
-    &world
-        .fluid()
-        .expect("fluid")
-        .bodies()
-        .expect("bodies")
-        .bodies()[0]
-}
-
-fn max_speed(world: &World) -> Real {
-    let fluid = world.fluid().expect("fluid");
-    fluid
-        .velocities
-        .iter()
-        .map(|v| v.norm())
-        .fold(0.0, Real::max)
-}
-
-fn particles_inside(world: &World) -> usize {
-    let b = body(world);
-    let fluid = world.fluid().expect("fluid");
-    fluid
-        .positions
-        .iter()
-        .filter(|x| b.excluded_distance(x) < 0.0)
-        .count()
 }
 
 /// The checked-in OBJ is the unit icosphere of two subdivisions that

@@ -9,6 +9,9 @@ use meshless_engine::fluid::RigidBody;
 use meshless_engine::math::Vector;
 use meshless_engine::{BuildOptions, Scene, World};
 
+mod common;
+use common::{body, max_speed, particles_inside};
+
 const G: f64 = 9.81;
 
 /// A 2D scene: `domain` square of side `side`, a DFSPH fluid at `spacing`
@@ -45,36 +48,6 @@ region = {{ min = [{x0}, {y0}, 0.0], max = [{x1}, {y1}, 0.0] }}
         .expect("scene parses")
         .build(&BuildOptions::default())
         .expect("scene is valid")
-}
-
-fn body(world: &World) -> &RigidBody {
-    &world
-        .fluid()
-        .expect("fluid")
-        .bodies()
-        .expect("bodies")
-        .bodies()[0]
-}
-
-fn max_speed(world: &World) -> f64 {
-    let fluid = world.fluid().expect("fluid");
-    fluid
-        .velocities
-        .iter()
-        .map(|v| v.norm())
-        .fold(0.0, f64::max)
-}
-
-/// Fluid particles inside the body (the fluid side of its surface is
-/// positive).
-fn particles_inside(world: &World) -> usize {
-    let b = body(world);
-    let fluid = world.fluid().expect("fluid");
-    fluid
-        .positions
-        .iter()
-        .filter(|x| b.excluded_distance(x) < 0.0)
-        .count()
 }
 
 /// (a) A static disc (r = 0.08 m) in a 0.6 m wide tank filled to 0.4 m
