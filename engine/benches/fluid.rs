@@ -16,36 +16,19 @@
 //! The peers (SPlisHSPlasH, salva3d) run beside meshless in `bench/peers`
 //! (`scripts/bench-peers`); see README.
 
-use meshless_engine::approx::KernelKind;
 use meshless_engine::scene::{SolverKind, SystemSpec};
 use meshless_engine::{BuildOptions, Scene};
 use std::time::Instant;
 
-/// The dam break at a given spacing, solver and kernel pair.
+mod common;
+
+/// The dam break at a given spacing and solver.
 fn scene(spacing: f64, solver: SolverKind) -> Scene {
-    let text = format!(
-        r#"
-[domain]
-min = [0.0, 0.0, 0.0]
-max = [4.0, 3.0, 1.0]
-[time]
-dt = 0.004166666666666667
-[[systems]]
-kind = "fluid"
-spacing = {spacing}
-stiffness = 5.7e5
-xsph = 0.0
-[[systems.blocks]]
-region = {{ min = [0.0, 0.0, 0.0], max = [1.0, 2.0, 1.0] }}
-"#
-    );
-    let mut scene = Scene::from_toml_str(&text).expect("bench scene");
+    let mut scene = common::dam_break(spacing);
     let SystemSpec::Fluid(fluid) = &mut scene.systems[0] else {
         panic!("the first system is the fluid")
     };
     fluid.solver = solver;
-    fluid.density_kernel = KernelKind::CubicSpline;
-    fluid.gradient_kernel = KernelKind::CubicSpline;
     scene
 }
 

@@ -6,26 +6,13 @@
 //!     cargo bench -p meshless-engine --bench surface
 
 use meshless_engine::scene::SurfaceSpec;
-use meshless_engine::{BuildOptions, Scene, World};
+use meshless_engine::{BuildOptions, World};
 use std::time::Instant;
 
+mod common;
+
 fn world(spacing: f64, surface: bool) -> World {
-    let text = format!(
-        r#"
-[domain]
-min = [0.0, 0.0, 0.0]
-max = [4.0, 3.0, 1.0]
-[time]
-dt = 0.004166666666666667
-[[systems]]
-kind = "fluid"
-spacing = {spacing}
-stiffness = 5.7e5
-[[systems.blocks]]
-region = {{ min = [0.0, 0.0, 0.0], max = [1.0, 2.0, 1.0] }}
-"#
-    );
-    let mut scene = Scene::from_toml_str(&text).expect("bench scene");
+    let mut scene = common::dam_break(spacing);
     scene.output.surface = surface.then_some(SurfaceSpec {
         cell: None,
         iso: 0.5,
