@@ -127,6 +127,7 @@ def main():
     )
     sim_state = {}
     seconds, cpu, iterations, divergence_iterations, pairs, errors = 0.0, 0.0, 0, 0, 0, []
+    means = []
     done = 0
     last, last_cpu = None, None
 
@@ -144,6 +145,7 @@ def main():
             divergence_iterations += solver.getValueInt(sph.TimeStepDFSPH.SOLVER_ITERATIONS_V)
             rho = np.asarray(fluid.getFieldBuffer("density"), dtype=np.float64)[:n]
             errors.append(float(np.mean(np.maximum(rho / rho0 - 1.0, 0.0))))
+            means.append(float(np.mean(rho / rho0)))
             pairs += sum(sim.numberOfNeighbors(0, 0, i) for i in range(n))
         last, last_cpu = time.perf_counter(), time.process_time()
 
@@ -177,6 +179,7 @@ def main():
                 "divergence_iterations": divergence_iterations,
                 "fluid_pairs": pairs,
                 "density_error": float(np.mean(errors)),
+                "mean_density": float(np.mean(means)),
                 "time_step": sph.TimeManager.getCurrent().getTimeStepSize(),
                 "column_min": x0.min(axis=0).tolist(),
                 "column_max": x0.max(axis=0).tolist(),

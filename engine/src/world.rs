@@ -292,14 +292,8 @@ impl World {
             return Vec::new();
         };
         // Frames list particles by id, whatever order the fluid keeps.
-        let vectors = |v: &[Vector]| {
-            let slots: Vec<f32> = v.iter().flat_map(|p| p.iter().map(|&c| c as f32)).collect();
-            fluid.in_id_order(&slots, 3)
-        };
-        let scalars = |s: &[Real]| {
-            let slots: Vec<f32> = s.iter().map(|&c| c as f32).collect();
-            fluid.in_id_order(&slots, 1)
-        };
+        let vectors = |v: &[Vector]| fluid.in_id_order(|k| v[k].map(|c| c as f32).into());
+        let scalars = |s: &[Real]| fluid.in_id_order(|k| [s[k] as f32]);
         match kind {
             FieldKind::Position => vectors(&fluid.positions),
             FieldKind::Velocity => vectors(&fluid.velocities),

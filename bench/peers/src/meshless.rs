@@ -60,7 +60,7 @@ pub fn run(d: &DamBreak, threads: usize) -> (Run, u32) {
     let before: StageTimer = world.stages().clone();
     let n = world.particle_count();
     let (mut seconds, mut cpu, mut pairs) = (0.0, 0.0, 0.0);
-    let (mut density_error, mut solver_error) = (0.0, 0.0);
+    let (mut density_error, mut mean_density, mut solver_error) = (0.0, 0.0, 0.0);
     let (mut pressure, mut divergence, mut capped) = (0u64, 0u64, 0u32);
     for _ in 0..d.steps {
         let (start, start_cpu) = (Instant::now(), cpu_seconds());
@@ -75,7 +75,10 @@ pub fn run(d: &DamBreak, threads: usize) -> (Run, u32) {
         capped += u32::from(info.capped);
         // The lists count each particle as its own neighbour.
         pairs += (fluid.neighbor_pairs() - n) as f64;
-        density_error += Run::compression(fluid.densities.iter().copied(), d.rest_density);
+        let (compression, mean) =
+            Run::density_stats(fluid.densities.iter().copied(), d.rest_density);
+        density_error += compression;
+        mean_density += mean;
     }
     let steps = d.steps as f64;
     let stages = world
@@ -97,6 +100,7 @@ pub fn run(d: &DamBreak, threads: usize) -> (Run, u32) {
         divergence_iterations: Some(divergence),
         solver_error: Some(solver_error / steps),
         density_error: density_error / steps,
+        mean_density: mean_density / steps,
         stages,
     };
     (run, capped)

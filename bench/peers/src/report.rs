@@ -33,16 +33,16 @@ pub fn print(runs: &[Run], notes: &[String], warmup: usize) {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "\n| engine | particles | threads | steps | particle-steps/s (wall) | per core (per CPU-s) | fluid pairs per CPU-s | pressure it./step | divergence it./step | solver density error | measured density error | meshless per core ÷ this |"
+        "\n| engine | particles | threads | steps | particle-steps/s (wall) | per core (per CPU-s) | fluid pairs per CPU-s | pressure it./step | divergence it./step | solver density error | measured density error | mean density / rest | meshless per core ÷ this |"
     );
-    let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for r in runs {
         let ratio = meshless_beside(runs, r)
             .filter(|m| m.engine != r.engine)
             .map_or("".into(), |m| format!("{:.2}", m.per_core() / r.per_core()));
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {:.3e} | {:.3e} | {:.3e} | {} | {} | {} | {:.3} % | {} |",
+            "| {} | {} | {} | {} | {:.3e} | {:.3e} | {:.3e} | {} | {} | {} | {:.3} % | {:.3} | {} |",
             r.engine,
             r.particles,
             r.threads,
@@ -54,6 +54,7 @@ pub fn print(runs: &[Run], notes: &[String], warmup: usize) {
             per_step(r.divergence_iterations, r.steps),
             percent(r.solver_error),
             100.0 * r.density_error,
+            r.mean_density,
             ratio
         );
     }
@@ -121,14 +122,14 @@ pub fn write_csv(runs: &[Run], path: &Path) -> std::io::Result<()> {
         std::fs::create_dir_all(dir)?;
     }
     let mut text = String::from(
-        "engine,particles,threads,steps,seconds,cpu_seconds,particle_steps_per_s,per_core,fluid_pairs_per_cpu_s,pressure_iterations_per_step,divergence_iterations_per_step,solver_density_error,measured_density_error\n",
+        "engine,particles,threads,steps,seconds,cpu_seconds,particle_steps_per_s,per_core,fluid_pairs_per_cpu_s,pressure_iterations_per_step,divergence_iterations_per_step,solver_density_error,measured_density_error,mean_density\n",
     );
     let opt = |x: Option<f64>| x.map_or(String::new(), |x| format!("{x:e}"));
     for r in runs {
         let steps = r.steps as f64;
         let _ = writeln!(
             text,
-            "{},{},{},{},{:e},{:e},{:e},{:e},{:e},{},{},{},{:e}",
+            "{},{},{},{},{:e},{:e},{:e},{:e},{:e},{},{},{},{:e},{:e}",
             r.engine,
             r.particles,
             r.threads,
@@ -141,7 +142,8 @@ pub fn write_csv(runs: &[Run], path: &Path) -> std::io::Result<()> {
             opt(r.pressure_iterations.map(|i| i as f64 / steps)),
             opt(r.divergence_iterations.map(|i| i as f64 / steps)),
             opt(r.solver_error),
-            r.density_error
+            r.density_error,
+            r.mean_density
         );
     }
     std::fs::write(path, text)

@@ -78,14 +78,16 @@ pub fn run(d: &DamBreak, threads: usize) -> Run {
         world.step(dt, &gravity);
     }
     let mut density = Densities::new(d);
-    let (mut seconds, mut cpu, mut pairs, mut density_error) = (0.0, 0.0, 0.0, 0.0);
+    let (mut seconds, mut cpu, mut pairs) = (0.0, 0.0, 0.0);
+    let (mut density_error, mut mean_density) = (0.0, 0.0);
     for _ in 0..d.steps {
         let (start, start_cpu) = (Instant::now(), cpu_seconds());
         world.step(dt, &gravity);
         seconds += start.elapsed().as_secs_f64();
         cpu += cpu_seconds() - start_cpu;
-        let (error, fluid_pairs) = density.measure(&world, d);
+        let ((error, mean), fluid_pairs) = density.measure(&world, d);
         density_error += error;
+        mean_density += mean;
         pairs += fluid_pairs as f64;
     }
     Run {
@@ -100,6 +102,7 @@ pub fn run(d: &DamBreak, threads: usize) -> Run {
         divergence_iterations: None,
         solver_error: None,
         density_error: density_error / d.steps as f64,
+        mean_density: mean_density / d.steps as f64,
         stages: Vec::new(),
     }
 }
@@ -126,7 +129,8 @@ impl Densities {
     }
 
     /// Mean compression of the fluid and its fluid-fluid pairs.
-    fn measure(&mut self, world: &LiquidWorld, d: &DamBreak) -> (f64, usize) {
+    /// The density statistics of [`Run::density_stats`] and the fluid pairs.
+    fn measure(&mut self, world: &LiquidWorld, d: &DamBreak) -> ((f64, f64), usize) {
         let fluid = &world.fluids().as_slice()[0];
         let boundary = &world.boundaries().as_slice()[0];
         let nf = fluid.num_particles();
@@ -154,7 +158,7 @@ impl Densities {
             }
             f64::from(rho)
         });
-        let error = Run::compression(densities, d.rest_density);
-        (error, pairs)
+        let stats = Run::density_stats(densities, d.rest_density);
+        (stats, pairs)
     }
 }

@@ -78,6 +78,10 @@ pub struct Run {
     /// from each engine's own density sum (its kernel, mass and boundary)
     /// at the positions a step ended on.
     pub density_error: f64,
+    /// Mean over the timed steps of `mean_i rho_i / rho_0`, from the same
+    /// density sums: below 1 where the fluid has expanded (a spray), so it
+    /// tells whether the engines compare on the same flow.
+    pub mean_density: f64,
     /// Seconds per stage, where the engine times them.
     pub stages: Vec<(&'static str, f64)>,
 }
@@ -93,14 +97,17 @@ impl Run {
         self.particles as f64 * self.steps as f64 / self.cpu_seconds
     }
 
-    /// Mean of `max(rho / rho_0 - 1, 0)` over `densities`.
-    pub fn compression(densities: impl Iterator<Item = f64>, rest: f64) -> f64 {
-        let (mut sum, mut n) = (0.0, 0usize);
+    /// The means of `max(rho / rho_0 - 1, 0)` (the compression the
+    /// tolerance bounds) and of `rho / rho_0` over `densities`.
+    pub fn density_stats(densities: impl Iterator<Item = f64>, rest: f64) -> (f64, f64) {
+        let (mut compression, mut ratio, mut n) = (0.0, 0.0, 0usize);
         for rho in densities {
-            sum += (rho / rest - 1.0).max(0.0);
+            compression += (rho / rest - 1.0).max(0.0);
+            ratio += rho / rest;
             n += 1;
         }
-        sum / n.max(1) as f64
+        let n = n.max(1) as f64;
+        (compression / n, ratio / n)
     }
 }
 

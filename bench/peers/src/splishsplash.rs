@@ -103,6 +103,7 @@ pub fn run(
         divergence_iterations: Some(num("divergence_iterations")? as u64),
         solver_error: None,
         density_error: num("density_error")?,
+        mean_density: num("mean_density")?,
         stages: Vec::new(),
     })
 }

@@ -61,13 +61,14 @@ impl Fluid {
         &self.ids
     }
 
-    /// `values` (one entry of `components` scalars per slot) rearranged
-    /// into particle-id order.
-    pub fn in_id_order<T: Copy + Default>(&self, values: &[T], components: usize) -> Vec<T> {
-        let mut out = vec![T::default(); values.len()];
+    /// One value of `N` scalars per particle, in particle-id order:
+    /// `value(slot)` is read for each slot and written where its id puts
+    /// it, straight into the one output buffer.
+    pub fn in_id_order<const N: usize>(&self, value: impl Fn(usize) -> [f32; N]) -> Vec<f32> {
+        let mut out = vec![0.0; self.ids.len() * N];
         for (slot, &id) in self.ids.iter().enumerate() {
-            let (from, to) = (slot * components, id as usize * components);
-            out[to..to + components].copy_from_slice(&values[from..from + components]);
+            let at = id as usize * N;
+            out[at..at + N].copy_from_slice(&value(slot));
         }
         out
     }

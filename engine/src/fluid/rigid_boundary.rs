@@ -90,6 +90,8 @@ pub struct RigidBodies {
     /// Fluid particles the reflection constraint had to put back, since
     /// the bodies were built.
     projections: usize,
+    /// Scratch of [`Self::advance`]: one moved body's samples, world frame.
+    moved_samples: Vec<Vector>,
 }
 
 impl RigidBodies {
@@ -124,6 +126,7 @@ impl RigidBodies {
             rest_density,
             loads: no_loads(bodies.len()),
             projections: 0,
+            moved_samples: Vec::new(),
             inset: 0.5 * spacing,
             bodies,
         };
@@ -363,14 +366,16 @@ impl RigidBodies {
             if body.moves() {
                 moved = true;
                 let s = &body.state;
-                let world: Vec<Vector> = self.local[self.ranges[k].clone()]
-                    .iter()
-                    .map(|p| s.position + s.orientation.transform_vector(p))
-                    .collect();
+                self.moved_samples.clear();
+                self.moved_samples.extend(
+                    self.local[self.ranges[k].clone()]
+                        .iter()
+                        .map(|p| s.position + s.orientation.transform_vector(p)),
+                );
                 // The samples sit `inset` beneath the surface: walls that
                 // far in stop the surface itself.
                 let inset = Vector::repeat(self.inset);
-                body.contain(&world, &(min + inset), &(max - inset));
+                body.contain(&self.moved_samples, &(min + inset), &(max - inset));
             }
         }
         self.loads = no_loads(self.bodies.len());
