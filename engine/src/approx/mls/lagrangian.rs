@@ -164,6 +164,22 @@ impl LagrangianGradients {
         &self.conditions
     }
 
+    /// Positions of particle `i`'s entries in the flat arrays
+    /// [`Self::neighbour_indices`] and [`Self::all_weights`].
+    pub fn range(&self, i: usize) -> std::ops::Range<usize> {
+        self.offsets[i] as usize..self.offsets[i + 1] as usize
+    }
+
+    /// Every particle's neighbours, concatenated in particle order.
+    pub fn neighbour_indices(&self) -> &[u32] {
+        &self.neighbours
+    }
+
+    /// Every `g_ij`, aligned with [`Self::neighbour_indices`].
+    pub fn all_weights(&self) -> &[Vector] {
+        &self.weights
+    }
+
     /// Neighbours of particle `i` and their weights `g_ij`.
     pub fn of(&self, i: usize) -> (&[u32], &[Vector]) {
         let (lo, hi) = (self.offsets[i] as usize, self.offsets[i + 1] as usize);

@@ -1,0 +1,260 @@
+//! An MLS elastic solid: its particles, reference shape and state.
+
+use super::contact::Obstacles;
+use super::material::StressState;
+use super::params::SolidParams;
+use super::topology::Topology;
+use crate::approx::mls::{MlsError, Order};
+use crate::math::{Real, Vector};
+use nalgebra::Matrix3;
+
+/// A body sampled by particles whose elastic forces come from the MLS
+/// displacement gradient in material coordinates (tutorial Section 7.1).
+#[derive(Debug, Clone)]
+pub struct ElasticSolid {
+    pub params: SolidParams,
+    /// Reference (material) positions `X`.
+    pub(super) rest: Vec<Vector>,
+    pub positions: Vec<Vector>,
+    pub velocities: Vec<Vector>,
+    /// Reference volume and mass of each particle.
+    pub(super) volumes: Vec<Real>,
+    pub(super) masses: Vec<Real>,
+    /// Anchored particles: they never move.
+    pub(super) fixed: Vec<bool>,
+    pub(super) topology: Topology,
+    /// Plastic strain per particle, only when the solid is plastic.
+    pub(super) plastic: Option<Vec<Matrix3<Real>>>,
+    pub(super) obstacles: Obstacles,
+    /// Scratch of the force passes, reused every step.
+    pub(super) scratch: Scratch,
+}
+
+/// Per-particle and per-edge buffers of one force evaluation.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Scratch {
+    /// Stress state at the last evaluated positions.
+    pub states: Vec<StressState>,
+    /// `dU/dF` of each particle's energy (elastic, volume, hourglass).
+    pub stress: Vec<Matrix3<Real>>,
+    /// Pairwise (hourglass and damping) force of each edge on its owner.
+    pub edge: Vec<Vector>,
+    pub forces: Vec<Vector>,
+    /// Implicit solver vectors.
+    pub implicit: super::implicit::Buffers,
+}
+
+/// Why a solid cannot be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SolidError {
+    #[error("the solid has no particles; enlarge its shape or shrink its spacing")]
+    Empty,
+    #[error("{what}: expected one entry per particle ({expected}), got {got}")]
+    Length {
+        what: &'static str,
+        expected: usize,
+        got: usize,
+    },
+    #[error(transparent)]
+    Mls(#[from] MlsError),
+}
+
+impl ElasticSolid {
+    /// A solid at rest shape `rest` with initial `velocities` and the
+    /// particles flagged in `fixed` anchored, colliding with `obstacles`.
+    ///
+    /// # Errors
+    /// [`SolidError`] when the inputs disagree in length, are empty, or
+    /// the MLS parameters are invalid.
+    pub fn new(
+        params: SolidParams,
+        rest: Vec<Vector>,
+        velocities: Vec<Vector>,
+        fixed: Vec<bool>,
+        obstacles: Obstacles,
+    ) -> Result<Self, SolidError> {
+        let n = rest.len();
+        if n == 0 {
+            return Err(SolidError::Empty);
+        }
+        for (what, got) in [("velocities", velocities.len()), ("fixed", fixed.len())] {
+            if got != n {
+                return Err(SolidError::Length {
+                    what,
+                    expected: n,
+                    got,
+                });
+            }
+        }
+        let topology = Topology::build(&rest, params.dim, params.order, params.support)?;
+        let volume = params.particle_volume();
+        let mut velocities = velocities;
+        for (v, &f) in velocities.iter_mut().zip(&fixed) {
+            if f {
+                *v = Vector::zeros();
+            }
+        }
+        let mut solid = Self {
+            positions: rest.clone(),
+            rest,
+            velocities,
+            volumes: vec![volume; n],
+            masses: vec![volume * params.density; n],
+            fixed,
+            topology,
+            plastic: params.plasticity.map(|_| vec![Matrix3::zeros(); n]),
+            obstacles,
+            params,
+            scratch: Scratch::default(),
+        };
+        solid.evaluate_stress(None);
+        Ok(solid)
+    }
+
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// Reference positions.
+    pub fn rest_positions(&self) -> &[Vector] {
+        &self.rest
+    }
+
+    pub fn masses(&self) -> &[Real] {
+        &self.masses
+    }
+
+    /// Reference volume of each particle.
+    pub fn volumes(&self) -> &[Real] {
+        &self.volumes
+    }
+
+    pub fn is_fixed(&self, i: usize) -> bool {
+        self.fixed[i]
+    }
+
+    /// The MLS order each particle's gradient actually uses (lower than
+    /// requested where its neighbourhood is degenerate).
+    pub fn orders(&self) -> &[Order] {
+        self.topology.gradients.orders()
+    }
+
+    /// Plastic strain per particle, when the solid is plastic.
+    pub fn plastic_strains(&self) -> Option<&[Matrix3<Real>]> {
+        self.plastic.as_deref()
+    }
+
+    /// Moves the particles to `positions` with `velocities` (a deformed
+    /// initial state, say), keeping the reference shape.
+    ///
+    /// # Errors
+    /// [`SolidError::Length`] when either has the wrong length.
+    pub fn set_state(
+        &mut self,
+        positions: Vec<Vector>,
+        velocities: Vec<Vector>,
+    ) -> Result<(), SolidError> {
+        for (what, got) in [("positions", positions.len()), ("velocities", velocities.len())] {
+            if got != self.len() {
+                return Err(SolidError::Length {
+                    what,
+                    expected: self.len(),
+                    got,
+                });
+            }
+        }
+        self.positions = positions;
+        self.velocities = velocities;
+        self.evaluate_stress(None);
+        Ok(())
+    }
+
+    /// Deformation gradient `F = I + grad u` of every particle at the
+    /// current positions.
+    pub fn deformation_gradients(&self) -> impl ExactSizeIterator<Item = &Matrix3<Real>> {
+        self.scratch.states.iter().map(|s| &s.f)
+    }
+
+    /// `grad u = F - I` of every particle, for surface embedding.
+    pub fn displacement_gradients(&self, out: &mut Vec<Matrix3<Real>>) {
+        out.clear();
+        out.extend(
+            self.scratch
+                .states
+                .iter()
+                .map(|s| s.f - Matrix3::identity()),
+        );
+    }
+
+    /// Current density `m / (V det F)` of every particle.
+    pub fn densities(&self) -> impl ExactSizeIterator<Item = Real> + '_ {
+        self.scratch
+            .states
+            .iter()
+            .zip(&self.masses)
+            .zip(&self.volumes)
+            .map(|((s, m), v)| m / (v * s.det.max(Real::EPSILON)))
+    }
+
+    /// Mean compressive stress `-tr(sigma) / 3` of every particle, with
+    /// the Cauchy stress `sigma = P F^T / det F`, Pa.
+    pub fn pressures(&self) -> impl ExactSizeIterator<Item = Real> + '_ {
+        let material = self.params.material;
+        self.scratch.states.iter().map(move |s| {
+            let p = material.first_piola(s);
+            -(p * s.f.transpose()).trace() / (3.0 * s.det.max(Real::EPSILON))
+        })
+    }
+
+    /// Kinetic energy, J.
+    pub fn kinetic_energy(&self) -> Real {
+        self.velocities
+            .iter()
+            .zip(&self.masses)
+            .map(|(v, m)| 0.5 * m * v.norm_squared())
+            .sum()
+    }
+
+    /// Total volume `sum V_i det F_i`, m^3 (area in 2D).
+    pub fn current_volume(&self) -> Real {
+        self.scratch
+            .states
+            .iter()
+            .zip(&self.volumes)
+            .map(|(s, v)| v * s.det)
+            .sum()
+    }
+
+    /// Centre of mass.
+    pub fn centre_of_mass(&self) -> Vector {
+        let total: Real = self.masses.iter().sum();
+        self.positions
+            .iter()
+            .zip(&self.masses)
+            .map(|(x, m)| x * *m)
+            .sum::<Vector>()
+            / total
+    }
+
+    /// The first particle whose state is not finite or moves faster than
+    /// ten elastic wave speeds (a blow-up, not physics).
+    pub(crate) fn first_invalid(&self) -> Option<(usize, &'static str, Real)> {
+        let limit = 10.0 * self.params.wave_speed() + 1e3;
+        self.positions
+            .iter()
+            .zip(&self.velocities)
+            .enumerate()
+            .find_map(|(i, (x, v))| {
+                if !x.iter().all(|c| c.is_finite()) {
+                    Some((i, "position", x.norm()))
+                } else {
+                    let speed = v.norm();
+                    (speed.is_nan() || speed > limit).then_some((i, "velocity", speed))
+                }
+            })
+    }
+}

@@ -1,0 +1,29 @@
+//! MLS elastic solids (tutorial Section 7; Müller et al. 2004): a body
+//! sampled by particles, its displacement gradient estimated by MLS in
+//! material coordinates, Green–Saint-Venant strain, Hooke's law and
+//! forces that are exact derivatives of the strain energy, with volume
+//! conservation, hourglass control, damping, anchors, obstacles,
+//! plasticity, and explicit or implicit integration.
+//!
+//! - `material.rs`: strain, stress and energy (Eq. 61-65);
+//! - `topology.rs`: the Lagrangian neighbourhoods, built once;
+//! - `forces.rs`: the force passes and their linearisation;
+//! - `integrate.rs`, `implicit.rs`: time stepping;
+//! - `plasticity.rs`: Eq. 69 and the reference-shape update;
+//! - `contact.rs`: obstacles and walls.
+
+mod contact;
+mod elastic;
+mod forces;
+mod implicit;
+mod integrate;
+mod material;
+mod params;
+mod plasticity;
+mod topology;
+
+pub use contact::{Obstacle, Obstacles};
+pub use elastic::{ElasticSolid, SolidError};
+pub use integrate::SolidStep;
+pub use material::{Material, StressState, cofactor, green_strain};
+pub use params::{ImplicitParams, Integrator, Plasticity, SolidParams};

@@ -1,0 +1,121 @@
+//! The knobs of an elastic solid, each trading speed for accuracy or
+//! naming a physical property.
+
+use super::material::Material;
+use crate::approx::mls::Order;
+use crate::math::Real;
+use serde::{Deserialize, Serialize};
+
+/// How a solid advances in time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Integrator {
+    /// Symplectic Euler: cheap per step, stable only below the elastic
+    /// wave limit `cfl * spacing / c_p`, which the step is split to obey.
+    Explicit { cfl: Real },
+    /// Backward Euler, each step solved by Newton's method with a
+    /// matrix-free conjugate-gradient solve on the tangent stiffness:
+    /// stable at any step, at the cost of several force evaluations.
+    Implicit(ImplicitParams),
+}
+
+/// The implicit integrator's solver settings.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImplicitParams {
+    /// Newton stops when the backward Euler residual (the momentum
+    /// imbalance) has fallen to this fraction of its value at the start of
+    /// the step.
+    pub newton_tolerance: Real,
+    pub max_newton_iterations: u32,
+    /// Conjugate gradients stop at this residual relative to the
+    /// right-hand side.
+    pub cg_tolerance: Real,
+    pub max_cg_iterations: u32,
+}
+
+impl Default for ImplicitParams {
+    fn default() -> Self {
+        Self {
+            newton_tolerance: 1e-6,
+            max_newton_iterations: 20,
+            cg_tolerance: 1e-3,
+            max_cg_iterations: 200,
+        }
+    }
+}
+
+/// Plastic flow (tutorial Section 7.3, Eq. 69, after Müller et al. 2004
+/// and Gross & Pfister 2007).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Plasticity {
+    /// `c_yield`: elastic strain norm above which the material flows.
+    #[serde(rename = "yield")]
+    pub yield_strain: Real,
+    /// `c_creep` in (0, 1]: the share of the elastic strain absorbed per
+    /// step while yielding.
+    pub creep: Real,
+    /// `c_max`: the largest plastic strain norm a particle stores.
+    pub max: Real,
+    /// When a particle's total strain norm exceeds this, the reference
+    /// shape moves to the current one and the shape functions are
+    /// recomputed (large plastic deformation); `None` never re-bases.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rebase: Option<Real>,
+}
+
+/// Everything a solid needs besides its particles.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolidParams {
+    /// 2 or 3.
+    pub dim: usize,
+    /// Particle spacing, m; each particle stands for `spacing^dim` of
+    /// material.
+    pub spacing: Real,
+    /// kg/m^3.
+    pub density: Real,
+    /// Young's modulus, Pa (scales the hourglass term).
+    pub young: Real,
+    pub material: Material,
+    /// MLS basis order of the displacement gradient.
+    pub order: Order,
+    /// MLS support radius h, m.
+    pub support: Real,
+    /// Weight of the hourglass (zero-energy mode) penalty relative to
+    /// Young's modulus; 0 turns it off.
+    pub hourglass: Real,
+    /// Rate of the pairwise velocity damping, 1/s; 0 is undamped.
+    pub damping: Real,
+    /// Coulomb friction against obstacles and walls.
+    pub friction: Real,
+    pub integrator: Integrator,
+    pub plasticity: Option<Plasticity>,
+}
+
+impl SolidParams {
+    /// Mass and volume of one particle.
+    pub fn particle_volume(&self) -> Real {
+        self.spacing.powi(self.dim as i32)
+    }
+
+    /// Stiffness that sets the fastest wave, Pa.
+    pub fn wave_modulus(&self) -> Real {
+        self.material.wave_modulus() + self.hourglass * self.young
+    }
+
+    /// Speed of the fastest elastic wave, m/s.
+    pub fn wave_speed(&self) -> Real {
+        (self.wave_modulus() / self.density).sqrt()
+    }
+
+    /// The explicit step limit: the wave limit `cfl * spacing / c_p` and,
+    /// with damping, `cfl / damping`.
+    pub fn stable_dt(&self, cfl: Real) -> Real {
+        let wave = cfl * self.spacing / self.wave_speed();
+        if self.damping > 0.0 {
+            wave.min(cfl / self.damping)
+        } else {
+            wave
+        }
+    }
+}

@@ -1,0 +1,103 @@
+//! The fixed connectivity of an elastic solid in material coordinates
+//! (Lagrangian kernels, tutorial Section 7.1): neighbours, MLS gradient
+//! weights, the normalised pair weights of the hourglass and damping
+//! terms, and the reverse adjacency that lets forces be gathered in
+//! parallel instead of scattered under locks.
+//!
+//! Built once from the reference positions, and again only when a
+//! plastic solid re-bases its reference shape.
+
+use crate::approx::mls::{GradientKind, LagrangianGradients, Mls, MlsError, Order};
+use crate::approx::{Kernel, KernelKind};
+use crate::math::{Real, Vector};
+use crate::neighbors::{CandidateSearch, KdTree, NeighborList};
+
+/// Directed edges `e = (i -> j)` for every `j` within `h` of `i` (itself
+/// included, with zero weights), in CSR order of `i`.
+#[derive(Debug, Clone, Default)]
+pub struct Topology {
+    pub gradients: LagrangianGradients,
+    /// Owner `i` of each edge.
+    pub owner: Vec<u32>,
+    /// `X_j - X_i` of each edge, reference frame.
+    pub rest_offset: Vec<Vector>,
+    /// `w_ij / sum_k w_ik` (poly6 profile, self excluded).
+    pub pair_weight: Vec<Real>,
+    /// `sum_j g_ij` per particle.
+    pub sum_g: Vec<Vector>,
+    /// For each particle `k`, the edges `(i -> k)` that end at it.
+    pub reverse_offsets: Vec<u32>,
+    pub reverse_edges: Vec<u32>,
+}
+
+impl Topology {
+    /// The topology of particles at `rest` with an MLS gradient of `order`
+    /// over support `h` in `dim` dimensions.
+    ///
+    /// # Errors
+    /// [`MlsError`] for invalid MLS parameters.
+    pub fn build(rest: &[Vector], dim: usize, order: Order, h: Real) -> Result<Self, MlsError> {
+        let mls = Mls::new(dim, crate::approx::mls::MlsParams::new(order, h))?;
+        let mut search = KdTree::new(h);
+        search.rebuild(rest);
+        let mut list = NeighborList::default();
+        list.build(&search, rest, h);
+        let gradients = LagrangianGradients::build(&mls, GradientKind::Direct, rest, &list)?;
+
+        let n = rest.len();
+        let edges = gradients.neighbour_indices();
+        let weight = Kernel::new(KernelKind::Poly6, dim, h);
+        let mut owner = vec![0u32; edges.len()];
+        let mut rest_offset = vec![Vector::zeros(); edges.len()];
+        let mut pair_weight = vec![0.0; edges.len()];
+        let mut sum_g = vec![Vector::zeros(); n];
+        let g = gradients.all_weights();
+        for i in 0..n {
+            let range = gradients.range(i);
+            let mut total = 0.0;
+            for e in range.clone() {
+                let j = edges[e] as usize;
+                owner[e] = i as u32;
+                rest_offset[e] = rest[j] - rest[i];
+                sum_g[i] += g[e];
+                if j != i {
+                    pair_weight[e] = weight.value(rest_offset[e].norm());
+                    total += pair_weight[e];
+                }
+            }
+            if total > 0.0 {
+                for w in &mut pair_weight[range] {
+                    *w /= total;
+                }
+            }
+        }
+
+        let mut reverse_offsets = vec![0u32; n + 1];
+        for &j in edges {
+            reverse_offsets[j as usize + 1] += 1;
+        }
+        for k in 0..n {
+            reverse_offsets[k + 1] += reverse_offsets[k];
+        }
+        let mut fill = reverse_offsets.clone();
+        let mut reverse_edges = vec![0u32; edges.len()];
+        for (e, &j) in edges.iter().enumerate() {
+            reverse_edges[fill[j as usize] as usize] = e as u32;
+            fill[j as usize] += 1;
+        }
+        Ok(Self {
+            gradients,
+            owner,
+            rest_offset,
+            pair_weight,
+            sum_g,
+            reverse_offsets,
+            reverse_edges,
+        })
+    }
+
+    /// Edges `(i -> k)` ending at particle `k`.
+    pub fn incoming(&self, k: usize) -> &[u32] {
+        &self.reverse_edges[self.reverse_offsets[k] as usize..self.reverse_offsets[k + 1] as usize]
+    }
+}

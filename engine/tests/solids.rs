@@ -1,0 +1,184 @@
+//! The elastic solid's mechanics: forces are the exact derivatives of the
+//! energy, rigid motions are force-free, momentum is conserved.
+
+use meshless_engine::approx::mls::Order;
+use meshless_engine::geometry::Shape;
+use meshless_engine::math::{Real, Vector};
+use meshless_engine::solid::{
+    ElasticSolid, ImplicitParams, Integrator, Material, Obstacles, SolidParams, cofactor,
+    green_strain,
+};
+use nalgebra::{Matrix3, Rotation3};
+
+fn params(dim: usize, spacing: Real, young: Real, poisson: Real) -> SolidParams {
+    SolidParams {
+        dim,
+        spacing,
+        density: 1000.0,
+        young,
+        material: Material::from_young_poisson(young, poisson, 0.0),
+        order: Order::Linear,
+        support: 2.0 * spacing,
+        hourglass: 0.1,
+        damping: 0.0,
+        friction: 0.0,
+        integrator: Integrator::Explicit { cfl: 0.5 },
+        plasticity: None,
+    }
+}
+
+fn block(p: SolidParams, half: [Real; 3]) -> ElasticSolid {
+    let shape = Shape::Box {
+        half_extents: Vector::from(half),
+    };
+    let rest = shape.sample_volume(p.spacing, p.dim).expect("samples");
+    let n = rest.len();
+    ElasticSolid::new(p, rest, vec![Vector::zeros(); n], vec![false; n], Obstacles::default())
+        .expect("solid")
+}
+
+/// A smooth, non-affine deformation.
+fn bend(x: &Vector) -> Vector {
+    Vector::new(
+        x.x + 0.1 * x.y * x.y,
+        x.y + 0.05 * x.x * x.y,
+        x.z + 0.08 * x.x * x.z,
+    )
+}
+
+#[test]
+fn first_piola_and_its_derivative_match_finite_differences() {
+    let m = Material::from_young_poisson(2e5, 0.3, 5e4);
+    let f = Matrix3::new(1.1, 0.2, -0.1, 0.05, 0.9, 0.15, -0.2, 0.1, 1.2);
+    let state = m.state(f, None);
+    let p = m.first_piola(&state);
+    let eps = 1e-6;
+    let mut worst: Real = 0.0;
+    for a in 0..3 {
+        for b in 0..3 {
+            let mut d = Matrix3::zeros();
+            d[(a, b)] = eps;
+            let up = m.energy_density(&m.state(f + d, None));
+            let down = m.energy_density(&m.state(f - d, None));
+            worst = worst.max(((up - down) / (2.0 * eps) - p[(a, b)]).abs() / p.norm());
+        }
+    }
+    assert!(worst < 1e-8, "dW/dF vs P: {worst:e}");
+    let df = Matrix3::new(0.3, -0.1, 0.2, 0.0, 0.4, -0.2, 0.1, 0.1, -0.3);
+    let fd = (m.first_piola(&m.state(f + df * eps, None))
+        - m.first_piola(&m.state(f - df * eps, None)))
+        / (2.0 * eps);
+    let exact = m.first_piola_derivative(&state, &df);
+    assert!((fd - exact).norm() < 1e-6 * exact.norm(), "dP: {fd} vs {exact}");
+    let inv_t = f.try_inverse().expect("invertible").transpose() * f.determinant();
+    assert!((cofactor(&f) - inv_t).norm() < 1e-14);
+    let r = Rotation3::from_euler_angles(0.3, -1.2, 2.0).into_inner();
+    assert!(green_strain(&r).norm() < 1e-15);
+}
+
+#[test]
+fn forces_are_minus_the_energy_gradient() {
+    for dim in [2, 3] {
+        let mut p = params(dim, 0.1, 1e5, 0.3);
+        p.material.volume_stiffness = 3e4;
+        p.hourglass = 0.5;
+        let mut solid = block(p, [0.3, 0.2, 0.2]);
+        let x: Vec<Vector> = solid.rest_positions().iter().map(bend).collect();
+        let n = x.len();
+        solid.set_state(x.clone(), vec![Vector::zeros(); n]).expect("same length");
+        let forces = solid.forces();
+        let scale = forces.iter().map(|f| f.norm()).fold(0.0, Real::max);
+        let eps = 1e-7;
+        for i in [0, n / 3, n / 2, n - 1] {
+            for a in 0..dim {
+                let mut moved = x.clone();
+                moved[i][a] += eps;
+                solid.set_state(moved.clone(), vec![Vector::zeros(); n]).expect("same length");
+                let up = solid.potential_energy();
+                moved[i][a] -= 2.0 * eps;
+                solid.set_state(moved, vec![Vector::zeros(); n]).expect("same length");
+                let down = solid.potential_energy();
+                let numeric = -(up - down) / (2.0 * eps);
+                assert!(
+                    (numeric - forces[i][a]).abs() < 1e-5 * scale,
+                    "{dim}D particle {i} axis {a}: {numeric} vs {}",
+                    forces[i][a]
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn rigid_rotation_gives_no_force_and_momentum_is_conserved() {
+    for dim in [2, 3] {
+        let mut p = params(dim, 0.05, 1e6, 0.45);
+        p.material.volume_stiffness = 1e6;
+        let mut solid = block(p, [0.3, 0.15, 0.1]);
+        let n = solid.len();
+        let turn = if dim == 2 {
+            Rotation3::from_axis_angle(&Vector::z_axis(), std::f64::consts::FRAC_PI_2)
+        } else {
+            Rotation3::from_euler_angles(0.7, 1.1, -0.4)
+        };
+        let shift = Vector::new(3.0, -1.0, if dim == 2 { 0.0 } else { 2.0 });
+        let x: Vec<Vector> = solid.rest_positions().iter().map(|x| turn * x + shift).collect();
+        solid.set_state(x, vec![Vector::zeros(); n]).expect("same length");
+        let rotated = solid.forces().iter().map(|f| f.norm()).fold(0.0, Real::max);
+        // The scale: forces of a 1 % stretch.
+        let stretched: Vec<Vector> = solid
+            .rest_positions()
+            .iter()
+            .map(|x| Vector::new(1.01 * x.x, x.y, x.z))
+            .collect();
+        solid.set_state(stretched, vec![Vector::zeros(); n]).expect("same length");
+        let scale = solid.forces().iter().map(|f| f.norm()).fold(0.0, Real::max);
+        assert!(rotated < 1e-9 * scale, "{dim}D: {rotated:e} vs {scale:e}");
+
+        // A bent body: net force and torque vanish.
+        let x: Vec<Vector> = solid.rest_positions().iter().map(bend).collect();
+        solid.set_state(x.clone(), vec![Vector::zeros(); n]).expect("same length");
+        let forces = solid.forces();
+        let net: Vector = forces.iter().sum();
+        let torque: Vector = x.iter().zip(&forces).map(|(x, f)| x.cross(f)).sum();
+        let big = forces.iter().map(|f| f.norm()).fold(0.0, Real::max);
+        assert!(net.norm() < 1e-10 * big * n as Real, "{dim}D net {net}");
+        assert!(torque.norm() < 1e-10 * big * n as Real, "{dim}D torque {torque}");
+    }
+}
+
+#[test]
+fn implicit_and_explicit_agree_on_a_small_oscillation() {
+    let mut p = params(2, 0.05, 1e5, 0.3);
+    let mut explicit = block(p, [0.3, 0.1, 0.1]);
+    p.integrator = Integrator::Implicit(ImplicitParams::default());
+    let mut implicit = block(p, [0.3, 0.1, 0.1]);
+    let n = explicit.len();
+    let x: Vec<Vector> = explicit
+        .rest_positions()
+        .iter()
+        .map(|x| Vector::new(1.01 * x.x, x.y, 0.0))
+        .collect();
+    explicit.set_state(x.clone(), vec![Vector::zeros(); n]).expect("same length");
+    implicit.set_state(x, vec![Vector::zeros(); n]).expect("same length");
+    let g = Vector::zeros();
+    let dt = 1e-4;
+    for _ in 0..20 {
+        explicit.step(dt, &g, 10_000);
+        let info = implicit.step(dt, &g, 10_000);
+        assert!(info.residual <= 1e-6, "{info:?}");
+    }
+    let diff = explicit
+        .positions
+        .iter()
+        .zip(&implicit.positions)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, Real::max);
+    let moved = explicit
+        .positions
+        .iter()
+        .zip(explicit.rest_positions())
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, Real::max);
+    assert!(diff < 0.1 * moved, "diff {diff:e} moved {moved:e}");
+}
