@@ -33,6 +33,18 @@ pub struct Frame {
     pub bodies: Vec<BodyPose>,
     /// The fluid's surface, when the scene asks for it (`output.surface`).
     pub surface: Option<TriMesh>,
+    /// Where each elastic solid's particles sit in `fields` (after the
+    /// fluid's), in scene order.
+    pub solids: Vec<SolidRange>,
+}
+
+/// The particles of one solid in a frame: `count` of them from `first`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SolidRange {
+    /// Index of the solid's system in the scene.
+    pub system: usize,
+    pub first: usize,
+    pub count: usize,
 }
 
 /// Where a rigid body is and how it moves, in the world frame.

@@ -15,6 +15,10 @@ use crate::world::World;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
+mod solid;
+pub(crate) use solid::build_solid;
+pub use solid::{AnchorSpec, IntegratorKind, SolidSpec, defaults as solid_defaults};
+
 /// Defaults for every optional scene parameter, shared with the protocol
 /// conversion so both front doors build the same world.
 pub mod defaults {
@@ -96,6 +100,17 @@ impl SceneError {
         Self::Invalid {
             field: field.into(),
             message: message.into(),
+        }
+    }
+
+    /// Appends why the range is what it is.
+    fn with_hint(self, hint: &str) -> Self {
+        match self {
+            Self::Invalid { field, message } => Self::Invalid {
+                field,
+                message: format!("{message} ({hint})"),
+            },
+            other => other,
         }
     }
 }
@@ -389,6 +404,7 @@ impl FluidSpec {
 pub enum SystemSpec {
     Fluid(FluidSpec),
     RigidBody(RigidBodySpec),
+    Solid(SolidSpec),
 }
 
 /// The solid shape of a rigid body, in its body frame, centred on the
@@ -745,6 +761,17 @@ impl Scene {
             .map(|s| match s {
                 SystemSpec::Fluid(f) => f.particle_count(self.dimension),
                 SystemSpec::RigidBody(_) => 0.0,
+                // The volume over the lattice cell, or the bounding cube's
+                // count for a mesh, whose volume needs its file.
+                SystemSpec::Solid(solid) => {
+                    let dim = self.dimension;
+                    let shape = match &solid.shape {
+                        ShapeSpec::Mesh { .. } => None,
+                        other => crate::world::body_shape(other, dim, "").ok(),
+                    };
+                    let volume = shape.as_ref().and_then(|s| s.volume(dim)).unwrap_or(0.0);
+                    volume / solid.spacing.powi(dim as i32)
+                }
             })
             .sum()
     }
@@ -792,6 +819,7 @@ impl Scene {
             ));
         }
         let mut fluids = 0;
+        let mut solid_particles = 0.0;
         let mut shapes = Vec::with_capacity(self.systems.len());
         for (s, system) in self.systems.iter().enumerate() {
             shapes.push(None);
@@ -814,21 +842,29 @@ impl Scene {
                              non-periodic (periodic = [false, false, false]) or remove the body",
                         ));
                     }
-                    let Some(fluid) = self.fluid() else {
+                    let fluid = self.fluid();
+                    if fluid.is_none() && !(self.has_solids() && body.motion == MotionKind::Static)
+                    {
                         return Err(SceneError::invalid(
                             format!("systems[{s}]"),
                             "a rigid body is a boundary of the fluid and takes its spacing and \
-                             kernels from it; add a system with kind = \"fluid\"",
+                             kernels from it; add a system with kind = \"fluid\" (without a \
+                             fluid, a static body is an obstacle for solids)",
                         ));
-                    };
+                    }
                     shapes[s] = Some(self.validate_body(&format!("systems[{s}]"), body, fluid)?);
+                }
+                SystemSpec::Solid(solid) => {
+                    let (shape, count) = self.validate_solid(&format!("systems[{s}]"), solid)?;
+                    solid_particles += count as f64;
+                    shapes[s] = Some(shape);
                 }
             }
         }
         if let Some(surface) = &self.output.surface {
             self.validate_surface(surface)?;
         }
-        let count = self.particle_count();
+        let count = self.fluid().map_or(0.0, |f| f.particle_count(self.dimension)) + solid_particles;
         if count > options.max_particles as f64 {
             return Err(SceneError::TooManyParticles {
                 count: count.min(u64::MAX as f64) as u64,
@@ -842,21 +878,23 @@ impl Scene {
     pub fn fluid(&self) -> Option<&FluidSpec> {
         self.systems.iter().find_map(|s| match s {
             SystemSpec::Fluid(f) => Some(f),
-            SystemSpec::RigidBody(_) => None,
+            SystemSpec::RigidBody(_) | SystemSpec::Solid(_) => None,
         })
     }
 
-    /// Checks a rigid body and makes its engine shape (reading its mesh).
-    fn validate_body(
-        &self,
-        at: &str,
-        body: &RigidBodySpec,
-        fluid: &FluidSpec,
-    ) -> Result<Shape, SceneError> {
+    /// Whether the scene holds an elastic solid.
+    pub fn has_solids(&self) -> bool {
+        self.systems
+            .iter()
+            .any(|s| matches!(s, SystemSpec::Solid(_)))
+    }
+
+    /// Checks a shape's parameters and makes its engine shape (reading
+    /// its mesh).
+    fn checked_shape(&self, shape_at: &str, spec: &ShapeSpec) -> Result<Shape, SceneError> {
         let dim = self.dimension;
         let planar = dim == 2;
-        let shape_at = format!("{at}.shape");
-        match &body.shape {
+        match spec {
             ShapeSpec::Box { half_extents } => {
                 check_vector(&format!("{shape_at}.half_extents"), *half_extents)?;
                 for (a, axis) in ["x", "y", "z"].iter().enumerate().take(dim) {
@@ -906,8 +944,22 @@ impl Scene {
                 }
             }
         }
-        let shape = crate::world::body_shape(&body.shape, dim, &shape_at)?;
-        if let Shape::Mesh(solid) = &shape {
+        crate::world::body_shape(spec, dim, shape_at)
+    }
+
+    /// Checks a rigid body and makes its engine shape (reading its mesh).
+    /// Without a fluid the body is a static obstacle for solids.
+    fn validate_body(
+        &self,
+        at: &str,
+        body: &RigidBodySpec,
+        fluid: Option<&FluidSpec>,
+    ) -> Result<Shape, SceneError> {
+        let dim = self.dimension;
+        let planar = dim == 2;
+        let shape_at = format!("{at}.shape");
+        let shape = self.checked_shape(&shape_at, &body.shape)?;
+        if let (Shape::Mesh(solid), Some(fluid)) = (&shape, fluid) {
             let candidates = crate::geometry::surface_candidates(solid.area(), fluid.spacing);
             if candidates > crate::geometry::MAX_SAMPLES as Real {
                 return Err(SceneError::invalid(
@@ -1044,12 +1096,8 @@ impl Scene {
                 check_positive(&format!("{at}.density"), density)?;
                 // Lighter than this, the explicit coupling is stiff beyond any
                 // sub-step: the body's acceleration outruns the fluid's.
-                check_range(
-                    &format!("{at}.density"),
-                    density,
-                    1e-3 * fluid.rest_density,
-                    1e6,
-                )?;
+                let rest_density = fluid.map_or(solid_defaults::DENSITY, |f| f.rest_density);
+                check_range(&format!("{at}.density"), density, 1e-3 * rest_density, 1e6)?;
             }
         }
         if body.motion != MotionKind::Dynamic && body.density.is_some() {
@@ -1061,7 +1109,8 @@ impl Scene {
         if let Some(mu) = body.viscosity {
             check_range(&format!("{at}.viscosity"), mu, 0.0, 1e4)?;
         }
-        if body.slip == SlipKind::No && body.viscosity.unwrap_or(fluid.viscosity) <= 0.0 {
+        let fluid_viscosity = fluid.map_or(0.0, |f| f.viscosity);
+        if body.slip == SlipKind::No && body.viscosity.unwrap_or(fluid_viscosity) <= 0.0 {
             return Err(SceneError::invalid(
                 format!("{at}.viscosity"),
                 "no-slip needs a viscosity (Pa s) for its wall term: set it here or the \
@@ -1331,7 +1380,9 @@ mod tests {
     fn fluid(scene: &mut Scene) -> &mut FluidSpec {
         match &mut scene.systems[0] {
             SystemSpec::Fluid(f) => f,
-            SystemSpec::RigidBody(_) => panic!("the first system is the fluid"),
+            SystemSpec::RigidBody(_) | SystemSpec::Solid(_) => {
+                panic!("the first system is the fluid")
+            }
         }
     }
 

@@ -5,14 +5,15 @@ use crate::fluid::{
     BodyState, BoxWalls, DfsphParams, Fluid, FluidParams, FluidState, Motion, Oscillation,
     PressureSolver, RigidBodies, RigidBody, Rotation, Slip, Tait,
 };
-use crate::frame::{BodyPose, FieldData, Frame};
+use crate::frame::{BodyPose, FieldData, Frame, SolidRange};
 use crate::geometry::{Shape, TriMesh};
 use crate::math::{Real, Vector, vector};
 use crate::neighbors::{Periodic, UniformGrid};
 use crate::scene::{
     FieldKind, FluidSpec, MotionKind, RigidBodySpec, Scene, SceneError, ShapeSpec, SlipKind,
-    SolverKind, SystemSpec, WallModel,
+    SolverKind, SystemSpec, WallModel, build_solid,
 };
+use crate::solid::{ElasticSolid, Obstacle, SolidState};
 use crate::stats::StageTimer;
 use crate::surface::SurfaceExtractor;
 
@@ -57,6 +58,27 @@ pub enum StepError {
         step: u64,
         substep: u32,
     },
+    #[error(
+        "the {quantity} of particle {particle} (of the solid in systems[{system}]) left its \
+         valid range ({value:e}) in step {step}; the solid is unstable: lower time.dt or its \
+         cfl, raise time.max_substeps, or set integrator = \"implicit\""
+    )]
+    SolidUnstable {
+        system: usize,
+        quantity: &'static str,
+        particle: usize,
+        value: f64,
+        step: u64,
+    },
+}
+
+/// An elastic solid of the scene and its state before the current step.
+#[derive(Debug, Clone)]
+struct SolidSystem {
+    /// Index of its system in the scene.
+    system: usize,
+    solid: ElasticSolid,
+    backup: SolidState,
 }
 
 /// State of one scene: its systems and clock. Stepped by [`World::step`].
@@ -73,12 +95,14 @@ pub struct World {
     frame_fields: Vec<FieldKind>,
     /// Meshes the fluid's surface into each frame, when the scene asks.
     surface: Option<SurfaceExtractor>,
+    solids: Vec<SolidSystem>,
 }
 
 impl World {
     /// Builds the world of an already validated scene (see [`Scene::build`]).
     /// `shapes` holds the engine shape of each rigid body by system index.
     pub(crate) fn new(scene: Scene, mut shapes: Vec<Option<Shape>>) -> Self {
+        let solids = build_solids(&scene, &shapes);
         // Bodies after the fluid: they take its spacing and kernels.
         let fluid = scene.fluid().map(|spec| {
             let bodies: Vec<(usize, &RigidBodySpec, Shape)> = scene
@@ -87,7 +111,7 @@ impl World {
                 .enumerate()
                 .filter_map(|(s, system)| match system {
                     SystemSpec::RigidBody(body) => Some((s, body, shapes.get_mut(s)?.take()?)),
-                    SystemSpec::Fluid(_) => None,
+                    SystemSpec::Fluid(_) | SystemSpec::Solid(_) => None,
                 })
                 .collect();
             build_fluid(&scene, spec, bodies)
@@ -123,6 +147,7 @@ impl World {
             timer: StageTimer::default(),
             frame_fields,
             surface,
+            solids,
         }
     }
 
@@ -153,8 +178,25 @@ impl World {
         self.fluid.as_mut()
     }
 
+    /// Particles of every system: the fluid's, then each solid's in scene
+    /// order, the order frames list them in.
     pub fn particle_count(&self) -> usize {
         self.fluid.as_ref().map_or(0, Fluid::len)
+            + self.solids.iter().map(|s| s.solid.len()).sum::<usize>()
+    }
+
+    /// The elastic solids with their system indices, in scene order.
+    pub fn solids(&self) -> impl Iterator<Item = (usize, &ElasticSolid)> {
+        self.solids.iter().map(|s| (s.system, &s.solid))
+    }
+
+    /// The solid of system `system`, to set up a state a scene cannot
+    /// describe (a deformed start, say).
+    pub fn solid_mut(&mut self, system: usize) -> Option<&mut ElasticSolid> {
+        self.solids
+            .iter_mut()
+            .find(|s| s.system == system)
+            .map(|s| &mut s.solid)
     }
 
     /// Advances by `scene.time.dt`, split into sub-steps that respect the
@@ -209,10 +251,46 @@ impl World {
                 }
             }
         }
+        self.step_solids(dt, &mut info)?;
         self.clock.step += 1;
         self.clock.time += dt;
         self.last_step = info;
         Ok(info)
+    }
+
+    /// Advances every solid by `dt`; on a blow-up restores all of them
+    /// (and the fluid) to the start of the step.
+    fn step_solids(&mut self, dt: Real, info: &mut StepInfo) -> Result<(), StepError> {
+        let gravity = vector(self.scene.gravity);
+        let max_substeps = self.scene.time.max_substeps;
+        for s in &mut self.solids {
+            s.solid.save(&mut s.backup);
+        }
+        for k in 0..self.solids.len() {
+            let s = &mut self.solids[k];
+            let step = s.solid.step(dt, &gravity, max_substeps);
+            info.substeps = info.substeps.max(step.substeps);
+            info.min_substep = info.min_substep.min(step.min_substep);
+            info.capped |= step.capped;
+            info.solver_iterations += step.iterations;
+            if let Some((particle, quantity, value)) = s.solid.first_invalid() {
+                let system = s.system;
+                for s in &mut self.solids {
+                    s.solid.restore(&s.backup);
+                }
+                if let Some(fluid) = &mut self.fluid {
+                    fluid.restore(&self.backup);
+                }
+                return Err(StepError::SolidUnstable {
+                    system,
+                    quantity,
+                    particle,
+                    value,
+                    step: self.clock.step + 1,
+                });
+            }
+        }
+        Ok(())
     }
 
     /// Whether the current step is one the scene publishes a frame for.
@@ -249,6 +327,7 @@ impl World {
             fields,
             bodies: self.body_poses(),
             surface: self.surface_mesh(),
+            solids: self.solid_ranges(),
         }
     }
 
@@ -287,19 +366,51 @@ impl World {
             .collect()
     }
 
+    /// Where each solid's particles sit in the frame's fields.
+    pub fn solid_ranges(&self) -> Vec<SolidRange> {
+        let mut first = self.fluid.as_ref().map_or(0, Fluid::len);
+        self.solids
+            .iter()
+            .map(|s| {
+                let range = SolidRange {
+                    system: s.system,
+                    first,
+                    count: s.solid.len(),
+                };
+                first += range.count;
+                range
+            })
+            .collect()
+    }
+
     fn field_values(&self, kind: FieldKind) -> Vec<f32> {
-        let Some(fluid) = &self.fluid else {
-            return Vec::new();
+        let mut values = match &self.fluid {
+            // Frames list particles by id, whatever order the fluid keeps.
+            Some(fluid) => {
+                let vectors = |v: &[Vector]| fluid.in_id_order(|k| v[k].map(|c| c as f32).into());
+                let scalars = |s: &[Real]| fluid.in_id_order(|k| [s[k] as f32]);
+                match kind {
+                    FieldKind::Position => vectors(&fluid.positions),
+                    FieldKind::Velocity => vectors(&fluid.velocities),
+                    FieldKind::Density => scalars(&fluid.densities),
+                    FieldKind::Pressure => scalars(&fluid.pressures),
+                }
+            }
+            None => Vec::new(),
         };
-        // Frames list particles by id, whatever order the fluid keeps.
-        let vectors = |v: &[Vector]| fluid.in_id_order(|k| v[k].map(|c| c as f32).into());
-        let scalars = |s: &[Real]| fluid.in_id_order(|k| [s[k] as f32]);
-        match kind {
-            FieldKind::Position => vectors(&fluid.positions),
-            FieldKind::Velocity => vectors(&fluid.velocities),
-            FieldKind::Density => scalars(&fluid.densities),
-            FieldKind::Pressure => scalars(&fluid.pressures),
+        for s in &self.solids {
+            let solid = &s.solid;
+            let vectors = |v: &[Vector], out: &mut Vec<f32>| {
+                out.extend(v.iter().flat_map(|x| [x.x as f32, x.y as f32, x.z as f32]));
+            };
+            match kind {
+                FieldKind::Position => vectors(&solid.positions, &mut values),
+                FieldKind::Velocity => vectors(&solid.velocities, &mut values),
+                FieldKind::Density => values.extend(solid.densities().map(|d| d as f32)),
+                FieldKind::Pressure => values.extend(solid.pressures().map(|p| p as f32)),
+            }
         }
+        values
     }
 }
 
@@ -351,14 +462,61 @@ fn shape_axes(shape: &Shape) -> Rotation {
 /// The scene's orientation turns the shape as given (a mesh as in its
 /// file); the body frame is turned further onto the shape's principal axes.
 pub(crate) fn body_pose(spec: &RigidBodySpec, shape: &Shape, dim: usize) -> (Vector, Rotation) {
-    let mut position = vector(spec.position);
+    shape_pose(spec.position, spec.orientation, shape, dim)
+}
+
+/// [`body_pose`] from a scene position and rotation vector.
+pub(crate) fn shape_pose(
+    position: [Real; 3],
+    orientation: [Real; 3],
+    shape: &Shape,
+    dim: usize,
+) -> (Vector, Rotation) {
+    let mut position = vector(position);
     if dim == 2 {
         position.z = 0.0;
     }
     (
         position,
-        Rotation::from_scaled_axis(vector(spec.orientation)) * shape_axes(shape),
+        Rotation::from_scaled_axis(vector(orientation)) * shape_axes(shape),
     )
+}
+
+/// The solids of a validated scene, each colliding with the domain walls
+/// and the scene's static rigid bodies.
+fn build_solids(scene: &Scene, shapes: &[Option<Shape>]) -> Vec<SolidSystem> {
+    let dim = scene.dimension;
+    let obstacles: Vec<Obstacle> = scene
+        .systems
+        .iter()
+        .zip(shapes)
+        .filter_map(|(system, shape)| match (system, shape) {
+            (SystemSpec::RigidBody(body), Some(shape)) if body.motion == MotionKind::Static => {
+                let (position, orientation) = body_pose(body, shape, dim);
+                Some(Obstacle {
+                    shape: shape.clone(),
+                    position,
+                    orientation,
+                })
+            }
+            _ => None,
+        })
+        .collect();
+    let walls = (vector(scene.domain.min), vector(scene.domain.max));
+    scene
+        .systems
+        .iter()
+        .zip(shapes)
+        .enumerate()
+        .filter_map(|(system, (spec, shape))| match (spec, shape) {
+            (SystemSpec::Solid(spec), Some(shape)) => Some(SolidSystem {
+                system,
+                solid: build_solid(spec, shape, dim, walls, obstacles.clone()),
+                backup: SolidState::default(),
+            }),
+            _ => None,
+        })
+        .collect()
 }
 
 fn build_body(

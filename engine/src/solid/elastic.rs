@@ -258,3 +258,30 @@ impl ElasticSolid {
             })
     }
 }
+
+/// What a failed step restores: positions, velocities and plastic strain.
+#[derive(Debug, Clone, Default)]
+pub struct SolidState {
+    positions: Vec<Vector>,
+    velocities: Vec<Vector>,
+    plastic: Option<Vec<Matrix3<Real>>>,
+}
+
+impl ElasticSolid {
+    /// Copies the state into `out`, reusing its buffers.
+    pub fn save(&self, out: &mut SolidState) {
+        out.positions.clone_from(&self.positions);
+        out.velocities.clone_from(&self.velocities);
+        out.plastic.clone_from(&self.plastic);
+    }
+
+    /// Returns to a state saved by [`Self::save`] (of this solid). A
+    /// reference shape re-based since is kept: re-basing is a change of
+    /// description, not of state.
+    pub fn restore(&mut self, saved: &SolidState) {
+        self.positions.clone_from(&saved.positions);
+        self.velocities.clone_from(&saved.velocities);
+        self.plastic.clone_from(&saved.plastic);
+        self.evaluate_stress(None);
+    }
+}

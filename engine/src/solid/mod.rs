@@ -23,7 +23,7 @@ mod plasticity;
 mod topology;
 
 pub use contact::{Obstacle, Obstacles};
-pub use elastic::{ElasticSolid, SolidError};
+pub use elastic::{ElasticSolid, SolidError, SolidState};
 pub use integrate::SolidStep;
 pub use material::{Material, StressState, cofactor, green_strain};
 pub use params::{ImplicitParams, Integrator, Plasticity, SolidParams};

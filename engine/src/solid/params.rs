@@ -20,7 +20,7 @@ pub enum Integrator {
 
 /// The implicit integrator's solver settings.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct ImplicitParams {
     /// Newton stops when the backward Euler residual (the momentum
     /// imbalance) has fallen to this fraction of its value at the start of

@@ -1,0 +1,327 @@
+//! Elastic solids in a scene: the TOML/protocol description, its
+//! validation, and the engine solid it builds.
+
+use super::{Aabb, Scene, SceneError, ShapeSpec, check_positive, check_range, check_vector};
+use crate::approx::mls::Order;
+use crate::geometry::Shape;
+use crate::math::{Real, Vector, vector};
+use crate::solid::{
+    ElasticSolid, ImplicitParams, Integrator, Material, Obstacle, Obstacles, Plasticity,
+    SolidParams,
+};
+use serde::{Deserialize, Serialize};
+
+/// Defaults of the optional solid parameters, shared with the protocol
+/// conversion.
+pub mod defaults {
+    use crate::approx::mls::Order;
+    use crate::math::Real;
+
+    pub const DENSITY: Real = 1000.0;
+    pub const POISSON: Real = 0.3;
+    /// Linear: Müller et al. 2004's choice, exact for affine motion, and a
+    /// third of the quadratic's cost (the cantilever table in the README
+    /// shows what each buys).
+    pub const ORDER: Order = Order::Linear;
+    /// MLS support in spacings: the smallest that keeps a full linear fit
+    /// at the corners of a lattice.
+    pub const SUPPORT: Real = 2.0;
+    /// Hourglass weight relative to Young's modulus: removes the lattice's
+    /// zero-energy modes while adding under 1 % to a cantilever's stiffness
+    /// at 10 particles across (README).
+    pub const HOURGLASS: Real = 0.1;
+    pub const FRICTION: Real = 0.5;
+    /// Explicit steps at half the wave limit.
+    pub const CFL: Real = 0.5;
+}
+
+/// How a solid advances in time (see [`crate::solid::Integrator`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IntegratorKind {
+    #[default]
+    Explicit,
+    Implicit,
+}
+
+/// A box of anchored particles: every particle of the solid inside it is
+/// fixed in place.
+pub type AnchorSpec = Aabb;
+
+/// An elastic (optionally plastic) solid: a shape filled with particles
+/// on a lattice of `spacing` (tutorial Section 7; Müller et al. 2004).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolidSpec {
+    /// Any bounded shape (not a plane); meshes in 3D only.
+    pub shape: ShapeSpec,
+    /// Where the shape's centre goes, m.
+    pub position: [Real; 3],
+    /// Rotation vector (axis times angle) of the shape, rad.
+    #[serde(default)]
+    pub orientation: [Real; 3],
+    /// Particle spacing, m: each particle stands for `spacing^dim`.
+    pub spacing: Real,
+    #[serde(default = "default_density")]
+    pub density: Real,
+    /// Young's modulus, Pa.
+    pub young: Real,
+    /// Poisson's ratio, in [0, 0.5).
+    #[serde(default = "default_poisson")]
+    pub poisson: Real,
+    /// `k_v` of the volume-conservation force (Eq. 65), Pa; 0 is off.
+    #[serde(default)]
+    pub volume_stiffness: Real,
+    /// MLS basis order of the displacement gradient.
+    #[serde(default = "default_order")]
+    pub order: Order,
+    /// MLS support radius in spacings.
+    #[serde(default = "default_support")]
+    pub support: Real,
+    /// Hourglass-control weight relative to Young's modulus.
+    #[serde(default = "default_hourglass")]
+    pub hourglass: Real,
+    /// Pairwise velocity damping rate, 1/s.
+    #[serde(default)]
+    pub damping: Real,
+    /// Coulomb friction against walls and static rigid bodies.
+    #[serde(default = "default_friction")]
+    pub friction: Real,
+    #[serde(default)]
+    pub integrator: IntegratorKind,
+    /// Explicit only: the sub-step as a fraction of the wave limit.
+    #[serde(default = "default_cfl")]
+    pub cfl: Real,
+    /// Implicit only: Newton and linear-solver settings.
+    #[serde(default)]
+    pub implicit: ImplicitParams,
+    /// Initial velocity, m/s.
+    #[serde(default)]
+    pub velocity: [Real; 3],
+    /// Initial angular velocity about `position`, rad/s.
+    #[serde(default)]
+    pub angular_velocity: [Real; 3],
+    /// Boxes (world frame) whose particles are fixed.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub anchors: Vec<AnchorSpec>,
+    /// Plastic flow; none keeps the solid purely elastic and stores no
+    /// plastic strain.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plasticity: Option<Plasticity>,
+}
+
+fn default_density() -> Real {
+    defaults::DENSITY
+}
+fn default_poisson() -> Real {
+    defaults::POISSON
+}
+fn default_order() -> Order {
+    defaults::ORDER
+}
+fn default_support() -> Real {
+    defaults::SUPPORT
+}
+fn default_hourglass() -> Real {
+    defaults::HOURGLASS
+}
+fn default_friction() -> Real {
+    defaults::FRICTION
+}
+fn default_cfl() -> Real {
+    defaults::CFL
+}
+
+impl SolidSpec {
+    /// The engine parameters in `dim` dimensions.
+    pub fn params(&self, dim: usize) -> SolidParams {
+        SolidParams {
+            dim,
+            spacing: self.spacing,
+            density: self.density,
+            young: self.young,
+            material: Material::from_young_poisson(self.young, self.poisson, self.volume_stiffness),
+            order: self.order,
+            support: self.support * self.spacing,
+            hourglass: self.hourglass,
+            damping: self.damping,
+            friction: self.friction,
+            integrator: match self.integrator {
+                IntegratorKind::Explicit => Integrator::Explicit { cfl: self.cfl },
+                IntegratorKind::Implicit => Integrator::Implicit(self.implicit),
+            },
+            plasticity: self.plasticity,
+        }
+    }
+
+    /// Particle positions (world frame) and initial velocities.
+    pub(crate) fn particles(&self, shape: &Shape, dim: usize) -> Vec<(Vector, Vector)> {
+        let (centre, rotation) =
+            crate::world::shape_pose(self.position, self.orientation, shape, dim);
+        let (v, w) = (vector(self.velocity), vector(self.angular_velocity));
+        shape
+            .sample_volume(self.spacing, dim)
+            .unwrap_or_default()
+            .into_iter()
+            .map(|local| {
+                let x = centre + rotation * local;
+                let mut velocity = v + w.cross(&(x - centre));
+                if dim == 2 {
+                    velocity.z = 0.0;
+                }
+                (x, velocity)
+            })
+            .collect()
+    }
+}
+
+impl Scene {
+    /// Checks a solid; returns its engine shape and particle count.
+    pub(super) fn validate_solid(
+        &self,
+        at: &str,
+        solid: &SolidSpec,
+    ) -> Result<(Shape, usize), SceneError> {
+        let dim = self.dimension;
+        let shape_at = format!("{at}.shape");
+        if matches!(solid.shape, ShapeSpec::Plane { .. }) {
+            return Err(SceneError::invalid(
+                shape_at,
+                "a solid must be bounded; use a box, sphere, capsule or closed mesh",
+            ));
+        }
+        let shape = self.checked_shape(&shape_at, &solid.shape)?;
+        check_vector(&format!("{at}.position"), solid.position)?;
+        check_vector(&format!("{at}.orientation"), solid.orientation)?;
+        check_vector(&format!("{at}.velocity"), solid.velocity)?;
+        check_vector(&format!("{at}.angular_velocity"), solid.angular_velocity)?;
+        check_positive(&format!("{at}.spacing"), solid.spacing)?;
+        check_positive(&format!("{at}.density"), solid.density)?;
+        check_range(&format!("{at}.density"), solid.density, 1e-3, 1e6)?;
+        check_positive(&format!("{at}.young"), solid.young)?;
+        check_range(&format!("{at}.young"), solid.young, 0.0, 1e13)?;
+        check_range(&format!("{at}.poisson"), solid.poisson, 0.0, 0.4999)
+            .map_err(|e| e.with_hint("0.5 is incompressible, which Hooke's law cannot hold"))?;
+        check_range(&format!("{at}.volume_stiffness"), solid.volume_stiffness, 0.0, 1e13)?;
+        check_range(&format!("{at}.support"), solid.support, 1.5, 6.0).map_err(|e| {
+            e.with_hint("the support is in spacings; below 1.5 a particle sees no diagonal neighbours")
+        })?;
+        check_range(&format!("{at}.hourglass"), solid.hourglass, 0.0, 10.0)?;
+        check_range(&format!("{at}.damping"), solid.damping, 0.0, 1e6)?;
+        check_range(&format!("{at}.friction"), solid.friction, 0.0, 10.0)?;
+        check_positive(&format!("{at}.cfl"), solid.cfl)?;
+        check_range(&format!("{at}.cfl"), solid.cfl, 0.0, 1.0)?;
+        let implicit = &solid.implicit;
+        check_positive(&format!("{at}.implicit.newton_tolerance"), implicit.newton_tolerance)?;
+        check_range(&format!("{at}.implicit.newton_tolerance"), implicit.newton_tolerance, 0.0, 1.0)?;
+        check_positive(&format!("{at}.implicit.cg_tolerance"), implicit.cg_tolerance)?;
+        check_range(&format!("{at}.implicit.cg_tolerance"), implicit.cg_tolerance, 0.0, 1.0)?;
+        for (field, value) in [
+            ("max_newton_iterations", implicit.max_newton_iterations),
+            ("max_cg_iterations", implicit.max_cg_iterations),
+        ] {
+            if value == 0 || value > 100_000 {
+                return Err(SceneError::invalid(
+                    format!("{at}.implicit.{field}"),
+                    format!("must be in [1, 100000], got {value}"),
+                ));
+            }
+        }
+        if let Some(p) = &solid.plasticity {
+            check_range(&format!("{at}.plasticity.yield"), p.yield_strain, 0.0, 10.0)?;
+            check_positive(&format!("{at}.plasticity.creep"), p.creep)?;
+            check_range(&format!("{at}.plasticity.creep"), p.creep, 0.0, 1.0)?;
+            check_range(&format!("{at}.plasticity.max"), p.max, 0.0, 100.0)?;
+            if let Some(r) = p.rebase {
+                check_positive(&format!("{at}.plasticity.rebase"), r)?;
+            }
+        }
+        if dim == 2 {
+            for (field, v) in [
+                ("orientation", solid.orientation),
+                ("angular_velocity", solid.angular_velocity),
+            ] {
+                if v[0] != 0.0 || v[1] != 0.0 {
+                    return Err(SceneError::invalid(
+                        format!("{at}.{field}"),
+                        "in 2D a solid only turns about z; set x and y to 0",
+                    ));
+                }
+            }
+        }
+        let reach = shape.bounding_radius(dim);
+        let cells = (2.0 * reach / solid.spacing).ceil().powi(dim as i32);
+        if cells > crate::geometry::MAX_SAMPLES as Real {
+            return Err(SceneError::invalid(
+                format!("{at}.spacing"),
+                format!(
+                    "fills the shape's bounding cube with about {cells:.0} lattice points, \
+                     more than the limit of {}; raise the spacing",
+                    crate::geometry::MAX_SAMPLES
+                ),
+            ));
+        }
+        let particles = solid.particles(&shape, dim);
+        if particles.is_empty() {
+            return Err(SceneError::invalid(
+                format!("{at}.spacing"),
+                format!(
+                    "is too coarse: no lattice point at spacing {} m falls inside the shape; \
+                     lower it",
+                    solid.spacing
+                ),
+            ));
+        }
+        let radius = 0.5 * solid.spacing;
+        if let Some((x, _)) = particles.iter().find(|(x, _)| {
+            (0..dim).any(|a| x[a] < self.domain.min[a] + radius || x[a] > self.domain.max[a] - radius)
+        }) {
+            return Err(SceneError::invalid(
+                format!("{at}.position"),
+                format!(
+                    "the solid reaches outside the domain (a particle at {:?}); move it or \
+                     enlarge the domain",
+                    [x.x, x.y, x.z]
+                ),
+            ));
+        }
+        for (k, anchor) in solid.anchors.iter().enumerate() {
+            let field = format!("{at}.anchors[{k}]");
+            super::check_box(&field, anchor, dim)?;
+            if !particles.iter().any(|(x, _)| inside(anchor, x, dim)) {
+                return Err(SceneError::invalid(
+                    field,
+                    "holds no particle of the solid; enlarge it or move it onto the solid",
+                ));
+            }
+        }
+        Ok((shape, particles.len()))
+    }
+}
+
+fn inside(b: &Aabb, x: &Vector, dim: usize) -> bool {
+    (0..dim).all(|a| x[a] >= b.min[a] && x[a] <= b.max[a])
+}
+
+/// Builds the engine solid of a validated spec, colliding with the
+/// domain's walls and `obstacles`.
+pub(crate) fn build_solid(
+    spec: &SolidSpec,
+    shape: &Shape,
+    dim: usize,
+    walls: (Vector, Vector),
+    obstacles: Vec<Obstacle>,
+) -> ElasticSolid {
+    let (rest, velocities): (Vec<Vector>, Vec<Vector>) =
+        spec.particles(shape, dim).into_iter().unzip();
+    let fixed = rest
+        .iter()
+        .map(|x| spec.anchors.iter().any(|b| inside(b, x, dim)))
+        .collect();
+    let obstacles = Obstacles {
+        shapes: obstacles,
+        walls: Some(walls),
+    };
+    ElasticSolid::new(spec.params(dim), rest, velocities, fixed, obstacles)
+        .expect("validated by Scene::validate")
+}
