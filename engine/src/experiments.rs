@@ -3,6 +3,8 @@
 
 use crate::math::{Real, Vector};
 
+pub mod cantilever;
+
 /// Surge front of a collapsing water column of width `a` and height `2a`:
 /// `(T, Z)` with `T = t sqrt(2 g / a)` and `Z = x_front / a`, `x` measured
 /// from the wall behind the column.

@@ -33,12 +33,9 @@ pub struct ElasticSolid {
 /// Per-particle and per-edge buffers of one force evaluation.
 #[derive(Debug, Clone, Default)]
 pub(super) struct Scratch {
-    /// Stress state at the last evaluated positions.
+    /// Stress state at the positions of the last force evaluation.
     pub states: Vec<StressState>,
-    /// `dU/dF` of each particle's energy (elastic, volume, hourglass).
-    pub stress: Vec<Matrix3<Real>>,
-    /// Pairwise (hourglass and damping) force of each edge on its owner.
-    pub edge: Vec<Vector>,
+    pub split: super::forces::Split,
     pub forces: Vec<Vector>,
     /// Implicit solver vectors.
     pub implicit: super::implicit::Buffers,
@@ -94,7 +91,7 @@ impl ElasticSolid {
                 *v = Vector::zeros();
             }
         }
-        let mut solid = Self {
+        Ok(Self {
             positions: rest.clone(),
             rest,
             velocities,
@@ -106,9 +103,7 @@ impl ElasticSolid {
             obstacles,
             params,
             scratch: Scratch::default(),
-        };
-        solid.evaluate_stress(None);
-        Ok(solid)
+        })
     }
 
     pub fn len(&self) -> usize {
@@ -169,45 +164,46 @@ impl ElasticSolid {
         }
         self.positions = positions;
         self.velocities = velocities;
-        self.evaluate_stress(None);
         Ok(())
     }
 
     /// Deformation gradient `F = I + grad u` of every particle at the
     /// current positions.
-    pub fn deformation_gradients(&self) -> impl ExactSizeIterator<Item = &Matrix3<Real>> {
-        self.scratch.states.iter().map(|s| &s.f)
+    pub fn deformation_gradients(&self) -> Vec<Matrix3<Real>> {
+        self.current_states().iter().map(|s| s.f).collect()
     }
 
     /// `grad u = F - I` of every particle, for surface embedding.
     pub fn displacement_gradients(&self, out: &mut Vec<Matrix3<Real>>) {
         out.clear();
         out.extend(
-            self.scratch
-                .states
+            self.current_states()
                 .iter()
                 .map(|s| s.f - Matrix3::identity()),
         );
     }
 
     /// Current density `m / (V det F)` of every particle.
-    pub fn densities(&self) -> impl ExactSizeIterator<Item = Real> + '_ {
-        self.scratch
-            .states
+    pub fn densities(&self) -> Vec<Real> {
+        self.current_states()
             .iter()
             .zip(&self.masses)
             .zip(&self.volumes)
             .map(|((s, m), v)| m / (v * s.det.max(Real::EPSILON)))
+            .collect()
     }
 
     /// Mean compressive stress `-tr(sigma) / 3` of every particle, with
     /// the Cauchy stress `sigma = P F^T / det F`, Pa.
-    pub fn pressures(&self) -> impl ExactSizeIterator<Item = Real> + '_ {
+    pub fn pressures(&self) -> Vec<Real> {
         let material = self.params.material;
-        self.scratch.states.iter().map(move |s| {
-            let p = material.first_piola(s);
-            -(p * s.f.transpose()).trace() / (3.0 * s.det.max(Real::EPSILON))
-        })
+        self.current_states()
+            .iter()
+            .map(|s| {
+                let p = material.first_piola(s);
+                -(p * s.f.transpose()).trace() / (3.0 * s.det.max(Real::EPSILON))
+            })
+            .collect()
     }
 
     /// Kinetic energy, J.
@@ -221,8 +217,7 @@ impl ElasticSolid {
 
     /// Total volume `sum V_i det F_i`, m^3 (area in 2D).
     pub fn current_volume(&self) -> Real {
-        self.scratch
-            .states
+        self.current_states()
             .iter()
             .zip(&self.volumes)
             .map(|(s, v)| v * s.det)
@@ -282,6 +277,5 @@ impl ElasticSolid {
         self.positions.clone_from(&saved.positions);
         self.velocities.clone_from(&saved.velocities);
         self.plastic.clone_from(&saved.plastic);
-        self.evaluate_stress(None);
     }
 }

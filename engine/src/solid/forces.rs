@@ -1,10 +1,15 @@
 //! Elastic, hourglass and damping forces as exact derivatives of one
 //! energy, evaluated in three parallel passes without locks:
 //!
-//! 1. **per particle** `i`: `F_i = I + sum_j (u_j - u_i) g_ij^T` (Eq. 37
-//!    in material coordinates), the stress state, and `T_i = dU_i/dF_i`;
-//! 2. **per edge** `e = (i -> j)`: the pairwise forces;
-//! 3. **per particle** `k`, gathering: `f_k = -dU/dx_k`.
+//! 1. **per particle** `i`, over its own (contiguous) edges: `F_i = I +
+//!    sum_j (u_j - u_i) g_ij^T` (Eq. 37 in material coordinates), the
+//!    stress state, `T_i = dU_i/dF_i`, and for every edge `e = (i -> j)`
+//!    the force `-c_e` that `i`'s energy puts on `j`, and the sum of the
+//!    reactions on `i` itself;
+//! 2. **per particle** `k`, gathering: `f_k = own_k - sum_(i->k) c_e`.
+//!
+//! All the arithmetic is in pass 1, which reads memory in order; pass 2
+//! reads one vector per incoming edge.
 //!
 //! With `U_i = V_i (W + W_vol)(F_i)` and `dF_i/dx_j = e_a (x) g_ij`, the
 //! elastic force on `j` from `i` is `-V_i P_i g_ij` and on `i` itself
@@ -40,7 +45,7 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 /// Particles per parallel work item.
-const CHUNK: usize = 512;
+const CHUNK: usize = 256;
 
 /// What the passes read: the fixed parts of a solid.
 #[derive(Clone, Copy)]
@@ -55,179 +60,199 @@ pub(super) struct Model<'a> {
     pub damping: Real,
 }
 
+/// The output of pass 1: per particle the force it puts on itself, per
+/// edge the force its owner puts on the other end (negated).
+#[derive(Debug, Clone, Default)]
+pub(super) struct Split {
+    pub own: Vec<Vector>,
+    pub edge: Vec<Vector>,
+}
+
+impl Split {
+    pub fn resize(&mut self, particles: usize, edges: usize) {
+        self.own.resize(particles, Vector::zeros());
+        self.edge.resize(edges, Vector::zeros());
+    }
+
+    /// Splits into one work item per chunk of particles, each with the
+    /// edges those particles own.
+    fn chunks<'s>(
+        &'s mut self,
+        topology: &Topology,
+    ) -> Vec<(usize, &'s mut [Vector], &'s mut [Vector])> {
+        let mut items = Vec::new();
+        let mut edges = self.edge.as_mut_slice();
+        for (c, own) in self.own.chunks_mut(CHUNK).enumerate() {
+            let first = c * CHUNK;
+            let lo = topology.gradients.range(first).start;
+            let hi = topology.gradients.range(first + own.len() - 1).end;
+            let (mine, rest) = edges.split_at_mut(hi - lo);
+            edges = rest;
+            items.push((first, own, mine));
+        }
+        items
+    }
+}
+
 impl Model<'_> {
-    /// `F_i` at positions `x`.
-    fn deformation_gradient(&self, i: usize, x: &[Vector]) -> Matrix3<Real> {
+    /// `F_i` at positions `x` (or `dF_i` along displacements `x` when
+    /// `identity` is 0).
+    fn gradient_of(&self, i: usize, x: &[Vector], rest: Real) -> Matrix3<Real> {
         let t = self.topology;
         let edges = t.gradients.neighbour_indices();
         let g = t.gradients.all_weights();
-        let mut f = Matrix3::identity();
+        let mut f = Matrix3::identity() * rest;
         for e in t.gradients.range(i) {
             let j = edges[e] as usize;
-            let du = x[j] - x[i] - t.rest_offset[e];
+            let du = x[j] - x[i] - t.rest_offset[e] * rest;
             f += du * g[e].transpose();
         }
         f
     }
 
-    /// `x_j - x_i - F_i X_ij` of edge `e` (the hourglass error).
-    fn edge_error(&self, e: usize, x: &[Vector], f: &Matrix3<Real>) -> Vector {
-        let t = self.topology;
-        let i = t.owner[e] as usize;
-        let j = t.gradients.neighbour_indices()[e] as usize;
-        x[j] - x[i] - f * t.rest_offset[e]
-    }
-
-    /// Pass 1: the stress state and `T_i` of every particle at `x`;
-    /// returns the total potential energy (elastic, volume, hourglass).
-    pub fn stress_pass(
+    /// Pass 1 at positions `x` (and velocities `v`, for damping): stress
+    /// states into `states` and the split forces into `split`. Returns the
+    /// potential energy (elastic, volume, hourglass) when `energy` is
+    /// asked for, else 0.
+    pub fn particle_pass(
         &self,
         x: &[Vector],
+        v: Option<&[Vector]>,
         states: &mut [StressState],
-        stress: &mut [Matrix3<Real>],
+        split: &mut Split,
+        energy: bool,
     ) -> Real {
-        states
-            .par_chunks_mut(CHUNK)
-            .zip(stress.par_chunks_mut(CHUNK))
-            .enumerate()
-            .map(|(c, (states, stress))| {
-                let mut energy = 0.0;
-                for (k, (state, t_i)) in states.iter_mut().zip(stress.iter_mut()).enumerate() {
-                    let i = c * CHUNK + k;
-                    let f = self.deformation_gradient(i, x);
+        let t = self.topology;
+        let edges = t.gradients.neighbour_indices();
+        let g = t.gradients.all_weights();
+        let damped = v.filter(|_| self.damping > 0.0);
+        split
+            .chunks(t)
+            .into_par_iter()
+            .zip(states.par_chunks_mut(CHUNK))
+            .map(|((first, own, edge), states)| {
+                let base = t.gradients.range(first).start;
+                let mut total = 0.0;
+                for (k, (own, state)) in own.iter_mut().zip(states.iter_mut()).enumerate() {
+                    let i = first + k;
+                    let range = t.gradients.range(i);
+                    let f = self.gradient_of(i, x, 1.0);
                     *state = self.material.state(f, self.plastic.map(|p| &p[i]));
-                    let v = self.volumes[i];
-                    energy += v * self.material.energy_density(state);
-                    *t_i = self.material.first_piola(state) * v;
-                    if self.hourglass > 0.0 {
-                        let kappa = self.hourglass * v;
-                        let mut g_h = Matrix3::zeros();
-                        for e in self.topology.gradients.range(i) {
-                            let w = self.topology.pair_weight[e];
-                            let err = self.edge_error(e, x, &f);
-                            energy += 0.5 * kappa * w * err.norm_squared();
-                            g_h -= err * self.topology.rest_offset[e].transpose() * (kappa * w);
-                        }
-                        *t_i += g_h;
+                    let volume = self.volumes[i];
+                    if energy {
+                        total += volume * self.material.energy_density(state);
                     }
+                    let mut stress = self.material.first_piola(state) * volume;
+                    // Pairwise terms first: the hourglass's dU/dF joins T_i.
+                    let kappa = self.hourglass * volume;
+                    let mut pair_sum = Vector::zeros();
+                    for e in range.clone() {
+                        let j = edges[e] as usize;
+                        let w = t.pair_weight[e];
+                        let mut c = Vector::zeros();
+                        if kappa > 0.0 {
+                            let err = x[j] - x[i] - f * t.rest_offset[e];
+                            if energy {
+                                total += 0.5 * kappa * w * err.norm_squared();
+                            }
+                            stress -= err * t.rest_offset[e].transpose() * (kappa * w);
+                            c += err * (kappa * w);
+                        }
+                        if let Some(v) = damped {
+                            c += (v[j] - v[i]) * (self.damping * self.masses[i] * w);
+                        }
+                        pair_sum += c;
+                        edge[e - base] = c;
+                    }
+                    for e in range {
+                        edge[e - base] += stress * g[e];
+                    }
+                    *own = stress * t.sum_g[i] + pair_sum;
                 }
-                energy
+                total
             })
             .sum()
     }
 
-    /// Pass 2: the pairwise force of every edge on its owner: hourglass
-    /// at `x` with the gradients of `states`, plus damping when velocities
-    /// `v` are given.
-    pub fn edge_pass(
-        &self,
-        x: &[Vector],
-        states: &[StressState],
-        v: Option<&[Vector]>,
-        edge: &mut [Vector],
-    ) {
+    /// Pass 1 linearised: the split of `K w`, the directional derivative
+    /// of the (non-damping) forces along displacements `w`, about the
+    /// stress states `states`.
+    pub fn derivative_pass(&self, w: &[Vector], states: &[StressState], split: &mut Split) {
         let t = self.topology;
         let edges = t.gradients.neighbour_indices();
-        let damped = v.filter(|_| self.damping > 0.0);
-        edge.par_iter_mut().enumerate().for_each(|(e, out)| {
-            let i = t.owner[e] as usize;
-            let w = t.pair_weight[e];
-            let mut force = Vector::zeros();
-            if self.hourglass > 0.0 {
-                force += self.edge_error(e, x, &states[i].f) * (self.hourglass * self.volumes[i] * w);
-            }
-            if let Some(v) = damped {
-                force += (v[edges[e] as usize] - v[i]) * (self.damping * self.masses[i] * w);
-            }
-            *out = force;
-        });
-    }
-
-    /// The damping force `f_d(v) = -D v` of velocities `v` on every
-    /// particle, using `edge` as scratch.
-    pub fn damping_forces(&self, v: &[Vector], edge: &mut [Vector], out: &mut [Vector]) {
-        let t = self.topology;
-        let edges = t.gradients.neighbour_indices();
-        edge.par_iter_mut().enumerate().for_each(|(e, out)| {
-            let i = t.owner[e] as usize;
-            *out = (v[edges[e] as usize] - v[i]) * (self.damping * self.masses[i] * t.pair_weight[e]);
-        });
-        out.par_iter_mut().enumerate().for_each(|(k, f)| {
-            let mut sum = Vector::zeros();
-            for e in t.gradients.range(k) {
-                sum += edge[e];
-            }
-            for &e in t.incoming(k) {
-                sum -= edge[e as usize];
-            }
-            *f = sum;
-        });
-    }
-
-    /// Pass 3: `f_k = T_k s_k - sum_(i->k) T_i g_ik + sum_(k->j) h_kj -
-    /// sum_(i->k) h_ik` for every particle.
-    pub fn gather(&self, stress: &[Matrix3<Real>], edge: &[Vector], out: &mut [Vector]) {
-        let t = self.topology;
         let g = t.gradients.all_weights();
-        out.par_iter_mut().enumerate().for_each(|(k, f)| {
-            let mut sum = stress[k] * t.sum_g[k];
-            for e in t.gradients.range(k) {
-                sum += edge[e];
-            }
-            for &e in t.incoming(k) {
-                let e = e as usize;
-                sum -= stress[t.owner[e] as usize] * g[e] + edge[e];
-            }
-            *f = sum;
-        });
-    }
-
-    /// Pass 1 linearised: `dT_i` along displacements `w` about `states`
-    /// (which hold `F_i` at the linearisation point); `df` receives `dF_i`.
-    pub fn stress_derivative_pass(
-        &self,
-        w: &[Vector],
-        states: &[StressState],
-        df: &mut [Matrix3<Real>],
-        dstress: &mut [Matrix3<Real>],
-    ) {
-        df.par_iter_mut()
-            .zip(dstress.par_iter_mut())
-            .enumerate()
-            .for_each(|(i, (df, dt))| {
-                let t = self.topology;
-                let edges = t.gradients.neighbour_indices();
-                let g = t.gradients.all_weights();
-                let mut d = Matrix3::zeros();
-                for e in t.gradients.range(i) {
-                    d += (w[edges[e] as usize] - w[i]) * g[e].transpose();
-                }
-                *df = d;
-                let v = self.volumes[i];
-                *dt = self.material.first_piola_derivative(&states[i], &d) * v;
-                if self.hourglass > 0.0 {
-                    let kappa = self.hourglass * v;
-                    for e in t.gradients.range(i) {
-                        let derr = w[edges[e] as usize] - w[i] - d * t.rest_offset[e];
-                        *dt -= derr * t.rest_offset[e].transpose() * (kappa * t.pair_weight[e]);
+        split
+            .chunks(t)
+            .into_par_iter()
+            .for_each(|(first, own, edge)| {
+                let base = t.gradients.range(first).start;
+                for (k, own) in own.iter_mut().enumerate() {
+                    let i = first + k;
+                    let range = t.gradients.range(i);
+                    let df = self.gradient_of(i, w, 0.0);
+                    let volume = self.volumes[i];
+                    let mut stress = self.material.first_piola_derivative(&states[i], &df) * volume;
+                    let kappa = self.hourglass * volume;
+                    let mut pair_sum = Vector::zeros();
+                    for e in range.clone() {
+                        let mut c = Vector::zeros();
+                        if kappa > 0.0 {
+                            let w_e = t.pair_weight[e];
+                            let derr = w[edges[e] as usize] - w[i] - df * t.rest_offset[e];
+                            stress -= derr * t.rest_offset[e].transpose() * (kappa * w_e);
+                            c = derr * (kappa * w_e);
+                        }
+                        pair_sum += c;
+                        edge[e - base] = c;
                     }
+                    for e in range {
+                        edge[e - base] += stress * g[e];
+                    }
+                    *own = stress * t.sum_g[i] + pair_sum;
                 }
             });
     }
 
-    /// Pass 2 linearised (hourglass only; damping is not a function of
-    /// position).
-    pub fn edge_derivative_pass(&self, w: &[Vector], df: &[Matrix3<Real>], edge: &mut [Vector]) {
+    /// The split of the damping force `f_d(v) = -D v`.
+    pub fn damping_pass(&self, v: &[Vector], split: &mut Split) {
         let t = self.topology;
         let edges = t.gradients.neighbour_indices();
-        edge.par_iter_mut().enumerate().for_each(|(e, out)| {
-            *out = if self.hourglass > 0.0 {
-                let i = t.owner[e] as usize;
-                let derr = w[edges[e] as usize] - w[i] - df[i] * t.rest_offset[e];
-                derr * (self.hourglass * self.volumes[i] * t.pair_weight[e])
-            } else {
-                Vector::zeros()
-            };
+        split
+            .chunks(t)
+            .into_par_iter()
+            .for_each(|(first, own, edge)| {
+                let base = t.gradients.range(first).start;
+                for (k, own) in own.iter_mut().enumerate() {
+                    let i = first + k;
+                    let mut sum = Vector::zeros();
+                    for e in t.gradients.range(i) {
+                        let c = (v[edges[e] as usize] - v[i])
+                            * (self.damping * self.masses[i] * t.pair_weight[e]);
+                        edge[e - base] = c;
+                        sum += c;
+                    }
+                    *own = sum;
+                }
+            });
+    }
+
+    /// Pass 2: `f_k = own_k - sum_(i->k) c_e`.
+    pub fn gather(&self, split: &Split, out: &mut [Vector]) {
+        let t = self.topology;
+        out.par_iter_mut().enumerate().for_each(|(k, f)| {
+            let mut sum = split.own[k];
+            for &e in t.incoming(k) {
+                sum -= split.edge[e as usize];
+            }
+            *f = sum;
+        });
+    }
+
+    /// Stress states at `x` alone (for frames and diagnostics).
+    pub fn states(&self, x: &[Vector], out: &mut [StressState]) {
+        out.par_iter_mut().enumerate().for_each(|(i, state)| {
+            let f = self.gradient_of(i, x, 1.0);
+            *state = self.material.state(f, self.plastic.map(|p| &p[i]));
         });
     }
 
@@ -265,33 +290,34 @@ impl ElasticSolid {
         }
     }
 
-    /// Recomputes the stress states at the current positions (or at
-    /// `at`); returns the potential energy.
-    pub(super) fn evaluate_stress(&mut self, at: Option<&[Vector]>) -> Real {
+    /// Internal forces (elastic, hourglass, damping) at positions `x`
+    /// (default: the current ones) and velocities `v` into
+    /// `scratch.forces`, with the stress states there in `scratch.states`;
+    /// returns the potential energy when `energy` is asked for.
+    pub(super) fn internal_forces(
+        &mut self,
+        x: Option<&[Vector]>,
+        v: Option<&[Vector]>,
+        energy: bool,
+    ) -> Real {
         let n = self.len();
         let mut scratch = std::mem::take(&mut self.scratch);
         scratch.states.resize(n, Material::rest_state());
-        scratch.stress.resize(n, Matrix3::zeros());
         scratch.forces.resize(n, Vector::zeros());
-        scratch.edge.resize(self.topology.owner.len(), Vector::zeros());
-        let x = at.unwrap_or(&self.positions);
-        let energy = self
-            .model()
-            .stress_pass(x, &mut scratch.states, &mut scratch.stress);
-        self.scratch = scratch;
-        energy
-    }
-
-    /// Internal (elastic, hourglass, damping) forces at the current
-    /// positions and velocities, into `scratch.forces`; expects the stress
-    /// states to be current.
-    pub(super) fn internal_forces(&mut self, x: Option<&[Vector]>, v: Option<&[Vector]>) {
-        let mut scratch = std::mem::take(&mut self.scratch);
+        scratch.split.resize(n, self.topology.owner.len());
         let model = self.model();
         let x = x.unwrap_or(&self.positions);
-        model.edge_pass(x, &scratch.states, v, &mut scratch.edge);
-        model.gather(&scratch.stress, &scratch.edge, &mut scratch.forces);
+        let total = model.particle_pass(x, v, &mut scratch.states, &mut scratch.split, energy);
+        model.gather(&scratch.split, &mut scratch.forces);
         self.scratch = scratch;
+        total
+    }
+
+    /// The stress state of every particle at the current positions.
+    pub(super) fn current_states(&self) -> Vec<StressState> {
+        let mut states = vec![Material::rest_state(); self.len()];
+        self.model().states(&self.positions, &mut states);
+        states
     }
 
     /// Potential energy at the current positions (elastic, volume and
@@ -299,22 +325,23 @@ impl ElasticSolid {
     pub fn potential_energy(&self) -> Real {
         let n = self.len();
         let mut states = vec![Material::rest_state(); n];
-        let mut stress = vec![Matrix3::zeros(); n];
-        self.model().stress_pass(&self.positions, &mut states, &mut stress)
+        let mut split = Split::default();
+        split.resize(n, self.topology.owner.len());
+        self.model()
+            .particle_pass(&self.positions, None, &mut states, &mut split, true)
     }
 
     /// The internal force on every particle at the current state (for
-    /// tests and diagnostics; the integrators use the scratch buffers).
+    /// tests and diagnostics; the integrators use their own buffers).
     pub fn forces(&self) -> Vec<Vector> {
         let n = self.len();
         let model = self.model();
         let mut states = vec![Material::rest_state(); n];
-        let mut stress = vec![Matrix3::zeros(); n];
-        let mut edge = vec![Vector::zeros(); self.topology.owner.len()];
+        let mut split = Split::default();
+        split.resize(n, self.topology.owner.len());
         let mut out = vec![Vector::zeros(); n];
-        model.stress_pass(&self.positions, &mut states, &mut stress);
-        model.edge_pass(&self.positions, &states, Some(&self.velocities), &mut edge);
-        model.gather(&stress, &edge, &mut out);
+        model.particle_pass(&self.positions, Some(&self.velocities), &mut states, &mut split, false);
+        model.gather(&split, &mut out);
         out
     }
 }

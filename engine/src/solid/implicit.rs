@@ -17,7 +17,7 @@
 use super::elastic::ElasticSolid;
 use super::params::ImplicitParams;
 use crate::math::{Real, Vector};
-use nalgebra::Matrix3;
+use super::forces::Split;
 use rayon::prelude::*;
 
 /// The solve's vectors, kept between steps so a step does not allocate.
@@ -38,9 +38,7 @@ pub(super) struct Buffers {
     /// Inverse Jacobi diagonal.
     inverse_diagonal: Vec<Real>,
     damping: Vec<Vector>,
-    df: Vec<Matrix3<Real>>,
-    dstress: Vec<Matrix3<Real>>,
-    dedge: Vec<Vector>,
+    split: Split,
 }
 
 impl Buffers {
@@ -60,9 +58,7 @@ impl Buffers {
             v.resize(n, Vector::zeros());
         }
         self.inverse_diagonal.resize(n, 0.0);
-        self.df.resize(n, Matrix3::zeros());
-        self.dstress.resize(n, Matrix3::zeros());
-        self.dedge.resize(edges, Vector::zeros());
+        self.split.resize(n, edges);
     }
 }
 
@@ -86,8 +82,8 @@ impl ElasticSolid {
         let mut residual = Real::INFINITY;
         let mut first = None;
         for _ in 0..settings.max_newton_iterations.max(1) {
+            // Phi at the iterate; leaves the forces and states there.
             let phi = self.objective(dt, gravity, &b.v_new, &mut b.x_new);
-            self.internal_forces(Some(&b.x_new), Some(&b.v_new));
             self.residual(dt, gravity, &b.v_new, &mut b.gradient);
             let norm = dot(&b.gradient, &b.gradient).sqrt();
             let scale = *first.get_or_insert(norm);
@@ -198,11 +194,11 @@ impl ElasticSolid {
     /// about the stress states of the current Newton iterate.
     fn apply_hessian(&self, dt: Real, b: &mut Buffers) {
         let model = self.model();
-        model.stress_derivative_pass(&b.p, &self.scratch.states, &mut b.df, &mut b.dstress);
-        model.edge_derivative_pass(&b.p, &b.df, &mut b.dedge);
-        model.gather(&b.dstress, &b.dedge, &mut b.hp);
+        model.derivative_pass(&b.p, &self.scratch.states, &mut b.split);
+        model.gather(&b.split, &mut b.hp);
         if model.damping > 0.0 {
-            model.damping_forces(&b.p, &mut b.dedge, &mut b.damping);
+            model.damping_pass(&b.p, &mut b.split);
+            model.gather(&b.split, &mut b.damping);
         }
         let damped = model.damping > 0.0;
         let p = &b.p;
@@ -241,7 +237,7 @@ impl ElasticSolid {
     }
 
     /// `Phi(v_new)`, with `x_new = x + dt v_new` written out and the
-    /// stress states evaluated there.
+    /// forces and stress states evaluated there.
     fn objective(
         &mut self,
         dt: Real,
@@ -254,7 +250,7 @@ impl ElasticSolid {
             .zip(&self.positions)
             .zip(v_new)
             .for_each(|((out, x), v)| *out = x + v * dt);
-        let potential = self.evaluate_stress(Some(x_new));
+        let potential = self.internal_forces(Some(x_new), Some(v_new), true);
         let kinetic: Real = v_new
             .par_iter()
             .zip(&self.velocities)

@@ -55,11 +55,10 @@ impl ElasticSolid {
     }
 
     /// One symplectic Euler sub-step: forces at the current state,
-    /// velocities, then positions. Expects (and leaves) the stress states
-    /// current.
+    /// velocities, then positions.
     fn explicit_substep(&mut self, dt: Real, gravity: &Vector) {
         let velocities = std::mem::take(&mut self.velocities);
-        self.internal_forces(None, Some(&velocities));
+        self.internal_forces(None, Some(&velocities), false);
         self.velocities = velocities;
         let forces = &self.scratch.forces;
         self.velocities
@@ -75,8 +74,8 @@ impl ElasticSolid {
         self.finish_substep();
     }
 
-    /// After positions moved: collisions, plastic flow, and the stress
-    /// states at the new positions.
+    /// After positions moved: collisions, and plastic flow with the
+    /// strains of the force evaluation.
     pub(super) fn finish_substep(&mut self) {
         let radius = 0.5 * self.params.spacing;
         self.obstacles.resolve(
@@ -88,6 +87,5 @@ impl ElasticSolid {
             &mut self.velocities,
         );
         self.flow();
-        self.evaluate_stress(None);
     }
 }

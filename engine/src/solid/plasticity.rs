@@ -50,7 +50,7 @@ impl ElasticSolid {
     /// cannot carry an MLS fit (it always can: every particle is its own
     /// neighbour), so a rebase never fails a step.
     fn rebase(&mut self) {
-        self.evaluate_stress(None);
+        let states = self.current_states();
         let Ok(topology) = Topology::build(
             &self.positions,
             self.params.dim,
@@ -60,16 +60,15 @@ impl ElasticSolid {
             return;
         };
         if let Some(plastic) = self.plastic.as_mut() {
-            for (p, state) in plastic.iter_mut().zip(&self.scratch.states) {
+            for (p, state) in plastic.iter_mut().zip(&states) {
                 let total = state.e + *p;
                 *p -= total;
             }
         }
-        for (v, state) in self.volumes.iter_mut().zip(&self.scratch.states) {
+        for (v, state) in self.volumes.iter_mut().zip(&states) {
             *v *= state.det.max(1e-6);
         }
         self.rest.clone_from(&self.positions);
         self.topology = topology;
-        self.scratch.edge.clear();
     }
 }

@@ -1,0 +1,332 @@
+//! The cantilever under its own weight: the elastic solids' reference
+//! against Euler–Bernoulli beam theory, shared by the validation tests,
+//! `meshless study` and the benchmarks.
+//!
+//! A beam of length `L` and thickness `H` (square section in 3D, unit
+//! depth in 2D), clamped at `x = 0` by anchoring three spacings of
+//! material behind the wall, sags under gravity. Beam theory gives the
+//! static tip deflection and the first bending period
+//!
+//! ```text
+//! delta = q L^4 / (8 E I),         q = rho g A
+//! omega_1 = 1.8751^2 sqrt(E I / (rho A L^4)),  T_1 = 2 pi / omega_1
+//! ```
+//!
+//! (Timoshenko 1955, Vibration Problems in Engineering; `1.8751` is the
+//! first root of `1 + cos(b) cosh(b) = 0`). With `L / H = 10` shear adds
+//! about 1 % to the deflection, below the tolerances used here. Poisson's
+//! ratio is 0 so that plane strain (2D) and the beam's plane stress agree.
+
+use crate::approx::mls::Order;
+use crate::math::Real;
+use crate::scene::{IntegratorKind, Scene, SceneError, SystemSpec};
+use crate::world::{StepError, World};
+use crate::BuildOptions;
+
+/// First root of the clamped-free frequency equation.
+const BETA_1: Real = 1.875_104_068_711_961;
+
+/// A cantilever experiment: geometry, material and the knobs under study.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cantilever {
+    pub dim: usize,
+    /// m.
+    pub length: Real,
+    pub thickness: Real,
+    /// Pa and kg/m^3.
+    pub young: Real,
+    pub density: Real,
+    pub gravity: Real,
+    pub spacing: Real,
+    pub order: Order,
+    /// MLS support in spacings.
+    pub support: Real,
+    pub hourglass: Real,
+    pub integrator: IntegratorKind,
+    /// Step of the world, s (explicit sub-steps below it as needed).
+    pub dt: Real,
+}
+
+impl Default for Cantilever {
+    /// A 1 m beam, 0.1 m thick, that sags about 1 % of its length: small
+    /// enough for linear beam theory, large enough to measure.
+    fn default() -> Self {
+        Self {
+            dim: 2,
+            length: 1.0,
+            thickness: 0.1,
+            young: 1.5e8,
+            density: 1000.0,
+            gravity: 9.81,
+            spacing: 0.0125,
+            order: Order::Linear,
+            support: 2.0,
+            hourglass: crate::scene::solid_defaults::HOURGLASS,
+            integrator: IntegratorKind::Explicit,
+            dt: 1e-3,
+        }
+    }
+}
+
+/// What one run measured.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Measured {
+    pub particles: usize,
+    /// Tip deflection (positive down), m.
+    pub value: Real,
+    /// `value / reference - 1`.
+    pub error: Real,
+    /// World steps taken.
+    pub steps: u64,
+}
+
+impl Cantilever {
+    /// Second moment of area times the section's depth factor, m^4.
+    fn inertia(&self) -> Real {
+        let depth = if self.dim == 3 { self.thickness } else { 1.0 };
+        depth * self.thickness.powi(3) / 12.0
+    }
+
+    /// Load per length `rho g A`, N/m.
+    fn load(&self) -> Real {
+        let depth = if self.dim == 3 { self.thickness } else { 1.0 };
+        self.density * self.gravity * self.thickness * depth
+    }
+
+    /// Euler–Bernoulli static tip deflection, m.
+    pub fn static_deflection(&self) -> Real {
+        self.load() * self.length.powi(4) / (8.0 * self.young * self.inertia())
+    }
+
+    /// Euler–Bernoulli first bending period, s.
+    pub fn first_period(&self) -> Real {
+        let mass_per_length = self.load() / self.gravity;
+        let omega = BETA_1 * BETA_1
+            * (self.young * self.inertia() / (mass_per_length * self.length.powi(4))).sqrt();
+        2.0 * std::f64::consts::PI / omega
+    }
+
+    /// The scene: the beam from `x = -3 spacing` (anchored behind the
+    /// wall at `x = 0`) to `x = L`, centred on `y = z = 0`.
+    pub fn scene(&self) -> Result<Scene, SceneError> {
+        let clamp = 3.0 * self.spacing;
+        let half = [
+            0.5 * (self.length + clamp),
+            0.5 * self.thickness,
+            0.5 * self.thickness,
+        ];
+        let centre_x = 0.5 * (self.length - clamp);
+        let order = match self.order {
+            Order::Constant => "constant",
+            Order::Linear => "linear",
+            Order::Quadratic => "quadratic",
+        };
+        let integrator = match self.integrator {
+            IntegratorKind::Explicit => "explicit",
+            IntegratorKind::Implicit => "implicit",
+        };
+        let text = format!(
+            r#"
+            name = "cantilever"
+            dimension = {dim}
+            gravity = [0.0, {g}, 0.0]
+            [domain]
+            min = [-1.0, -2.0, -1.0]
+            max = [2.0, 1.0, 1.0]
+            [time]
+            dt = {dt}
+            max_substeps = 1000000
+            [[systems]]
+            kind = "solid"
+            shape = {{ type = "box", half_extents = [{hx}, {hy}, {hz}] }}
+            position = [{centre_x}, 0.0, 0.0]
+            spacing = {spacing}
+            density = {density}
+            young = {young}
+            poisson = 0.0
+            order = "{order}"
+            support = {support}
+            hourglass = {hourglass}
+            integrator = "{integrator}"
+            anchors = [{{ min = [-1.0, -1.0, -1.0], max = [0.0, 1.0, 1.0] }}]
+            "#,
+            dim = self.dim,
+            g = -self.gravity,
+            dt = self.dt,
+            hx = half[0],
+            hy = half[1],
+            hz = half[2],
+            spacing = self.spacing,
+            density = self.density,
+            young = self.young,
+            support = self.support,
+            hourglass = self.hourglass,
+        );
+        let scene = Scene::from_toml_str(&text)?;
+        scene.validate(&BuildOptions::default())?;
+        Ok(scene)
+    }
+
+    /// The beam as the lattice sampled it: the wall sits halfway between
+    /// the last anchored and the first free column, the free end half a
+    /// spacing beyond the last column. Returns that length and the last
+    /// column's distance from the wall.
+    fn sampled(&self, world: &World) -> Option<(Real, Real)> {
+        let (_, solid) = world.solids().next()?;
+        let rest = solid.rest_positions();
+        let free = (0..rest.len()).filter(|&i| !solid.is_fixed(i));
+        let first_free = free.clone().map(|i| rest[i].x).fold(Real::INFINITY, Real::min);
+        let last = free.map(|i| rest[i].x).fold(Real::NEG_INFINITY, Real::max);
+        let last_fixed = (0..rest.len())
+            .filter(|&i| solid.is_fixed(i))
+            .map(|i| rest[i].x)
+            .fold(Real::NEG_INFINITY, Real::max);
+        let wall = 0.5 * (first_free + last_fixed);
+        Some((last + 0.5 * self.spacing - wall, last - wall))
+    }
+
+    /// Mean downward displacement of the last column of particles, m.
+    pub fn tip(&self, world: &World) -> Real {
+        let Some((_, solid)) = world.solids().next() else {
+            return 0.0;
+        };
+        let rest = solid.rest_positions();
+        let last = rest.iter().map(|x| x.x).fold(Real::NEG_INFINITY, Real::max);
+        let (sum, count) = solid
+            .positions
+            .iter()
+            .zip(rest)
+            .filter(|(_, rest)| rest.x > last - 0.5 * self.spacing)
+            .fold((0.0, 0), |(s, c), (x, rest)| (s + rest.y - x.y, c + 1));
+        sum / count.max(1) as Real
+    }
+
+    /// Euler–Bernoulli deflection of the sampled beam at its last column,
+    /// `q x^2 (6 L^2 - 4 L x + x^2) / (24 E I)`, and its first period.
+    fn reference(&self, world: &World) -> (Real, Real) {
+        let (length, x) = self.sampled(world).unwrap_or((self.length, self.length));
+        let beam = Self { length, ..*self };
+        let deflection = self.load() * x * x * (6.0 * length * length - 4.0 * length * x + x * x)
+            / (24.0 * self.young * self.inertia());
+        (deflection, beam.first_period())
+    }
+
+    /// The static deflection by dynamic relaxation: step, and zero every
+    /// velocity when the kinetic energy passes a peak (Cundall's kinetic
+    /// damping), until the out-of-balance force of the free particles is
+    /// below `tolerance` times their weight (both as 2-norms).
+    ///
+    /// # Errors
+    /// A scene error, or a step that blew up.
+    pub fn relax(&self, tolerance: Real) -> Result<Measured, CantileverError> {
+        let mut world = self.scene()?.build(&BuildOptions::default())?;
+        let system = first_solid(&world);
+        let mut last_energy = 0.0;
+        let limit = (200.0 * self.first_period() / self.dt).ceil() as u64;
+        while world.clock().step < limit {
+            world.step()?;
+            let solid = world.solids().next().map(|(_, s)| s).ok_or(CantileverError::NoSolid)?;
+            let energy = solid.kinetic_energy();
+            if energy < last_energy {
+                if self.imbalance(solid) <= tolerance {
+                    break;
+                }
+                let solid = world.solid_mut(system).ok_or(CantileverError::NoSolid)?;
+                let at_rest = vec![Default::default(); solid.len()];
+                solid
+                    .set_state(solid.positions.clone(), at_rest)
+                    .map_err(|_| CantileverError::NoSolid)?;
+                last_energy = 0.0;
+            } else {
+                last_energy = energy;
+            }
+        }
+        let value = self.tip(&world);
+        Ok(Measured {
+            particles: world.particle_count(),
+            value,
+            error: value / self.reference(&world).0 - 1.0,
+            steps: world.clock().step,
+        })
+    }
+
+    /// `|f + m g| / |m g|` over the free particles.
+    fn imbalance(&self, solid: &crate::solid::ElasticSolid) -> Real {
+        let forces = solid.forces();
+        let (mut unbalanced, mut weight) = (0.0, 0.0);
+        for (i, (f, m)) in forces.iter().zip(solid.masses()).enumerate() {
+            if !solid.is_fixed(i) {
+                let w = m * self.gravity;
+                unbalanced += (f.y - w).powi(2) + f.x * f.x + f.z * f.z;
+                weight += w * w;
+            }
+        }
+        (unbalanced / weight).sqrt()
+    }
+
+    /// The first bending period from a release: the beam starts straight
+    /// and at rest, so the tip swings down to its first maximum at half a
+    /// period. Returns that period.
+    ///
+    /// # Errors
+    /// A scene error, or a step that blew up.
+    pub fn period(&self) -> Result<Measured, CantileverError> {
+        let mut world = self.scene()?.build(&BuildOptions::default())?;
+        let limit = (2.0 * self.first_period() / self.dt).ceil() as u64;
+        // The last three (time, tip) samples; the peak is the vertex of the
+        // parabola through them, finer than the step.
+        let mut samples = [(0.0, 0.0); 3];
+        let mut half = None;
+        while world.clock().step < limit {
+            world.step()?;
+            samples = [samples[1], samples[2], (world.clock().time, self.tip(&world))];
+            if world.clock().step >= 3 && samples[2].1 < samples[1].1 {
+                half = Some(parabola_vertex(samples));
+                break;
+            }
+        }
+        let half = half.ok_or(CantileverError::NoPeak)?;
+        let value = 2.0 * half;
+        Ok(Measured {
+            particles: world.particle_count(),
+            value,
+            error: value / self.reference(&world).1 - 1.0,
+            steps: world.clock().step,
+        })
+    }
+}
+
+/// The abscissa of the extremum of the parabola through three points
+/// equally spaced in time.
+fn parabola_vertex([(_, y0), (t1, y1), (t2, y2)]: [(Real, Real); 3]) -> Real {
+    let curvature = y0 - 2.0 * y1 + y2;
+    if curvature == 0.0 {
+        return t1;
+    }
+    t1 + 0.5 * (t2 - t1) * (y0 - y2) / curvature
+}
+
+fn first_solid(world: &World) -> usize {
+    world.solids().next().map_or(0, |(s, _)| s)
+}
+
+/// Why a cantilever run did not produce a figure.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CantileverError {
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error(transparent)]
+    Step(#[from] StepError),
+    #[error("the cantilever scene holds no solid")]
+    NoSolid,
+    #[error("the tip did not turn within two beam periods; lower the step or the damping")]
+    NoPeak,
+}
+
+/// The scene's first system, for callers that tweak the spec.
+pub fn solid_spec(scene: &mut Scene) -> Option<&mut crate::scene::SolidSpec> {
+    scene.systems.iter_mut().find_map(|s| match s {
+        SystemSpec::Solid(spec) => Some(spec),
+        _ => None,
+    })
+}
