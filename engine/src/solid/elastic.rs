@@ -235,11 +235,15 @@ impl ElasticSolid {
             / total
     }
 
-    /// The first particle whose state is not finite or moves faster than
-    /// ten elastic wave speeds (a blow-up, not physics).
+    /// The first particle whose state is not finite, that moves faster
+    /// than ten elastic wave speeds, or whose Green strain at the last
+    /// force evaluation exceeded [`Self::MAX_STRAIN`]: a blow-up, not
+    /// physics (walls and obstacles can stop runaway particles, but not
+    /// hide the strain they left).
     pub(crate) fn first_invalid(&self) -> Option<(usize, &'static str, Real)> {
         let limit = 10.0 * self.params.wave_speed() + 1e3;
-        self.positions
+        let moving = self
+            .positions
             .iter()
             .zip(&self.velocities)
             .enumerate()
@@ -250,8 +254,18 @@ impl ElasticSolid {
                     let speed = v.norm();
                     (speed.is_nan() || speed > limit).then_some((i, "velocity", speed))
                 }
+            });
+        moving.or_else(|| {
+            self.scratch.states.iter().enumerate().find_map(|(i, s)| {
+                let strain = (s.e + self.plastic.as_ref().map_or_else(Matrix3::zeros, |p| p[i])).norm();
+                (strain.is_nan() || strain > Self::MAX_STRAIN).then_some((i, "strain", strain))
             })
+        })
     }
+
+    /// Green strain norm beyond which a solid is taken to have blown up: a
+    /// stretch of about 14 times, far past any elastic material.
+    pub const MAX_STRAIN: Real = 100.0;
 }
 
 /// What a failed step restores: positions, velocities and plastic strain.
