@@ -182,3 +182,86 @@ fn implicit_and_explicit_agree_on_a_small_oscillation() {
         .fold(0.0, Real::max);
     assert!(diff < 0.1 * moved, "diff {diff:e} moved {moved:e}");
 }
+
+fn free(p: SolidParams, rest: Vec<Vector>) -> ElasticSolid {
+    let n = rest.len();
+    ElasticSolid::new(p, rest, vec![Vector::zeros(); n], vec![false; n], Obstacles::default())
+        .expect("solid")
+}
+
+/// One particle has no neighbours to measure a strain with: its gradient
+/// falls back to the constant order (zero), so it carries no elastic
+/// force and simply falls.
+#[test]
+fn a_single_particle_falls_freely() {
+    for integrator in [Integrator::Explicit { cfl: 0.5 }, Integrator::Implicit(ImplicitParams::default())] {
+        let mut p = params(3, 0.1, 1e9, 0.3);
+        p.integrator = integrator;
+        let mut solid = free(p, vec![Vector::new(0.0, 1.0, 0.0)]);
+        assert_eq!(solid.orders(), &[Order::Constant]);
+        let g = Vector::new(0.0, -9.81, 0.0);
+        for _ in 0..100 {
+            solid.step(0.01, &g, 1000);
+        }
+        let v = solid.velocities[0];
+        assert!((v.y + 9.81).abs() < 1e-9 && v.x == 0.0 && v.z == 0.0, "{v}");
+    }
+}
+
+/// A plate one particle thick in 3D: the linear fit is rank-deficient
+/// (no spread across the plate), so it falls back to the constant order
+/// everywhere, as documented for MLSPH; the plate then has no stiffness
+/// but steps stably. Two layers restore the linear order.
+#[test]
+fn a_one_particle_plate_falls_back_and_stays_finite() {
+    let layer = |z: Real| {
+        (0..10).flat_map(move |i| {
+            (0..10).map(move |j| Vector::new(i as Real * 0.1, j as Real * 0.1, z))
+        })
+    };
+    let p = params(3, 0.1, 1e6, 0.3);
+    let mut plate = free(p, layer(0.0).collect());
+    assert!(plate.orders().iter().all(|&o| o == Order::Constant));
+    let n = plate.len();
+    let bent = plate
+        .rest_positions()
+        .iter()
+        .map(|x| Vector::new(x.x, x.y, 0.1 * x.x * x.x))
+        .collect();
+    plate.set_state(bent, vec![Vector::zeros(); n]).expect("same length");
+    for _ in 0..50 {
+        plate.step(1e-3, &Vector::zeros(), 1000);
+    }
+    assert!(plate.positions.iter().all(|x| x.iter().all(|c| c.is_finite())));
+    let thick = free(p, layer(0.0).chain(layer(0.1)).collect());
+    assert!(thick.orders().iter().all(|&o| o == Order::Linear));
+}
+
+/// Large plastic flow re-bases the reference shape: the rest positions
+/// move to the deformed ones and the solid keeps stepping.
+#[test]
+fn plastic_flow_rebases_the_reference_shape() {
+    let mut p = params(2, 0.05, 1e5, 0.0);
+    p.plasticity = Some(meshless_engine::solid::Plasticity {
+        yield_strain: 0.01,
+        creep: 0.5,
+        max: 2.0,
+        rebase: Some(0.05),
+    });
+    let mut solid = block(p, [0.3, 0.1, 0.1]);
+    let n = solid.len();
+    let rest = solid.rest_positions().to_vec();
+    let stretched: Vec<Vector> = rest.iter().map(|x| Vector::new(1.2 * x.x, x.y, x.z)).collect();
+    solid.set_state(stretched, vec![Vector::zeros(); n]).expect("same length");
+    for _ in 0..20 {
+        solid.step(1e-3, &Vector::zeros(), 10_000);
+    }
+    let moved = solid
+        .rest_positions()
+        .iter()
+        .zip(&rest)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, Real::max);
+    assert!(moved > 0.01, "the reference did not move: {moved}");
+    assert!(solid.positions.iter().all(|x| x.iter().all(|c| c.is_finite())));
+}
