@@ -5,8 +5,8 @@ use meshless_engine::approx::mls::Order;
 use meshless_engine::geometry::Shape;
 use meshless_engine::math::{Real, Vector};
 use meshless_engine::solid::{
-    ElasticSolid, ImplicitParams, Integrator, Material, Obstacles, SolidParams, cofactor,
-    green_strain,
+    ElasticSolid, ImplicitParams, Integrator, LinearSolver, Material, Obstacles, SolidParams,
+    cofactor, green_strain,
 };
 use nalgebra::{Matrix3, Rotation3};
 
@@ -33,8 +33,14 @@ fn block(p: SolidParams, half: [Real; 3]) -> ElasticSolid {
     };
     let rest = shape.sample_volume(p.spacing, p.dim).expect("samples");
     let n = rest.len();
-    ElasticSolid::new(p, rest, vec![Vector::zeros(); n], vec![false; n], Obstacles::default())
-        .expect("solid")
+    ElasticSolid::new(
+        p,
+        rest,
+        vec![Vector::zeros(); n],
+        vec![false; n],
+        Obstacles::default(),
+    )
+    .expect("solid")
 }
 
 /// A smooth, non-affine deformation.
@@ -69,7 +75,10 @@ fn first_piola_and_its_derivative_match_finite_differences() {
         - m.first_piola(&m.state(f - df * eps, None)))
         / (2.0 * eps);
     let exact = m.first_piola_derivative(&state, &df);
-    assert!((fd - exact).norm() < 1e-6 * exact.norm(), "dP: {fd} vs {exact}");
+    assert!(
+        (fd - exact).norm() < 1e-6 * exact.norm(),
+        "dP: {fd} vs {exact}"
+    );
     let inv_t = f.try_inverse().expect("invertible").transpose() * f.determinant();
     assert!((cofactor(&f) - inv_t).norm() < 1e-14);
     let r = Rotation3::from_euler_angles(0.3, -1.2, 2.0).into_inner();
@@ -85,7 +94,9 @@ fn forces_are_minus_the_energy_gradient() {
         let mut solid = block(p, [0.3, 0.2, 0.2]);
         let x: Vec<Vector> = solid.rest_positions().iter().map(bend).collect();
         let n = x.len();
-        solid.set_state(x.clone(), vec![Vector::zeros(); n]).expect("same length");
+        solid
+            .set_state(x.clone(), vec![Vector::zeros(); n])
+            .expect("same length");
         let forces = solid.forces();
         let scale = forces.iter().map(|f| f.norm()).fold(0.0, Real::max);
         let eps = 1e-7;
@@ -93,10 +104,14 @@ fn forces_are_minus_the_energy_gradient() {
             for a in 0..dim {
                 let mut moved = x.clone();
                 moved[i][a] += eps;
-                solid.set_state(moved.clone(), vec![Vector::zeros(); n]).expect("same length");
+                solid
+                    .set_state(moved.clone(), vec![Vector::zeros(); n])
+                    .expect("same length");
                 let up = solid.potential_energy();
                 moved[i][a] -= 2.0 * eps;
-                solid.set_state(moved, vec![Vector::zeros(); n]).expect("same length");
+                solid
+                    .set_state(moved, vec![Vector::zeros(); n])
+                    .expect("same length");
                 let down = solid.potential_energy();
                 let numeric = -(up - down) / (2.0 * eps);
                 assert!(
@@ -122,8 +137,14 @@ fn rigid_rotation_gives_no_force_and_momentum_is_conserved() {
             Rotation3::from_euler_angles(0.7, 1.1, -0.4)
         };
         let shift = Vector::new(3.0, -1.0, if dim == 2 { 0.0 } else { 2.0 });
-        let x: Vec<Vector> = solid.rest_positions().iter().map(|x| turn * x + shift).collect();
-        solid.set_state(x, vec![Vector::zeros(); n]).expect("same length");
+        let x: Vec<Vector> = solid
+            .rest_positions()
+            .iter()
+            .map(|x| turn * x + shift)
+            .collect();
+        solid
+            .set_state(x, vec![Vector::zeros(); n])
+            .expect("same length");
         let rotated = solid.forces().iter().map(|f| f.norm()).fold(0.0, Real::max);
         // The scale: forces of a 1 % stretch.
         let stretched: Vec<Vector> = solid
@@ -131,56 +152,174 @@ fn rigid_rotation_gives_no_force_and_momentum_is_conserved() {
             .iter()
             .map(|x| Vector::new(1.01 * x.x, x.y, x.z))
             .collect();
-        solid.set_state(stretched, vec![Vector::zeros(); n]).expect("same length");
+        solid
+            .set_state(stretched, vec![Vector::zeros(); n])
+            .expect("same length");
         let scale = solid.forces().iter().map(|f| f.norm()).fold(0.0, Real::max);
         assert!(rotated < 1e-9 * scale, "{dim}D: {rotated:e} vs {scale:e}");
 
         // A bent body: net force and torque vanish.
         let x: Vec<Vector> = solid.rest_positions().iter().map(bend).collect();
-        solid.set_state(x.clone(), vec![Vector::zeros(); n]).expect("same length");
+        solid
+            .set_state(x.clone(), vec![Vector::zeros(); n])
+            .expect("same length");
         let forces = solid.forces();
         let net: Vector = forces.iter().sum();
         let torque: Vector = x.iter().zip(&forces).map(|(x, f)| x.cross(f)).sum();
         let big = forces.iter().map(|f| f.norm()).fold(0.0, Real::max);
         assert!(net.norm() < 1e-10 * big * n as Real, "{dim}D net {net}");
-        assert!(torque.norm() < 1e-10 * big * n as Real, "{dim}D torque {torque}");
+        assert!(
+            torque.norm() < 1e-10 * big * n as Real,
+            "{dim}D torque {torque}"
+        );
     }
 }
 
 #[test]
 fn implicit_and_explicit_agree_on_a_small_oscillation() {
-    let mut p = params(2, 0.05, 1e5, 0.3);
-    let mut explicit = block(p, [0.3, 0.1, 0.1]);
-    p.integrator = Integrator::Implicit(ImplicitParams::default());
-    let mut implicit = block(p, [0.3, 0.1, 0.1]);
-    let n = explicit.len();
-    let x: Vec<Vector> = explicit
-        .rest_positions()
-        .iter()
-        .map(|x| Vector::new(1.01 * x.x, x.y, 0.0))
-        .collect();
-    explicit.set_state(x.clone(), vec![Vector::zeros(); n]).expect("same length");
-    implicit.set_state(x, vec![Vector::zeros(); n]).expect("same length");
-    let g = Vector::zeros();
-    let dt = 1e-4;
-    for _ in 0..20 {
-        explicit.step(dt, &g, 10_000);
-        let info = implicit.step(dt, &g, 10_000);
-        assert!(info.residual <= 1e-6, "{info:?}");
+    for solver in [LinearSolver::ConjugateGradient, LinearSolver::Cholesky] {
+        let mut p = params(2, 0.05, 1e5, 0.3);
+        let mut explicit = block(p, [0.3, 0.1, 0.1]);
+        p.integrator = Integrator::Implicit(ImplicitParams {
+            linear_solver: solver,
+            ..ImplicitParams::default()
+        });
+        let mut implicit = block(p, [0.3, 0.1, 0.1]);
+        let n = explicit.len();
+        let x: Vec<Vector> = explicit
+            .rest_positions()
+            .iter()
+            .map(|x| Vector::new(1.01 * x.x, x.y, 0.0))
+            .collect();
+        explicit
+            .set_state(x.clone(), vec![Vector::zeros(); n])
+            .expect("same length");
+        implicit
+            .set_state(x, vec![Vector::zeros(); n])
+            .expect("same length");
+        let g = Vector::zeros();
+        let dt = 1e-4;
+        for _ in 0..20 {
+            explicit.step(dt, &g, 10_000);
+            let info = implicit.step(dt, &g, 10_000);
+            assert!(info.residual <= 1e-6, "{solver:?}: {info:?}");
+            assert_eq!(info.cholesky_fallbacks, 0, "{solver:?}: {info:?}");
+        }
+        let diff = explicit
+            .positions
+            .iter()
+            .zip(&implicit.positions)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, Real::max);
+        let moved = explicit
+            .positions
+            .iter()
+            .zip(explicit.rest_positions())
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, Real::max);
+        assert!(
+            diff < 0.1 * moved,
+            "{solver:?}: diff {diff:e} moved {moved:e}"
+        );
     }
-    let diff = explicit
-        .positions
-        .iter()
-        .zip(&implicit.positions)
-        .map(|(a, b)| (a - b).norm())
-        .fold(0.0, Real::max);
-    let moved = explicit
-        .positions
-        .iter()
-        .zip(explicit.rest_positions())
-        .map(|(a, b)| (a - b).norm())
-        .fold(0.0, Real::max);
-    assert!(diff < 0.1 * moved, "diff {diff:e} moved {moved:e}");
+}
+
+/// A 2D cantilever of length 1 m and depth `depth` sampled at `dx`,
+/// clamped by three anchored columns behind x = 0.
+fn cantilever(dx: Real, depth: Real, young: Real, solver: LinearSolver) -> ElasticSolid {
+    let mut p = params(2, dx, young, 0.0);
+    p.integrator = Integrator::Implicit(ImplicitParams {
+        linear_solver: solver,
+        ..ImplicitParams::default()
+    });
+    let cells = |lo: Real, hi: Real| {
+        let count = ((hi - lo) / dx).round() as usize;
+        (0..count).map(move |i| lo + (i as Real + 0.5) * dx)
+    };
+    let rest: Vec<Vector> = cells(-3.0 * dx, 1.0)
+        .flat_map(|x| cells(-0.5 * depth, 0.5 * depth).map(move |y| Vector::new(x, y, 0.0)))
+        .collect();
+    let n = rest.len();
+    let fixed = rest.iter().map(|x| x.x < 0.0).collect();
+    ElasticSolid::new(
+        p,
+        rest,
+        vec![Vector::zeros(); n],
+        fixed,
+        Obstacles::default(),
+    )
+    .expect("solid")
+}
+
+#[test]
+fn cholesky_static_cantilever_converges_to_euler_bernoulli() {
+    // Slender and stiff: the case where CG stalls once the beam is finely
+    // sampled. One step of 100 s is the static solve.
+    let (depth, young, g): (Real, Real, Real) = (0.1, 1.5e8, 9.81);
+    // q L^4 / (8 E I) with q = rho g H, I = H^3 / 12.
+    let theory = 1000.0 * g * depth / (8.0 * young * depth.powi(3) / 12.0);
+    let errors: Vec<Real> = [0.025, 0.0125]
+        .into_iter()
+        .map(|dx| {
+            let mut solid = cantilever(dx, depth, young, LinearSolver::Cholesky);
+            let step = solid.step(100.0, &Vector::new(0.0, -g, 0.0), 1);
+            assert!(step.residual <= 1e-6, "dx {dx}: {step:?}");
+            assert!(step.newton_iterations <= 5, "dx {dx}: {step:?}");
+            assert_eq!(step.cholesky_fallbacks, 0, "dx {dx}: {step:?}");
+            let tip: Vec<Real> = solid
+                .positions
+                .iter()
+                .zip(solid.rest_positions())
+                .filter(|(_, r)| r.x > 1.0 - dx)
+                .map(|(x, r)| r.y - x.y)
+                .collect();
+            let tip = tip.iter().sum::<Real>() / tip.len() as Real;
+            (tip / theory - 1.0).abs()
+        })
+        .collect();
+    assert!(errors[1] < errors[0], "no convergence: {errors:?}");
+    assert!(errors[1] < 0.2, "tip vs Euler-Bernoulli: {errors:?}");
+}
+
+#[test]
+fn cholesky_falls_back_to_cg_where_the_hessian_is_indefinite() {
+    // Saint Venant–Kirchhoff softens under strong compression (dP/dF < 0
+    // below F = 1/sqrt(3) in 1D), so at a long step `M + dt^2 Hess U` is
+    // indefinite and the factorisation must fail without a panic.
+    let mut p = params(2, 0.05, 1e5, 0.0);
+    p.integrator = Integrator::Implicit(ImplicitParams::default());
+    let mut solid = block(p, [0.3, 0.1, 0.1]);
+    let n = solid.len();
+    let squeezed: Vec<Vector> = solid.rest_positions().iter().map(|x| x * 0.45).collect();
+    solid
+        .set_state(squeezed, vec![Vector::zeros(); n])
+        .expect("same length");
+    let step = solid.step(1.0, &Vector::zeros(), 1);
+    assert!(step.cholesky_fallbacks > 0, "{step:?}");
+    assert!(
+        solid
+            .positions
+            .iter()
+            .all(|x| x.iter().all(|c| c.is_finite())),
+        "{step:?}"
+    );
+}
+
+#[test]
+fn linear_solver_is_an_optional_snake_case_field() {
+    let old: ImplicitParams = toml::from_str(
+        "newton_tolerance = 1e-6\nmax_newton_iterations = 20\n\
+         cg_tolerance = 1e-3\nmax_cg_iterations = 200\n",
+    )
+    .expect("parses");
+    assert_eq!(old, ImplicitParams::default());
+    let cg: ImplicitParams = toml::from_str(
+        "newton_tolerance = 1e-6\nmax_newton_iterations = 20\n\
+         cg_tolerance = 1e-3\nmax_cg_iterations = 200\n\
+         linear_solver = \"conjugate_gradient\"\n",
+    )
+    .expect("parses");
+    assert_eq!(cg.linear_solver, LinearSolver::ConjugateGradient);
 }
 
 fn free(p: SolidParams, rest: Vec<Vector>) -> ElasticSolid {

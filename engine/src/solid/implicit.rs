@@ -8,14 +8,18 @@
 //!
 //! whose gradient `M (v+ - v) - dt f(x + dt v+) - dt f_d(v+) - dt M g` is
 //! the backward Euler residual. Each Newton step solves `H dv = -grad Phi`
-//! with `H = M - dt^2 K + dt D` by Jacobi-preconditioned conjugate
-//! gradients, matrix-free: `K w` is the exact directional derivative of
-//! the forces (`forces.rs`), never assembled. A direction of negative
-//! curvature (a buckling tangent) ends CG early with the descent made so
-//! far, and the line search guarantees `Phi` decreases.
+//! with `H = M - dt^2 K + dt D`, as [`LinearSolver`] chooses: by sparse
+//! Cholesky of the assembled `H` (`hessian.rs`), or by Jacobi-
+//! preconditioned conjugate gradients, matrix-free: `K w` is the exact
+//! directional derivative of the forces (`forces.rs`), never assembled.
+//! A direction of negative curvature (a buckling tangent) makes Cholesky
+//! fail, and that step falls back to CG, which the same curvature ends
+//! early with the descent made so far; the line search guarantees `Phi`
+//! decreases.
 
 use super::elastic::ElasticSolid;
-use super::params::ImplicitParams;
+use super::hessian::DirectSolver;
+use super::params::{ImplicitParams, LinearSolver};
 use crate::math::{Real, Vector};
 use super::forces::Split;
 use rayon::prelude::*;
@@ -39,6 +43,22 @@ pub(super) struct Buffers {
     inverse_diagonal: Vec<Real>,
     damping: Vec<Vector>,
     split: Split,
+    /// The assembled Hessian and its factorisation.
+    direct: DirectSolver,
+}
+
+/// How one backward Euler solve went.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct NewtonReport {
+    pub newton: u32,
+    /// Conjugate-gradient iterations, all Newton steps together.
+    pub cg: u32,
+    /// Newton steps whose Cholesky factorisation failed (`H` not positive
+    /// definite) and that were solved by CG instead.
+    pub fallbacks: u32,
+    /// The final residual relative to the first, or to the step's gravity
+    /// impulse where that is larger.
+    pub residual: Real,
 }
 
 impl Buffers {
@@ -62,36 +82,64 @@ impl Buffers {
     }
 }
 
+/// `|slope| / |Phi|` below which a line search step's change of `Phi` is
+/// lost in rounding: well above `f64::EPSILON` times the particle counts
+/// met, far below any decrease that matters.
+const ROUNDING: Real = 1e-10;
+
 fn dot(a: &[Vector], b: &[Vector]) -> Real {
     a.par_iter().zip(b).map(|(a, b)| a.dot(b)).sum()
 }
 
 impl ElasticSolid {
-    /// One backward Euler step; returns the Newton plus CG iterations and
-    /// the final residual relative to the first.
+    /// One backward Euler step.
     pub(super) fn implicit_step(
         &mut self,
         dt: Real,
         gravity: &Vector,
         settings: &ImplicitParams,
-    ) -> (u32, Real) {
+    ) -> NewtonReport {
         let mut b = std::mem::take(&mut self.scratch.implicit);
         b.resize(self.len(), self.topology.owner.len());
         b.v_new.clone_from(&self.velocities);
-        let mut iterations = 0;
-        let mut residual = Real::INFINITY;
+        let mut report = NewtonReport {
+            newton: 0,
+            cg: 0,
+            fallbacks: 0,
+            residual: Real::INFINITY,
+        };
+        // The gravity impulse of the step, `dt |M g|`, floors the scale: a
+        // body settled under gravity starts a step with a residual near
+        // rounding noise, which a relative tolerance would ask Newton to
+        // resolve further.
+        let impulse = dt
+            * gravity.norm()
+            * self
+                .masses
+                .iter()
+                .zip(&self.fixed)
+                .filter(|(_, fixed)| !**fixed)
+                .map(|(m, _)| m * m)
+                .sum::<Real>()
+                .sqrt();
         let mut first = None;
         for _ in 0..settings.max_newton_iterations.max(1) {
             // Phi at the iterate; leaves the forces and states there.
             let phi = self.objective(dt, gravity, &b.v_new, &mut b.x_new);
             self.residual(dt, gravity, &b.v_new, &mut b.gradient);
             let norm = dot(&b.gradient, &b.gradient).sqrt();
-            let scale = *first.get_or_insert(norm);
-            residual = if scale > 0.0 { norm / scale } else { 0.0 };
-            if residual <= settings.newton_tolerance {
+            let scale = *first.get_or_insert(norm.max(impulse));
+            report.residual = if scale > 0.0 { norm / scale } else { 0.0 };
+            if report.residual <= settings.newton_tolerance {
                 break;
             }
-            iterations += 1 + self.newton_direction(dt, settings, &mut b);
+            report.newton += 1;
+            let direct = settings.linear_solver == LinearSolver::Cholesky
+                && self.direct_direction(dt, &mut b.direct, &b.gradient, &mut b.direction);
+            if !direct {
+                report.fallbacks += u32::from(settings.linear_solver == LinearSolver::Cholesky);
+                report.cg += self.cg_direction(dt, settings, &mut b);
+            }
             if !self.line_search(dt, gravity, phi, &mut b) {
                 break;
             }
@@ -103,7 +151,24 @@ impl ElasticSolid {
             .for_each(|(x, v)| *x += v * dt);
         self.scratch.implicit = b;
         self.finish_substep();
-        (iterations, residual)
+        report
+    }
+
+    /// Bytes held by the implicit integrator's last sparse Cholesky factor
+    /// (0 before one was computed): the direct solver's dominant memory.
+    pub fn cholesky_factor_bytes(&self) -> usize {
+        self.scratch.implicit.direct.factor_bytes()
+    }
+
+    /// `H p` by the matrix-free product at the current stress states, to
+    /// check the assembled Hessian against.
+    #[cfg(test)]
+    pub(super) fn hessian_product(&self, dt: Real, p: &[Vector]) -> Vec<Vector> {
+        let mut b = Buffers::default();
+        b.resize(self.len(), self.topology.owner.len());
+        b.p.copy_from_slice(p);
+        self.apply_hessian(dt, &mut b);
+        b.hp
     }
 
     /// `grad Phi = M (v+ - v) - dt (f + M g)` with the forces in
@@ -122,7 +187,7 @@ impl ElasticSolid {
 
     /// Solves `H d = -grad Phi` into `b.direction` by preconditioned CG;
     /// returns the CG iterations.
-    fn newton_direction(&self, dt: Real, settings: &ImplicitParams, b: &mut Buffers) -> u32 {
+    fn cg_direction(&self, dt: Real, settings: &ImplicitParams, b: &mut Buffers) -> u32 {
         let model = self.model();
         // Jacobi preconditioner: the mass, the damping and a stiffness
         // estimate from the squared gradient weights touching each
@@ -217,9 +282,18 @@ impl ElasticSolid {
     }
 
     /// Backtracking (Armijo) search along `b.direction` from `b.v_new`;
-    /// moves `b.v_new` and returns whether `Phi` decreased.
+    /// moves `b.v_new` and returns whether it found a better point.
+    ///
+    /// Near convergence the decrease Newton predicts, `slope / 2`, sinks
+    /// below the rounding error of `Phi` (a sum over every particle), and
+    /// Armijo's test becomes a coin toss that stalls Newton at a residual
+    /// of about 1e-6 while an exact (Cholesky) direction would still
+    /// converge quadratically. There a trial is judged by the residual
+    /// norm instead, which a Newton step near a minimum reduces.
     fn line_search(&mut self, dt: Real, gravity: &Vector, phi: Real, b: &mut Buffers) -> bool {
         let slope = dot(&b.gradient, &b.direction).min(0.0);
+        let below_rounding = -slope <= ROUNDING * phi.abs();
+        let norm = dot(&b.gradient, &b.gradient);
         let mut step = 1.0;
         for _ in 0..30 {
             b.trial
@@ -227,7 +301,14 @@ impl ElasticSolid {
                 .zip(b.v_new.par_iter().zip(&b.direction))
                 .for_each(|(t, (v, d))| *t = v + d * step);
             let value = self.objective(dt, gravity, &b.trial, &mut b.x_new);
-            if value.is_finite() && value <= phi + 1e-4 * step * slope {
+            let better = value.is_finite()
+                && (value <= phi + 1e-4 * step * slope
+                    || below_rounding && {
+                        // `objective` left the forces at the trial point.
+                        self.residual(dt, gravity, &b.trial, &mut b.r);
+                        dot(&b.r, &b.r) < norm
+                    });
+            if better {
                 std::mem::swap(&mut b.v_new, &mut b.trial);
                 return true;
             }

@@ -17,7 +17,16 @@ pub struct SolidStep {
     pub capped: bool,
     /// Newton plus conjugate-gradient iterations (implicit only).
     pub iterations: u32,
-    /// Newton's final residual relative to its first (implicit only).
+    /// Newton iterations alone (implicit only).
+    pub newton_iterations: u32,
+    /// Newton iterations whose Cholesky factorisation failed (a Hessian
+    /// that is not positive definite, as under buckling) and that CG
+    /// solved instead (implicit with [`LinearSolver::Cholesky`] only).
+    ///
+    /// [`LinearSolver::Cholesky`]: super::LinearSolver::Cholesky
+    pub cholesky_fallbacks: u32,
+    /// Newton's final residual relative to its first, or to the step's
+    /// gravity impulse `dt |M g|` where that is larger (implicit only).
     pub residual: Real,
 }
 
@@ -37,18 +46,19 @@ impl ElasticSolid {
                     substeps: count as u32,
                     min_substep: sub,
                     capped: wanted > count,
-                    iterations: 0,
-                    residual: 0.0,
+                    ..SolidStep::default()
                 }
             }
             Integrator::Implicit(settings) => {
-                let (iterations, residual) = self.implicit_step(dt, gravity, &settings);
+                let report = self.implicit_step(dt, gravity, &settings);
                 SolidStep {
                     substeps: 1,
                     min_substep: dt,
                     capped: false,
-                    iterations,
-                    residual,
+                    iterations: report.newton + report.cg,
+                    newton_iterations: report.newton,
+                    cholesky_fallbacks: report.fallbacks,
+                    residual: report.residual,
                 }
             }
         }

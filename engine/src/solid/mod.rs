@@ -9,12 +9,14 @@
 //! - `topology.rs`: the Lagrangian neighbourhoods, built once;
 //! - `forces.rs`: the force passes and their linearisation;
 //! - `integrate.rs`, `implicit.rs`: time stepping;
+//! - `hessian.rs`: the assembled Hessian and its sparse Cholesky solve;
 //! - `plasticity.rs`: Eq. 69 and the reference-shape update;
 //! - `contact.rs`: obstacles and walls.
 
 mod contact;
 mod elastic;
 mod forces;
+mod hessian;
 mod implicit;
 mod integrate;
 mod material;
@@ -26,4 +28,4 @@ pub use contact::{Obstacle, Obstacles};
 pub use elastic::{ElasticSolid, SolidError, SolidState};
 pub use integrate::SolidStep;
 pub use material::{Material, StressState, cofactor, green_strain};
-pub use params::{ImplicitParams, Integrator, Plasticity, SolidParams};
+pub use params::{ImplicitParams, Integrator, LinearSolver, Plasticity, SolidParams};
