@@ -19,7 +19,7 @@
 
 use crate::approx::mls::Order;
 use crate::math::Real;
-use crate::scene::{IntegratorKind, Scene, SceneError, SystemSpec};
+use crate::scene::{IntegratorKind, Scene, SceneError};
 use crate::world::{StepError, World};
 use crate::BuildOptions;
 
@@ -211,34 +211,26 @@ impl Cantilever {
         (deflection, beam.first_period())
     }
 
-    /// The static deflection by dynamic relaxation: step, and zero every
-    /// velocity when the kinetic energy passes a peak (Cundall's kinetic
-    /// damping), until the out-of-balance force of the free particles is
-    /// below `tolerance` times their weight (both as 2-norms).
+    /// The static deflection: backward Euler steps of a hundred beam
+    /// periods each, whose inertia is negligible, so each is a Newton solve
+    /// of the static equilibrium, until the out-of-balance force of the
+    /// free particles is below `tolerance` times their weight (both as
+    /// 2-norms). The integrator and step of `self` are not used.
     ///
     /// # Errors
     /// A scene error, or a step that blew up.
-    pub fn relax(&self, tolerance: Real) -> Result<Measured, CantileverError> {
-        let mut world = self.scene()?.build(&BuildOptions::default())?;
-        let system = first_solid(&world);
-        let mut last_energy = 0.0;
-        let limit = (200.0 * self.first_period() / self.dt).ceil() as u64;
-        while world.clock().step < limit {
+    pub fn settle(&self, tolerance: Real) -> Result<Measured, CantileverError> {
+        let statics = Self {
+            integrator: IntegratorKind::Implicit,
+            dt: 100.0 * self.first_period(),
+            ..*self
+        };
+        let mut world = statics.scene()?.build(&BuildOptions::default())?;
+        for _ in 0..10 {
             world.step()?;
             let solid = world.solids().next().map(|(_, s)| s).ok_or(CantileverError::NoSolid)?;
-            let energy = solid.kinetic_energy();
-            if energy < last_energy {
-                if self.imbalance(solid) <= tolerance {
-                    break;
-                }
-                let solid = world.solid_mut(system).ok_or(CantileverError::NoSolid)?;
-                let at_rest = vec![Default::default(); solid.len()];
-                solid
-                    .set_state(solid.positions.clone(), at_rest)
-                    .map_err(|_| CantileverError::NoSolid)?;
-                last_energy = 0.0;
-            } else {
-                last_energy = energy;
+            if self.imbalance(solid) <= tolerance {
+                break;
             }
         }
         let value = self.tip(&world);
@@ -306,10 +298,6 @@ fn parabola_vertex([(_, y0), (t1, y1), (t2, y2)]: [(Real, Real); 3]) -> Real {
     t1 + 0.5 * (t2 - t1) * (y0 - y2) / curvature
 }
 
-fn first_solid(world: &World) -> usize {
-    world.solids().next().map_or(0, |(s, _)| s)
-}
-
 /// Why a cantilever run did not produce a figure.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CantileverError {
@@ -321,12 +309,4 @@ pub enum CantileverError {
     NoSolid,
     #[error("the tip did not turn within two beam periods; lower the step or the damping")]
     NoPeak,
-}
-
-/// The scene's first system, for callers that tweak the spec.
-pub fn solid_spec(scene: &mut Scene) -> Option<&mut crate::scene::SolidSpec> {
-    scene.systems.iter_mut().find_map(|s| match s {
-        SystemSpec::Solid(spec) => Some(spec),
-        _ => None,
-    })
 }
