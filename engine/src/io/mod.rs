@@ -77,6 +77,7 @@ pub(crate) mod test_frame {
             ],
             bodies: Vec::new(),
             surface: None,
+            solids: Vec::new(),
         }
     }
 }
