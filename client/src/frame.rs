@@ -89,6 +89,9 @@ pub struct FrameView {
     pub bodies: Vec<v1::BodyPose>,
     /// The fluid's surface, when the scene's output asks for one.
     pub surface: Option<SurfaceView>,
+    /// Where each elastic solid's particles sit in `fields` (after the
+    /// fluid's), in scene order; empty without solids.
+    pub solids: Vec<v1::SolidRange>,
 }
 
 impl FrameView {
@@ -105,14 +108,15 @@ impl FrameView {
     ///
     /// # Errors
     /// [`ClientError::Decode`] for a missing header, an unknown scalar
-    /// type, a field whose size does not match the particle count, or an
-    /// inconsistent surface.
+    /// type, a field whose size does not match the particle count, a
+    /// solid's range past the last particle, or an inconsistent surface.
     pub fn from_proto(frame: v1::Frame) -> Result<Self, ClientError> {
         let v1::Frame {
             header,
             fields,
             bodies,
             surface,
+            solids,
         } = frame;
         let v1::FrameHeader {
             session_id,
@@ -162,6 +166,16 @@ impl FrameView {
                 })
             })
             .collect::<Result<_, _>>()?;
+        if let Some(range) = solids.iter().find(|r| {
+            r.first
+                .checked_add(r.count)
+                .is_none_or(|end| end > particle_count as u64)
+        }) {
+            return Err(ClientError::Decode(format!(
+                "solid of system {} holds particles {}..+{}, past the frame's {particle_count}",
+                range.system, range.first, range.count
+            )));
+        }
         Ok(Self {
             session_id,
             step,
@@ -174,6 +188,7 @@ impl FrameView {
             fields,
             bodies,
             surface: surface.map(SurfaceView::from_proto).transpose()?,
+            solids,
         })
     }
 
@@ -210,6 +225,7 @@ mod tests {
             }],
             bodies: Vec::new(),
             surface: None,
+            solids: Vec::new(),
         }
     }
 
@@ -228,6 +244,25 @@ mod tests {
         let mut no_header = wire(2, 8);
         no_header.header = None;
         assert!(FrameView::from_proto(no_header).is_err());
+    }
+
+    #[test]
+    fn solid_ranges_decode_and_are_checked() {
+        let mut frame = wire(2, 8);
+        let range = v1::SolidRange {
+            system: 1,
+            first: 1,
+            count: 1,
+        };
+        frame.solids = vec![range];
+        let decoded = FrameView::decode(&frame.encode_to_vec()).expect("valid");
+        assert_eq!(decoded.solids, vec![range]);
+
+        frame.solids[0].count = 2;
+        let err = FrameView::from_proto(frame.clone()).expect_err("past particle 2");
+        assert!(err.to_string().contains("system 1"), "{err}");
+        frame.solids[0].first = u64::MAX;
+        assert!(FrameView::from_proto(frame).is_err(), "overflow is refused");
     }
 
     fn le<T: Copy, const N: usize>(values: &[T], bytes: impl Fn(T) -> [u8; N]) -> Vec<u8> {

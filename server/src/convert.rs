@@ -4,13 +4,15 @@
 
 use crate::error::ServiceError;
 use meshless_engine::approx::KernelKind;
+use meshless_engine::approx::mls::Order;
 use meshless_engine::fluid::ViscosityModel;
 use meshless_engine::scene::{
-    Aabb, FluidBlock, FluidSpec, MotionKind, OscillationSpec, OutputSpec, ParticleSpec,
-    RigidBodySpec, ShapeSpec, SlipKind, SolverKind, SurfaceSpec, SystemSpec, TimeSpec, WallModel,
-    defaults,
+    Aabb, FluidBlock, FluidSpec, IntegratorKind, MotionKind, OscillationSpec, OutputSpec,
+    ParticleSpec, RigidBodySpec, ShapeSpec, SlipKind, SolidSpec, SolverKind, SurfaceSpec,
+    SystemSpec, TimeSpec, WallModel, defaults, solid_defaults,
 };
-use meshless_engine::{FieldKind, Frame, Scene};
+use meshless_engine::solid::{ImplicitParams, Plasticity};
+use meshless_engine::{FieldKind, Frame, Scene, SolidRange};
 use meshless_proto::v1;
 
 type Result<T> = std::result::Result<T, ServiceError>;
@@ -230,9 +232,12 @@ fn system_from_proto(system: v1::SystemSpec, field: &str) -> Result<SystemSpec> 
         Some(v1::system_spec::Kind::RigidBody(body)) => {
             Ok(SystemSpec::RigidBody(body_from_proto(body, field)?))
         }
+        Some(v1::system_spec::Kind::Solid(solid)) => {
+            Ok(SystemSpec::Solid(solid_from_proto(solid, field)?))
+        }
         None => Err(ServiceError::invalid(
             format!("{field}.kind"),
-            "unknown or missing system kind; this server simulates: fluid, rigid_body",
+            "unknown or missing system kind; this server simulates: fluid, rigid_body, solid",
         )),
     }
 }
@@ -399,6 +404,225 @@ fn to_body(b: &RigidBodySpec) -> v1::RigidBodySpec {
     }
 }
 
+/// Engine MLS order of a proto enum value; unset gives the default.
+fn mls_order(value: Option<i32>, field: &str) -> Result<Order> {
+    match value.map(v1::MlsOrder::try_from) {
+        None => Ok(solid_defaults::ORDER),
+        Some(Ok(v1::MlsOrder::Constant)) => Ok(Order::Constant),
+        Some(Ok(v1::MlsOrder::Linear)) => Ok(Order::Linear),
+        Some(Ok(v1::MlsOrder::Quadratic)) => Ok(Order::Quadratic),
+        Some(Ok(v1::MlsOrder::Unspecified) | Err(_)) => Err(ServiceError::invalid(
+            field,
+            format!("unknown MLS order {value:?}; use constant, linear or quadratic"),
+        )),
+    }
+}
+
+fn to_mls_order(order: Order) -> v1::MlsOrder {
+    match order {
+        Order::Constant => v1::MlsOrder::Constant,
+        Order::Linear => v1::MlsOrder::Linear,
+        Order::Quadratic => v1::MlsOrder::Quadratic,
+    }
+}
+
+/// Engine solid integrator of a proto enum value; unset gives explicit,
+/// the engine's default.
+fn integrator_kind(value: Option<i32>, field: &str) -> Result<IntegratorKind> {
+    match value.map(v1::SolidIntegrator::try_from) {
+        None => Ok(IntegratorKind::default()),
+        Some(Ok(v1::SolidIntegrator::Explicit)) => Ok(IntegratorKind::Explicit),
+        Some(Ok(v1::SolidIntegrator::Implicit)) => Ok(IntegratorKind::Implicit),
+        Some(Ok(v1::SolidIntegrator::Unspecified) | Err(_)) => Err(ServiceError::invalid(
+            field,
+            format!("unknown integrator {value:?}; use explicit or implicit"),
+        )),
+    }
+}
+
+fn to_integrator_kind(integrator: IntegratorKind) -> v1::SolidIntegrator {
+    match integrator {
+        IntegratorKind::Explicit => v1::SolidIntegrator::Explicit,
+        IntegratorKind::Implicit => v1::SolidIntegrator::Implicit,
+    }
+}
+
+/// Implicit settings with each unset field at the engine's default.
+fn implicit_from_proto(settings: Option<v1::ImplicitSettings>) -> ImplicitParams {
+    let defaults = ImplicitParams::default();
+    let Some(v1::ImplicitSettings {
+        newton_tolerance,
+        max_newton_iterations,
+        cg_tolerance,
+        max_cg_iterations,
+    }) = settings
+    else {
+        return defaults;
+    };
+    ImplicitParams {
+        newton_tolerance: newton_tolerance.unwrap_or(defaults.newton_tolerance),
+        max_newton_iterations: max_newton_iterations.unwrap_or(defaults.max_newton_iterations),
+        cg_tolerance: cg_tolerance.unwrap_or(defaults.cg_tolerance),
+        max_cg_iterations: max_cg_iterations.unwrap_or(defaults.max_cg_iterations),
+    }
+}
+
+fn to_implicit(params: &ImplicitParams) -> v1::ImplicitSettings {
+    let ImplicitParams {
+        newton_tolerance,
+        max_newton_iterations,
+        cg_tolerance,
+        max_cg_iterations,
+    } = *params;
+    v1::ImplicitSettings {
+        newton_tolerance: Some(newton_tolerance),
+        max_newton_iterations: Some(max_newton_iterations),
+        cg_tolerance: Some(cg_tolerance),
+        max_cg_iterations: Some(max_cg_iterations),
+    }
+}
+
+fn solid_from_proto(solid: v1::SolidSpec, field: &str) -> Result<SolidSpec> {
+    let v1::SolidSpec {
+        shape,
+        position,
+        orientation,
+        spacing,
+        density,
+        young,
+        poisson,
+        volume_stiffness,
+        order,
+        support,
+        hourglass,
+        damping,
+        friction,
+        integrator,
+        cfl,
+        implicit,
+        velocity,
+        angular_velocity,
+        anchors,
+        plasticity,
+    } = solid;
+    let anchors = anchors
+        .into_iter()
+        .enumerate()
+        .map(|(k, anchor)| aabb(Some(anchor), &format!("{field}.anchors[{k}]")))
+        .collect::<Result<_>>()?;
+    let plasticity = plasticity.map(|p| {
+        let v1::Plasticity {
+            yield_strain,
+            creep,
+            max,
+            rebase,
+        } = p;
+        Plasticity {
+            yield_strain,
+            creep,
+            max,
+            rebase,
+        }
+    });
+    Ok(SolidSpec {
+        shape: shape_from_proto(shape, &format!("{field}.shape"))?,
+        position: vec3(required(position, &format!("{field}.position"))?),
+        orientation: orientation.map_or([0.0; 3], vec3),
+        spacing,
+        density: density.unwrap_or(solid_defaults::DENSITY),
+        young,
+        poisson: poisson.unwrap_or(solid_defaults::POISSON),
+        volume_stiffness: volume_stiffness.unwrap_or(0.0),
+        order: mls_order(order, &format!("{field}.order"))?,
+        support: support.unwrap_or(solid_defaults::SUPPORT),
+        hourglass: hourglass.unwrap_or(solid_defaults::HOURGLASS),
+        damping: damping.unwrap_or(0.0),
+        friction: friction.unwrap_or(solid_defaults::FRICTION),
+        integrator: integrator_kind(integrator, &format!("{field}.integrator"))?,
+        cfl: cfl.unwrap_or(solid_defaults::CFL),
+        implicit: implicit_from_proto(implicit),
+        velocity: velocity.map_or([0.0; 3], vec3),
+        angular_velocity: angular_velocity.map_or([0.0; 3], vec3),
+        anchors,
+        plasticity,
+    })
+}
+
+/// Destructured whole, so a new engine field fails to build here until it
+/// crosses the protocol.
+fn to_solid(solid: &SolidSpec) -> v1::SolidSpec {
+    let SolidSpec {
+        shape,
+        position,
+        orientation,
+        spacing,
+        density,
+        young,
+        poisson,
+        volume_stiffness,
+        order,
+        support,
+        hourglass,
+        damping,
+        friction,
+        integrator,
+        cfl,
+        implicit,
+        velocity,
+        angular_velocity,
+        anchors,
+        plasticity,
+    } = solid;
+    v1::SolidSpec {
+        shape: Some(to_shape(shape)),
+        position: Some(to_vec3(*position)),
+        orientation: Some(to_vec3(*orientation)),
+        spacing: *spacing,
+        density: Some(*density),
+        young: *young,
+        poisson: Some(*poisson),
+        volume_stiffness: Some(*volume_stiffness),
+        order: Some(to_mls_order(*order) as i32),
+        support: Some(*support),
+        hourglass: Some(*hourglass),
+        damping: Some(*damping),
+        friction: Some(*friction),
+        integrator: Some(to_integrator_kind(*integrator) as i32),
+        cfl: Some(*cfl),
+        implicit: Some(to_implicit(implicit)),
+        velocity: Some(to_vec3(*velocity)),
+        angular_velocity: Some(to_vec3(*angular_velocity)),
+        anchors: anchors.iter().map(to_aabb).collect(),
+        plasticity: plasticity.map(|p| {
+            let Plasticity {
+                yield_strain,
+                creep,
+                max,
+                rebase,
+            } = p;
+            v1::Plasticity {
+                yield_strain,
+                creep,
+                max,
+                rebase,
+            }
+        }),
+    }
+}
+
+fn to_solid_range(range: &SolidRange) -> v1::SolidRange {
+    let SolidRange {
+        system,
+        first,
+        count,
+    } = *range;
+    v1::SolidRange {
+        system: system as u32,
+        first: first as u64,
+        count: count as u64,
+    }
+}
+
 fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
     let v1::FluidSpec {
         spacing,
@@ -533,6 +757,7 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
                             .collect(),
                     }),
                     SystemSpec::RigidBody(b) => v1::system_spec::Kind::RigidBody(to_body(b)),
+                    SystemSpec::Solid(s) => v1::system_spec::Kind::Solid(to_solid(s)),
                 }),
             })
             .collect(),
@@ -609,6 +834,7 @@ pub fn frame_to_proto(session_id: &str, frame: &Frame) -> v1::Frame {
                 .flat_map(|t| t.iter().flat_map(|i| i.to_le_bytes()))
                 .collect(),
         }),
+        solids: frame.solids.iter().map(to_solid_range).collect(),
     }
 }
 
@@ -691,6 +917,125 @@ mod tests {
         assert_eq!(back.systems[1..], scene.systems[1..]);
         let world = back.build(&BuildOptions::default()).expect("valid");
         assert_eq!(frame_to_proto("s", &world.frame()).bodies.len(), 2);
+    }
+
+    fn shipped(name: &str) -> Scene {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../scenes")
+            .join(name);
+        Scene::from_toml_file(&path).expect("shipped scene")
+    }
+
+    /// Solids survive engine -> proto -> engine with every field set away
+    /// from its default, and frames say where their particles are.
+    #[test]
+    fn solids_round_trip_and_frames_carry_their_ranges() {
+        for name in ["elastic_beam.toml", "jelly_drop.toml"] {
+            let scene = shipped(name);
+            let back = scene_from_proto(scene_to_proto(&scene)).expect("round trip");
+            assert_eq!(back, scene, "{name}");
+        }
+
+        let mut scene = shipped("jelly_drop.toml");
+        let SystemSpec::Solid(solid) = &mut scene.systems[0] else {
+            panic!("the jelly is a solid")
+        };
+        *solid = SolidSpec {
+            shape: ShapeSpec::Capsule {
+                half_length: 0.05,
+                radius: 0.08,
+            },
+            orientation: [0.1, -0.2, 0.3],
+            density: 1200.0,
+            poisson: 0.45,
+            order: Order::Quadratic,
+            support: 2.5,
+            hourglass: 0.3,
+            friction: 0.1,
+            integrator: IntegratorKind::Implicit,
+            cfl: 0.25,
+            implicit: ImplicitParams {
+                newton_tolerance: 1e-4,
+                max_newton_iterations: 7,
+                cg_tolerance: 1e-2,
+                max_cg_iterations: 33,
+            },
+            velocity: [1.0, 2.0, 3.0],
+            angular_velocity: [-1.0, 0.5, 0.25],
+            anchors: vec![Aabb {
+                min: [0.4, 0.6, 0.4],
+                max: [0.6, 0.7, 0.6],
+            }],
+            plasticity: Some(Plasticity {
+                yield_strain: 0.01,
+                creep: 0.2,
+                max: 0.5,
+                rebase: Some(0.3),
+            }),
+            ..solid.clone()
+        };
+        let back = scene_from_proto(scene_to_proto(&scene)).expect("round trip");
+        assert_eq!(back, scene);
+        let SystemSpec::Solid(solid) = &mut scene.systems[0] else {
+            panic!("a solid")
+        };
+        solid.plasticity.as_mut().expect("plastic").rebase = None;
+        let back = scene_from_proto(scene_to_proto(&scene)).expect("round trip");
+        assert_eq!(back, scene, "no re-basing stays none");
+
+        let world = back.build(&BuildOptions::default()).expect("valid");
+        let frame = world.frame();
+        let wire = frame_to_proto("s", &frame);
+        assert_eq!(
+            wire.solids,
+            vec![v1::SolidRange {
+                system: 0,
+                first: 0,
+                count: frame.particle_count as u64,
+            }]
+        );
+    }
+
+    /// A solid message with only the required fields set builds the same
+    /// solid as the TOML with only those keys: both front doors share
+    /// the defaults.
+    #[test]
+    fn unset_solid_fields_take_the_scene_file_defaults() {
+        let toml = r#"
+            [domain]
+            min = [0.0, 0.0, 0.0]
+            max = [1.0, 1.0, 1.0]
+            [time]
+            dt = 0.01
+            [[systems]]
+            kind = "solid"
+            shape = { type = "sphere", radius = 0.2 }
+            position = [0.5, 0.5, 0.5]
+            spacing = 0.05
+            young = 1.0e5
+        "#;
+        let scene = Scene::from_toml_str(toml).expect("valid");
+        let mut spec = scene_to_proto(&scene);
+        spec.systems[0].kind = Some(v1::system_spec::Kind::Solid(v1::SolidSpec {
+            shape: Some(v1::Shape {
+                kind: Some(v1::shape::Kind::Sphere(v1::SphereShape { radius: 0.2 })),
+            }),
+            position: Some(to_vec3([0.5; 3])),
+            spacing: 0.05,
+            young: 1.0e5,
+            ..Default::default()
+        }));
+        assert_eq!(scene_from_proto(spec.clone()).expect("valid"), scene);
+
+        let v1::SystemSpec {
+            kind: Some(v1::system_spec::Kind::Solid(solid)),
+        } = &mut spec.systems[0]
+        else {
+            panic!("a solid")
+        };
+        solid.order = Some(v1::MlsOrder::Unspecified as i32);
+        let err = scene_from_proto(spec).expect_err("no order");
+        assert!(err.to_string().starts_with("systems[0].order:"), "{err}");
     }
 
     #[test]

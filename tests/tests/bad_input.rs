@@ -40,7 +40,9 @@ async fn small_spec(client: &Client) -> v1::SceneSpec {
 fn fluid(spec: &mut v1::SceneSpec) -> &mut v1::FluidSpec {
     match spec.systems[0].kind.as_mut() {
         Some(v1::system_spec::Kind::Fluid(f)) => f,
-        Some(v1::system_spec::Kind::RigidBody(_)) | None => panic!("a fluid"),
+        Some(v1::system_spec::Kind::RigidBody(_) | v1::system_spec::Kind::Solid(_)) | None => {
+            panic!("a fluid")
+        }
     }
 }
 
@@ -242,4 +244,176 @@ async fn bad_input_gets_the_right_code_and_loses_nothing() {
         .await
         .expect("steps");
     assert!(stepped.status.as_ref().expect("status").step > step);
+}
+
+/// A soft cube in the air of the small tank, as the server echoes it.
+async fn solid_spec(client: &Client) -> v1::SceneSpec {
+    let mut spec = small_spec(client).await;
+    spec.systems.push(v1::SystemSpec {
+        kind: Some(v1::system_spec::Kind::Solid(v1::SolidSpec {
+            shape: Some(v1::Shape {
+                kind: Some(v1::shape::Kind::Box(v1::BoxShape {
+                    half_extents: Some(v1::Vec3 {
+                        x: 0.08,
+                        y: 0.08,
+                        z: 0.08,
+                    }),
+                })),
+            }),
+            position: Some(v1::Vec3 {
+                x: 0.35,
+                y: 0.35,
+                z: 0.35,
+            }),
+            spacing: 0.04,
+            young: 1e5,
+            ..Default::default()
+        })),
+    });
+    spec
+}
+
+fn solid(spec: &mut v1::SceneSpec) -> &mut v1::SolidSpec {
+    match spec.systems[1].kind.as_mut() {
+        Some(v1::system_spec::Kind::Solid(s)) => s,
+        Some(v1::system_spec::Kind::Fluid(_) | v1::system_spec::Kind::RigidBody(_)) | None => {
+            panic!("a solid")
+        }
+    }
+}
+
+/// Bad solids get INVALID_ARGUMENT naming the field, whether the protocol
+/// conversion or the engine's validation catches them, and the server
+/// goes on creating and stepping solids afterwards.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bad_solids_are_invalid_arguments_naming_the_field() {
+    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let client = server.client().await.expect("client");
+    let spec = solid_spec(&client).await;
+    let anchor = |x: f64| v1::Aabb {
+        min: Some(v1::Vec3 { x, y: x, z: x }),
+        max: Some(v1::Vec3 {
+            x: x + 0.01,
+            y: x + 0.01,
+            z: x + 0.01,
+        }),
+    };
+    let cases: Vec<(&str, Breaker)> = vec![
+        (
+            "systems[1].poisson",
+            Box::new(|s| solid(s).poisson = Some(0.5)),
+        ),
+        (
+            "systems[1].support",
+            Box::new(|s| solid(s).support = Some(1.0)),
+        ),
+        (
+            "systems[1].anchors[0]",
+            Box::new(move |s| solid(s).anchors.push(anchor(0.45))),
+        ),
+        (
+            "systems[1].shape",
+            Box::new(|s| {
+                solid(s).shape = Some(v1::Shape {
+                    kind: Some(v1::shape::Kind::Plane(v1::PlaneShape {
+                        normal: Some(v1::Vec3 {
+                            x: 0.0,
+                            y: 1.0,
+                            z: 0.0,
+                        }),
+                        offset: 0.0,
+                    })),
+                });
+            }),
+        ),
+        ("systems[1].young", Box::new(|s| solid(s).young = 0.0)),
+        ("systems[1].order", Box::new(|s| solid(s).order = Some(99))),
+        (
+            "systems[1].integrator",
+            Box::new(|s| solid(s).integrator = Some(v1::SolidIntegrator::Unspecified as i32)),
+        ),
+        (
+            "systems[1].position",
+            Box::new(|s| solid(s).position = None),
+        ),
+        (
+            "systems[1].implicit.max_cg_iterations",
+            Box::new(|s| {
+                solid(s).implicit = Some(v1::ImplicitSettings {
+                    max_cg_iterations: Some(0),
+                    ..Default::default()
+                });
+            }),
+        ),
+        (
+            "systems[1].plasticity.creep",
+            Box::new(|s| {
+                solid(s).plasticity = Some(v1::Plasticity {
+                    yield_strain: 0.01,
+                    creep: 0.0,
+                    max: 0.5,
+                    rebase: None,
+                });
+            }),
+        ),
+    ];
+    for (field, break_it) in cases {
+        let mut bad = spec.clone();
+        break_it(&mut bad);
+        expect_code(
+            within(field, client.create_session(bad)).await,
+            Code::InvalidArgument,
+            field,
+        );
+    }
+
+    // A solid that blows up (a stiff one, hanging from a corner so that it
+    // strains, forced into one sub-step per step) faults its session,
+    // naming the solid; reset recovers. The domain is wide enough that no
+    // particle reaches a wall, whose collisions would hold the runaway
+    // particles there before the check sees them.
+    let unstable = r#"
+[domain]
+min = [-1.0e6, -1.0e6, -1.0e6]
+max = [1.0e6, 1.0e6, 1.0e6]
+[time]
+dt = 0.01
+max_substeps = 1
+[[systems]]
+kind = "solid"
+shape = { type = "box", half_extents = [0.08, 0.08, 0.08] }
+position = [0.35, 0.35, 0.35]
+spacing = 0.04
+young = 1.0e12
+anchors = [{ min = [0.285, 0.285, 0.285], max = [0.295, 0.295, 0.295] }]
+"#;
+    let doomed = within("create", client.create_session_toml(unstable))
+        .await
+        .expect("valid");
+    let faulted = within("step to blow-up", client.step(&doomed.id, 100))
+        .await
+        .expect("answers");
+    assert_eq!(state(&faulted), v1::SessionState::Faulted);
+    let reason = &faulted.status.as_ref().expect("status").reason;
+    assert!(
+        reason.contains("unstable") && reason.contains("systems[0]"),
+        "{reason}"
+    );
+    let reset = within("reset", client.reset(&doomed.id))
+        .await
+        .expect("reset");
+    assert_eq!(state(&reset), v1::SessionState::Idle);
+
+    // Still serving: the valid solid, anchored by a box about its corner
+    // particle (at 0.29 on each axis), is created and steps.
+    let mut good = spec;
+    solid(&mut good).anchors.push(anchor(0.285));
+    let session = within("create", client.create_session(good))
+        .await
+        .expect("valid");
+    let stepped = within("step", client.step(&session.id, 2))
+        .await
+        .expect("steps");
+    assert_eq!(state(&stepped), v1::SessionState::Paused);
+    assert_eq!(stepped.status.as_ref().expect("status").step, 2);
 }

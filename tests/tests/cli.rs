@@ -120,6 +120,47 @@ async fn run_writes_surfaces_beside_the_frames() {
     assert!(mesh.windows(13).any(|w| w == b"element face "));
 }
 
+/// The shipped jelly drop (an elastic solid and a static ball, no fluid)
+/// runs embedded: the summary counts the solid's particles and the PLY
+/// frames hold every one of them, finite.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn run_writes_the_particles_of_a_shipped_solid_scene() {
+    let dir = TempDir::new("solid");
+    let scene = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes/jelly_drop.toml");
+    let out = dir.0.join("frames");
+    let stdout = meshless_ok(&[
+        "run",
+        scene.to_str().expect("utf-8"),
+        "--until",
+        "0.05",
+        "--format",
+        "ply",
+        "--output",
+        out.to_str().expect("utf-8"),
+    ])
+    .await;
+    assert!(
+        stdout.contains("particles         216  (0 fluid, 216 in 1 solid)"),
+        "{stdout}"
+    );
+    let expected: Vec<_> = (0..=5).map(|s| format!("frame_{s:06}.ply")).collect();
+    assert_eq!(listing(&out), expected);
+    let ply = std::fs::read(out.join("frame_000005.ply")).expect("frame file");
+    let header = b"end_header\n";
+    let body = ply
+        .windows(header.len())
+        .position(|w| w == header)
+        .expect("a PLY header")
+        + header.len();
+    assert!(ply.windows(18).any(|w| w == b"element vertex 216"));
+    let floats: Vec<f32> = ply[body..]
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect();
+    assert_eq!(floats.len(), 216 * 6, "position and velocity per particle");
+    assert!(floats.iter().all(|v| v.is_finite()));
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_bad_scene_file_fails_with_the_field_named() {
     let dir = TempDir::new("bad");

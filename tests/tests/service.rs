@@ -294,3 +294,96 @@ async fn frames_carry_the_surface_the_scene_asks_for() {
     );
     link.close().await;
 }
+
+/// The small tank plus an elastic cube in the air away from the water.
+fn tank_and_solid() -> String {
+    small_scene()
+        + r#"
+[[systems]]
+kind = "solid"
+shape = { type = "box", half_extents = [0.08, 0.08, 0.08] }
+position = [0.35, 0.35, 0.35]
+spacing = 0.04
+young = 1.0e5
+"#
+}
+
+/// The solid's rows of a frame: its range, checked against the frame.
+fn solid_heights(frame: &FrameView, fluid: usize) -> Vec<f32> {
+    assert_eq!(frame.solids.len(), 1, "one solid");
+    let range = frame.solids[0];
+    assert_eq!(range.system, 1, "the solid is the second system");
+    assert_eq!(range.first, fluid as u64, "the solid follows the fluid");
+    assert_eq!(
+        range.first + range.count,
+        frame.particle_count as u64,
+        "the ranges cover every particle after the fluid's"
+    );
+    let positions = frame.field(v1::FieldKind::Position).expect("positions");
+    positions.values[3 * range.first as usize..]
+        .chunks_exact(3)
+        .map(|p| p[1])
+        .collect()
+}
+
+/// An elastic solid created over gRPC streams over zenoh like the fluid:
+/// frames list its particles after the fluid's, `solids` says where, its
+/// requested fields come along, and gravity moves it; the scene echo
+/// carries its parameters with the defaults made explicit.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn solids_stream_frames_whose_ranges_cover_their_particles() {
+    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let client = server.client().await.expect("client");
+    let info = within("server info", client.server_info())
+        .await
+        .expect("info");
+    let session = within("create", client.create_session_toml(&tank_and_solid()))
+        .await
+        .expect("valid scene");
+    let scene = session.scene.as_ref().expect("scene echo");
+    let Some(v1::system_spec::Kind::Solid(solid)) = scene.systems[1].kind.as_ref() else {
+        panic!("the second system is the solid: {scene:?}");
+    };
+    assert_eq!(solid.young, 1.0e5);
+    assert_eq!(solid.poisson, Some(0.3), "the default, made explicit");
+    assert_eq!(solid.order, Some(v1::MlsOrder::Linear as i32));
+    let particles = session.particle_count as usize;
+    let fluid = 125;
+    assert_eq!(particles, fluid + 4 * 4 * 4, "4 spacings across the cube");
+
+    let link = within("zenoh connect", ZenohLink::connect(&info.zenoh_locators))
+        .await
+        .expect("zenoh link");
+    let frames = within("frame subscription", link.frames(&session.id))
+        .await
+        .expect("frames");
+    let start = within("latest over zenoh", link.latest_frame(&session.id))
+        .await
+        .expect("query")
+        .expect("frame 0");
+    let before = solid_heights(&start, fluid);
+    assert_eq!(before.len(), particles - fluid);
+
+    within("step", client.step(&session.id, 5))
+        .await
+        .expect("steps");
+    let last = frames_until(&frames, 1, 5, particles).await;
+    let after = solid_heights(&last, fluid);
+    assert!(after.iter().all(|y| y.is_finite()));
+    // Free fall for 0.05 s: every particle drops, the centre by g t^2 / 2
+    // to within the sub-steps' symplectic Euler excess (under g t dt / 2).
+    let mean = |ys: &[f32]| ys.iter().map(|&y| f64::from(y)).sum::<f64>() / ys.len() as f64;
+    let drop = mean(&before) - mean(&after);
+    let free_fall = 0.5 * 9.81 * 0.05f64.powi(2);
+    assert!(
+        drop > free_fall * 0.99 && drop < free_fall * 1.25,
+        "the solid's centre fell {drop} m, free fall {free_fall} m"
+    );
+    assert!(before.iter().zip(&after).all(|(b, a)| a < b));
+
+    let over_grpc = within("latest over gRPC", client.latest_frame(&session.id))
+        .await
+        .expect("frame");
+    assert_eq!(over_grpc, last);
+    link.close().await;
+}

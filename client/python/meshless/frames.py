@@ -47,9 +47,26 @@ class Body:
 
 
 @dataclass
+class SolidRange:
+    """Where an elastic solid's particles sit in a frame's fields: ``count``
+    rows from ``first`` (after the fluid's); ``system`` is the solid's index
+    in the scene's systems."""
+
+    system: int
+    first: int
+    count: int
+
+    @property
+    def rows(self) -> slice:
+        """The solid's rows of any field: ``frame.fields["position"][r.rows]``."""
+        return slice(self.first, self.first + self.count)
+
+
+@dataclass
 class Frame:
     """A decoded frame: header values, one ``(n, components)`` array per
-    field, and the surface when the scene asks for one."""
+    field, the surface when the scene asks for one, rigid bodies' poses and
+    the rows of each elastic solid."""
 
     session_id: str
     step: int
@@ -59,6 +76,7 @@ class Frame:
     fields: dict[str, np.ndarray] = field(default_factory=dict)
     surface: Surface | None = None
     bodies: list[Body] = field(default_factory=list)
+    solids: list[SolidRange] = field(default_factory=list)
 
 
 def decode_surface(message) -> Surface:
@@ -96,7 +114,8 @@ def decode_frame(data: bytes) -> Frame:
     """Decodes an encoded ``meshless.v1.Frame``.
 
     Raises ``ValueError`` when a field's size does not match the particle
-    count or its scalar type is not f32.
+    count, its scalar type is not f32, or a solid's rows run past the last
+    particle.
     """
     from .v1 import frame_pb2, scene_pb2
 
@@ -113,6 +132,12 @@ def decode_frame(data: bytes) -> Frame:
                 f"field {name}: {len(f.data)} bytes, expected {4 * f.components * n}"
             )
         fields[name] = np.frombuffer(f.data, dtype="<f4").reshape(n, f.components)
+    solids = [SolidRange(system=r.system, first=r.first, count=r.count) for r in message.solids]
+    for r in solids:
+        if r.first + r.count > n:
+            raise ValueError(
+                f"solid of system {r.system}: rows {r.first}..{r.first + r.count}, but {n} particles"
+            )
     return Frame(
         session_id=header.session_id,
         step=header.step,
@@ -122,4 +147,5 @@ def decode_frame(data: bytes) -> Frame:
         fields=fields,
         surface=decode_surface(message.surface) if message.HasField("surface") else None,
         bodies=[decode_body(pose) for pose in message.bodies],
+        solids=solids,
     )

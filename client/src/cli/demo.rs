@@ -70,8 +70,11 @@ async fn drive(
     let files = FrameFiles::start(&args.output, args.format, args.surface_format)?;
     let mut received = 0usize;
     let mut last_step = 0;
+    // Each solid's particle count, which the frames carry.
+    let mut solids = Vec::new();
     if let Some(first) = link.latest_frame(&id).await? {
         last_step = first.step;
+        solids = first.solids.iter().map(|r| r.count).collect();
         files.write(engine_frame(first));
         received += 1;
     }
@@ -124,7 +127,10 @@ async fn drive(
     link.close().await;
 
     println!("meshless demo: {}", session.name);
-    println!("  particles         {}", session.particle_count);
+    println!(
+        "  particles         {}",
+        super::particle_summary(session.particle_count, &solids)
+    );
     println!(
         "  simulated         {:.3} s in {} steps",
         status.time, status.step

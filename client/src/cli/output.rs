@@ -6,7 +6,7 @@ use meshless_client::{FrameView, v1};
 use meshless_engine::geometry::TriMesh;
 use meshless_engine::io::{ExportFormat, MeshFormat, write_frame, write_surface};
 use meshless_engine::math::Vector;
-use meshless_engine::{BodyPose, FieldData, FieldKind, Frame};
+use meshless_engine::{BodyPose, FieldData, FieldKind, Frame, SolidRange};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
 use std::thread::JoinHandle;
@@ -202,6 +202,15 @@ pub fn engine_frame(frame: FrameView) -> Frame {
                 .collect(),
             triangles: surface.triangles,
         }),
+        solids: frame
+            .solids
+            .iter()
+            .map(|r| SolidRange {
+                system: r.system as usize,
+                first: r.first as usize,
+                count: r.count as usize,
+            })
+            .collect(),
     }
 }
 

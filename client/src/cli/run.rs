@@ -73,7 +73,15 @@ pub fn run(args: RunArgs) -> Result<()> {
     let written = files.finish()?;
     let particles = world.particle_count() as f64;
     println!("meshless run: {}", args.scene.display());
-    println!("  particles         {}", world.particle_count());
+    let solids: Vec<u64> = world
+        .solid_ranges()
+        .iter()
+        .map(|r| r.count as u64)
+        .collect();
+    println!(
+        "  particles         {}",
+        super::particle_summary(world.particle_count() as u64, &solids)
+    );
     println!(
         "  simulated         {:.3} s in {steps} steps ({substeps} sub-steps)",
         world.clock().time

@@ -51,16 +51,18 @@ pub async fn watch(args: WatchArgs) -> Result<()> {
                 let frame = frame?;
                 total += 1;
                 window += 1;
-                last = Some((frame.step, frame.time, frame.particle_count));
+                let solids: Vec<u64> = frame.solids.iter().map(|r| r.count).collect();
+                last = Some((frame.step, frame.time, frame.particle_count, solids));
                 if args.frames.is_some_and(|n| total >= n) {
                     break;
                 }
             }
             _ = ticker.tick() => {
                 let rate = window as f64 / window_start.elapsed().as_secs_f64();
-                match last {
-                    Some((step, time, particles)) => println!(
-                        "{rate:6.1} frames/s  step {step:>8}  t = {time:9.4} s  {particles} particles"
+                match &last {
+                    Some((step, time, particles, solids)) => println!(
+                        "{rate:6.1} frames/s  step {step:>8}  t = {time:9.4} s  particles {}",
+                        super::particle_summary(*particles as u64, solids)
                     ),
                     None => println!("{rate:6.1} frames/s  (no frame yet)"),
                 }
