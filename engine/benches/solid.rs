@@ -42,15 +42,22 @@ fn block(side: usize, integrator: Integrator) -> ElasticSolid {
     .sample_volume(spacing, 3)
     .expect("block");
     let n = rest.len();
-    let mut solid =
-        ElasticSolid::new(params, rest, vec![Vector::zeros(); n], vec![false; n], Obstacles::default())
-            .expect("solid");
+    let mut solid = ElasticSolid::new(
+        params,
+        rest,
+        vec![Vector::zeros(); n],
+        vec![false; n],
+        Obstacles::default(),
+    )
+    .expect("solid");
     let stretched: Vec<Vector> = solid
         .rest_positions()
         .iter()
         .map(|x| Vector::new(1.01 * x.x, x.y, x.z))
         .collect();
-    solid.set_state(stretched, vec![Vector::zeros(); n]).expect("state");
+    solid
+        .set_state(stretched, vec![Vector::zeros(); n])
+        .expect("state");
     solid
 }
 

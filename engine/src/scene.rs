@@ -737,10 +737,12 @@ impl Scene {
             .map_err(|e| SceneError::Parse(format!("{}: {e}", path.display())))?;
         let base = path.parent().unwrap_or(Path::new(""));
         for system in &mut scene.systems {
-            if let SystemSpec::RigidBody(RigidBodySpec {
-                shape: ShapeSpec::Mesh { path: mesh, .. },
-                ..
-            }) = system
+            let shape = match system {
+                SystemSpec::RigidBody(body) => &mut body.shape,
+                SystemSpec::Solid(solid) => &mut solid.shape,
+                SystemSpec::Fluid(_) => continue,
+            };
+            if let ShapeSpec::Mesh { path: mesh, .. } = shape
                 && Path::new(mesh.as_str()).is_relative()
             {
                 *mesh = base.join(mesh.as_str()).to_string_lossy().into_owned();
@@ -864,7 +866,10 @@ impl Scene {
         if let Some(surface) = &self.output.surface {
             self.validate_surface(surface)?;
         }
-        let count = self.fluid().map_or(0.0, |f| f.particle_count(self.dimension)) + solid_particles;
+        let count = self
+            .fluid()
+            .map_or(0.0, |f| f.particle_count(self.dimension))
+            + solid_particles;
         if count > options.max_particles as f64 {
             return Err(SceneError::TooManyParticles {
                 count: count.min(u64::MAX as f64) as u64,

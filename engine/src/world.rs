@@ -406,8 +406,12 @@ impl World {
             match kind {
                 FieldKind::Position => vectors(&solid.positions, &mut values),
                 FieldKind::Velocity => vectors(&solid.velocities, &mut values),
-                FieldKind::Density => values.extend(solid.densities().into_iter().map(|d| d as f32)),
-                FieldKind::Pressure => values.extend(solid.pressures().into_iter().map(|p| p as f32)),
+                FieldKind::Density => {
+                    values.extend(solid.densities().into_iter().map(|d| d as f32))
+                }
+                FieldKind::Pressure => {
+                    values.extend(solid.pressures().into_iter().map(|p| p as f32))
+                }
             }
         }
         values

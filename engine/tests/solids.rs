@@ -324,8 +324,14 @@ fn linear_solver_is_an_optional_snake_case_field() {
 
 fn free(p: SolidParams, rest: Vec<Vector>) -> ElasticSolid {
     let n = rest.len();
-    ElasticSolid::new(p, rest, vec![Vector::zeros(); n], vec![false; n], Obstacles::default())
-        .expect("solid")
+    ElasticSolid::new(
+        p,
+        rest,
+        vec![Vector::zeros(); n],
+        vec![false; n],
+        Obstacles::default(),
+    )
+    .expect("solid")
 }
 
 /// One particle has no neighbours to measure a strain with: its gradient
@@ -333,7 +339,10 @@ fn free(p: SolidParams, rest: Vec<Vector>) -> ElasticSolid {
 /// force and simply falls.
 #[test]
 fn a_single_particle_falls_freely() {
-    for integrator in [Integrator::Explicit { cfl: 0.5 }, Integrator::Implicit(ImplicitParams::default())] {
+    for integrator in [
+        Integrator::Explicit { cfl: 0.5 },
+        Integrator::Implicit(ImplicitParams::default()),
+    ] {
         let mut p = params(3, 0.1, 1e9, 0.3);
         p.integrator = integrator;
         let mut solid = free(p, vec![Vector::new(0.0, 1.0, 0.0)]);
@@ -367,11 +376,18 @@ fn a_one_particle_plate_falls_back_and_stays_finite() {
         .iter()
         .map(|x| Vector::new(x.x, x.y, 0.1 * x.x * x.x))
         .collect();
-    plate.set_state(bent, vec![Vector::zeros(); n]).expect("same length");
+    plate
+        .set_state(bent, vec![Vector::zeros(); n])
+        .expect("same length");
     for _ in 0..50 {
         plate.step(1e-3, &Vector::zeros(), 1000);
     }
-    assert!(plate.positions.iter().all(|x| x.iter().all(|c| c.is_finite())));
+    assert!(
+        plate
+            .positions
+            .iter()
+            .all(|x| x.iter().all(|c| c.is_finite()))
+    );
     let thick = free(p, layer(0.0).chain(layer(0.1)).collect());
     assert!(thick.orders().iter().all(|&o| o == Order::Linear));
 }
@@ -390,8 +406,13 @@ fn plastic_flow_rebases_the_reference_shape() {
     let mut solid = block(p, [0.3, 0.1, 0.1]);
     let n = solid.len();
     let rest = solid.rest_positions().to_vec();
-    let stretched: Vec<Vector> = rest.iter().map(|x| Vector::new(1.2 * x.x, x.y, x.z)).collect();
-    solid.set_state(stretched, vec![Vector::zeros(); n]).expect("same length");
+    let stretched: Vec<Vector> = rest
+        .iter()
+        .map(|x| Vector::new(1.2 * x.x, x.y, x.z))
+        .collect();
+    solid
+        .set_state(stretched, vec![Vector::zeros(); n])
+        .expect("same length");
     for _ in 0..20 {
         solid.step(1e-3, &Vector::zeros(), 10_000);
     }
@@ -402,5 +423,10 @@ fn plastic_flow_rebases_the_reference_shape() {
         .map(|(a, b)| (a - b).norm())
         .fold(0.0, Real::max);
     assert!(moved > 0.01, "the reference did not move: {moved}");
-    assert!(solid.positions.iter().all(|x| x.iter().all(|c| c.is_finite())));
+    assert!(
+        solid
+            .positions
+            .iter()
+            .all(|x| x.iter().all(|c| c.is_finite()))
+    );
 }

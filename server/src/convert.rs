@@ -11,7 +11,7 @@ use meshless_engine::scene::{
     ParticleSpec, RigidBodySpec, ShapeSpec, SlipKind, SolidSpec, SolverKind, SurfaceSpec,
     SystemSpec, TimeSpec, WallModel, defaults, solid_defaults,
 };
-use meshless_engine::solid::{ImplicitParams, Plasticity};
+use meshless_engine::solid::{ImplicitParams, LinearSolver, Plasticity};
 use meshless_engine::{FieldKind, Frame, Scene, SolidRange};
 use meshless_proto::v1;
 
@@ -448,23 +448,40 @@ fn to_integrator_kind(integrator: IntegratorKind) -> v1::SolidIntegrator {
 }
 
 /// Implicit settings with each unset field at the engine's default.
-fn implicit_from_proto(settings: Option<v1::ImplicitSettings>) -> ImplicitParams {
+fn implicit_from_proto(
+    settings: Option<v1::ImplicitSettings>,
+    field: &str,
+) -> Result<ImplicitParams> {
     let defaults = ImplicitParams::default();
     let Some(v1::ImplicitSettings {
         newton_tolerance,
         max_newton_iterations,
         cg_tolerance,
         max_cg_iterations,
+        linear_solver,
     }) = settings
     else {
-        return defaults;
+        return Ok(defaults);
     };
-    ImplicitParams {
+    Ok(ImplicitParams {
         newton_tolerance: newton_tolerance.unwrap_or(defaults.newton_tolerance),
         max_newton_iterations: max_newton_iterations.unwrap_or(defaults.max_newton_iterations),
         cg_tolerance: cg_tolerance.unwrap_or(defaults.cg_tolerance),
         max_cg_iterations: max_cg_iterations.unwrap_or(defaults.max_cg_iterations),
-    }
+        linear_solver: match v1::LinearSolver::try_from(linear_solver) {
+            Ok(v1::LinearSolver::Unspecified) => defaults.linear_solver,
+            Ok(v1::LinearSolver::Cholesky) => LinearSolver::Cholesky,
+            Ok(v1::LinearSolver::ConjugateGradient) => LinearSolver::ConjugateGradient,
+            Err(_) => {
+                return Err(ServiceError::invalid(
+                    &format!("{field}.implicit.linear_solver"),
+                    format!(
+                        "unknown linear solver {linear_solver}; use cholesky or conjugate_gradient"
+                    ),
+                ));
+            }
+        },
+    })
 }
 
 fn to_implicit(params: &ImplicitParams) -> v1::ImplicitSettings {
@@ -473,12 +490,17 @@ fn to_implicit(params: &ImplicitParams) -> v1::ImplicitSettings {
         max_newton_iterations,
         cg_tolerance,
         max_cg_iterations,
+        linear_solver,
     } = *params;
     v1::ImplicitSettings {
         newton_tolerance: Some(newton_tolerance),
         max_newton_iterations: Some(max_newton_iterations),
         cg_tolerance: Some(cg_tolerance),
         max_cg_iterations: Some(max_cg_iterations),
+        linear_solver: match linear_solver {
+            LinearSolver::Cholesky => v1::LinearSolver::Cholesky,
+            LinearSolver::ConjugateGradient => v1::LinearSolver::ConjugateGradient,
+        } as i32,
     }
 }
 
@@ -540,7 +562,7 @@ fn solid_from_proto(solid: v1::SolidSpec, field: &str) -> Result<SolidSpec> {
         friction: friction.unwrap_or(solid_defaults::FRICTION),
         integrator: integrator_kind(integrator, &format!("{field}.integrator"))?,
         cfl: cfl.unwrap_or(solid_defaults::CFL),
-        implicit: implicit_from_proto(implicit),
+        implicit: implicit_from_proto(implicit, field)?,
         velocity: velocity.map_or([0.0; 3], vec3),
         angular_velocity: angular_velocity.map_or([0.0; 3], vec3),
         anchors,
@@ -959,6 +981,7 @@ mod tests {
                 max_newton_iterations: 7,
                 cg_tolerance: 1e-2,
                 max_cg_iterations: 33,
+                linear_solver: LinearSolver::ConjugateGradient,
             },
             velocity: [1.0, 2.0, 3.0],
             angular_velocity: [-1.0, 0.5, 0.25],

@@ -55,19 +55,38 @@ const BLOCK_2D: &str = r#"
 #[test]
 fn rigid_rotations_produce_no_elastic_force() {
     for dim in [2, 3] {
-        let mut w = world(dim, 1e-3, 0.0, &format!("{BLOCK_2D}\npoisson = 0.3\nvolume_stiffness = 1e6"));
+        let mut w = world(
+            dim,
+            1e-3,
+            0.0,
+            &format!("{BLOCK_2D}\npoisson = 0.3\nvolume_stiffness = 1e6"),
+        );
         let solid = solid_of(&mut w);
         let n = solid.len();
         let rest = solid.rest_positions().to_vec();
-        let stretched = rest.iter().map(|x| Vector::new(1.001 * x.x, x.y, x.z)).collect();
-        solid.set_state(stretched, vec![Vector::zeros(); n]).expect("state");
+        let stretched = rest
+            .iter()
+            .map(|x| Vector::new(1.001 * x.x, x.y, x.z))
+            .collect();
+        solid
+            .set_state(stretched, vec![Vector::zeros(); n])
+            .expect("state");
         let scale = max_norm(&solid.forces());
-        let axis = if dim == 2 { Vector::z_axis() } else { nalgebra::Unit::new_normalize(Vector::new(1.0, 2.0, -0.5)) };
+        let axis = if dim == 2 {
+            Vector::z_axis()
+        } else {
+            nalgebra::Unit::new_normalize(Vector::new(1.0, 2.0, -0.5))
+        };
         let mut worst: Real = 0.0;
         for k in 0..=36 {
             let turn = Rotation3::from_axis_angle(&axis, k as Real * 10f64.to_radians());
-            let moved = rest.iter().map(|x| turn * x + Vector::new(0.3, -0.2, 0.0)).collect();
-            solid.set_state(moved, vec![Vector::zeros(); n]).expect("state");
+            let moved = rest
+                .iter()
+                .map(|x| turn * x + Vector::new(0.3, -0.2, 0.0))
+                .collect();
+            solid
+                .set_state(moved, vec![Vector::zeros(); n])
+                .expect("state");
             worst = worst.max(max_norm(&solid.forces()) / scale);
         }
         println!("{dim}D: worst force under rotation / force of a 0.1 % stretch = {worst:.2e}");
@@ -93,15 +112,23 @@ fn explicit_energy_stays_bounded_over_many_periods() {
     let mut w = world(2, 1e-3, 0.0, &format!("{BLOCK_2D}\npoisson = 0.0"));
     let solid = solid_of(&mut w);
     let n = solid.len();
-    let stretched = solid.rest_positions().iter().map(|x| Vector::new(1.02 * x.x, x.y, x.z)).collect();
-    solid.set_state(stretched, vec![Vector::zeros(); n]).expect("state");
+    let stretched = solid
+        .rest_positions()
+        .iter()
+        .map(|x| Vector::new(1.02 * x.x, x.y, x.z))
+        .collect();
+    solid
+        .set_state(stretched, vec![Vector::zeros(); n])
+        .expect("state");
     let e0 = solid.potential_energy();
     let e = energies(&mut w, 3000);
     let period = 100;
     let mean = |s: &[Real]| s.iter().sum::<Real>() / s.len() as Real;
     let drift = (mean(&e[e.len() - period..]) - mean(&e[..period])) / e0;
     let swing = e.iter().map(|x| (x - e0).abs()).fold(0.0, Real::max) / e0;
-    println!("30 periods: secular drift {drift:.2e}, largest deviation {swing:.2e} of the initial energy");
+    println!(
+        "30 periods: secular drift {drift:.2e}, largest deviation {swing:.2e} of the initial energy"
+    );
     assert!(drift.abs() < 1e-2, "drift {drift}");
     assert!(swing < 6e-2, "swing {swing}");
 }
@@ -117,7 +144,11 @@ fn implicit_is_stable_far_beyond_the_explicit_limit() {
     let stretch = |w: &mut World| {
         let solid = solid_of(w);
         let n = solid.len();
-        let x = solid.rest_positions().iter().map(|x| Vector::new(1.05 * x.x, x.y, x.z)).collect();
+        let x = solid
+            .rest_positions()
+            .iter()
+            .map(|x| Vector::new(1.05 * x.x, x.y, x.z))
+            .collect();
         solid.set_state(x, vec![Vector::zeros(); n]).expect("state");
     };
     // Explicit, held to one sub-step per step: blows up, and says so.
@@ -145,7 +176,12 @@ fn implicit_is_stable_far_beyond_the_explicit_limit() {
         Some(e @ StepError::SolidUnstable { system: 0, .. }) => println!("explicit at 100x: {e}"),
         other => panic!("explicit at 100x its limit should fault, got {other:?}"),
     }
-    let mut implicit = world(2, dt, 0.0, &format!("{BLOCK_2D}\nintegrator = \"implicit\""));
+    let mut implicit = world(
+        2,
+        dt,
+        0.0,
+        &format!("{BLOCK_2D}\nintegrator = \"implicit\""),
+    );
     stretch(&mut implicit);
     let e = energies(&mut implicit, 50);
     let e0 = {
@@ -159,7 +195,12 @@ fn implicit_is_stable_far_beyond_the_explicit_limit() {
         e.windows(2).all(|p| p[1] <= p[0] + 1e-12 * e0),
         "energy grew: {e:?}"
     );
-    println!("implicit at {dt:.2e} s (100x the explicit limit): energy {:.3e} -> {:.3e} J in 50 steps (from {:.3e})", e[0], e[e.len() - 1], e0);
+    println!(
+        "implicit at {dt:.2e} s (100x the explicit limit): energy {:.3e} -> {:.3e} J in 50 steps (from {:.3e})",
+        e[0],
+        e[e.len() - 1],
+        e0
+    );
     assert!(e[e.len() - 1] < 0.5 * e0);
 }
 
@@ -184,7 +225,11 @@ fn the_volume_force_keeps_the_area_under_a_large_stretch() {
         let solid = solid_of(&mut w);
         let n = solid.len();
         let rest_area = solid.current_volume();
-        let x = solid.rest_positions().iter().map(|x| Vector::new(1.5 * x.x, x.y, x.z)).collect();
+        let x = solid
+            .rest_positions()
+            .iter()
+            .map(|x| Vector::new(1.5 * x.x, x.y, x.z))
+            .collect();
         solid.set_state(x, vec![Vector::zeros(); n]).expect("state");
         for _ in 0..300 {
             w.step().expect("stable");
@@ -194,7 +239,11 @@ fn the_volume_force_keeps_the_area_under_a_large_stretch() {
     };
     let off = area(0.0);
     let on = area(2e6);
-    println!("area change under a 50 % stretch: volume force off {:+.1} %, on {:+.1} %", off * 100.0, on * 100.0);
+    println!(
+        "area change under a 50 % stretch: volume force off {:+.1} %, on {:+.1} %",
+        off * 100.0,
+        on * 100.0
+    );
     assert!(on.abs() < off.abs(), "on {on} off {off}");
 }
 
@@ -236,7 +285,11 @@ fn extreme_materials_run_stably() {
                     }
                 }
                 let (_, s) = w.solids().next().expect("solid");
-                let lowest = s.positions.iter().map(|x| x.y).fold(Real::INFINITY, Real::min);
+                let lowest = s
+                    .positions
+                    .iter()
+                    .map(|x| x.y)
+                    .fold(Real::INFINITY, Real::min);
                 let speed = max_norm(&s.velocities);
                 println!(
                     "{integrator:>8} E = {young:.0e} nu = {poisson:<5}: {:>6} sub-steps per step, lowest particle {lowest:.4} m, fastest {speed:.3} m/s",
@@ -274,7 +327,21 @@ fn plastic_bars_keep_a_permanent_set() {
             xs.clone().fold(Real::NEG_INFINITY, Real::max) - xs.fold(Real::INFINITY, Real::min)
         };
         let rest = length(solid.rest_positions());
-        let x = solid.rest_positions().iter().map(|x| Vector::new(if x.x > -0.35 { 1.1 * (x.x + 0.35) - 0.35 } else { x.x }, x.y, x.z)).collect();
+        let x = solid
+            .rest_positions()
+            .iter()
+            .map(|x| {
+                Vector::new(
+                    if x.x > -0.35 {
+                        1.1 * (x.x + 0.35) - 0.35
+                    } else {
+                        x.x
+                    },
+                    x.y,
+                    x.z,
+                )
+            })
+            .collect();
         solid.set_state(x, vec![Vector::zeros(); n]).expect("state");
         // Axial period 4 L / c = 0.1 s.
         let mut mean = 0.0;
@@ -289,7 +356,11 @@ fn plastic_bars_keep_a_permanent_set() {
     };
     let elastic = set("");
     let plastic = set("plasticity = { yield = 0.005, creep = 0.2, max = 1.0 }");
-    println!("elongation left after release: elastic {:+.2} %, plastic {:+.2} %", elastic * 100.0, plastic * 100.0);
+    println!(
+        "elongation left after release: elastic {:+.2} %, plastic {:+.2} %",
+        elastic * 100.0,
+        plastic * 100.0
+    );
     // Saint-Venant–Kirchhoff is softer in compression, which shifts an
     // elastic vibration's mean slightly below the rest length.
     assert!(elastic.abs() < 0.01, "elastic {elastic}");
@@ -330,9 +401,15 @@ fn solids_collide_with_static_bodies() {
     for _ in 0..400 {
         w.step().expect("stable");
         let (_, s) = w.solids().next().expect("solid");
-        closest = s.positions.iter().map(|x| (x - centre).norm()).fold(closest, Real::min);
+        closest = s
+            .positions
+            .iter()
+            .map(|x| (x - centre).norm())
+            .fold(closest, Real::min);
     }
-    println!("closest approach to the disc's centre: {closest:.4} m (radius 0.2, particle radius 0.0125)");
+    println!(
+        "closest approach to the disc's centre: {closest:.4} m (radius 0.2, particle radius 0.0125)"
+    );
     assert!(closest >= 0.2 + 0.0125 - 1e-6, "{closest}");
 }
 
@@ -342,8 +419,13 @@ fn solids_collide_with_static_bodies() {
 /// 10 % at 12 particles across the beam (linear) or 8 (quadratic).
 #[test]
 fn cantilever_deflection_converges_to_euler_bernoulli() {
-    println!("cantilever L = 1 m, H = 0.1 m, E = 1.5e8 Pa, nu = 0, 2D; tip deflection / Euler-Bernoulli - 1:");
-    println!("{:>9} {:>8} {:>10} {:>10}", "spacing", "across", "linear", "quadratic");
+    println!(
+        "cantilever L = 1 m, H = 0.1 m, E = 1.5e8 Pa, nu = 0, 2D; tip deflection / Euler-Bernoulli - 1:"
+    );
+    println!(
+        "{:>9} {:>8} {:>10} {:>10}",
+        "spacing", "across", "linear", "quadratic"
+    );
     let spacings = [0.025, 0.0167, 0.0125, 0.01, 0.00833, 0.00625];
     let mut errors = Vec::new();
     for &spacing in &spacings {
@@ -368,11 +450,25 @@ fn cantilever_deflection_converges_to_euler_bernoulli() {
         errors.push((linear, quadratic));
     }
     for pair in errors.windows(2) {
-        assert!(pair[1].0.abs() < pair[0].0.abs(), "linear does not converge: {errors:?}");
-        assert!(pair[1].1.abs() < pair[0].1.abs(), "quadratic does not converge: {errors:?}");
+        assert!(
+            pair[1].0.abs() < pair[0].0.abs(),
+            "linear does not converge: {errors:?}"
+        );
+        assert!(
+            pair[1].1.abs() < pair[0].1.abs(),
+            "quadratic does not converge: {errors:?}"
+        );
     }
-    assert!(errors[4].0.abs() < 0.10, "linear at 12 across: {}", errors[4].0);
-    assert!(errors[2].1.abs() < 0.10, "quadratic at 8 across: {}", errors[2].1);
+    assert!(
+        errors[4].0.abs() < 0.10,
+        "linear at 12 across: {}",
+        errors[4].0
+    );
+    assert!(
+        errors[2].1.abs() < 0.10,
+        "quadratic at 8 across: {}",
+        errors[2].1
+    );
 }
 
 /// The first bending period, from a release under the explicit

@@ -17,11 +17,11 @@
 //! about 1 % to the deflection, below the tolerances used here. Poisson's
 //! ratio is 0 so that plane strain (2D) and the beam's plane stress agree.
 
+use crate::BuildOptions;
 use crate::approx::mls::Order;
 use crate::math::Real;
 use crate::scene::{IntegratorKind, Scene, SceneError};
 use crate::world::{StepError, World};
-use crate::BuildOptions;
 
 /// First root of the clamped-free frequency equation.
 const BETA_1: Real = 1.875_104_068_711_961;
@@ -101,7 +101,8 @@ impl Cantilever {
     /// Euler–Bernoulli first bending period, s.
     pub fn first_period(&self) -> Real {
         let mass_per_length = self.load() / self.gravity;
-        let omega = BETA_1 * BETA_1
+        let omega = BETA_1
+            * BETA_1
             * (self.young * self.inertia() / (mass_per_length * self.length.powi(4))).sqrt();
         2.0 * std::f64::consts::PI / omega
     }
@@ -175,7 +176,10 @@ impl Cantilever {
         let (_, solid) = world.solids().next()?;
         let rest = solid.rest_positions();
         let free = (0..rest.len()).filter(|&i| !solid.is_fixed(i));
-        let first_free = free.clone().map(|i| rest[i].x).fold(Real::INFINITY, Real::min);
+        let first_free = free
+            .clone()
+            .map(|i| rest[i].x)
+            .fold(Real::INFINITY, Real::min);
         let last = free.map(|i| rest[i].x).fold(Real::NEG_INFINITY, Real::max);
         let last_fixed = (0..rest.len())
             .filter(|&i| solid.is_fixed(i))
@@ -228,7 +232,11 @@ impl Cantilever {
         let mut world = statics.scene()?.build(&BuildOptions::default())?;
         for _ in 0..10 {
             world.step()?;
-            let solid = world.solids().next().map(|(_, s)| s).ok_or(CantileverError::NoSolid)?;
+            let solid = world
+                .solids()
+                .next()
+                .map(|(_, s)| s)
+                .ok_or(CantileverError::NoSolid)?;
             if self.imbalance(solid) <= tolerance {
                 break;
             }
@@ -271,7 +279,11 @@ impl Cantilever {
         let mut half = None;
         while world.clock().step < limit {
             world.step()?;
-            samples = [samples[1], samples[2], (world.clock().time, self.tip(&world))];
+            samples = [
+                samples[1],
+                samples[2],
+                (world.clock().time, self.tip(&world)),
+            ];
             if world.clock().step >= 3 && samples[2].1 < samples[1].1 {
                 half = Some(parabola_vertex(samples));
                 break;

@@ -202,9 +202,16 @@ impl Scene {
         check_range(&format!("{at}.young"), solid.young, 0.0, 1e13)?;
         check_range(&format!("{at}.poisson"), solid.poisson, 0.0, 0.4999)
             .map_err(|e| e.with_hint("0.5 is incompressible, which Hooke's law cannot hold"))?;
-        check_range(&format!("{at}.volume_stiffness"), solid.volume_stiffness, 0.0, 1e13)?;
+        check_range(
+            &format!("{at}.volume_stiffness"),
+            solid.volume_stiffness,
+            0.0,
+            1e13,
+        )?;
         check_range(&format!("{at}.support"), solid.support, 1.5, 6.0).map_err(|e| {
-            e.with_hint("the support is in spacings; below 1.5 a particle sees no diagonal neighbours")
+            e.with_hint(
+                "the support is in spacings; below 1.5 a particle sees no diagonal neighbours",
+            )
         })?;
         check_range(&format!("{at}.hourglass"), solid.hourglass, 0.0, 10.0)?;
         check_range(&format!("{at}.damping"), solid.damping, 0.0, 1e6)?;
@@ -212,10 +219,26 @@ impl Scene {
         check_positive(&format!("{at}.cfl"), solid.cfl)?;
         check_range(&format!("{at}.cfl"), solid.cfl, 0.0, 1.0)?;
         let implicit = &solid.implicit;
-        check_positive(&format!("{at}.implicit.newton_tolerance"), implicit.newton_tolerance)?;
-        check_range(&format!("{at}.implicit.newton_tolerance"), implicit.newton_tolerance, 0.0, 1.0)?;
-        check_positive(&format!("{at}.implicit.cg_tolerance"), implicit.cg_tolerance)?;
-        check_range(&format!("{at}.implicit.cg_tolerance"), implicit.cg_tolerance, 0.0, 1.0)?;
+        check_positive(
+            &format!("{at}.implicit.newton_tolerance"),
+            implicit.newton_tolerance,
+        )?;
+        check_range(
+            &format!("{at}.implicit.newton_tolerance"),
+            implicit.newton_tolerance,
+            0.0,
+            1.0,
+        )?;
+        check_positive(
+            &format!("{at}.implicit.cg_tolerance"),
+            implicit.cg_tolerance,
+        )?;
+        check_range(
+            &format!("{at}.implicit.cg_tolerance"),
+            implicit.cg_tolerance,
+            0.0,
+            1.0,
+        )?;
         for (field, value) in [
             ("max_newton_iterations", implicit.max_newton_iterations),
             ("max_cg_iterations", implicit.max_cg_iterations),
@@ -274,7 +297,8 @@ impl Scene {
         }
         let radius = 0.5 * solid.spacing;
         if let Some((x, _)) = particles.iter().find(|(x, _)| {
-            (0..dim).any(|a| x[a] < self.domain.min[a] + radius || x[a] > self.domain.max[a] - radius)
+            (0..dim)
+                .any(|a| x[a] < self.domain.min[a] + radius || x[a] > self.domain.max[a] - radius)
         }) {
             return Err(SceneError::invalid(
                 format!("{at}.position"),

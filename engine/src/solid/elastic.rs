@@ -153,7 +153,10 @@ impl ElasticSolid {
         positions: Vec<Vector>,
         velocities: Vec<Vector>,
     ) -> Result<(), SolidError> {
-        for (what, got) in [("positions", positions.len()), ("velocities", velocities.len())] {
+        for (what, got) in [
+            ("positions", positions.len()),
+            ("velocities", velocities.len()),
+        ] {
             if got != self.len() {
                 return Err(SolidError::Length {
                     what,
@@ -257,7 +260,8 @@ impl ElasticSolid {
             });
         moving.or_else(|| {
             self.scratch.states.iter().enumerate().find_map(|(i, s)| {
-                let strain = (s.e + self.plastic.as_ref().map_or_else(Matrix3::zeros, |p| p[i])).norm();
+                let strain =
+                    (s.e + self.plastic.as_ref().map_or_else(Matrix3::zeros, |p| p[i])).norm();
                 (strain.is_nan() || strain > Self::MAX_STRAIN).then_some((i, "strain", strain))
             })
         })

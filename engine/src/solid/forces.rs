@@ -340,7 +340,13 @@ impl ElasticSolid {
         let mut split = Split::default();
         split.resize(n, self.topology.owner.len());
         let mut out = vec![Vector::zeros(); n];
-        model.particle_pass(&self.positions, Some(&self.velocities), &mut states, &mut split, false);
+        model.particle_pass(
+            &self.positions,
+            Some(&self.velocities),
+            &mut states,
+            &mut split,
+            false,
+        );
         model.gather(&split, &mut out);
         out
     }

@@ -18,10 +18,10 @@
 //! decreases.
 
 use super::elastic::ElasticSolid;
+use super::forces::Split;
 use super::hessian::DirectSolver;
 use super::params::{ImplicitParams, LinearSolver};
 use crate::math::{Real, Vector};
-use super::forces::Split;
 use rayon::prelude::*;
 
 /// The solve's vectors, kept between steps so a step does not allocate.

@@ -110,11 +110,7 @@ impl Material {
 
     /// The directional derivative `dP[dF]` of [`Self::first_piola`] at
     /// `state`, for the implicit integrator's tangent stiffness.
-    pub fn first_piola_derivative(
-        &self,
-        state: &StressState,
-        df: &Matrix3<Real>,
-    ) -> Matrix3<Real> {
+    pub fn first_piola_derivative(&self, state: &StressState, df: &Matrix3<Real>) -> Matrix3<Real> {
         let de = (df.transpose() * state.f + state.f.transpose() * df) * 0.5;
         let ds = self.hooke(&de);
         let mut dp = df * state.s + state.f * ds;
