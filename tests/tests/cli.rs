@@ -351,3 +351,33 @@ async fn study_writes_error_against_cost() {
     let png = std::fs::read(dir.0.join("study_cfl.png")).expect("chart");
     assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"));
 }
+
+/// `meshless study --knob solid-spacing` sweeps the cantilever: a finer
+/// spacing gives a smaller deflection error against Euler–Bernoulli.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn solid_study_writes_the_cantilever_error() {
+    let dir = TempDir::new("solid-study");
+    meshless_ok(&[
+        "study",
+        "--knob",
+        "solid-spacing",
+        "--values",
+        "0.025,0.0125",
+        "--output",
+        dir.0.to_str().expect("utf-8"),
+    ])
+    .await;
+    let csv = std::fs::read_to_string(dir.0.join("study_solid_spacing.csv")).expect("csv");
+    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|r| r.split(',').collect()).collect();
+    assert_eq!(rows.len(), 2, "{csv}");
+    let errors: Vec<f64> = rows
+        .iter()
+        .map(|r| {
+            assert_eq!(r[9], "ok", "{r:?}");
+            r[7].parse::<f64>().expect("an error").abs()
+        })
+        .collect();
+    assert!(errors[1] < errors[0] && errors[1] < 0.2, "{errors:?}");
+    let png = std::fs::read(dir.0.join("study_solid_spacing.png")).expect("chart");
+    assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"));
+}

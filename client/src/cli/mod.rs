@@ -11,6 +11,7 @@ mod run;
 mod session;
 #[cfg(feature = "embedded")]
 mod study;
+mod study_solid;
 mod watch;
 
 use clap::{Parser, Subcommand};

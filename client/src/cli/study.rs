@@ -1,6 +1,7 @@
 //! `meshless study`: sweep one speed-against-accuracy knob on the dam break
 //! and report the surge-front error against Martin & Moyce (1952) and the
-//! cost of each setting, as CSV and a PNG chart.
+//! cost of each setting, as CSV and a PNG chart. The `solid-*` knobs sweep
+//! the cantilever instead (`study_solid.rs`).
 
 use super::chart;
 use anyhow::{Context, Result, bail};
@@ -29,6 +30,15 @@ pub enum Knob {
     Solver,
     /// DFSPH density tolerance (fraction of the rest density).
     DensityTolerance,
+    /// Elastic solid: particle spacing of the cantilever, m.
+    SolidSpacing,
+    /// Elastic solid: MLS basis order (linear with support 2 spacings,
+    /// quadratic with 3).
+    SolidOrder,
+    /// Elastic solid: integrator, explicit or implicit.
+    SolidIntegrator,
+    /// Elastic solid: implicit step, s.
+    SolidDt,
 }
 
 impl Knob {
@@ -39,7 +49,19 @@ impl Knob {
             Self::Cfl => "cfl",
             Self::Solver => "solver",
             Self::DensityTolerance => "density_tolerance",
+            Self::SolidSpacing => "solid_spacing",
+            Self::SolidOrder => "solid_order",
+            Self::SolidIntegrator => "solid_integrator",
+            Self::SolidDt => "solid_dt",
         }
+    }
+
+    /// Whether the knob belongs to the cantilever study.
+    fn is_solid(self) -> bool {
+        matches!(
+            self,
+            Self::SolidSpacing | Self::SolidOrder | Self::SolidIntegrator | Self::SolidDt
+        )
     }
 
     fn presets(self) -> &'static [&'static str] {
@@ -49,6 +71,10 @@ impl Knob {
             Self::Cfl => &["0.2", "0.4", "0.6", "0.8"],
             Self::Solver => &["wcsph", "dfsph"],
             Self::DensityTolerance => &["0.01", "0.003", "0.001", "0.0003"],
+            Self::SolidSpacing => &["0.025", "0.0167", "0.0125", "0.01", "0.00833"],
+            Self::SolidOrder => &["linear", "quadratic"],
+            Self::SolidIntegrator => &["explicit", "implicit"],
+            Self::SolidDt => &["0.0005", "0.001", "0.002", "0.005", "0.01"],
         }
     }
 
@@ -86,6 +112,9 @@ impl Knob {
             Self::DensityTolerance => {
                 fluid.solver = SolverKind::Dfsph;
                 fluid.density_tolerance = number()?;
+            }
+            Self::SolidSpacing | Self::SolidOrder | Self::SolidIntegrator | Self::SolidDt => {
+                bail!("{} is a cantilever knob, not a dam-break one", self.name())
             }
         }
         Ok(())
@@ -197,6 +226,14 @@ fn run_one(scene: &Scene, a: f64, bar: &ProgressBar) -> Row {
 }
 
 pub fn study(args: StudyArgs) -> Result<()> {
+    if args.knob.is_solid() {
+        return super::study_solid::study(
+            args.knob.name(),
+            args.knob.presets(),
+            &args.values,
+            &args.output,
+        );
+    }
     let text = match &args.scene {
         Some(path) => std::fs::read_to_string(path)
             .with_context(|| format!("cannot read {}", path.display()))?,

@@ -1,0 +1,194 @@
+//! `meshless study --knob solid-*`: sweep one knob of the elastic solids
+//! on the cantilever under its own weight and report, against
+//! Euler–Bernoulli, the static tip deflection error (spacing, order) or the
+//! first-period error of the released beam (integrator, step), with the
+//! wall time of each setting, as CSV and a PNG chart.
+
+use super::chart;
+use anyhow::{Context, Result, bail};
+use indicatif::{ProgressBar, ProgressStyle};
+use meshless_engine::approx::mls::Order;
+use meshless_engine::experiments::cantilever::{Cantilever, Measured};
+use meshless_engine::scene::IntegratorKind;
+use std::fmt::Write as _;
+use std::path::Path;
+use std::time::Instant;
+
+/// What a knob's runs measure.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Quantity {
+    /// Static tip deflection (a Newton solve).
+    Deflection,
+    /// First bending period of the released beam (a dynamic run).
+    Period,
+}
+
+/// The cantilever for one value of knob `name`.
+fn setting(name: &str, value: &str) -> Result<(Cantilever, Quantity)> {
+    let number = || -> Result<f64> {
+        value
+            .parse()
+            .with_context(|| format!("{name}: {value:?} is not a number"))
+    };
+    let base = Cantilever::default();
+    Ok(match name {
+        "solid_spacing" => (
+            Cantilever {
+                spacing: number()?,
+                ..base
+            },
+            Quantity::Deflection,
+        ),
+        "solid_order" => {
+            let (order, support) = match value {
+                "linear" => (Order::Linear, 2.0),
+                "quadratic" => (Order::Quadratic, 3.0),
+                other => bail!("solid_order: {other:?}; use linear or quadratic"),
+            };
+            (
+                Cantilever {
+                    order,
+                    support,
+                    ..base
+                },
+                Quantity::Deflection,
+            )
+        }
+        "solid_integrator" => {
+            let integrator = match value {
+                "explicit" => IntegratorKind::Explicit,
+                "implicit" => IntegratorKind::Implicit,
+                other => bail!("solid_integrator: {other:?}; use explicit or implicit"),
+            };
+            (Cantilever { integrator, ..base }, Quantity::Period)
+        }
+        "solid_dt" => (
+            Cantilever {
+                integrator: IntegratorKind::Implicit,
+                dt: number()?,
+                ..base
+            },
+            Quantity::Period,
+        ),
+        other => bail!("{other} is not a solid knob"),
+    })
+}
+
+/// One setting's outcome.
+struct Row {
+    value: String,
+    quantity: Quantity,
+    seconds: f64,
+    outcome: Result<Measured, String>,
+}
+
+pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> Result<()> {
+    let values: Vec<String> = if values.is_empty() {
+        presets.iter().map(|v| (*v).to_owned()).collect()
+    } else {
+        values.to_vec()
+    };
+    std::fs::create_dir_all(output)
+        .with_context(|| format!("cannot create {}", output.display()))?;
+    let bar = ProgressBar::new(values.len() as u64).with_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} settings  {prefix}  [{elapsed}]")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut rows = Vec::new();
+    for value in &values {
+        let (cantilever, quantity) = setting(name, value)?;
+        bar.set_prefix(format!("{name} = {value}"));
+        let start = Instant::now();
+        let outcome = match quantity {
+            Quantity::Deflection => cantilever.settle(1e-6),
+            Quantity::Period => cantilever.period(),
+        }
+        .map_err(|e| e.to_string());
+        rows.push(Row {
+            value: value.clone(),
+            quantity,
+            seconds: start.elapsed().as_secs_f64(),
+            outcome,
+        });
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+
+    let measured = |q: Quantity| match q {
+        Quantity::Deflection => "static tip deflection",
+        Quantity::Period => "first bending period",
+    };
+    let what = rows.first().map_or("", |r| measured(r.quantity));
+    println!("meshless study: cantilever against Euler-Bernoulli ({what}), sweeping {name}");
+    println!("  value        particles  world steps  wall [s]      error  first peak / 2 static");
+    let mut csv = String::from(
+        "knob,value,quantity,particles,steps,wall_seconds,value_measured,error,peak_over_twice_static,status\n",
+    );
+    for r in &rows {
+        match &r.outcome {
+            Ok(m) => {
+                writeln!(
+                    csv,
+                    "{name},{},{},{},{},{:.3},{:.6e},{:.5},{:.4},ok",
+                    r.value,
+                    measured(r.quantity).replace(' ', "_"),
+                    m.particles,
+                    m.steps,
+                    r.seconds,
+                    m.value,
+                    m.error,
+                    m.amplitude
+                )?;
+                let peak = match r.quantity {
+                    Quantity::Period => format!("{:>8.3}", m.amplitude),
+                    Quantity::Deflection => String::new(),
+                };
+                println!(
+                    "  {:<12} {:>9}  {:>11}  {:>8.2}  {:>+8.1} %  {peak}",
+                    r.value,
+                    m.particles,
+                    m.steps,
+                    r.seconds,
+                    100.0 * m.error
+                );
+            }
+            Err(e) => {
+                writeln!(
+                    csv,
+                    "{name},{},,,,{:.3},,,{}",
+                    r.value,
+                    r.seconds,
+                    e.replace(',', ";")
+                )?;
+                println!("  {:<12} failed: {e}", r.value);
+            }
+        }
+    }
+    let csv_path = output.join(format!("study_{name}.csv"));
+    std::fs::write(&csv_path, csv)
+        .with_context(|| format!("cannot write {}", csv_path.display()))?;
+    println!("  table             {}", csv_path.display());
+
+    let points: Vec<chart::Point> = rows
+        .iter()
+        .filter_map(|r| {
+            r.outcome.as_ref().ok().map(|m| chart::Point {
+                cost: r.seconds,
+                error: 100.0 * m.error.abs(),
+                label: r.value.clone(),
+            })
+        })
+        .collect();
+    let png_path = output.join(format!("study_{name}.png"));
+    match chart::error_against_cost(
+        &png_path,
+        &format!("cantilever: {what} error against cost, sweeping {name}"),
+        &points,
+    )? {
+        true => println!("  chart             {}", png_path.display()),
+        false => println!(
+            "  chart             not drawn: no TrueType font found (set MESHLESS_FONT to a .ttf file)"
+        ),
+    }
+    Ok(())
+}
