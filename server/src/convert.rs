@@ -474,7 +474,7 @@ fn implicit_from_proto(
             Ok(v1::LinearSolver::ConjugateGradient) => LinearSolver::ConjugateGradient,
             Err(_) => {
                 return Err(ServiceError::invalid(
-                    &format!("{field}.implicit.linear_solver"),
+                    format!("{field}.implicit.linear_solver"),
                     format!(
                         "unknown linear solver {linear_solver}; use cholesky or conjugate_gradient"
                     ),
