@@ -17,6 +17,7 @@ pub mod io;
 pub mod math;
 pub mod neighbors;
 pub mod scene;
+pub mod solid;
 pub mod stats;
 pub mod surface;
 #[cfg(test)]
