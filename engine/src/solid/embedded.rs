@@ -29,18 +29,18 @@
 //!
 //! **Layout and cost.** Per-vertex data keeps the mesh's vertex order and
 //! per-pair data lies flat (CSR), so an update streams both once, in
-//! order; each vertex's particles are sorted by index, so its gathers move
+//! order; particles are listed by ascending index, so the gathers move
 //! forward through the particle arrays, which for some ten thousand
-//! particles stay in cache. The particle-side terms (displacements, and for
-//! Alternative 2 each particle's extrapolation to a common centre) are
-//! formed once per update in the caller's [`DeformedSurface`], so a pair
-//! reads one record. Alternative 1 streams 28 bytes per pair (an index and
-//! three `f64` weights) and is bound by memory bandwidth; its weights stay
-//! in double precision because rounded ones would no longer reproduce an
-//! affine deformation exactly. Alternative 2 streams 8 bytes per pair (an
-//! index and an `f32` weight, exact all the same because each vertex
-//! divides by the sum of its rounded weights) and is bound by its twelve
-//! multiply-adds per pair.
+//! particles stay in cache (a randomly shuffled vertex order measured no
+//! slower). The particle-side terms (displacements, and for Alternative 2
+//! each particle's extrapolation to a common centre) are formed once per
+//! update in the caller's [`DeformedSurface`], so a pair reads one record.
+//! Alternative 1 streams 28 bytes per pair (an index and three `f64`
+//! weights) and is bound by memory bandwidth; its weights stay in double
+//! precision because rounded ones would no longer reproduce an affine
+//! deformation exactly. Alternative 2 streams 6 to 12 bytes per pair (`f32`
+//! weights, exact all the same, for couples of vertices that share one
+//! index list) and is bound by its twelve multiply-adds per pair.
 
 use crate::approx::{Kernel, KernelKind, Mls, MlsError, MlsParams, Order, ShapeFunctions};
 use crate::geometry::{MeshError, TriMesh};
@@ -52,8 +52,10 @@ use serde::{Deserialize, Serialize};
 
 /// Vertices per parallel work item: large enough that the scheduling cost
 /// vanishes next to the work, small enough to balance two to dozens of
-/// cores on meshes of some ten thousand vertices.
+/// cores on meshes of some ten thousand vertices. Even, so that chunks
+/// start on one of Alternative 2's couples of vertices.
 const CHUNK: usize = 1024;
+const _: () = assert!(CHUNK.is_multiple_of(2));
 
 /// Particles per parallel work item of the per-update particle pass.
 const PARTICLE_CHUNK: usize = 4096;
@@ -142,22 +144,43 @@ struct GradientVertex {
     total: Real,
 }
 
-/// What each method stores per vertex and per (vertex, particle) pair.
+/// Alternative 1's tables: per vertex its particles (flat, CSR) and per
+/// pair `[phi_i, grad phi_i . t1, grad phi_i . t2]`.
 #[derive(Debug, Clone)]
-enum Weights {
-    /// Per pair `[phi_i, grad phi_i . t1, grad phi_i . t2]`.
-    Shape {
-        vertices: Vec<ShapeVertex>,
-        pairs: Vec<[Real; 3]>,
-    },
-    /// Per pair the normalised weight `w~_j` in single precision, which
-    /// halves the bytes an update streams. Each vertex divides by the sum
-    /// of its rounded weights, so they still sum to one and an affine
-    /// deformation stays exact: every term of Eq. 68 then equals `u(x)`.
-    Gradients {
-        vertices: Vec<GradientVertex>,
-        pairs: Vec<f32>,
-    },
+struct ShapeTables {
+    vertices: Vec<ShapeVertex>,
+    /// `offsets[v]..offsets[v + 1]` indexes `neighbours` and `pairs`.
+    offsets: Vec<u32>,
+    neighbours: Vec<u32>,
+    pairs: Vec<[Real; 3]>,
+}
+
+/// Alternative 2's tables, by couples of consecutive vertices `(2b, 2b +
+/// 1)`: the union of their particles and, per entry, both vertices'
+/// normalised weights `w~_j` (zero where the particle lies outside one's
+/// support). Consecutive vertices of a mesh are usually neighbours and
+/// share most particles, so each 12-number particle record is gathered
+/// once for two vertices, which about halves the work of the loop (it is
+/// bound by its multiply-adds, not by memory); a couple that lies apart
+/// costs only zero-weight multiply-adds. The weights are single precision,
+/// and each vertex divides by the sum of its rounded weights, so they still
+/// sum to one and an affine deformation stays exact: every term of Eq. 68
+/// then equals `u(x)`.
+#[derive(Debug, Clone)]
+struct GradientTables {
+    vertices: Vec<GradientVertex>,
+    /// `offsets[b]..offsets[b + 1]` indexes `neighbours` and `pairs` for
+    /// couple `b`.
+    offsets: Vec<u32>,
+    neighbours: Vec<u32>,
+    pairs: Vec<[f32; 2]>,
+}
+
+/// What each method stores.
+#[derive(Debug, Clone)]
+enum Tables {
+    Shape(ShapeTables),
+    Gradients(GradientTables),
 }
 
 /// A triangle mesh embedded in a particle solid, with everything an update
@@ -172,10 +195,9 @@ pub struct EmbeddedSurface {
     /// once per update, so a vertex needs one matrix-vector product.
     centre: Vector,
     triangles: Vec<[u32; 3]>,
-    /// `offsets[v]..offsets[v + 1]` indexes `neighbours` and the pairs.
-    offsets: Vec<u32>,
-    neighbours: Vec<u32>,
-    weights: Weights,
+    tables: Tables,
+    /// (vertex, particle) pairs within `h`.
+    pairs: usize,
     /// Vertices where the MLS fit dropped below the requested order.
     reduced: usize,
 }
@@ -274,8 +296,9 @@ impl EmbeddedSurface {
         } else {
             rest.iter().sum::<Vector>() / rest.len() as Real
         };
+        let pairs = neighbours.len();
         let mut reduced = 0;
-        let weights = match method {
+        let tables = match method {
             EmbeddingMethod::ShapeFunctions => {
                 let (pairs, lowered) =
                     shape_pairs(&mls, &mesh.vertices, &normals, rest, &offsets, &neighbours)?;
@@ -286,42 +309,21 @@ impl EmbeddedSurface {
                     .zip(&normals)
                     .map(|(&x, n)| ShapeVertex { x, t: tangents(n) })
                     .collect();
-                Weights::Shape { vertices, pairs }
+                Tables::Shape(ShapeTables {
+                    vertices,
+                    offsets,
+                    neighbours,
+                    pairs,
+                })
             }
-            EmbeddingMethod::Gradients => {
-                let kernel = Kernel::new_3d(KernelKind::Poly6, h);
-                let mut pairs = Vec::with_capacity(neighbours.len());
-                let mut vertices = Vec::with_capacity(mesh.vertices.len());
-                let mut weights = Vec::new();
-                for ((v, &x), &n) in mesh.vertices.iter().enumerate().zip(&normals) {
-                    let js = &neighbours[offsets[v] as usize..offsets[v + 1] as usize];
-                    weights.clear();
-                    weights.extend(
-                        js.iter()
-                            .map(|&j| kernel.value_sq((x - rest[j as usize]).norm_squared())),
-                    );
-                    // Normalised before rounding, so that they are of order
-                    // one whatever h is. Every listed particle is closer
-                    // than h, so the weights are positive, but at q -> 1
-                    // they may round to zero: if all do, the particles
-                    // share equally.
-                    let total: Real = weights.iter().sum();
-                    let scale = if total > 0.0 { 1.0 / total } else { 0.0 };
-                    let start = pairs.len();
-                    pairs.extend(weights.iter().map(|w| (w * scale) as f32));
-                    let mut rounded: Real = pairs[start..].iter().map(|&w| Real::from(w)).sum();
-                    if rounded <= 0.0 {
-                        pairs[start..].fill(1.0);
-                        rounded = js.len() as Real;
-                    }
-                    vertices.push(GradientVertex {
-                        x,
-                        n,
-                        total: rounded,
-                    });
-                }
-                Weights::Gradients { vertices, pairs }
-            }
+            EmbeddingMethod::Gradients => Tables::Gradients(gradient_tables(
+                &mesh.vertices,
+                &normals,
+                rest,
+                h,
+                &offsets,
+                &neighbours,
+            )),
         };
         Ok(Self {
             method,
@@ -329,9 +331,8 @@ impl EmbeddedSurface {
             rest: rest.to_vec(),
             centre,
             triangles: mesh.triangles.clone(),
-            offsets,
-            neighbours,
-            weights,
+            tables,
+            pairs,
             reduced,
         })
     }
@@ -368,11 +369,8 @@ impl EmbeddedSurface {
         let count = self.vertex_count();
         out.vertices.resize(count, Vector::zeros());
         out.normals.resize(count, Vector::zeros());
-        match &self.weights {
-            Weights::Shape {
-                vertices: data,
-                pairs,
-            } => {
+        match &self.tables {
+            Tables::Shape(tables) => {
                 out.displacements.resize(expected, Vector::zeros());
                 out.displacements
                     .par_chunks_mut(PARTICLE_CHUNK)
@@ -384,27 +382,31 @@ impl EmbeddedSurface {
                         }
                     });
                 let u = &out.displacements;
-                self.for_each_vertex(&mut out.vertices, &mut out.normals, |v, range| {
-                    // sums[b][a] = sum_i s_ib u_ia, with s_i = [phi_i,
-                    // grad phi_i . t1, grad phi_i . t2].
-                    let mut sums = [[0.0; 3]; 3];
-                    for (&j, s) in self.neighbours[range.clone()].iter().zip(&pairs[range]) {
-                        let uj = &u[j as usize];
-                        for (sum, &sb) in sums.iter_mut().zip(s) {
-                            for a in 0..3 {
-                                sum[a] += sb * uj[a];
+                for_each_chunk(&mut out.vertices, &mut out.normals, |first, xs, ns| {
+                    for (k, (x, n)) in xs.iter_mut().zip(ns).enumerate() {
+                        let v = first + k;
+                        let range = tables.offsets[v] as usize..tables.offsets[v + 1] as usize;
+                        // sums[b][a] = sum_i s_ib u_ia, with s_i = [phi_i,
+                        // grad phi_i . t1, grad phi_i . t2].
+                        let mut sums = [[0.0; 3]; 3];
+                        for (&j, s) in tables.neighbours[range.clone()]
+                            .iter()
+                            .zip(&tables.pairs[range])
+                        {
+                            let uj = &u[j as usize];
+                            for (sum, &sb) in sums.iter_mut().zip(s) {
+                                for a in 0..3 {
+                                    sum[a] += sb * uj[a];
+                                }
                             }
                         }
+                        let d = &tables.vertices[v];
+                        let [dx, f1, f2] = sums.map(Vector::from);
+                        (*x, *n) = (d.x + dx, unit(&(d.t[0] + f1).cross(&(d.t[1] + f2))));
                     }
-                    let d = &data[v];
-                    let [dx, f1, f2] = sums.map(Vector::from);
-                    (d.x + dx, unit(&(d.t[0] + f1).cross(&(d.t[1] + f2))))
                 });
             }
-            Weights::Gradients {
-                vertices: data,
-                pairs,
-            } => {
+            Tables::Gradients(tables) => {
                 // v_j = u_j + grad u_j (c - X_j): particle j's extrapolation
                 // to the centre, so that u(x) = sum_j w~_j v_j + G (x - c)
                 // with G = sum_j w~_j grad u_j (Eq. 68 regrouped): twelve
@@ -424,26 +426,27 @@ impl EmbeddedSurface {
                         }
                     });
                 let terms = &out.extrapolations;
-                self.for_each_vertex(&mut out.vertices, &mut out.normals, |v, range| {
-                    let mut sums = [0.0; 12];
-                    for (&j, &w) in self.neighbours[range.clone()].iter().zip(&pairs[range]) {
-                        let w = Real::from(w);
-                        for (sum, t) in sums.iter_mut().zip(&terms[j as usize]) {
-                            *sum += w * t;
+                for_each_chunk(&mut out.vertices, &mut out.normals, |first, xs, ns| {
+                    // CHUNK is even, so chunks start on a couple.
+                    for (k, (xs, ns)) in xs.chunks_mut(2).zip(ns.chunks_mut(2)).enumerate() {
+                        let b = first / 2 + k;
+                        let range = tables.offsets[b] as usize..tables.offsets[b + 1] as usize;
+                        let mut sums = [[0.0; 12]; 2];
+                        for (&j, w) in tables.neighbours[range.clone()]
+                            .iter()
+                            .zip(&tables.pairs[range])
+                        {
+                            let (w0, w1) = (Real::from(w[0]), Real::from(w[1]));
+                            let t = &terms[j as usize];
+                            for k in 0..12 {
+                                sums[0][k] += w0 * t[k];
+                                sums[1][k] += w1 * t[k];
+                            }
+                        }
+                        for (i, (x, n)) in xs.iter_mut().zip(ns).enumerate() {
+                            (*x, *n) = tables.vertices[2 * b + i].deform(&sums[i], &centre);
                         }
                     }
-                    // The sums are those of the rounded weights, whose total
-                    // is `d.total`: dividing by it normalises them. The
-                    // cofactor is homogeneous of degree two, so `cof(total I
-                    // + sum w G) n` has the direction of `cof(I + G~) n`.
-                    let d = &data[v];
-                    let g = Matrix3::from_row_slice(&sums[3..]);
-                    let shift = Vector::from_column_slice(&sums[..3]) + g * (d.x - centre);
-                    let f = Matrix3::from_diagonal_element(d.total) + g;
-                    (
-                        d.x + shift * (1.0 / d.total),
-                        unit(&cofactor_times(&f, &d.n)),
-                    )
                 });
             }
         }
@@ -460,7 +463,10 @@ impl EmbeddedSurface {
     }
 
     pub fn vertex_count(&self) -> usize {
-        self.offsets.len() - 1
+        match &self.tables {
+            Tables::Shape(tables) => tables.vertices.len(),
+            Tables::Gradients(tables) => tables.vertices.len(),
+        }
     }
 
     /// Particles the surface follows.
@@ -468,9 +474,9 @@ impl EmbeddedSurface {
         self.rest.len()
     }
 
-    /// (vertex, particle) pairs stored: the work of one update.
+    /// (vertex, particle) pairs within `h`: the work of one update.
     pub fn pair_count(&self) -> usize {
-        self.neighbours.len()
+        self.pairs
     }
 
     /// Vertices where Alternative 1's MLS fit had too few or too flat a set
@@ -487,28 +493,128 @@ impl EmbeddedSurface {
     }
 }
 
-impl EmbeddedSurface {
-    /// Calls `vertex(v, pairs of v)` for every vertex in parallel chunks,
-    /// writing the returned position and normal to `positions[v]` and
-    /// `normals[v]`.
-    fn for_each_vertex(
-        &self,
-        positions: &mut [Vector],
-        normals: &mut [Vector],
-        vertex: impl Fn(usize, std::ops::Range<usize>) -> (Vector, Vector) + Sync,
-    ) {
-        positions
-            .par_chunks_mut(CHUNK)
-            .zip(normals.par_chunks_mut(CHUNK))
-            .enumerate()
-            .for_each(|(c, (xs, ns))| {
-                for (k, (x, n)) in xs.iter_mut().zip(ns.iter_mut()).enumerate() {
-                    let v = c * CHUNK + k;
-                    let range = self.offsets[v] as usize..self.offsets[v + 1] as usize;
-                    (*x, *n) = vertex(v, range);
-                }
-            });
+impl GradientVertex {
+    /// Position and unit normal from `sums = sum_j w_j [v_j, grad u_j row by
+    /// row]` over the vertex's rounded weights `w_j` (Eq. 68 regrouped, see
+    /// [`EmbeddedSurface::update`]). Dividing by `total` normalises the
+    /// weights. The cofactor is homogeneous of degree two, so `cof(total I +
+    /// sum_j w_j grad u_j) n` has the direction of `cof(I + sum_j w~_j grad
+    /// u_j) n` and needs no division.
+    #[inline]
+    fn deform(&self, sums: &[Real; 12], centre: &Vector) -> (Vector, Vector) {
+        let g = Matrix3::from_row_slice(&sums[3..]);
+        let shift = Vector::from_column_slice(&sums[..3]) + g * (self.x - centre);
+        let f = Matrix3::from_diagonal_element(self.total) + g;
+        (
+            self.x + shift * (1.0 / self.total),
+            unit(&cofactor_times(&f, &self.n)),
+        )
     }
+}
+
+/// Calls `chunk(first, positions, normals)` for consecutive chunks of
+/// [`CHUNK`] vertices in parallel, `first` the index of the chunk's first
+/// vertex.
+fn for_each_chunk(
+    positions: &mut [Vector],
+    normals: &mut [Vector],
+    chunk: impl Fn(usize, &mut [Vector], &mut [Vector]) + Sync,
+) {
+    positions
+        .par_chunks_mut(CHUNK)
+        .zip(normals.par_chunks_mut(CHUNK))
+        .enumerate()
+        .for_each(|(c, (xs, ns))| chunk(c * CHUNK, xs, ns));
+}
+
+/// Alternative 2's tables from each vertex's particles (`offsets`,
+/// `neighbours`, ascending within a vertex): normalised poly6 weights,
+/// rounded to single precision, merged by couples of vertices.
+fn gradient_tables(
+    points: &[Vector],
+    normals: &[Vector],
+    rest: &[Vector],
+    h: Real,
+    offsets: &[u32],
+    neighbours: &[u32],
+) -> GradientTables {
+    let kernel = Kernel::new_3d(KernelKind::Poly6, h);
+    let mut weights = Vec::with_capacity(neighbours.len());
+    let mut vertices = Vec::with_capacity(points.len());
+    for ((v, &x), &n) in points.iter().enumerate().zip(normals) {
+        let js = &neighbours[offsets[v] as usize..offsets[v + 1] as usize];
+        let start = weights.len();
+        weights.extend(
+            js.iter()
+                .map(|&j| kernel.value_sq((x - rest[j as usize]).norm_squared())),
+        );
+        // Normalised before rounding, so that they are of order one
+        // whatever h is. Every listed particle is closer than h, so the
+        // weights are positive, but at q -> 1 they may round to zero: if
+        // all do, the particles share equally.
+        let total: Real = weights[start..].iter().sum();
+        let scale = if total > 0.0 { 1.0 / total } else { 0.0 };
+        for w in &mut weights[start..] {
+            *w = Real::from((*w * scale) as f32);
+        }
+        let mut rounded: Real = weights[start..].iter().sum();
+        if rounded <= 0.0 {
+            weights[start..].fill(1.0);
+            rounded = js.len() as Real;
+        }
+        vertices.push(GradientVertex {
+            x,
+            n,
+            total: rounded,
+        });
+    }
+    // Merge each couple's sorted particle lists.
+    let mut tables = GradientTables {
+        vertices,
+        offsets: vec![0],
+        neighbours: Vec::with_capacity(neighbours.len()),
+        pairs: Vec::with_capacity(neighbours.len()),
+    };
+    let of = |v: usize| {
+        let range = offsets[v] as usize..offsets[v + 1] as usize;
+        (&neighbours[range.clone()], &weights[range])
+    };
+    for first in (0..points.len()).step_by(2) {
+        let (a, wa) = of(first);
+        let (b, wb) = if first + 1 < points.len() {
+            of(first + 1)
+        } else {
+            (&[][..], &[][..])
+        };
+        let (mut i, mut k) = (0, 0);
+        loop {
+            let (j, pair) = match (a.get(i), b.get(k)) {
+                (None, None) => break,
+                (Some(&ja), Some(&jb)) if ja == jb => {
+                    i += 1;
+                    k += 1;
+                    (ja, [wa[i - 1], wb[k - 1]])
+                }
+                (Some(&ja), Some(&jb)) if ja < jb => {
+                    i += 1;
+                    (ja, [wa[i - 1], 0.0])
+                }
+                (Some(&ja), None) => {
+                    i += 1;
+                    (ja, [wa[i - 1], 0.0])
+                }
+                (_, Some(&jb)) => {
+                    k += 1;
+                    (jb, [0.0, wb[k - 1]])
+                }
+            };
+            tables.neighbours.push(j);
+            // Exact: the weights were rounded to f32 above.
+            tables.pairs.push(pair.map(|w| w as f32));
+        }
+        tables.offsets.push(tables.neighbours.len() as u32);
+    }
+    tables
 }
 
 /// Alternative 1's pairs and how many vertices fell below the requested
