@@ -431,18 +431,21 @@ impl EmbeddedSurface {
                     for (k, (xs, ns)) in xs.chunks_mut(2).zip(ns.chunks_mut(2)).enumerate() {
                         let b = first / 2 + k;
                         let range = tables.offsets[b] as usize..tables.offsets[b + 1] as usize;
-                        let mut sums = [[0.0; 12]; 2];
+                        let (mut s0, mut s1) = ([0.0; 12], [0.0; 12]);
                         for (&j, w) in tables.neighbours[range.clone()]
                             .iter()
                             .zip(&tables.pairs[range])
                         {
                             let (w0, w1) = (Real::from(w[0]), Real::from(w[1]));
                             let t = &terms[j as usize];
-                            for k in 0..12 {
-                                sums[0][k] += w0 * t[k];
-                                sums[1][k] += w1 * t[k];
+                            for (s, t) in s0.iter_mut().zip(t) {
+                                *s += w0 * t;
+                            }
+                            for (s, t) in s1.iter_mut().zip(t) {
+                                *s += w1 * t;
                             }
                         }
+                        let sums = [s0, s1];
                         for (i, (x, n)) in xs.iter_mut().zip(ns).enumerate() {
                             (*x, *n) = tables.vertices[2 * b + i].deform(&sums[i], &centre);
                         }
