@@ -11,10 +11,13 @@
 //! - `integrate.rs`, `implicit.rs`: time stepping;
 //! - `hessian.rs`: the assembled Hessian and its sparse Cholesky solve;
 //! - `plasticity.rs`: Eq. 69 and the reference-shape update;
-//! - `contact.rs`: obstacles and walls.
+//! - `contact.rs`: obstacles and walls;
+//! - `embedded.rs`: high-resolution surfaces that follow the particles
+//!   (Section 7.2).
 
 mod contact;
 mod elastic;
+pub mod embedded;
 mod forces;
 mod hessian;
 mod implicit;
