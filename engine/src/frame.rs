@@ -36,6 +36,19 @@ pub struct Frame {
     /// Where each elastic solid's particles sit in `fields` (after the
     /// fluid's), in scene order.
     pub solids: Vec<SolidRange>,
+    /// The deformed surface of every solid that embeds one, in scene
+    /// order.
+    pub solid_surfaces: Vec<SolidSurface>,
+}
+
+/// A solid's embedded surface as deformed in a frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SolidSurface {
+    /// Index of the solid's system in the scene.
+    pub system: usize,
+    pub mesh: TriMesh,
+    /// Unit normal per vertex.
+    pub normals: Vec<crate::math::Vector>,
 }
 
 /// The particles of one solid in a frame: `count` of them from `first`.

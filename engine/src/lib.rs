@@ -24,6 +24,6 @@ pub mod surface;
 mod testing;
 pub mod world;
 
-pub use frame::{BodyPose, FieldData, Frame, SolidRange};
+pub use frame::{BodyPose, FieldData, Frame, SolidRange, SolidSurface};
 pub use scene::{BuildOptions, FieldKind, Scene, SceneError};
 pub use world::{Clock, StepError, StepInfo, World};

@@ -17,7 +17,9 @@ use std::path::Path;
 
 mod solid;
 pub(crate) use solid::build_solid;
-pub use solid::{AnchorSpec, IntegratorKind, SolidSpec, defaults as solid_defaults};
+pub use solid::{
+    AnchorSpec, IntegratorKind, SolidSpec, SolidSurfaceSpec, defaults as solid_defaults,
+};
 
 /// Defaults for every optional scene parameter, shared with the protocol
 /// conversion so both front doors build the same world.

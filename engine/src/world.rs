@@ -5,7 +5,7 @@ use crate::fluid::{
     BodyState, BoxWalls, DfsphParams, Fluid, FluidParams, FluidState, Motion, Oscillation,
     PressureSolver, RigidBodies, RigidBody, Rotation, Slip, Tait,
 };
-use crate::frame::{BodyPose, FieldData, Frame, SolidRange};
+use crate::frame::{BodyPose, FieldData, Frame, SolidRange, SolidSurface};
 use crate::geometry::{Shape, TriMesh};
 use crate::math::{Real, Vector, vector};
 use crate::neighbors::{Periodic, UniformGrid};
@@ -13,6 +13,7 @@ use crate::scene::{
     FieldKind, FluidSpec, MotionKind, RigidBodySpec, Scene, SceneError, ShapeSpec, SlipKind,
     SolverKind, SystemSpec, WallModel, build_solid,
 };
+use crate::solid::embedded::{DeformedSurface, EmbeddedSurface, EmbeddingMethod};
 use crate::solid::{ElasticSolid, Obstacle, SolidState};
 use crate::stats::StageTimer;
 use crate::surface::SurfaceExtractor;
@@ -79,6 +80,8 @@ struct SolidSystem {
     system: usize,
     solid: ElasticSolid,
     backup: SolidState,
+    /// Its embedded surface, when the scene asks for one.
+    surface: Option<EmbeddedSurface>,
 }
 
 /// State of one scene: its systems and clock. Stepped by [`World::step`].
@@ -328,6 +331,7 @@ impl World {
             bodies: self.body_poses(),
             surface: self.surface_mesh(),
             solids: self.solid_ranges(),
+            solid_surfaces: self.solid_surfaces(),
         }
     }
 
@@ -362,6 +366,33 @@ impl World {
                     velocity: b.state.velocity.into(),
                     angular_velocity: b.state.angular_velocity.into(),
                 }
+            })
+            .collect()
+    }
+
+    /// The deformed surface of every solid that embeds one.
+    pub fn solid_surfaces(&self) -> Vec<SolidSurface> {
+        let mut gradients = Vec::new();
+        self.solids
+            .iter()
+            .filter_map(|s| {
+                let surface = s.surface.as_ref()?;
+                if surface.method() == EmbeddingMethod::Gradients {
+                    s.solid.displacement_gradients(&mut gradients);
+                } else {
+                    gradients.clear();
+                }
+                let mut deformed = DeformedSurface::new();
+                // Lengths match by construction: the surface was built
+                // from this solid's particles.
+                surface
+                    .update(&s.solid.positions, &gradients, &mut deformed)
+                    .ok()?;
+                Some(SolidSurface {
+                    system: s.system,
+                    mesh: deformed.to_mesh(surface.triangles()),
+                    normals: deformed.normals,
+                })
             })
             .collect()
     }
@@ -513,11 +544,15 @@ fn build_solids(scene: &Scene, shapes: &[Option<Shape>]) -> Vec<SolidSystem> {
         .zip(shapes)
         .enumerate()
         .filter_map(|(system, (spec, shape))| match (spec, shape) {
-            (SystemSpec::Solid(spec), Some(shape)) => Some(SolidSystem {
-                system,
-                solid: build_solid(spec, shape, dim, walls, obstacles.clone()),
-                backup: SolidState::default(),
-            }),
+            (SystemSpec::Solid(spec), Some(shape)) => {
+                let (solid, surface) = build_solid(spec, shape, dim, walls, obstacles.clone());
+                Some(SolidSystem {
+                    system,
+                    solid,
+                    backup: SolidState::default(),
+                    surface,
+                })
+            }
             _ => None,
         })
         .collect()

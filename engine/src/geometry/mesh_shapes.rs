@@ -82,34 +82,70 @@ impl TriMesh {
             [9, 8, 1],
         ];
         for _ in 0..subdivisions {
-            let mut midpoints: HashMap<(u32, u32), u32> = HashMap::new();
-            let mut midpoint = |a: u32, b: u32, unit: &mut Vec<Vector>| {
-                *midpoints.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                    unit.push((unit[a as usize] + unit[b as usize]).normalize());
-                    (unit.len() - 1) as u32
-                })
-            };
-            triangles = triangles
-                .iter()
-                .flat_map(|&[a, b, c]| {
-                    let ab = midpoint(a, b, &mut unit);
-                    let bc = midpoint(b, c, &mut unit);
-                    let ca = midpoint(c, a, &mut unit);
-                    [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
-                })
-                .collect();
+            triangles = split_faces(&mut unit, &triangles, |a, b| (a + b).normalize());
         }
         TriMesh {
             vertices: unit.iter().map(|u| center + radius * u).collect(),
             triangles,
         }
     }
+
+    /// Every triangle split in four at its edge midpoints, `times` times:
+    /// the same surface (flat faces stay flat) with `4^times` the
+    /// triangles, for meshes that must be finer than their shape needs
+    /// (a surface embedded in a deforming solid).
+    pub fn subdivided(&self, times: u32) -> TriMesh {
+        let mut vertices = self.vertices.clone();
+        let mut triangles = self.triangles.clone();
+        for _ in 0..times {
+            triangles = split_faces(&mut vertices, &triangles, |a, b| 0.5 * (a + b));
+        }
+        TriMesh {
+            vertices,
+            triangles,
+        }
+    }
+}
+
+/// One midpoint subdivision: a vertex `midpoint(a, b)` per edge (shared by
+/// its two triangles), four triangles per triangle, orientation kept.
+fn split_faces(
+    vertices: &mut Vec<Vector>,
+    triangles: &[[u32; 3]],
+    midpoint: impl Fn(Vector, Vector) -> Vector,
+) -> Vec<[u32; 3]> {
+    let mut midpoints: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut middle = |a: u32, b: u32, vertices: &mut Vec<Vector>| {
+        *midpoints.entry((a.min(b), a.max(b))).or_insert_with(|| {
+            vertices.push(midpoint(vertices[a as usize], vertices[b as usize]));
+            (vertices.len() - 1) as u32
+        })
+    };
+    triangles
+        .iter()
+        .flat_map(|&[a, b, c]| {
+            let ab = middle(a, b, vertices);
+            let bc = middle(b, c, vertices);
+            let ca = middle(c, a, vertices);
+            [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+        })
+        .collect()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use std::f64::consts::PI;
+
+    #[test]
+    fn subdividing_keeps_the_surface_and_quadruples_the_triangles() {
+        let cube = TriMesh::cuboid(Vector::new(-1.0, -2.0, 0.0), Vector::new(1.0, 1.0, 0.5));
+        let fine = cube.subdivided(2);
+        assert_eq!(fine.triangles.len(), 16 * cube.triangles.len());
+        assert!((fine.area() - cube.area()).abs() < 1e-12);
+        assert!((fine.signed_volume() - cube.signed_volume()).abs() < 1e-12);
+        assert!(crate::geometry::MeshSolid::new(&fine).is_ok(), "still closed");
+    }
 
     #[test]
     fn cuboid_is_closed_with_the_box_area_and_volume() {

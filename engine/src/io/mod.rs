@@ -78,6 +78,7 @@ pub(crate) mod test_frame {
             bodies: Vec::new(),
             surface: None,
             solids: Vec::new(),
+            solid_surfaces: Vec::new(),
         }
     }
 }

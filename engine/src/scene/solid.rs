@@ -5,6 +5,8 @@ use super::{Aabb, Scene, SceneError, ShapeSpec, check_positive, check_range, che
 use crate::approx::mls::Order;
 use crate::geometry::Shape;
 use crate::math::{Real, Vector, vector};
+use crate::geometry::TriMesh;
+use crate::solid::embedded::{EmbeddedSurface, EmbeddingMethod};
 use crate::solid::{
     ElasticSolid, ImplicitParams, Integrator, Material, Obstacle, Obstacles, Plasticity,
     SolidParams,
@@ -33,6 +35,8 @@ pub mod defaults {
     pub const FRICTION: Real = 0.5;
     /// Explicit steps at half the wave limit.
     pub const CFL: Real = 0.5;
+    /// 3072 triangles on a box, 5120 on a sphere.
+    pub const SURFACE_SUBDIVISIONS: u32 = 4;
 }
 
 /// How a solid advances in time (see [`crate::solid::Integrator`]).
@@ -108,6 +112,34 @@ pub struct SolidSpec {
     /// plastic strain.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub plasticity: Option<Plasticity>,
+    /// A high-resolution surface that follows the particles, carried by
+    /// every frame (3D); none computes no surface.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface: Option<SolidSurfaceSpec>,
+}
+
+/// The surface embedded in a solid (tutorial Section 7.2): the shape's own
+/// surface, a mesh shape's file or a box or sphere tessellated finely,
+/// deformed with the particles.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolidSurfaceSpec {
+    /// `shape_functions` (Alternative 1: per-vertex MLS shape functions,
+    /// precomputed) or `gradients` (Alternative 2, Eq. 68: the particles'
+    /// displacement gradients, less memory).
+    #[serde(default = "default_embedding")]
+    pub method: EmbeddingMethod,
+    /// Midpoint subdivisions of a box's faces (12 * 4^n triangles) or of a
+    /// sphere's icosahedron (20 * 4^n); a mesh shape uses its own mesh.
+    #[serde(default = "default_subdivisions")]
+    pub subdivisions: u32,
+}
+
+fn default_embedding() -> EmbeddingMethod {
+    EmbeddingMethod::ShapeFunctions
+}
+fn default_subdivisions() -> u32 {
+    defaults::SURFACE_SUBDIVISIONS
 }
 
 fn default_density() -> Real {
@@ -152,6 +184,44 @@ impl SolidSpec {
             },
             plasticity: self.plasticity,
         }
+    }
+
+    /// The surface mesh in the world frame at the rest shape: the same
+    /// placement as the particles.
+    pub(crate) fn surface_mesh(&self, shape: &Shape, dim: usize, subdivisions: u32) -> Option<TriMesh> {
+        let local = match shape {
+            Shape::Box { half_extents } => {
+                TriMesh::cuboid(-half_extents, *half_extents).subdivided(subdivisions)
+            }
+            Shape::Sphere { radius } => TriMesh::icosphere(Vector::zeros(), *radius, subdivisions),
+            Shape::Mesh(solid) => solid.mesh().clone(),
+            Shape::Capsule { .. } | Shape::Plane { .. } => return None,
+        };
+        let (centre, rotation) =
+            crate::world::shape_pose(self.position, self.orientation, shape, dim);
+        Some(TriMesh {
+            vertices: local.vertices.iter().map(|v| centre + rotation * v).collect(),
+            triangles: local.triangles,
+        })
+    }
+
+    /// The embedded surface of a solid whose particles rest at `rest`.
+    pub(crate) fn embedded_surface(
+        &self,
+        shape: &Shape,
+        dim: usize,
+        rest: &[Vector],
+    ) -> Option<Result<EmbeddedSurface, String>> {
+        let spec = self.surface.as_ref()?;
+        let Some(mesh) = self.surface_mesh(shape, dim, spec.subdivisions) else {
+            return Some(Err(
+                "a capsule has no surface mesh here; use a box, a sphere or a mesh shape".into(),
+            ));
+        };
+        Some(
+            EmbeddedSurface::new(&mesh, rest, dim, self.support * self.spacing, self.order, spec.method)
+                .map_err(|e| e.to_string()),
+        )
     }
 
     /// Particle positions (world frame) and initial velocities.
@@ -319,6 +389,25 @@ impl Scene {
                 ));
             }
         }
+        if let Some(surface) = &solid.surface {
+            let field = format!("{at}.surface");
+            if dim != 3 {
+                return Err(SceneError::invalid(
+                    field,
+                    "embedded surfaces are 3D only; set dimension = 3 or remove it",
+                ));
+            }
+            if surface.subdivisions > 7 {
+                return Err(SceneError::invalid(
+                    format!("{field}.subdivisions"),
+                    format!("must be in [0, 7] (4^7 times the base triangles), got {}", surface.subdivisions),
+                ));
+            }
+            let rest: Vec<Vector> = particles.iter().map(|(x, _)| *x).collect();
+            if let Some(Err(e)) = solid.embedded_surface(&shape, dim, &rest) {
+                return Err(SceneError::invalid(field, e));
+            }
+        }
         Ok((shape, particles.len()))
     }
 }
@@ -335,7 +424,7 @@ pub(crate) fn build_solid(
     dim: usize,
     walls: (Vector, Vector),
     obstacles: Vec<Obstacle>,
-) -> ElasticSolid {
+) -> (ElasticSolid, Option<EmbeddedSurface>) {
     let (rest, velocities): (Vec<Vector>, Vec<Vector>) =
         spec.particles(shape, dim).into_iter().unzip();
     let fixed = rest
@@ -346,6 +435,12 @@ pub(crate) fn build_solid(
         shapes: obstacles,
         walls: Some(walls),
     };
-    ElasticSolid::new(spec.params(dim), rest, velocities, fixed, obstacles)
-        .expect("validated by Scene::validate")
+    // Validated by Scene::validate: a surface that cannot be embedded was
+    // refused there.
+    let surface = spec
+        .embedded_surface(shape, dim, &rest)
+        .and_then(Result::ok);
+    let solid = ElasticSolid::new(spec.params(dim), rest, velocities, fixed, obstacles)
+        .expect("validated by Scene::validate");
+    (solid, surface)
 }
