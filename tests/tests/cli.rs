@@ -368,7 +368,11 @@ async fn solid_study_writes_the_cantilever_error() {
     ])
     .await;
     let csv = std::fs::read_to_string(dir.0.join("study_solid_spacing.csv")).expect("csv");
-    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|r| r.split(',').collect()).collect();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|r| r.split(',').collect())
+        .collect();
     assert_eq!(rows.len(), 2, "{csv}");
     let errors: Vec<f64> = rows
         .iter()
