@@ -472,11 +472,12 @@ fn implicit_from_proto(
             Ok(v1::LinearSolver::Unspecified) => defaults.linear_solver,
             Ok(v1::LinearSolver::Cholesky) => LinearSolver::Cholesky,
             Ok(v1::LinearSolver::ConjugateGradient) => LinearSolver::ConjugateGradient,
+            Ok(v1::LinearSolver::Auto) => LinearSolver::Auto,
             Err(_) => {
                 return Err(ServiceError::invalid(
                     format!("{field}.implicit.linear_solver"),
                     format!(
-                        "unknown linear solver {linear_solver}; use cholesky or conjugate_gradient"
+                        "unknown linear solver {linear_solver}; use auto, cholesky or conjugate_gradient"
                     ),
                 ));
             }
@@ -500,6 +501,7 @@ fn to_implicit(params: &ImplicitParams) -> v1::ImplicitSettings {
         linear_solver: match linear_solver {
             LinearSolver::Cholesky => v1::LinearSolver::Cholesky,
             LinearSolver::ConjugateGradient => v1::LinearSolver::ConjugateGradient,
+            LinearSolver::Auto => v1::LinearSolver::Auto,
         } as i32,
     }
 }

@@ -20,7 +20,7 @@
 use super::elastic::ElasticSolid;
 use super::forces::Split;
 use super::hessian::DirectSolver;
-use super::params::{ImplicitParams, LinearSolver};
+use super::params::ImplicitParams;
 use crate::math::{Real, Vector};
 use rayon::prelude::*;
 
@@ -134,10 +134,11 @@ impl ElasticSolid {
                 break;
             }
             report.newton += 1;
-            let direct = settings.linear_solver == LinearSolver::Cholesky
-                && self.direct_direction(dt, &mut b.direct, &b.gradient, &mut b.direction);
+            let factorises = settings.linear_solver.factorises(self.params.dim);
+            let direct =
+                factorises && self.direct_direction(dt, &mut b.direct, &b.gradient, &mut b.direction);
             if !direct {
-                report.fallbacks += u32::from(settings.linear_solver == LinearSolver::Cholesky);
+                report.fallbacks += u32::from(factorises);
                 report.cg += self.cg_direction(dt, settings, &mut b);
             }
             if !self.line_search(dt, gravity, phi, &mut b) {
