@@ -144,7 +144,10 @@ mod tests {
         assert_eq!(fine.triangles.len(), 16 * cube.triangles.len());
         assert!((fine.area() - cube.area()).abs() < 1e-12);
         assert!((fine.signed_volume() - cube.signed_volume()).abs() < 1e-12);
-        assert!(crate::geometry::MeshSolid::new(&fine).is_ok(), "still closed");
+        assert!(
+            crate::geometry::MeshSolid::new(&fine).is_ok(),
+            "still closed"
+        );
     }
 
     #[test]

@@ -4,8 +4,8 @@
 use super::{Aabb, Scene, SceneError, ShapeSpec, check_positive, check_range, check_vector};
 use crate::approx::mls::Order;
 use crate::geometry::Shape;
-use crate::math::{Real, Vector, vector};
 use crate::geometry::TriMesh;
+use crate::math::{Real, Vector, vector};
 use crate::solid::embedded::{EmbeddedSurface, EmbeddingMethod};
 use crate::solid::{
     ElasticSolid, ImplicitParams, Integrator, Material, Obstacle, Obstacles, Plasticity,
@@ -188,7 +188,12 @@ impl SolidSpec {
 
     /// The surface mesh in the world frame at the rest shape: the same
     /// placement as the particles.
-    pub(crate) fn surface_mesh(&self, shape: &Shape, dim: usize, subdivisions: u32) -> Option<TriMesh> {
+    pub(crate) fn surface_mesh(
+        &self,
+        shape: &Shape,
+        dim: usize,
+        subdivisions: u32,
+    ) -> Option<TriMesh> {
         let local = match shape {
             Shape::Box { half_extents } => {
                 TriMesh::cuboid(-half_extents, *half_extents).subdivided(subdivisions)
@@ -200,7 +205,11 @@ impl SolidSpec {
         let (centre, rotation) =
             crate::world::shape_pose(self.position, self.orientation, shape, dim);
         Some(TriMesh {
-            vertices: local.vertices.iter().map(|v| centre + rotation * v).collect(),
+            vertices: local
+                .vertices
+                .iter()
+                .map(|v| centre + rotation * v)
+                .collect(),
             triangles: local.triangles,
         })
     }
@@ -219,8 +228,15 @@ impl SolidSpec {
             ));
         };
         Some(
-            EmbeddedSurface::new(&mesh, rest, dim, self.support * self.spacing, self.order, spec.method)
-                .map_err(|e| e.to_string()),
+            EmbeddedSurface::new(
+                &mesh,
+                rest,
+                dim,
+                self.support * self.spacing,
+                self.order,
+                spec.method,
+            )
+            .map_err(|e| e.to_string()),
         )
     }
 
@@ -400,7 +416,10 @@ impl Scene {
             if surface.subdivisions > 7 {
                 return Err(SceneError::invalid(
                     format!("{field}.subdivisions"),
-                    format!("must be in [0, 7] (4^7 times the base triangles), got {}", surface.subdivisions),
+                    format!(
+                        "must be in [0, 7] (4^7 times the base triangles), got {}",
+                        surface.subdivisions
+                    ),
                 ));
             }
             let rest: Vec<Vector> = particles.iter().map(|(x, _)| *x).collect();
