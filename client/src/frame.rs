@@ -15,44 +15,61 @@ pub struct FieldView {
 }
 
 /// A decoded surface mesh: counter-clockwise triangles facing out of the
-/// fluid.
+/// fluid or solid.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SurfaceView {
     pub vertices: Vec<[f32; 3]>,
     pub triangles: Vec<[u32; 3]>,
+    /// Unit normal per vertex; empty for the fluid's surface.
+    pub normals: Vec<[f32; 3]>,
 }
 
 impl SurfaceView {
     /// Unpacks a surface message.
     ///
     /// # Errors
-    /// [`ClientError::Decode`] when a byte count is not whole vertices or
-    /// triangles, or a triangle names a vertex that does not exist.
+    /// [`ClientError::Decode`] when a byte count is not whole vertices,
+    /// normals or triangles, there are normals but not one per vertex, or
+    /// a triangle names a vertex that does not exist.
     pub fn from_proto(surface: v1::SurfaceMesh) -> Result<Self, ClientError> {
         let v1::SurfaceMesh {
             vertices,
             triangles,
+            normals,
         } = surface;
-        if vertices.len() % 12 != 0 || triangles.len() % 12 != 0 {
+        if vertices.len() % 12 != 0 || triangles.len() % 12 != 0 || normals.len() % 12 != 0 {
             return Err(ClientError::Decode(format!(
-                "surface has {} vertex bytes and {} triangle bytes; both must be multiples of 12",
+                "surface has {} vertex bytes, {} triangle bytes and {} normal bytes; \
+                 each must be a multiple of 12",
                 vertices.len(),
-                triangles.len()
+                triangles.len(),
+                normals.len()
             )));
         }
-        let words = |bytes: &[u8]| -> Vec<[u8; 4]> {
+        if !normals.is_empty() && normals.len() != vertices.len() {
+            return Err(ClientError::Decode(format!(
+                "surface has {} normals for {} vertices; it needs one per vertex or none",
+                normals.len() / 12,
+                vertices.len() / 12
+            )));
+        }
+        let triples = |bytes: &[u8]| -> Vec<[[u8; 4]; 3]> {
             bytes
-                .chunks_exact(4)
-                .map(|c| [c[0], c[1], c[2], c[3]])
+                .chunks_exact(12)
+                .map(|c| [0, 4, 8].map(|o| [c[o], c[o + 1], c[o + 2], c[o + 3]]))
                 .collect()
         };
-        let vertices: Vec<[f32; 3]> = words(&vertices)
-            .chunks_exact(3)
-            .map(|v| [0, 1, 2].map(|c| f32::from_le_bytes(v[c])))
-            .collect();
-        let triangles: Vec<[u32; 3]> = words(&triangles)
-            .chunks_exact(3)
-            .map(|t| [0, 1, 2].map(|c| u32::from_le_bytes(t[c])))
+        let floats = |bytes: &[u8]| -> Vec<[f32; 3]> {
+            triples(bytes)
+                .into_iter()
+                .map(|v| v.map(f32::from_le_bytes))
+                .collect()
+        };
+        let vertices = floats(&vertices);
+        let normals = floats(&normals);
+        let triangles: Vec<[u32; 3]> = triples(&triangles)
+            .into_iter()
+            .map(|t| t.map(u32::from_le_bytes))
             .collect();
         if let Some(t) = triangles
             .iter()
@@ -67,7 +84,40 @@ impl SurfaceView {
         Ok(Self {
             vertices,
             triangles,
+            normals,
         })
+    }
+}
+
+/// A solid's embedded surface as deformed in a frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SolidSurfaceView {
+    /// Index of the solid's system in the scene.
+    pub system: u32,
+    /// Carries a unit normal per vertex.
+    pub mesh: SurfaceView,
+}
+
+impl SolidSurfaceView {
+    /// Unpacks a solid surface message.
+    ///
+    /// # Errors
+    /// [`ClientError::Decode`] when the mesh is missing or inconsistent,
+    /// or lacks its normals.
+    pub fn from_proto(surface: v1::SolidSurface) -> Result<Self, ClientError> {
+        let v1::SolidSurface { system, mesh } = surface;
+        let mesh = mesh
+            .ok_or_else(|| ClientError::Decode(format!("solid {system}'s surface has no mesh")))
+            .and_then(SurfaceView::from_proto)
+            .map_err(|e| ClientError::Decode(format!("solid {system}: {e}")))?;
+        if mesh.normals.len() != mesh.vertices.len() {
+            return Err(ClientError::Decode(format!(
+                "solid {system}'s surface has {} normals for {} vertices; it needs one per vertex",
+                mesh.normals.len(),
+                mesh.vertices.len()
+            )));
+        }
+        Ok(Self { system, mesh })
     }
 }
 
@@ -92,6 +142,9 @@ pub struct FrameView {
     /// Where each elastic solid's particles sit in `fields` (after the
     /// fluid's), in scene order; empty without solids.
     pub solids: Vec<v1::SolidRange>,
+    /// The deformed surface of every solid that embeds one, in scene
+    /// order.
+    pub solid_surfaces: Vec<SolidSurfaceView>,
 }
 
 impl FrameView {
@@ -109,7 +162,8 @@ impl FrameView {
     /// # Errors
     /// [`ClientError::Decode`] for a missing header, an unknown scalar
     /// type, a field whose size does not match the particle count, a
-    /// solid's range past the last particle, or an inconsistent surface.
+    /// solid's range past the last particle, or an inconsistent surface
+    /// (the fluid's or a solid's).
     pub fn from_proto(frame: v1::Frame) -> Result<Self, ClientError> {
         let v1::Frame {
             header,
@@ -117,6 +171,7 @@ impl FrameView {
             bodies,
             surface,
             solids,
+            solid_surfaces,
         } = frame;
         let v1::FrameHeader {
             session_id,
@@ -189,6 +244,10 @@ impl FrameView {
             bodies,
             surface: surface.map(SurfaceView::from_proto).transpose()?,
             solids,
+            solid_surfaces: solid_surfaces
+                .into_iter()
+                .map(SolidSurfaceView::from_proto)
+                .collect::<Result<_, _>>()?,
         })
     }
 
@@ -226,6 +285,7 @@ mod tests {
             bodies: Vec::new(),
             surface: None,
             solids: Vec::new(),
+            solid_surfaces: Vec::new(),
         }
     }
 
@@ -278,6 +338,7 @@ mod tests {
                 f32::to_le_bytes,
             ),
             triangles: le(&[0u32, 1, 2], u32::to_le_bytes),
+            normals: Vec::new(),
         });
         let surface = FrameView::from_proto(frame.clone())
             .expect("valid")
@@ -293,5 +354,57 @@ mod tests {
         let mut bad = frame;
         bad.surface.as_mut().expect("surface").vertices.pop();
         assert!(FrameView::from_proto(bad).is_err());
+    }
+
+    #[test]
+    fn solid_surfaces_decode_with_normals_and_are_checked() {
+        let mut frame = wire(2, 8);
+        let mesh = v1::SurfaceMesh {
+            vertices: le(
+                &[0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+                f32::to_le_bytes,
+            ),
+            triangles: le(&[0u32, 1, 2], u32::to_le_bytes),
+            normals: le(
+                &[0.0f32, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.6, 0.8],
+                f32::to_le_bytes,
+            ),
+        };
+        frame.solid_surfaces = vec![v1::SolidSurface {
+            system: 1,
+            mesh: Some(mesh),
+        }];
+        let decoded = FrameView::decode(&frame.encode_to_vec()).expect("valid");
+        let [surface] = &decoded.solid_surfaces[..] else {
+            panic!("one solid surface")
+        };
+        assert_eq!(surface.system, 1);
+        assert_eq!(surface.mesh.normals[2], [0.0, 0.6, 0.8]);
+        assert_eq!(surface.mesh.vertices[1], [1.0, 0.0, 0.0]);
+
+        fn mesh_of(frame: &mut v1::Frame) -> &mut v1::SurfaceMesh {
+            frame.solid_surfaces[0].mesh.as_mut().expect("mesh")
+        }
+        let mut bad = frame.clone();
+        mesh_of(&mut bad).normals.truncate(24);
+        let err = FrameView::from_proto(bad).expect_err("2 normals for 3 vertices");
+        assert!(
+            err.to_string().contains("2 normals for 3 vertices"),
+            "{err}"
+        );
+        let mut bad = frame.clone();
+        mesh_of(&mut bad).normals.clear();
+        let err = FrameView::from_proto(bad).expect_err("a solid needs normals");
+        assert!(err.to_string().contains("solid 1"), "{err}");
+        let mut bad = frame.clone();
+        mesh_of(&mut bad).normals.pop();
+        assert!(FrameView::from_proto(bad).is_err(), "not whole normals");
+        let mut bad = frame.clone();
+        mesh_of(&mut bad).triangles = le(&[0u32, 1, 7], u32::to_le_bytes);
+        let err = FrameView::from_proto(bad).expect_err("vertex 7 does not exist");
+        assert!(err.to_string().contains("3 vertices"), "{err}");
+        let mut bad = frame;
+        bad.solid_surfaces[0].mesh = None;
+        assert!(FrameView::from_proto(bad).is_err(), "no mesh");
     }
 }

@@ -31,6 +31,6 @@ mod link;
 
 pub use client::Client;
 pub use error::ClientError;
-pub use frame::{FieldView, FrameView, SurfaceView};
+pub use frame::{FieldView, FrameView, SolidSurfaceView, SurfaceView};
 pub use link::{Frames, Statuses, ZenohLink};
 pub use meshless_proto::v1;

@@ -6,13 +6,16 @@ use crate::error::ServiceError;
 use meshless_engine::approx::KernelKind;
 use meshless_engine::approx::mls::Order;
 use meshless_engine::fluid::ViscosityModel;
+use meshless_engine::geometry::TriMesh;
+use meshless_engine::math::Vector;
 use meshless_engine::scene::{
     Aabb, FluidBlock, FluidSpec, IntegratorKind, MotionKind, OscillationSpec, OutputSpec,
-    ParticleSpec, RigidBodySpec, ShapeSpec, SlipKind, SolidSpec, SolverKind, SurfaceSpec,
-    SystemSpec, TimeSpec, WallModel, defaults, solid_defaults,
+    ParticleSpec, RigidBodySpec, ShapeSpec, SlipKind, SolidSpec, SolidSurfaceSpec, SolverKind,
+    SurfaceSpec, SystemSpec, TimeSpec, WallModel, defaults, solid_defaults,
 };
+use meshless_engine::solid::embedded::EmbeddingMethod;
 use meshless_engine::solid::{ImplicitParams, LinearSolver, Plasticity};
-use meshless_engine::{FieldKind, Frame, Scene, SolidRange};
+use meshless_engine::{FieldKind, Frame, Scene, SolidRange, SolidSurface};
 use meshless_proto::v1;
 
 type Result<T> = std::result::Result<T, ServiceError>;
@@ -447,6 +450,27 @@ fn to_integrator_kind(integrator: IntegratorKind) -> v1::SolidIntegrator {
     }
 }
 
+/// Engine embedding method of a proto enum value; unset gives shape
+/// functions, the scene file's default.
+fn embedding_method(value: Option<i32>, field: &str) -> Result<EmbeddingMethod> {
+    match value.map(v1::EmbeddingMethod::try_from) {
+        None => Ok(EmbeddingMethod::ShapeFunctions),
+        Some(Ok(v1::EmbeddingMethod::ShapeFunctions)) => Ok(EmbeddingMethod::ShapeFunctions),
+        Some(Ok(v1::EmbeddingMethod::Gradients)) => Ok(EmbeddingMethod::Gradients),
+        Some(Ok(v1::EmbeddingMethod::Unspecified) | Err(_)) => Err(ServiceError::invalid(
+            field,
+            format!("unknown embedding method {value:?}; use shape_functions or gradients"),
+        )),
+    }
+}
+
+fn to_embedding_method(method: EmbeddingMethod) -> v1::EmbeddingMethod {
+    match method {
+        EmbeddingMethod::ShapeFunctions => v1::EmbeddingMethod::ShapeFunctions,
+        EmbeddingMethod::Gradients => v1::EmbeddingMethod::Gradients,
+    }
+}
+
 /// Implicit settings with each unset field at the engine's default.
 fn implicit_from_proto(
     settings: Option<v1::ImplicitSettings>,
@@ -528,7 +552,20 @@ fn solid_from_proto(solid: v1::SolidSpec, field: &str) -> Result<SolidSpec> {
         angular_velocity,
         anchors,
         plasticity,
+        surface,
     } = solid;
+    let surface = surface
+        .map(|surface| {
+            let v1::SolidSurfaceSpec {
+                method,
+                subdivisions,
+            } = surface;
+            Ok::<_, ServiceError>(SolidSurfaceSpec {
+                method: embedding_method(method, &format!("{field}.surface.method"))?,
+                subdivisions: subdivisions.unwrap_or(solid_defaults::SURFACE_SUBDIVISIONS),
+            })
+        })
+        .transpose()?;
     let anchors = anchors
         .into_iter()
         .enumerate()
@@ -569,6 +606,7 @@ fn solid_from_proto(solid: v1::SolidSpec, field: &str) -> Result<SolidSpec> {
         angular_velocity: angular_velocity.map_or([0.0; 3], vec3),
         anchors,
         plasticity,
+        surface,
     })
 }
 
@@ -596,6 +634,7 @@ fn to_solid(solid: &SolidSpec) -> v1::SolidSpec {
         angular_velocity,
         anchors,
         plasticity,
+        surface,
     } = solid;
     v1::SolidSpec {
         shape: Some(to_shape(shape)),
@@ -629,6 +668,16 @@ fn to_solid(solid: &SolidSpec) -> v1::SolidSpec {
                 creep,
                 max,
                 rebase,
+            }
+        }),
+        surface: surface.as_ref().map(|surface| {
+            let SolidSurfaceSpec {
+                method,
+                subdivisions,
+            } = *surface;
+            v1::SolidSurfaceSpec {
+                method: Some(to_embedding_method(method) as i32),
+                subdivisions: Some(subdivisions),
             }
         }),
     }
@@ -846,19 +895,45 @@ pub fn frame_to_proto(session_id: &str, frame: &Frame) -> v1::Frame {
                 }
             })
             .collect(),
-        surface: frame.surface.as_ref().map(|mesh| v1::SurfaceMesh {
-            vertices: mesh
-                .vertices
-                .iter()
-                .flat_map(|v| v.iter().flat_map(|&c| (c as f32).to_le_bytes()))
-                .collect(),
-            triangles: mesh
-                .triangles
-                .iter()
-                .flat_map(|t| t.iter().flat_map(|i| i.to_le_bytes()))
-                .collect(),
-        }),
+        surface: frame
+            .surface
+            .as_ref()
+            .map(|mesh| to_surface_mesh(mesh, &[])),
         solids: frame.solids.iter().map(to_solid_range).collect(),
+        solid_surfaces: frame.solid_surfaces.iter().map(to_solid_surface).collect(),
+    }
+}
+
+/// Packed little-endian f32 vectors, three per entry.
+fn pack_vectors(vectors: &[Vector]) -> Vec<u8> {
+    vectors
+        .iter()
+        .flat_map(|v| v.iter().flat_map(|&c| (c as f32).to_le_bytes()))
+        .collect()
+}
+
+/// A mesh on the wire; `normals` empty sends none (the fluid's surface).
+fn to_surface_mesh(mesh: &TriMesh, normals: &[Vector]) -> v1::SurfaceMesh {
+    v1::SurfaceMesh {
+        vertices: pack_vectors(&mesh.vertices),
+        triangles: mesh
+            .triangles
+            .iter()
+            .flat_map(|t| t.iter().flat_map(|i| i.to_le_bytes()))
+            .collect(),
+        normals: pack_vectors(normals),
+    }
+}
+
+fn to_solid_surface(surface: &SolidSurface) -> v1::SolidSurface {
+    let SolidSurface {
+        system,
+        mesh,
+        normals,
+    } = surface;
+    v1::SolidSurface {
+        system: *system as u32,
+        mesh: Some(to_surface_mesh(mesh, normals)),
     }
 }
 
@@ -960,6 +1035,46 @@ mod tests {
             assert_eq!(back, scene, "{name}");
         }
 
+        // A surface crosses with its method and subdivisions, and frames
+        // carry it deformed, with a normal per vertex.
+        let mut scene = shipped("jelly_drop.toml");
+        let SystemSpec::Solid(solid) = &mut scene.systems[0] else {
+            panic!("the jelly is a solid")
+        };
+        solid.surface = Some(SolidSurfaceSpec {
+            method: EmbeddingMethod::Gradients,
+            subdivisions: 2,
+        });
+        let back = scene_from_proto(scene_to_proto(&scene)).expect("round trip");
+        assert_eq!(back, scene);
+        let frame = back.build(&BuildOptions::default()).expect("valid").frame();
+        let [surface] = &frame.solid_surfaces[..] else {
+            panic!("one solid surface")
+        };
+        let wire = frame_to_proto("s", &frame);
+        let [
+            v1::SolidSurface {
+                system: 0,
+                mesh: Some(mesh),
+            },
+        ] = &wire.solid_surfaces[..]
+        else {
+            panic!(
+                "the jelly's surface on the wire: {:?}",
+                wire.solid_surfaces.len()
+            )
+        };
+        assert_eq!(mesh.vertices.len(), 12 * surface.mesh.vertices.len());
+        assert_eq!(mesh.normals.len(), mesh.vertices.len());
+        assert_eq!(mesh.triangles.len(), 12 * surface.mesh.triangles.len());
+        let last = surface.normals.len() - 1;
+        let ny = f32::from_le_bytes(
+            mesh.normals[12 * last + 4..12 * last + 8]
+                .try_into()
+                .expect("4 bytes"),
+        );
+        assert_eq!(ny, surface.normals[last].y as f32);
+
         let mut scene = shipped("jelly_drop.toml");
         let SystemSpec::Solid(solid) = &mut scene.systems[0] else {
             panic!("the jelly is a solid")
@@ -997,6 +1112,8 @@ mod tests {
                 max: 0.5,
                 rebase: Some(0.3),
             }),
+            // A capsule has no surface to embed; the jelly's crossed above.
+            surface: None,
             ..solid.clone()
         };
         let back = scene_from_proto(scene_to_proto(&scene)).expect("round trip");
@@ -1038,6 +1155,7 @@ mod tests {
             position = [0.5, 0.5, 0.5]
             spacing = 0.05
             young = 1.0e5
+            surface = {}
         "#;
         let scene = Scene::from_toml_str(toml).expect("valid");
         let mut spec = scene_to_proto(&scene);
@@ -1048,10 +1166,12 @@ mod tests {
             position: Some(to_vec3([0.5; 3])),
             spacing: 0.05,
             young: 1.0e5,
+            surface: Some(v1::SolidSurfaceSpec::default()),
             ..Default::default()
         }));
         assert_eq!(scene_from_proto(spec.clone()).expect("valid"), scene);
 
+        let mut no_method = spec.clone();
         let v1::SystemSpec {
             kind: Some(v1::system_spec::Kind::Solid(solid)),
         } = &mut spec.systems[0]
@@ -1061,6 +1181,22 @@ mod tests {
         solid.order = Some(v1::MlsOrder::Unspecified as i32);
         let err = scene_from_proto(spec).expect_err("no order");
         assert!(err.to_string().starts_with("systems[0].order:"), "{err}");
+
+        let v1::SystemSpec {
+            kind: Some(v1::system_spec::Kind::Solid(solid)),
+        } = &mut no_method.systems[0]
+        else {
+            panic!("a solid")
+        };
+        solid.surface = Some(v1::SolidSurfaceSpec {
+            method: Some(v1::EmbeddingMethod::Unspecified as i32),
+            subdivisions: None,
+        });
+        let err = scene_from_proto(no_method).expect_err("no method");
+        assert!(
+            err.to_string().starts_with("systems[0].surface.method:"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -1096,6 +1232,7 @@ mod tests {
         assert_eq!(x0, frame.fields[0].values[0]);
         assert_eq!(wire.header.expect("header").fields.len(), wire.fields.len());
         assert_eq!(wire.surface, None, "no surface unless the scene asks");
+        assert!(wire.solid_surfaces.is_empty());
     }
 
     /// A surface request crosses with its default cell made explicit, and
@@ -1127,6 +1264,10 @@ mod tests {
         let mesh = frame.surface.as_ref().expect("a surface");
         let wire = frame_to_proto("s", &frame).surface.expect("on the wire");
         assert_eq!(wire.vertices.len(), 12 * mesh.vertices.len());
+        assert!(
+            wire.normals.is_empty(),
+            "the fluid's surface has no normals"
+        );
         assert_eq!(wire.triangles.len(), 12 * mesh.triangles.len());
         let last = mesh.vertices.len() - 1;
         let z = f32::from_le_bytes(

@@ -356,6 +356,38 @@ async fn bad_solids_are_invalid_arguments_naming_the_field() {
                 });
             }),
         ),
+        (
+            "systems[1].surface.method",
+            Box::new(|s| {
+                solid(s).surface = Some(v1::SolidSurfaceSpec {
+                    method: Some(99),
+                    subdivisions: None,
+                });
+            }),
+        ),
+        (
+            "systems[1].surface.subdivisions",
+            Box::new(|s| {
+                solid(s).surface = Some(v1::SolidSurfaceSpec {
+                    method: None,
+                    subdivisions: Some(8),
+                });
+            }),
+        ),
+        (
+            // A capsule has no surface mesh to embed.
+            "systems[1].surface",
+            Box::new(|s| {
+                let solid = solid(s);
+                solid.shape = Some(v1::Shape {
+                    kind: Some(v1::shape::Kind::Capsule(v1::CapsuleShape {
+                        half_length: 0.04,
+                        radius: 0.06,
+                    })),
+                });
+                solid.surface = Some(v1::SolidSurfaceSpec::default());
+            }),
+        ),
     ];
     for (field, break_it) in cases {
         let mut bad = spec.clone();
@@ -366,6 +398,33 @@ async fn bad_solids_are_invalid_arguments_naming_the_field() {
             field,
         );
     }
+    // Embedded surfaces are 3D only.
+    let flat = r#"
+dimension = 2
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [1.0, 1.0, 0.0]
+[time]
+dt = 0.01
+[[systems]]
+kind = "solid"
+shape = { type = "box", half_extents = [0.1, 0.1, 0.0] }
+position = [0.5, 0.5, 0.0]
+spacing = 0.04
+young = 1.0e5
+surface = {}
+"#;
+    expect_code(
+        within("2D surface", client.create_session_toml(flat)).await,
+        Code::InvalidArgument,
+        "systems[0].surface: embedded surfaces are 3D only",
+    );
+    within(
+        "2D solid",
+        client.create_session_toml(&flat.replace("surface = {}\n", "")),
+    )
+    .await
+    .expect("the same solid without a surface is valid");
 
     // A solid that blows up (a stiff one, hanging from a corner so that it
     // strains, forced into one sub-step per step) faults its session,

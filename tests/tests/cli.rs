@@ -121,8 +121,9 @@ async fn run_writes_surfaces_beside_the_frames() {
 }
 
 /// The shipped jelly drop (an elastic solid and a static ball, no fluid)
-/// runs embedded: the summary counts the solid's particles and the PLY
-/// frames hold every one of them, finite.
+/// runs embedded: the summary counts the solid's particles, the PLY
+/// frames hold every one of them, finite, and the solid's embedded
+/// surface lands beside each frame as an OBJ with a normal per vertex.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn run_writes_the_particles_of_a_shipped_solid_scene() {
     let dir = TempDir::new("solid");
@@ -143,8 +144,33 @@ async fn run_writes_the_particles_of_a_shipped_solid_scene() {
         stdout.contains("particles         216  (0 fluid, 216 in 1 solid)"),
         "{stdout}"
     );
-    let expected: Vec<_> = (0..=5).map(|s| format!("frame_{s:06}.ply")).collect();
+    assert!(stdout.contains("solid*_*.obj  (6 files"), "{stdout}");
+    let mut expected: Vec<_> = (0..=5).map(|s| format!("frame_{s:06}.ply")).collect();
+    expected.extend((0..=5).map(|s| format!("solid0_{s:06}.obj")));
     assert_eq!(listing(&out), expected);
+    let mut counts = Vec::new();
+    for step in [0, 5] {
+        let obj = std::fs::read_to_string(out.join(format!("solid0_{step:06}.obj")))
+            .expect("surface file");
+        let lines = |tag: &str| obj.lines().filter(|l| l.starts_with(tag)).count();
+        let (v, vn, f) = (lines("v "), lines("vn "), lines("f "));
+        // A closed surface of the sphere's topology: V - E + F = 2 with
+        // E = 3F / 2.
+        assert!(
+            v > 216 && vn == v && f == 2 * v - 4,
+            "step {step}: {v} {vn} {f}"
+        );
+        let face = obj.lines().find(|l| l.starts_with("f ")).expect("a face");
+        assert!(
+            face.split_whitespace().skip(1).all(|w| {
+                let (a, b) = w.split_once("//").expect("v//vn");
+                a == b
+            }),
+            "{face}"
+        );
+        counts.push((v, f));
+    }
+    assert_eq!(counts[0], counts[1], "the surface keeps its mesh");
     let ply = std::fs::read(out.join("frame_000005.ply")).expect("frame file");
     let header = b"end_header\n";
     let body = ply

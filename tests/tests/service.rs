@@ -295,7 +295,8 @@ async fn frames_carry_the_surface_the_scene_asks_for() {
     link.close().await;
 }
 
-/// The small tank plus an elastic cube in the air away from the water.
+/// The small tank plus an elastic cube in the air away from the water,
+/// embedding a surface of 12 * 4^2 triangles.
 fn tank_and_solid() -> String {
     small_scene()
         + r#"
@@ -305,7 +306,20 @@ shape = { type = "box", half_extents = [0.08, 0.08, 0.08] }
 position = [0.35, 0.35, 0.35]
 spacing = 0.04
 young = 1.0e5
+surface = { subdivisions = 2 }
 "#
+}
+
+/// Mean height of a solid surface's vertices, after checking its normals
+/// are unit length and one per vertex.
+fn surface_height(surface: &meshless_client::SolidSurfaceView) -> f64 {
+    let mesh = &surface.mesh;
+    assert_eq!(mesh.normals.len(), mesh.vertices.len());
+    for n in &mesh.normals {
+        let norm = n.iter().map(|c| c * c).sum::<f32>().sqrt();
+        assert!((norm - 1.0).abs() < 1e-4, "normal {n:?}");
+    }
+    mesh.vertices.iter().map(|v| f64::from(v[1])).sum::<f64>() / mesh.vertices.len() as f64
 }
 
 /// The solid's rows of a frame: its range, checked against the frame.
@@ -328,8 +342,10 @@ fn solid_heights(frame: &FrameView, fluid: usize) -> Vec<f32> {
 
 /// An elastic solid created over gRPC streams over zenoh like the fluid:
 /// frames list its particles after the fluid's, `solids` says where, its
-/// requested fields come along, and gravity moves it; the scene echo
-/// carries its parameters with the defaults made explicit.
+/// requested fields come along, and gravity moves it, its embedded surface
+/// with it (at rest, bit for bit the engine's in-process mesh; over zenoh
+/// and gRPC alike); the scene echo carries its parameters with the
+/// defaults made explicit.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn solids_stream_frames_whose_ranges_cover_their_particles() {
     let server = ServerProcess::spawn(&[]).await.expect("server starts");
@@ -347,6 +363,14 @@ async fn solids_stream_frames_whose_ranges_cover_their_particles() {
     assert_eq!(solid.young, 1.0e5);
     assert_eq!(solid.poisson, Some(0.3), "the default, made explicit");
     assert_eq!(solid.order, Some(v1::MlsOrder::Linear as i32));
+    assert_eq!(
+        solid.surface,
+        Some(v1::SolidSurfaceSpec {
+            method: Some(v1::EmbeddingMethod::ShapeFunctions as i32),
+            subdivisions: Some(2),
+        }),
+        "the default method, made explicit"
+    );
     let particles = session.particle_count as usize;
     let fluid = 125;
     assert_eq!(particles, fluid + 4 * 4 * 4, "4 spacings across the cube");
@@ -363,6 +387,26 @@ async fn solids_stream_frames_whose_ranges_cover_their_particles() {
         .expect("frame 0");
     let before = solid_heights(&start, fluid);
     assert_eq!(before.len(), particles - fluid);
+    let rest = meshless_engine::Scene::from_toml_str(&tank_and_solid())
+        .and_then(|s| s.build(&meshless_engine::BuildOptions::default()))
+        .expect("a valid scene")
+        .solid_surfaces();
+    let [expected] = &rest[..] else {
+        panic!("the engine embeds one surface")
+    };
+    let [surface_before] = &start.solid_surfaces[..] else {
+        panic!("one solid surface over zenoh: {:?}", start.solid_surfaces)
+    };
+    assert_eq!(surface_before.system, 1);
+    assert_eq!(surface_before.mesh.triangles, expected.mesh.triangles);
+    assert_eq!(surface_before.mesh.triangles.len(), 12 * 16);
+    let f32s = |v: &[meshless_engine::math::Vector]| -> Vec<[f32; 3]> {
+        v.iter()
+            .map(|v| [v.x as f32, v.y as f32, v.z as f32])
+            .collect()
+    };
+    assert_eq!(surface_before.mesh.vertices, f32s(&expected.mesh.vertices));
+    assert_eq!(surface_before.mesh.normals, f32s(&expected.normals));
 
     within("step", client.step(&session.id, 5))
         .await
@@ -380,6 +424,15 @@ async fn solids_stream_frames_whose_ranges_cover_their_particles() {
         "the solid's centre fell {drop} m, free fall {free_fall} m"
     );
     assert!(before.iter().zip(&after).all(|(b, a)| a < b));
+    let [surface_after] = &last.solid_surfaces[..] else {
+        panic!("one solid surface in every frame")
+    };
+    assert_eq!(surface_after.mesh.triangles, surface_before.mesh.triangles);
+    let surface_drop = surface_height(surface_before) - surface_height(surface_after);
+    assert!(
+        (surface_drop / drop - 1.0).abs() < 0.05,
+        "the surface fell {surface_drop} m, the particles {drop} m"
+    );
 
     let over_grpc = within("latest over gRPC", client.latest_frame(&session.id))
         .await

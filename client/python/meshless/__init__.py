@@ -8,7 +8,7 @@ parsing. :class:`Client` drives a server over gRPC and :class:`Frames`
 subscribes to a session's frames.
 """
 
-from .frames import Body, Frame, SolidRange, Surface, decode_frame, frames_key, latest_key, status_key
+from .frames import Body, Frame, SolidRange, SolidSurface, Surface, decode_frame, frames_key, latest_key, status_key
 
 
 def __getattr__(name: str):
@@ -21,4 +21,4 @@ def __getattr__(name: str):
     raise AttributeError(name)
 
 
-__all__ = ["Body", "Client", "Frame", "Frames", "SolidRange", "Surface", "decode_frame", "frames_key", "latest_key", "status_key"]
+__all__ = ["Body", "Client", "Frame", "Frames", "SolidRange", "SolidSurface", "Surface", "decode_frame", "frames_key", "latest_key", "status_key"]

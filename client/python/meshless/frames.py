@@ -34,6 +34,19 @@ class Surface:
 
 
 @dataclass
+class SolidSurface:
+    """A solid's embedded surface as deformed in a frame: ``system`` is the
+    solid's index in the scene's systems; ``(v, 3)`` float32 vertices and
+    unit normals, ``(t, 3)`` uint32 triangles, counter-clockwise seen from
+    outside the solid."""
+
+    system: int
+    vertices: np.ndarray
+    normals: np.ndarray
+    triangles: np.ndarray
+
+
+@dataclass
 class Body:
     """A rigid body's pose: ``system`` is its index in the scene's
     systems; ``orientation`` the unit quaternion ``(x, y, z, w)`` turning
@@ -65,8 +78,8 @@ class SolidRange:
 @dataclass
 class Frame:
     """A decoded frame: header values, one ``(n, components)`` array per
-    field, the surface when the scene asks for one, rigid bodies' poses and
-    the rows of each elastic solid."""
+    field, the surface when the scene asks for one, rigid bodies' poses,
+    the rows of each elastic solid and the surfaces solids embed."""
 
     session_id: str
     step: int
@@ -77,6 +90,7 @@ class Frame:
     surface: Surface | None = None
     bodies: list[Body] = field(default_factory=list)
     solids: list[SolidRange] = field(default_factory=list)
+    solid_surfaces: list[SolidSurface] = field(default_factory=list)
 
 
 def decode_surface(message) -> Surface:
@@ -92,6 +106,25 @@ def decode_surface(message) -> Surface:
     if triangles.size and int(triangles.max()) >= len(vertices):
         raise ValueError(f"surface: index {int(triangles.max())} but {len(vertices)} vertices")
     return Surface(vertices=vertices, triangles=triangles)
+
+
+def decode_solid_surface(message) -> SolidSurface:
+    """Unpacks a ``meshless.v1.SolidSurface``; ``ValueError`` when its mesh
+    is inconsistent (as :func:`decode_surface`) or has not one normal per
+    vertex."""
+    mesh = decode_surface(message.mesh)
+    normals = message.mesh.normals
+    if len(normals) != 12 * len(mesh.vertices):
+        raise ValueError(
+            f"solid {message.system} surface: {len(normals)} normal bytes for "
+            f"{len(mesh.vertices)} vertices, expected 12 per vertex"
+        )
+    return SolidSurface(
+        system=message.system,
+        vertices=mesh.vertices,
+        normals=np.frombuffer(normals, dtype="<f4").reshape(-1, 3),
+        triangles=mesh.triangles,
+    )
 
 
 def decode_body(pose) -> Body:
@@ -114,8 +147,8 @@ def decode_frame(data: bytes) -> Frame:
     """Decodes an encoded ``meshless.v1.Frame``.
 
     Raises ``ValueError`` when a field's size does not match the particle
-    count, its scalar type is not f32, or a solid's rows run past the last
-    particle.
+    count, its scalar type is not f32, a solid's rows run past the last
+    particle, or a surface is inconsistent.
     """
     from .v1 import frame_pb2, scene_pb2
 
@@ -148,4 +181,5 @@ def decode_frame(data: bytes) -> Frame:
         surface=decode_surface(message.surface) if message.HasField("surface") else None,
         bodies=[decode_body(pose) for pose in message.bodies],
         solids=solids,
+        solid_surfaces=[decode_solid_surface(s) for s in message.solid_surfaces],
     )

@@ -239,3 +239,55 @@ def test_a_solid_sent_as_messages_falls_under_gravity(server):
     g, t = 9.81, steps * 0.01
     drop = before.fields["position"][rows, 1].mean() - positions[:, 1].mean()
     assert abs(drop / (0.5 * g * t * t) - 1.0) < 0.1, drop
+
+
+def test_a_solid_carries_its_embedded_surface_as_it_falls(server):
+    from meshless.v1 import scene_pb2 as sc
+    from meshless.v1 import simulation_pb2 as pb
+
+    def vec(x, y, z):
+        return sc.Vec3(x=x, y=y, z=z)
+
+    solid = sc.SolidSpec(
+        shape=sc.Shape(box=sc.BoxShape(half_extents=vec(0.1, 0.1, 0.1))),
+        position=vec(0.5, 0.7, 0.5),
+        spacing=0.05,
+        young=1.0e5,
+        surface=sc.SolidSurfaceSpec(method=sc.EMBEDDING_METHOD_GRADIENTS, subdivisions=2),
+    )
+    scene = sc.SceneSpec(
+        name="falling jelly with a surface",
+        dimension=3,
+        domain=sc.Aabb(min=vec(0, 0, 0), max=vec(1, 1, 1)),
+        time=sc.TimeSpec(dt=0.01),
+        systems=[sc.SystemSpec(solid=solid)],
+    )
+    sim = stub(server)
+    session = sim.CreateSession(pb.CreateSessionRequest(scene=scene), timeout=TIMEOUT)
+    echoed = session.scene.systems[0].solid.surface
+    assert (echoed.method, echoed.subdivisions) == (sc.EMBEDDING_METHOD_GRADIENTS, 2)
+
+    def latest():
+        message = sim.GetLatestFrame(pb.SessionRef(session_id=session.id), timeout=TIMEOUT)
+        return decode_frame(message.SerializeToString())
+
+    before = latest()
+    sim.Step(pb.StepRequest(session_id=session.id, steps=20), timeout=TIMEOUT)
+    after = latest()
+    surfaces = [frame.solid_surfaces for frame in (before, after)]
+    assert [[s.system for s in f] for f in surfaces] == [[0], [0]]
+    first, last = surfaces[0][0], surfaces[1][0]
+    # A box's 6 faces of 2 triangles, each split in four twice.
+    assert len(first.triangles) == 12 * 4**2
+    assert last.vertices.shape == first.vertices.shape and len(first.vertices) > 0
+    assert np.array_equal(last.triangles, first.triangles), "the connectivity is fixed"
+    for s in (first, last):
+        assert s.vertices.dtype == np.float32 and s.normals.dtype == np.float32
+        assert s.triangles.dtype == np.uint32 and s.normals.shape == s.vertices.shape
+        assert np.abs(np.linalg.norm(s.normals, axis=1) - 1.0).max() < 1e-4
+    # The surface falls with the particles' centre of mass.
+    rows = after.solids[0].rows
+    particles = before.fields["position"][rows, 1].mean() - after.fields["position"][rows, 1].mean()
+    surface = first.vertices[:, 1].mean() - last.vertices[:, 1].mean()
+    assert particles > 0.1, particles
+    assert abs(surface / particles - 1.0) < 0.05, (surface, particles)

@@ -31,7 +31,8 @@ pub struct DemoArgs {
     output: PathBuf,
     #[arg(long, value_enum, default_value = "vtk")]
     format: Format,
-    /// Format of the surface files, when the scene asks for a surface.
+    /// Format of the surface files, when the scene asks for a fluid surface
+    /// or a solid embeds one.
     #[arg(long, value_enum, default_value = "obj")]
     surface_format: SurfaceFormat,
 }
@@ -114,7 +115,6 @@ async fn drive(
     }
     let wall = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    let (pattern, surfaces) = (files.pattern(), files.surface_pattern());
     let written = files.finish()?;
     let end = client.get_session(&id).await?;
     let status = end.status.unwrap_or_default();
@@ -144,6 +144,6 @@ async fn drive(
         "  frames received   {received} of {published} over zenoh (key {}/frames)",
         session.zenoh_key_prefix
     );
-    written.print(&pattern, &surfaces);
+    written.print();
     Ok(())
 }

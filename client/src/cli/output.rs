@@ -4,10 +4,12 @@
 use anyhow::{Context, Result};
 use meshless_client::{FrameView, v1};
 use meshless_engine::geometry::TriMesh;
-use meshless_engine::io::{ExportFormat, MeshFormat, write_frame, write_surface};
+use meshless_engine::io::{
+    ExportFormat, MeshFormat, write_frame, write_solid_surface, write_surface,
+};
 use meshless_engine::math::Vector;
-use meshless_engine::{BodyPose, FieldData, FieldKind, Frame, SolidRange};
-use std::path::{Path, PathBuf};
+use meshless_engine::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
+use std::path::Path;
 use std::sync::mpsc;
 use std::thread::JoinHandle;
 
@@ -48,38 +50,55 @@ impl From<SurfaceFormat> for MeshFormat {
     }
 }
 
-/// Files a writer produced.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+/// Files a writer produced, and where.
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Written {
     pub frames: usize,
     pub surfaces: usize,
+    pub solid_surfaces: usize,
+    /// `dir/frame_*.ext`, `dir/surface_*.ext` and `dir/solid*_*.ext`.
+    patterns: [String; 3],
 }
 
 impl Written {
     /// The summary lines naming the files, for `run` and `demo`.
-    pub fn print(&self, pattern: &str, surface_pattern: &str) {
+    pub fn print(&self) {
+        let [frames, surfaces, solids] = &self.patterns;
         println!(
-            "  output            {pattern}  ({} files; ParaView opens them as a series)",
+            "  output            {frames}  ({} files; ParaView opens them as a series)",
             self.frames
         );
         if self.surfaces > 0 {
+            println!("  surfaces          {surfaces}  ({} files)", self.surfaces);
+        }
+        if self.solid_surfaces > 0 {
             println!(
-                "  surfaces          {surface_pattern}  ({} files)",
-                self.surfaces
+                "  solid surfaces    {solids}  ({} files, solidSYSTEM_STEP, with normals)",
+                self.solid_surfaces
             );
         }
     }
 }
 
 /// A background writer of frame files, and of surface files for frames
-/// that carry a surface.
+/// that carry a surface (the fluid's, or solids' embedded ones).
 #[derive(Debug)]
 pub struct FrameFiles {
-    dir: PathBuf,
-    format: ExportFormat,
-    surface_format: MeshFormat,
     frames: mpsc::Sender<Frame>,
-    thread: JoinHandle<Result<Written>>,
+    thread: JoinHandle<Result<(usize, usize, usize)>>,
+    patterns: [String; 3],
+}
+
+/// Whether `name` is a file a writer of this kind made: frames, the
+/// fluid's surfaces or a solid's (`solid{system}_{step}`).
+fn written_earlier(name: &str) -> bool {
+    let ext = |list: &[&str]| list.iter().any(|e| name.ends_with(e));
+    let solid = name.strip_prefix("solid").is_some_and(|rest| {
+        let digits = rest.bytes().take_while(u8::is_ascii_digit).count();
+        digits > 0 && rest[digits..].starts_with('_')
+    });
+    (name.starts_with("frame_") && ext(&[".vtk", ".ply"]))
+        || ((name.starts_with("surface_") || solid) && ext(&[".obj", ".ply"]))
 }
 
 impl FrameFiles {
@@ -98,11 +117,7 @@ impl FrameFiles {
                 .file_name()
                 .and_then(|n| n.to_str())
                 .unwrap_or_default();
-            let frame =
-                name.starts_with("frame_") && [".vtk", ".ply"].iter().any(|e| name.ends_with(e));
-            let surface =
-                name.starts_with("surface_") && [".obj", ".ply"].iter().any(|e| name.ends_with(e));
-            if frame || surface {
+            if written_earlier(name) {
                 std::fs::remove_file(&path)
                     .with_context(|| format!("cannot remove {}", path.display()))?;
             }
@@ -110,23 +125,30 @@ impl FrameFiles {
         let (frames, received) = mpsc::channel::<Frame>();
         let out = dir.to_path_buf();
         let thread = std::thread::spawn(move || {
-            let mut written = Written::default();
+            let (mut written, mut surfaces, mut solid_surfaces) = (0, 0, 0);
             for frame in received {
                 write_frame(&out, format, &frame)?;
-                written.frames += 1;
+                written += 1;
                 if let Some(mesh) = &frame.surface {
                     write_surface(&out, surface_format, frame.step, mesh)?;
-                    written.surfaces += 1;
+                    surfaces += 1;
+                }
+                for surface in &frame.solid_surfaces {
+                    write_solid_surface(&out, surface_format, frame.step, surface)?;
+                    solid_surfaces += 1;
                 }
             }
-            Ok(written)
+            Ok((written, surfaces, solid_surfaces))
         });
+        let (dir, mesh) = (dir.display(), surface_format.extension());
         Ok(Self {
-            dir: dir.to_path_buf(),
-            format,
-            surface_format,
             frames,
             thread,
+            patterns: [
+                format!("{dir}/frame_*.{}", format.extension()),
+                format!("{dir}/surface_*.{mesh}"),
+                format!("{dir}/solid*_*.{mesh}"),
+            ],
         })
     }
 
@@ -144,23 +166,16 @@ impl FrameFiles {
     /// The first write error.
     pub fn finish(self) -> Result<Written> {
         drop(self.frames);
-        self.thread
+        let (frames, surfaces, solid_surfaces) = self
+            .thread
             .join()
-            .map_err(|_| anyhow::anyhow!("the frame writer panicked"))?
-    }
-
-    /// `dir/frame_*.ext`, for the summary.
-    pub fn pattern(&self) -> String {
-        format!("{}/frame_*.{}", self.dir.display(), self.format.extension())
-    }
-
-    /// `dir/surface_*.ext`, for the summary.
-    pub fn surface_pattern(&self) -> String {
-        format!(
-            "{}/surface_*.{}",
-            self.dir.display(),
-            self.surface_format.extension()
-        )
+            .map_err(|_| anyhow::anyhow!("the frame writer panicked"))??;
+        Ok(Written {
+            frames,
+            surfaces,
+            solid_surfaces,
+            patterns: self.patterns,
+        })
     }
 }
 
@@ -195,11 +210,7 @@ pub fn engine_frame(frame: FrameView) -> Frame {
         fields,
         bodies: frame.bodies.iter().map(body_pose).collect(),
         surface: frame.surface.map(|surface| TriMesh {
-            vertices: surface
-                .vertices
-                .iter()
-                .map(|v| Vector::from(v.map(f64::from)))
-                .collect(),
+            vertices: vectors(&surface.vertices),
             triangles: surface.triangles,
         }),
         solids: frame
@@ -211,7 +222,26 @@ pub fn engine_frame(frame: FrameView) -> Frame {
                 count: r.count as usize,
             })
             .collect(),
+        solid_surfaces: frame
+            .solid_surfaces
+            .into_iter()
+            .map(|s| SolidSurface {
+                system: s.system as usize,
+                normals: vectors(&s.mesh.normals),
+                mesh: TriMesh {
+                    vertices: vectors(&s.mesh.vertices),
+                    triangles: s.mesh.triangles,
+                },
+            })
+            .collect(),
     }
+}
+
+fn vectors(values: &[[f32; 3]]) -> Vec<Vector> {
+    values
+        .iter()
+        .map(|v| Vector::from(v.map(f64::from)))
+        .collect()
 }
 
 /// An engine body pose of a wire one; missing vectors read as zero.
@@ -236,5 +266,32 @@ fn body_pose(pose: &v1::BodyPose) -> BodyPose {
         orientation: [q.x, q.y, q.z, q.w],
         velocity: vec3(velocity),
         angular_velocity: vec3(angular_velocity),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::written_earlier;
+
+    /// A new run clears the files of an earlier one, solid surfaces
+    /// included, and nothing else.
+    #[test]
+    fn earlier_series_files_are_recognised() {
+        for name in [
+            "frame_000001.vtk",
+            "surface_000001.ply",
+            "solid0_000001.obj",
+            "solid12_000003.ply",
+        ] {
+            assert!(written_earlier(name), "{name}");
+        }
+        for name in [
+            "notes.obj",
+            "solid_000001.obj",
+            "solidx_1.obj",
+            "solid0_1.vtk",
+        ] {
+            assert!(!written_earlier(name), "{name}");
+        }
     }
 }

@@ -19,8 +19,10 @@ pub struct RunArgs {
     output: PathBuf,
     #[arg(long, value_enum, default_value = "vtk")]
     format: Format,
-    /// Format of the surface files, written as surface_STEP.EXT beside the
-    /// frames when the scene asks for a surface ([output] surface).
+    /// Format of the surface files, written beside the frames as
+    /// surface_STEP.EXT when the scene asks for a fluid surface ([output]
+    /// surface) and as solidSYSTEM_STEP.EXT, with normals, for each solid
+    /// that embeds one (a solid's surface).
     #[arg(long, value_enum, default_value = "obj")]
     surface_format: SurfaceFormat,
     /// Worker threads for the engine (default: all cores).
@@ -69,7 +71,6 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     bar.finish_and_clear();
     let wall = start.elapsed().as_secs_f64();
-    let (pattern, surfaces) = (files.pattern(), files.surface_pattern());
     let written = files.finish()?;
     let particles = world.particle_count() as f64;
     println!("meshless run: {}", args.scene.display());
@@ -107,6 +108,6 @@ pub fn run(args: RunArgs) -> Result<()> {
             stats.runs
         );
     }
-    written.print(&pattern, &surfaces);
+    written.print();
     Ok(())
 }

@@ -9,7 +9,7 @@ mod vtk;
 use crate::frame::Frame;
 use std::path::{Path, PathBuf};
 
-pub use mesh::{MeshFormat, write_mesh_ply, write_obj, write_surface};
+pub use mesh::{MeshFormat, write_mesh_ply, write_obj, write_solid_surface, write_surface};
 pub use ply::write_ply;
 pub use vtk::write_vtk;
 
