@@ -100,6 +100,7 @@ fn name(solver: LinearSolver) -> &'static str {
     match solver {
         LinearSolver::ConjugateGradient => "CG",
         LinearSolver::Cholesky => "Cholesky",
+        LinearSolver::Auto => "auto",
     }
 }
 

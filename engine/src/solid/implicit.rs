@@ -135,8 +135,8 @@ impl ElasticSolid {
             }
             report.newton += 1;
             let factorises = settings.linear_solver.factorises(self.params.dim);
-            let direct =
-                factorises && self.direct_direction(dt, &mut b.direct, &b.gradient, &mut b.direction);
+            let direct = factorises
+                && self.direct_direction(dt, &mut b.direct, &b.gradient, &mut b.direction);
             if !direct {
                 report.fallbacks += u32::from(factorises);
                 report.cg += self.cg_direction(dt, settings, &mut b);
