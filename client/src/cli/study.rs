@@ -39,6 +39,8 @@ pub enum Knob {
     SolidIntegrator,
     /// Elastic solid: implicit step, s.
     SolidDt,
+    /// Elastic solid: hourglass-control weight relative to Young's modulus.
+    SolidHourglass,
 }
 
 impl Knob {
@@ -53,6 +55,7 @@ impl Knob {
             Self::SolidOrder => "solid_order",
             Self::SolidIntegrator => "solid_integrator",
             Self::SolidDt => "solid_dt",
+            Self::SolidHourglass => "solid_hourglass",
         }
     }
 
@@ -60,7 +63,11 @@ impl Knob {
     fn is_solid(self) -> bool {
         matches!(
             self,
-            Self::SolidSpacing | Self::SolidOrder | Self::SolidIntegrator | Self::SolidDt
+            Self::SolidSpacing
+                | Self::SolidOrder
+                | Self::SolidIntegrator
+                | Self::SolidDt
+                | Self::SolidHourglass
         )
     }
 
@@ -75,6 +82,7 @@ impl Knob {
             Self::SolidOrder => &["linear", "quadratic"],
             Self::SolidIntegrator => &["explicit", "implicit"],
             Self::SolidDt => &["0.0005", "0.001", "0.002", "0.005", "0.01"],
+            Self::SolidHourglass => &["0", "0.1", "1"],
         }
     }
 
@@ -113,7 +121,11 @@ impl Knob {
                 fluid.solver = SolverKind::Dfsph;
                 fluid.density_tolerance = number()?;
             }
-            Self::SolidSpacing | Self::SolidOrder | Self::SolidIntegrator | Self::SolidDt => {
+            Self::SolidSpacing
+            | Self::SolidOrder
+            | Self::SolidIntegrator
+            | Self::SolidDt
+            | Self::SolidHourglass => {
                 bail!("{} is a cantilever knob, not a dam-break one", self.name())
             }
         }

@@ -1,6 +1,7 @@
 //! `meshless study --knob solid-*`: sweep one knob of the elastic solids
 //! on the cantilever under its own weight and report, against
-//! Euler–Bernoulli, the static tip deflection error (spacing, order) or the
+//! Euler–Bernoulli, the static tip deflection error (spacing, order,
+//! hourglass weight) or the
 //! first-period error of the released beam (integrator, step), with the
 //! wall time of each setting, as CSV and a PNG chart.
 
@@ -62,6 +63,13 @@ fn setting(name: &str, value: &str) -> Result<(Cantilever, Quantity)> {
             };
             (Cantilever { integrator, ..base }, Quantity::Period)
         }
+        "solid_hourglass" => (
+            Cantilever {
+                hourglass: number()?,
+                ..base
+            },
+            Quantity::Deflection,
+        ),
         "solid_dt" => (
             Cantilever {
                 integrator: IntegratorKind::Implicit,
