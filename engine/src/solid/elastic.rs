@@ -123,11 +123,6 @@ impl ElasticSolid {
         &self.masses
     }
 
-    /// Reference volume of each particle.
-    pub fn volumes(&self) -> &[Real] {
-        &self.volumes
-    }
-
     pub fn is_fixed(&self, i: usize) -> bool {
         self.fixed[i]
     }
@@ -136,11 +131,6 @@ impl ElasticSolid {
     /// requested where its neighbourhood is degenerate).
     pub fn orders(&self) -> &[Order] {
         self.topology.gradients.orders()
-    }
-
-    /// Plastic strain per particle, when the solid is plastic.
-    pub fn plastic_strains(&self) -> Option<&[Matrix3<Real>]> {
-        self.plastic.as_deref()
     }
 
     /// Moves the particles to `positions` with `velocities` (a deformed
@@ -168,12 +158,6 @@ impl ElasticSolid {
         self.positions = positions;
         self.velocities = velocities;
         Ok(())
-    }
-
-    /// Deformation gradient `F = I + grad u` of every particle at the
-    /// current positions.
-    pub fn deformation_gradients(&self) -> Vec<Matrix3<Real>> {
-        self.current_states().iter().map(|s| s.f).collect()
     }
 
     /// `grad u = F - I` of every particle, for surface embedding.
@@ -225,17 +209,6 @@ impl ElasticSolid {
             .zip(&self.volumes)
             .map(|(s, v)| v * s.det)
             .sum()
-    }
-
-    /// Centre of mass.
-    pub fn centre_of_mass(&self) -> Vector {
-        let total: Real = self.masses.iter().sum();
-        self.positions
-            .iter()
-            .zip(&self.masses)
-            .map(|(x, m)| x * *m)
-            .sum::<Vector>()
-            / total
     }
 
     /// The first particle whose state is not finite, that moves faster

@@ -84,7 +84,7 @@ pub enum LinearSolver {
     Cholesky,
     /// Cholesky in 2D, CG in 3D: the faster of the two except for slender
     /// 3D bodies (a 1k-particle cube: CG 22 ms per implicit step, Cholesky
-    /// 156 ms; `cargo bench -p meshless-engine --bench solid`).
+    /// 140 ms; `cargo bench -p meshless-engine --bench solid`).
     #[default]
     Auto,
 }
