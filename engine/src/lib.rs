@@ -9,6 +9,7 @@
 //! the fields a subscriber asked for).
 
 pub mod approx;
+pub mod design;
 pub mod experiments;
 pub mod fluid;
 pub mod frame;

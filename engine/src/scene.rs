@@ -899,59 +899,7 @@ impl Scene {
     /// Checks a shape's parameters and makes its engine shape (reading
     /// its mesh).
     fn checked_shape(&self, shape_at: &str, spec: &ShapeSpec) -> Result<Shape, SceneError> {
-        let dim = self.dimension;
-        let planar = dim == 2;
-        match spec {
-            ShapeSpec::Box { half_extents } => {
-                check_vector(&format!("{shape_at}.half_extents"), *half_extents)?;
-                for (a, axis) in ["x", "y", "z"].iter().enumerate().take(dim) {
-                    check_positive(&format!("{shape_at}.half_extents.{axis}"), half_extents[a])?;
-                }
-            }
-            ShapeSpec::Sphere { radius } => check_positive(&format!("{shape_at}.radius"), *radius)?,
-            ShapeSpec::Capsule {
-                half_length,
-                radius,
-            } => {
-                check_positive(&format!("{shape_at}.radius"), *radius)?;
-                check_range(
-                    &format!("{shape_at}.half_length"),
-                    *half_length,
-                    0.0,
-                    Real::INFINITY,
-                )?;
-            }
-            ShapeSpec::Plane { normal, offset } => {
-                check_vector(&format!("{shape_at}.normal"), *normal)?;
-                check_range(&format!("{shape_at}.offset"), *offset, Real::MIN, Real::MAX)?;
-                let in_plane = if planar { 2 } else { 3 };
-                if normal[..in_plane].iter().all(|&c| c == 0.0) {
-                    return Err(SceneError::invalid(
-                        format!("{shape_at}.normal"),
-                        "must not be zero: it is the direction out of the solid",
-                    ));
-                }
-                if planar && normal[2] != 0.0 {
-                    return Err(SceneError::invalid(
-                        format!("{shape_at}.normal"),
-                        format!("must lie in the plane in 2D (z = 0), got z = {}", normal[2]),
-                    ));
-                }
-            }
-            ShapeSpec::Mesh { scale, .. } => {
-                if planar {
-                    return Err(SceneError::invalid(
-                        shape_at,
-                        "mesh bodies are 3D only; set dimension = 3 or use a box, sphere, \
-                         capsule or plane",
-                    ));
-                }
-                if let Some(scale) = scale {
-                    check_positive(&format!("{shape_at}.scale"), *scale)?;
-                }
-            }
-        }
-        crate::world::body_shape(spec, dim, shape_at)
+        checked_shape(shape_at, spec, self.dimension)
     }
 
     /// Checks a rigid body and makes its engine shape (reading its mesh).
@@ -1352,6 +1300,67 @@ impl Scene {
         let shapes = self.checked_shapes(options)?;
         Ok(World::new(self.clone(), shapes))
     }
+}
+
+/// Checks a shape's parameters and makes its engine shape (reading
+/// its mesh).
+pub(crate) fn checked_shape(
+    shape_at: &str,
+    spec: &ShapeSpec,
+    dim: usize,
+) -> Result<Shape, SceneError> {
+    let planar = dim == 2;
+    match spec {
+        ShapeSpec::Box { half_extents } => {
+            check_vector(&format!("{shape_at}.half_extents"), *half_extents)?;
+            for (a, axis) in ["x", "y", "z"].iter().enumerate().take(dim) {
+                check_positive(&format!("{shape_at}.half_extents.{axis}"), half_extents[a])?;
+            }
+        }
+        ShapeSpec::Sphere { radius } => check_positive(&format!("{shape_at}.radius"), *radius)?,
+        ShapeSpec::Capsule {
+            half_length,
+            radius,
+        } => {
+            check_positive(&format!("{shape_at}.radius"), *radius)?;
+            check_range(
+                &format!("{shape_at}.half_length"),
+                *half_length,
+                0.0,
+                Real::INFINITY,
+            )?;
+        }
+        ShapeSpec::Plane { normal, offset } => {
+            check_vector(&format!("{shape_at}.normal"), *normal)?;
+            check_range(&format!("{shape_at}.offset"), *offset, Real::MIN, Real::MAX)?;
+            let in_plane = if planar { 2 } else { 3 };
+            if normal[..in_plane].iter().all(|&c| c == 0.0) {
+                return Err(SceneError::invalid(
+                    format!("{shape_at}.normal"),
+                    "must not be zero: it is the direction out of the solid",
+                ));
+            }
+            if planar && normal[2] != 0.0 {
+                return Err(SceneError::invalid(
+                    format!("{shape_at}.normal"),
+                    format!("must lie in the plane in 2D (z = 0), got z = {}", normal[2]),
+                ));
+            }
+        }
+        ShapeSpec::Mesh { scale, .. } => {
+            if planar {
+                return Err(SceneError::invalid(
+                    shape_at,
+                    "mesh bodies are 3D only; set dimension = 3 or use a box, sphere, \
+                     capsule or plane",
+                ));
+            }
+            if let Some(scale) = scale {
+                check_positive(&format!("{shape_at}.scale"), *scale)?;
+            }
+        }
+    }
+    crate::world::body_shape(spec, dim, shape_at)
 }
 
 #[cfg(test)]

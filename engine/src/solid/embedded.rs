@@ -258,6 +258,26 @@ impl EmbeddedSurface {
         order: Order,
         method: EmbeddingMethod,
     ) -> Result<Self, EmbedError> {
+        Self::new_coupled(mesh, rest, dim, h, order, method, &|_, _| true)
+    }
+
+    /// [`Self::new`] where a vertex at `v` couples to a particle at `x`
+    /// within `h` only if `couples(v, x)`: the shape optimiser couples by
+    /// distance inside the shape, so a finger's surface ignores the
+    /// particles of the finger beside it.
+    ///
+    /// # Errors
+    /// As [`Self::new`]; [`EmbedError::NoSupport`] also when a vertex
+    /// couples to no particle.
+    pub fn new_coupled(
+        mesh: &TriMesh,
+        rest: &[Vector],
+        dim: usize,
+        h: Real,
+        order: Order,
+        method: EmbeddingMethod,
+        couples: &(dyn Fn(&Vector, &Vector) -> bool + Sync),
+    ) -> Result<Self, EmbedError> {
         if dim != 3 {
             return Err(EmbedError::Dimension { dim });
         }
@@ -274,8 +294,17 @@ impl EmbeddedSurface {
         let mut offsets = Vec::with_capacity(mesh.vertices.len() + 1);
         offsets.push(0u32);
         let mut neighbours = Vec::with_capacity(list.pair_count());
-        for (vertex, x) in mesh.vertices.iter().enumerate() {
-            let found = list.of(vertex);
+        let coupled: Vec<Vec<u32>> = mesh
+            .vertices
+            .par_iter()
+            .enumerate()
+            .map(|(vertex, x)| {
+                let mut found = list.of(vertex).to_vec();
+                found.retain(|&j| couples(x, &rest[j as usize]));
+                found
+            })
+            .collect();
+        for ((vertex, x), found) in mesh.vertices.iter().enumerate().zip(&coupled) {
             if found.is_empty() {
                 return Err(EmbedError::NoSupport {
                     vertex,

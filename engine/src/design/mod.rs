@@ -1,0 +1,110 @@
+//! The shape and motion optimiser (tutorial Section 8; Adams et al. 2008):
+//! users pin and drag handles to deform a shape, and give keyframes,
+//! velocities and obstacles to get a smooth deformable motion.
+//!
+//! - [`constraints`]: the named handle, velocity and obstacle constraints
+//!   and their atomic edits;
+//! - [`body`]: the sparse design particles and the MLS deformation field
+//!   (Eq. 72-73), coupled by distance inside the shape ([`inside`]);
+//! - [`shape`]: shape deformation, Eq. 74-78;
+//! - [`temporal`], [`motion`]: the temporal MLS (Eq. 79-81) and motion
+//!   design with adaptive temporal sampling (Eq. 82-85);
+//! - `lsq`: the sparse Levenberg–Marquardt solver both use.
+
+pub mod body;
+pub mod constraints;
+mod energy;
+pub mod inside;
+mod lsq;
+pub mod motion;
+pub mod params;
+pub mod progress;
+pub mod shape;
+pub mod target;
+pub mod temporal;
+
+pub use body::{DesignBody, Embedding};
+pub use constraints::{
+    Constraint, ConstraintError, ConstraintKind, ConstraintSet, Context, Edit, Handle, Obstacle,
+    Selection, Target, Velocity, Waypoint,
+};
+pub use motion::{MotionSolution, solve_motion};
+pub use params::{DesignParams, MotionParams, Quadrature, SolverParams, Weights};
+pub use progress::{Energies, Observer, Progress, SolveInfo};
+pub use shape::{ShapeSolution, solve_shape};
+pub use target::{DesignTarget, context};
+pub use temporal::{TemporalBasis, TemporalError, TemporalWeight};
+
+use crate::math::Real;
+
+/// Why a design could not be solved. Nothing the caller owns is changed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DesignError {
+    #[error("design parameter `{field}`: {message}")]
+    Parameter {
+        field: &'static str,
+        message: String,
+    },
+    #[error(transparent)]
+    Constraint(#[from] ConstraintError),
+    /// The constraints do not pose a problem of the kind asked for.
+    #[error("{0}")]
+    Problem(String),
+    #[error(
+        "material point {point} at {position:?} sees no design particle within the support; \
+         raise the support or lower the spacing"
+    )]
+    Unsupported { point: usize, position: [Real; 3] },
+    #[error("embedded surface: {0}")]
+    Surface(String),
+    #[error(
+        "the {term} energy is not finite at iteration {iteration}; lower its weight or check \
+         its constraints"
+    )]
+    Diverged {
+        term: &'static str,
+        iteration: u32,
+        energies: Energies,
+    },
+    #[error("cancelled at iteration {iteration}")]
+    Cancelled { iteration: u32 },
+}
+
+impl DesignError {
+    pub(crate) fn constraint(name: &str, message: impl Into<String>) -> Self {
+        Self::Constraint(ConstraintError {
+            name: name.to_owned(),
+            message: message.into(),
+        })
+    }
+}
+
+/// Checks the weights and solver settings.
+pub(crate) fn check_params(params: &DesignParams) -> Result<(), DesignError> {
+    let invalid = |field, message: String| Err(DesignError::Parameter { field, message });
+    for (name, w) in params.weights.named() {
+        if !(w.is_finite() && w >= 0.0) {
+            return invalid(
+                name,
+                format!("is {w}; weights must be finite and not negative"),
+            );
+        }
+    }
+    let s = &params.solver;
+    if !(s.tolerance.is_finite() && s.tolerance > 0.0) {
+        return invalid(
+            "tolerance",
+            format!("is {}; give a small positive number", s.tolerance),
+        );
+    }
+    if !(s.linear_tolerance.is_finite() && s.linear_tolerance > 0.0 && s.linear_tolerance < 1.0) {
+        return invalid(
+            "linear_tolerance",
+            format!("is {}; give a number in (0, 1)", s.linear_tolerance),
+        );
+    }
+    if s.max_linear_iterations == 0 {
+        return invalid("max_linear_iterations", "is 0; allow at least 1".into());
+    }
+    Ok(())
+}

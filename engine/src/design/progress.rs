@@ -1,0 +1,76 @@
+//! What a solve reports while it runs and when it ends, and how it is
+//! cancelled: the caller's observer sees every iteration and returns
+//! [`ControlFlow::Break`] to stop.
+
+use crate::math::Real;
+use std::ops::ControlFlow;
+
+/// The weighted energy of each term (Eq. 78, Eq. 85), dimensionless
+/// (see [`super::params`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Energies {
+    /// Handles, or keyframes in a motion.
+    pub handle: Real,
+    pub rigidity: Real,
+    pub volume: Real,
+    pub velocity: Real,
+    pub acceleration: Real,
+    pub obstacle: Real,
+}
+
+impl Energies {
+    pub fn total(&self) -> Real {
+        self.handle
+            + self.rigidity
+            + self.volume
+            + self.velocity
+            + self.acceleration
+            + self.obstacle
+    }
+
+    /// The terms by name, in a fixed order.
+    pub fn named(&self) -> [(&'static str, Real); 6] {
+        [
+            ("handle", self.handle),
+            ("rigidity", self.rigidity),
+            ("volume", self.volume),
+            ("velocity", self.velocity),
+            ("acceleration", self.acceleration),
+            ("obstacle", self.obstacle),
+        ]
+    }
+}
+
+/// One solver iteration.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Progress {
+    /// Iterations so far over every solve of this run (a motion solves
+    /// again after each inserted frame).
+    pub iteration: u32,
+    pub energies: Energies,
+    /// Largest entry of the energy's gradient.
+    pub gradient_norm: Real,
+    /// Frames of a motion (1 for a shape).
+    pub frames: usize,
+    /// Frames inserted by adaptive sampling so far.
+    pub inserted: usize,
+    /// Largest error between frames at the last check (motion only).
+    pub sampling_error: Option<Real>,
+}
+
+/// Receives progress; `Break` cancels the solve.
+pub type Observer<'a> = dyn FnMut(&Progress) -> ControlFlow<()> + 'a;
+
+/// How a solve ended.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SolveInfo {
+    pub iterations: u32,
+    pub energies: Energies,
+    pub gradient_norm: Real,
+    /// The tolerance was reached before the iteration limit.
+    pub converged: bool,
+    pub frames: usize,
+    pub inserted: usize,
+    /// Largest error between frames at the end (motion only).
+    pub sampling_error: Option<Real>,
+}
