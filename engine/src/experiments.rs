@@ -4,6 +4,7 @@
 use crate::math::{Real, Vector};
 
 pub mod cantilever;
+pub mod design;
 
 /// Surge front of a collapsing water column of width `a` and height `2a`:
 /// `(T, Z)` with `T = t sqrt(2 g / a)` and `Z = x_front / a`, `x` measured

@@ -16,12 +16,6 @@ use super::lsq::{Rows, Term};
 use crate::math::{Real, Vector};
 use nalgebra::Matrix3;
 
-/// The columns of particle `j`'s unknowns in a layout with `dim` entries
-/// per particle from `base`.
-pub(crate) fn column(base: usize, j: usize, dim: usize, a: usize) -> u32 {
-    (base + j * dim + a) as u32
-}
-
 /// `F = I + sum_j x_j G_j^T` over `(column base of j, G_j)`, reading `x`.
 pub(crate) fn deformation_gradient(
     dim: usize,

@@ -44,17 +44,6 @@ pub(crate) enum Term {
 }
 
 impl Term {
-    pub(crate) fn name(self) -> &'static str {
-        match self {
-            Self::Handle => "handle",
-            Self::Rigidity => "rigidity",
-            Self::Volume => "volume",
-            Self::Velocity => "velocity",
-            Self::Acceleration => "acceleration",
-            Self::Obstacle => "obstacle",
-        }
-    }
-
     fn slot(self, e: &mut Energies) -> &mut Real {
         match self {
             Self::Handle => &mut e.handle,
@@ -87,11 +76,6 @@ impl Rows {
         self.columns.clear();
         self.values.clear();
         self.jacobian = jacobian;
-    }
-
-    /// Whether the entries are wanted (else only residuals are kept).
-    pub fn wants_jacobian(&self) -> bool {
-        self.jacobian
     }
 
     /// Appends a residual and its derivative entries `(column, value)`.
@@ -140,6 +124,12 @@ impl Rows {
 /// independently (one per particle and frame, say).
 pub(crate) trait LeastSquares: Sync {
     fn unknowns(&self) -> usize;
+    /// Unknowns `c` and `c + lines` belong to the same line (one particle
+    /// component across frames); the preconditioner inverts each line's
+    /// block of `J^T J` exactly. `unknowns()` for one line per unknown.
+    fn lines(&self) -> usize {
+        self.unknowns()
+    }
     fn groups(&self) -> usize;
     /// Appends group `g`'s residuals at `x` to `rows`.
     fn group(&self, g: usize, x: &[Real], rows: &mut Rows);
@@ -227,6 +217,7 @@ fn dot(a: &[Real], b: &[Real]) -> Real {
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct RunState {
     pub iteration: u32,
+    pub linear_iterations: u64,
     pub frames: usize,
     pub inserted: usize,
     pub sampling_error: Option<Real>,
@@ -254,6 +245,7 @@ pub(crate) fn minimise(
     let mut step = vec![0.0; n];
     let mut trial = vec![0.0; n];
     let mut cg = Cg::new(n);
+    let mut blocks = LineBlocks::new(problem.lines(), n);
     let mut mu: Real = 1e-4;
     let mut growth: Real = 2.0;
     let mut converged = false;
@@ -271,6 +263,7 @@ pub(crate) fn minimise(
             iteration: run.iteration,
             energies,
             gradient_norm,
+            linear_iterations: run.linear_iterations,
             frames: run.frames,
             inserted: run.inserted,
             sampling_error: run.sampling_error,
@@ -295,10 +288,13 @@ pub(crate) fn minimise(
         });
         let floor = 1e-12 * diag.iter().fold(0.0, |m: Real, v| m.max(*v)).max(1e-300);
         diag.iter_mut().for_each(|d| *d = d.max(floor));
+        blocks.assemble(&rows, &diag);
         let accepted = loop {
             iterations += 1;
             run.iteration += 1;
-            cg.solve(&rows, &jt, &diag, mu, &g, &mut step, params);
+            blocks.factor(&diag, mu);
+            run.linear_iterations +=
+                cg.solve(&rows, &jt, &diag, mu, &blocks, &g, &mut step, params);
             for ((t, x), d) in trial.iter_mut().zip(x.iter()).zip(&step) {
                 *t = x + d;
             }
@@ -349,18 +345,12 @@ pub(crate) fn minimise(
         iterations,
         energies,
         gradient_norm,
+        linear_iterations: run.linear_iterations,
         converged,
         frames: run.frames,
         inserted: run.inserted,
         sampling_error: run.sampling_error,
     })
-}
-
-/// The energies of `x` without a Jacobian.
-pub(crate) fn energies(problem: &impl LeastSquares, x: &[Real]) -> Energies {
-    let mut rows = Rows::default();
-    evaluate(problem, x, false, &mut rows);
-    rows.energies()
 }
 
 fn check_finite(e: &Energies, iteration: u32) -> Result<(), DesignError> {
@@ -408,26 +398,24 @@ impl Cg {
         jt: &Transposed,
         diag: &[Real],
         mu: Real,
+        blocks: &LineBlocks,
         g: &[Real],
         d: &mut [Real],
         params: &SolverParams,
-    ) {
+    ) -> u64 {
         let Self { r, z, p, q, jp } = self;
         jp.resize(j.residuals.len(), 0.0);
         d.fill(0.0);
         for (r, g) in r.iter_mut().zip(g) {
             *r = -g;
         }
-        let precondition = |r: &[Real], z: &mut [Real]| {
-            for ((z, r), d) in z.iter_mut().zip(r).zip(diag) {
-                *z = r / (d * (1.0 + mu));
-            }
-        };
-        precondition(r, z);
+        blocks.apply(r, z);
         p.copy_from_slice(z);
         let mut rz = dot(r, z);
         let stop = params.linear_tolerance.powi(2) * dot(r, r);
-        for _ in 0..params.max_linear_iterations {
+        let mut iterations = 0;
+        while iterations < params.max_linear_iterations {
+            iterations += 1;
             apply_j(j, p, jp);
             jt.apply(jp, q);
             for ((q, p), d) in q.iter_mut().zip(p.iter()).zip(diag) {
@@ -445,7 +433,7 @@ impl Cg {
             if dot(r, r) <= stop {
                 break;
             }
-            precondition(r, z);
+            blocks.apply(r, z);
             let rz_next = dot(r, z);
             let beta = rz_next / rz;
             rz = rz_next;
@@ -453,5 +441,189 @@ impl Cg {
                 *p = z + beta * *p;
             }
         }
+        u64::from(iterations)
+    }
+}
+
+/// The blocks of `J^T J + mu D` that couple the unknowns of one line
+/// (a particle component across a motion's frames), Cholesky-factored:
+/// the acceleration terms couple frames only along lines, so their
+/// stiffness, which grows as frames crowd together, is inverted exactly
+/// and conjugate gradients see only the spatial coupling. With one frame
+/// this is the diagonal (Jacobi) preconditioner.
+#[derive(Debug)]
+struct LineBlocks {
+    lines: usize,
+    /// Unknowns per line.
+    length: usize,
+    /// `J^T J` restricted to each line, `length x length`, row-major.
+    blocks: Vec<Real>,
+    /// Their Cholesky factors with the damping added.
+    factors: Vec<Real>,
+}
+
+impl LineBlocks {
+    fn new(lines: usize, n: usize) -> Self {
+        let length = n.div_ceil(lines.max(1));
+        Self {
+            lines,
+            length,
+            blocks: vec![0.0; lines * length * length],
+            factors: vec![0.0; lines * length * length],
+        }
+    }
+
+    /// Accumulates the line blocks from `J`'s rows; the diagonal is
+    /// `diag` (already floored).
+    fn assemble(&mut self, j: &Rows, diag: &[Real]) {
+        let (lines, length) = (self.lines, self.length);
+        let size = length * length;
+        self.blocks.fill(0.0);
+        if length > 1 {
+            let rows = j.residuals.len();
+            let chunk = rows.div_ceil(rayon::current_num_threads().max(1)).max(1);
+            let partial: Vec<Vec<Real>> = (0..rows.div_ceil(chunk))
+                .into_par_iter()
+                .map(|c| {
+                    let mut blocks = vec![0.0; lines * size];
+                    let mut entries: Vec<(u32, u32, Real)> = Vec::new();
+                    for k in c * chunk..((c + 1) * chunk).min(rows) {
+                        let (cs, vs) = j.row(k);
+                        // A row within one frame adds only to diagonals.
+                        let first = cs.first().map_or(0, |&c| c as usize / lines);
+                        if cs.iter().all(|&c| c as usize / lines == first) {
+                            continue;
+                        }
+                        entries.clear();
+                        entries.extend(cs.iter().zip(vs).map(|(&c, &v)| {
+                            let c = c as usize;
+                            ((c % lines) as u32, (c / lines) as u32, v)
+                        }));
+                        entries.sort_unstable_by_key(|e| (e.0, e.1));
+                        let mut start = 0;
+                        while start < entries.len() {
+                            let line = entries[start].0;
+                            let end =
+                                start + entries[start..].iter().take_while(|e| e.0 == line).count();
+                            let block = &mut blocks[line as usize * size..][..size];
+                            for a in &entries[start..end] {
+                                for b in &entries[start..end] {
+                                    if a.1 != b.1 {
+                                        block[a.1 as usize * length + b.1 as usize] += a.2 * b.2;
+                                    }
+                                }
+                            }
+                            start = end;
+                        }
+                    }
+                    blocks
+                })
+                .collect();
+            for p in partial {
+                for (b, v) in self.blocks.iter_mut().zip(p) {
+                    *b += v;
+                }
+            }
+        }
+        for (c, d) in diag.iter().enumerate() {
+            let (line, at) = (c % lines, c / lines);
+            self.blocks[line * size + at * length + at] = *d;
+        }
+        // Unknowns past the end of the last line (none in practice) keep
+        // a unit diagonal so every block is definite.
+        for c in diag.len()..lines * length {
+            let (line, at) = (c % lines, c / lines);
+            self.blocks[line * size + at * length + at] = 1.0;
+        }
+    }
+
+    /// Factors each block with `mu D` added to its diagonal.
+    fn factor(&mut self, diag: &[Real], mu: Real) {
+        let (lines, length) = (self.lines, self.length);
+        let size = length * length;
+        self.factors
+            .par_chunks_mut(size)
+            .zip(self.blocks.par_chunks(size))
+            .enumerate()
+            .for_each(|(line, (f, b))| {
+                f.copy_from_slice(b);
+                for at in 0..length {
+                    let c = at * lines + line;
+                    let d = diag.get(c).copied().unwrap_or(1.0);
+                    f[at * length + at] += mu * d;
+                }
+                cholesky_in_place(f, length);
+            });
+    }
+
+    /// `z = B^-1 r`, line by line.
+    fn apply(&self, r: &[Real], z: &mut [Real]) {
+        let (lines, length) = (self.lines, self.length);
+        let size = length * length;
+        if length == 1 {
+            for ((z, r), f) in z.iter_mut().zip(r).zip(&self.factors) {
+                *z = r / (f * f);
+            }
+            return;
+        }
+        let solved: Vec<Vec<Real>> = self
+            .factors
+            .par_chunks(size)
+            .enumerate()
+            .map(|(line, f)| {
+                let mut y: Vec<Real> = (0..length)
+                    .map(|at| r.get(at * lines + line).copied().unwrap_or(0.0))
+                    .collect();
+                cholesky_solve(f, length, &mut y);
+                y
+            })
+            .collect();
+        for (line, y) in solved.iter().enumerate() {
+            for (at, v) in y.iter().enumerate() {
+                if let Some(z) = z.get_mut(at * lines + line) {
+                    *z = *v;
+                }
+            }
+        }
+    }
+}
+
+/// Lower Cholesky factor of the symmetric `n x n` matrix `a` (row-major),
+/// in place. A non-positive pivot (the block is only semi-definite in
+/// rounding) is replaced by a tiny positive one.
+fn cholesky_in_place(a: &mut [Real], n: usize) {
+    for k in 0..n {
+        let mut d = a[k * n + k];
+        for m in 0..k {
+            d -= a[k * n + m] * a[k * n + m];
+        }
+        let d = d.max(1e-300).sqrt();
+        a[k * n + k] = d;
+        for i in k + 1..n {
+            let mut v = a[i * n + k];
+            for m in 0..k {
+                v -= a[i * n + m] * a[k * n + m];
+            }
+            a[i * n + k] = v / d;
+        }
+    }
+}
+
+/// Solves `L L^T y = b` in place with the factor from
+/// [`cholesky_in_place`].
+fn cholesky_solve(l: &[Real], n: usize, y: &mut [Real]) {
+    for i in 0..n {
+        let mut v = y[i];
+        for m in 0..i {
+            v -= l[i * n + m] * y[m];
+        }
+        y[i] = v / l[i * n + i];
+    }
+    for i in (0..n).rev() {
+        let mut v = y[i];
+        for m in i + 1..n {
+            v -= l[m * n + i] * y[m];
+        }
+        y[i] = v / l[i * n + i];
     }
 }

@@ -57,7 +57,7 @@ impl Default for Weights {
             rigidity: 1.0,
             volume: 10.0,
             velocity: 10.0,
-            acceleration: 1e-2,
+            acceleration: 1e-4,
             obstacle: 1e3,
         }
     }
@@ -79,9 +79,9 @@ pub struct SolverParams {
 impl Default for SolverParams {
     fn default() -> Self {
         Self {
-            tolerance: 1e-6,
+            tolerance: 1e-4,
             max_iterations: 200,
-            linear_tolerance: 1e-3,
+            linear_tolerance: 0.05,
             max_linear_iterations: 500,
         }
     }
@@ -160,7 +160,7 @@ impl Default for MotionParams {
     fn default() -> Self {
         Self {
             adaptive: true,
-            tolerance: 0.05,
+            tolerance: 0.1,
             samples: 10,
             max_frames: 24,
             radius: 0.87,

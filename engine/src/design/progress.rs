@@ -50,6 +50,8 @@ pub struct Progress {
     pub energies: Energies,
     /// Largest entry of the energy's gradient.
     pub gradient_norm: Real,
+    /// Conjugate-gradient iterations so far over the whole run.
+    pub linear_iterations: u64,
     /// Frames of a motion (1 for a shape).
     pub frames: usize,
     /// Frames inserted by adaptive sampling so far.
@@ -67,6 +69,8 @@ pub struct SolveInfo {
     pub iterations: u32,
     pub energies: Energies,
     pub gradient_norm: Real,
+    /// Conjugate-gradient iterations over the whole run.
+    pub linear_iterations: u64,
     /// The tolerance was reached before the iteration limit.
     pub converged: bool,
     pub frames: usize,

@@ -84,8 +84,42 @@ pub fn solve_shape(
             "a shape problem needs at least one handle without a time; add one".into(),
         ));
     }
+    if let Some(warm) = warm
+        && warm.len() != body.len()
+    {
+        return Err(DesignError::Parameter {
+            field: "warm",
+            message: format!(
+                "has {} displacements for {} design particles",
+                warm.len(),
+                body.len()
+            ),
+        });
+    }
+    let mut run = RunState {
+        frames: 1,
+        ..RunState::default()
+    };
+    let (displacements, info) =
+        solve_handles(body, &points, targets, params, warm, &mut run, observer)?;
+    Ok(ShapeSolution {
+        displacements,
+        info,
+    })
+}
+
+/// Minimises Eq. 78 for handle `points` at rest and their `targets`.
+pub(crate) fn solve_handles(
+    body: &DesignBody,
+    points: &[Vector],
+    targets: Vec<Vector>,
+    params: &DesignParams,
+    warm: Option<&[Vector]>,
+    run: &mut RunState,
+    observer: &mut Observer<'_>,
+) -> Result<(Vec<Vector>, SolveInfo), DesignError> {
     let handles = Handles {
-        points: body.embed(&points)?,
+        points: body.embed(points)?,
         targets,
     };
     let problem = ShapeProblem {
@@ -97,31 +131,19 @@ pub fn solve_shape(
     let s = body.spacing();
     let mut x = vec![0.0; body.len() * dim];
     if let Some(warm) = warm {
-        if warm.len() != body.len() {
-            return Err(DesignError::Parameter {
-                field: "warm",
-                message: format!(
-                    "has {} displacements for {} design particles",
-                    warm.len(),
-                    body.len()
-                ),
-            });
-        }
-        for (i, u) in warm.iter().enumerate() {
-            for a in 0..dim {
-                x[i * dim + a] = u[a] / s;
-            }
+        scale_into(warm, dim, s, &mut x);
+    }
+    let info = lsq::minimise(&problem, &mut x, &params.solver, run, observer)?;
+    Ok((unscale(&x, dim, s), info))
+}
+
+/// Writes displacements in metres as unknowns in spacings.
+pub(crate) fn scale_into(u: &[Vector], dim: usize, s: Real, x: &mut [Real]) {
+    for (i, u) in u.iter().enumerate() {
+        for a in 0..dim {
+            x[i * dim + a] = u[a] / s;
         }
     }
-    let mut run = RunState {
-        frames: 1,
-        ..RunState::default()
-    };
-    let info = lsq::minimise(&problem, &mut x, &params.solver, &mut run, observer)?;
-    Ok(ShapeSolution {
-        displacements: unscale(&x, dim, s),
-        info,
-    })
 }
 
 /// Displacements in metres from unknowns in spacings.
