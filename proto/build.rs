@@ -9,6 +9,7 @@ use prost::Message;
 const PROTOS: &[&str] = &[
     "meshless/v1/scene.proto",
     "meshless/v1/frame.proto",
+    "meshless/v1/design.proto",
     "meshless/v1/simulation.proto",
 ];
 

@@ -1,6 +1,6 @@
 //! The gRPC side: session control.
 
-use crate::ClientError;
+use crate::{ClientError, Design, OptimizeEvent};
 use meshless_proto::v1::{self, simulation_client::SimulationClient};
 use tokio_stream::{Stream, StreamExt};
 use tonic::transport::{Channel, Endpoint};
@@ -222,5 +222,108 @@ impl Client {
             .await?
             .into_inner();
         crate::FrameView::from_proto(frame)
+    }
+
+    /// Applies constraint edits, all or nothing; returns the session's
+    /// constraints in name order.
+    ///
+    /// # Errors
+    /// `INVALID_ARGUMENT` naming the constraint at fault (nothing changed).
+    pub async fn edit_constraints(
+        &self,
+        id: &str,
+        edits: Vec<v1::ConstraintEdit>,
+    ) -> Result<Vec<v1::Constraint>> {
+        let request = v1::EditConstraintsRequest {
+            session_id: id.to_owned(),
+            edits,
+        };
+        Ok(self
+            .grpc()
+            .edit_constraints(request)
+            .await?
+            .into_inner()
+            .constraints)
+    }
+
+    /// The session's constraints in name order.
+    ///
+    /// # Errors
+    /// `NOT_FOUND` for an unknown id.
+    pub async fn list_constraints(&self, id: &str) -> Result<Vec<v1::Constraint>> {
+        Ok(self
+            .grpc()
+            .list_constraints(session_ref(id))
+            .await?
+            .into_inner()
+            .constraints)
+    }
+
+    /// Starts an optimisation: progress events, then the design. Dropping
+    /// the stream cancels it.
+    ///
+    /// # Errors
+    /// `INVALID_ARGUMENT` for bad settings, at the call or as the stream's
+    /// error; `CANCELLED`, `ABORTED` (an energy diverged) on the stream.
+    pub async fn optimize(
+        &self,
+        request: v1::OptimizeRequest,
+    ) -> Result<impl Stream<Item = Result<OptimizeEvent>> + Send + Unpin + use<>> {
+        let stream = self.grpc().optimize(request).await?.into_inner();
+        Ok(stream.map(|item| {
+            let v1::OptimizeEvent { event } = item?;
+            match event {
+                Some(v1::optimize_event::Event::Progress(p)) => Ok(OptimizeEvent::Progress(p)),
+                Some(v1::optimize_event::Event::Result(r)) => {
+                    Design::from_proto(r).map(OptimizeEvent::Done)
+                }
+                None => Err(ClientError::Decode(
+                    "an optimisation event without a kind".into(),
+                )),
+            }
+        }))
+    }
+
+    /// Optimises to the end, calling `on_progress` for each report.
+    ///
+    /// # Errors
+    /// As [`Client::optimize`]; [`ClientError::Closed`] when the stream
+    /// ends without a design.
+    pub async fn optimize_with(
+        &self,
+        request: v1::OptimizeRequest,
+        mut on_progress: impl FnMut(&v1::DesignProgress),
+    ) -> Result<Design> {
+        let mut events = self.optimize(request).await?;
+        while let Some(event) = events.next().await {
+            match event? {
+                OptimizeEvent::Progress(p) => on_progress(&p),
+                OptimizeEvent::Done(design) => return Ok(design),
+            }
+        }
+        Err(ClientError::Closed)
+    }
+
+    /// Cancels the session's optimisation; returns whether one was
+    /// running. Its stream then ends with `CANCELLED`.
+    ///
+    /// # Errors
+    /// `NOT_FOUND` for an unknown id.
+    pub async fn cancel_optimize(&self, id: &str) -> Result<bool> {
+        Ok(self
+            .grpc()
+            .cancel_optimize(session_ref(id))
+            .await?
+            .into_inner()
+            .cancelled)
+    }
+
+    /// The session's last successful design.
+    ///
+    /// # Errors
+    /// `NOT_FOUND` before the first; [`ClientError::Decode`] for a
+    /// malformed one.
+    pub async fn get_design(&self, id: &str) -> Result<Design> {
+        Design::from_proto(self.grpc().get_design(session_ref(id)).await?.into_inner())
     }
 }

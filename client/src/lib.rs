@@ -25,11 +25,13 @@
 //! for `meshless run` and `meshless demo`.
 
 mod client;
+mod design;
 mod error;
 mod frame;
 mod link;
 
 pub use client::Client;
+pub use design::{Design, DesignKind, OptimizeEvent};
 pub use error::ClientError;
 pub use frame::{FieldView, FrameView, SolidSurfaceView, SurfaceView};
 pub use link::{Frames, Statuses, ZenohLink};

@@ -2,6 +2,8 @@
 //! Messages are destructured exhaustively, so a new proto field breaks the
 //! build here until it is handled.
 
+pub mod design;
+
 use crate::error::ServiceError;
 use meshless_engine::approx::KernelKind;
 use meshless_engine::approx::mls::Order;

@@ -1,6 +1,7 @@
 //! Errors of the service and their one mapping to gRPC status codes.
 
 use meshless_engine::SceneError;
+use meshless_engine::design::DesignError;
 use meshless_proto::v1::SessionState;
 use tonic::{Code, Status};
 
@@ -13,6 +14,10 @@ pub enum ServiceError {
     Scene(#[from] SceneError),
     #[error("no session with id {0:?}; list the sessions to see which exist")]
     NotFound(String),
+    #[error("session {0} has no design yet; run Optimize first")]
+    NoDesign(String),
+    #[error(transparent)]
+    Design(#[from] DesignError),
     #[error("cannot {action} session {session_id} while it is {state}; {hint}")]
     WrongState {
         session_id: String,
@@ -46,7 +51,16 @@ impl ServiceError {
                 SceneError::Invalid { .. } | SceneError::Parse(_) => Code::InvalidArgument,
                 SceneError::TooManyParticles { .. } => Code::ResourceExhausted,
             },
-            Self::NotFound(_) => Code::NotFound,
+            Self::NotFound(_) | Self::NoDesign(_) => Code::NotFound,
+            Self::Design(design) => match design {
+                DesignError::Parameter { .. }
+                | DesignError::Constraint(_)
+                | DesignError::Problem(_)
+                | DesignError::Unsupported { .. }
+                | DesignError::Surface(_) => Code::InvalidArgument,
+                DesignError::Diverged { .. } => Code::Aborted,
+                DesignError::Cancelled { .. } => Code::Cancelled,
+            },
             Self::WrongState { .. } | Self::Faulted { .. } => Code::FailedPrecondition,
             Self::TooManySessions { .. } => Code::ResourceExhausted,
             Self::SessionGone(_) => Code::Unavailable,

@@ -17,6 +17,11 @@ mod service;
 mod session;
 
 pub use config::{ServerConfig, ZenohMode};
+/// The wire forms of design problems, for clients that read them from the
+/// engine's TOML problem files (`meshless optimise`).
+pub use convert::design::{
+    constraint_to_proto, design_settings_to_proto, motion_settings_to_proto,
+};
 
 use anyhow::{Context, Result};
 use meshless_engine::BuildOptions;

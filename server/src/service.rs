@@ -2,11 +2,15 @@
 //! validates a request, converts it, calls the registry or a session, and
 //! converts the answer back.
 
+use crate::convert::design::{
+    constraint_to_proto, design_params_from_proto, edit_from_proto, motion_params_from_proto,
+};
 use crate::convert::scene_from_proto;
 use crate::error::ServiceError;
 use crate::registry::Registry;
-use crate::session::{Command, RunTarget};
+use crate::session::{Command, OptimizeJob, Problem, RunTarget};
 use meshless_engine::Scene;
+use meshless_engine::design::Constraint;
 use meshless_proto::v1::{self, simulation_server::Simulation};
 use std::sync::Arc;
 use tokio::sync::{broadcast, mpsc};
@@ -16,6 +20,10 @@ use tonic::{Request, Response, Status};
 
 /// Most steps one `Step` call may ask for.
 const MAX_STEPS_PER_CALL: u64 = 1_000_000;
+/// Playback frames per second of design time when a motion names none.
+const DEFAULT_PLAYBACK_RATE: f64 = 30.0;
+/// Optimisation events queued per stream.
+const OPTIMIZE_EVENTS: usize = 16;
 
 #[derive(Debug)]
 pub struct SimulationService {
@@ -49,6 +57,49 @@ impl SimulationService {
 }
 
 type Reply<T> = Result<Response<T>, Status>;
+
+fn constraint_list(constraints: &[Constraint]) -> v1::ConstraintList {
+    v1::ConstraintList {
+        constraints: constraints.iter().map(constraint_to_proto).collect(),
+    }
+}
+
+/// The engine job of an `Optimize` request.
+fn optimize_job(
+    system: u32,
+    design: Option<v1::DesignSettings>,
+    problem: Option<v1::optimize_request::Problem>,
+    playback: bool,
+) -> Result<OptimizeJob, ServiceError> {
+    let problem = match problem {
+        Some(v1::optimize_request::Problem::Shape(v1::ShapeProblem {})) => Problem::Shape,
+        Some(v1::optimize_request::Problem::Motion(v1::MotionProblem {
+            settings,
+            playback_rate,
+        })) => {
+            let playback_rate = playback_rate.unwrap_or(DEFAULT_PLAYBACK_RATE);
+            if !(playback_rate.is_finite() && playback_rate > 0.0) {
+                return Err(ServiceError::invalid(
+                    "motion.playback_rate",
+                    format!(
+                        "must be a finite number of frames per second > 0, got {playback_rate}"
+                    ),
+                ));
+            }
+            Problem::Motion {
+                params: motion_params_from_proto(settings),
+                playback_rate,
+            }
+        }
+        None => return Err(ServiceError::invalid("problem", "set shape or motion")),
+    };
+    Ok(OptimizeJob {
+        system: system as usize,
+        params: design_params_from_proto(design)?,
+        problem,
+        playback,
+    })
+}
 
 #[tonic::async_trait]
 impl Simulation for SimulationService {
@@ -215,5 +266,93 @@ impl Simulation for SimulationService {
                 .await
                 .map_err(|e| ServiceError::Internal(format!("frame encoding failed: {e}")))?;
         Ok(Response::new(message))
+    }
+
+    async fn edit_constraints(
+        &self,
+        request: Request<v1::EditConstraintsRequest>,
+    ) -> Reply<v1::ConstraintList> {
+        let v1::EditConstraintsRequest { session_id, edits } = request.into_inner();
+        let session = self.registry.get(Self::session_id(&session_id)?)?;
+        let edits = edits
+            .into_iter()
+            .enumerate()
+            .map(|(k, e)| edit_from_proto(e, &format!("edits[{k}]")))
+            .collect::<Result<Vec<_>, _>>()?;
+        let constraints = session.edit_constraints(&edits)?;
+        Ok(Response::new(constraint_list(&constraints)))
+    }
+
+    async fn list_constraints(
+        &self,
+        request: Request<v1::SessionRef>,
+    ) -> Reply<v1::ConstraintList> {
+        let id = request.into_inner().session_id;
+        let session = self.registry.get(Self::session_id(&id)?)?;
+        Ok(Response::new(constraint_list(&session.constraints())))
+    }
+
+    type OptimizeStream = ReceiverStream<Result<v1::OptimizeEvent, Status>>;
+
+    async fn optimize(&self, request: Request<v1::OptimizeRequest>) -> Reply<Self::OptimizeStream> {
+        let v1::OptimizeRequest {
+            session_id,
+            system,
+            design,
+            problem,
+            playback,
+        } = request.into_inner();
+        let session = self.registry.get(Self::session_id(&session_id)?)?;
+        let job = optimize_job(system, design, problem, playback)?;
+        let mut run = session.optimize(job)?;
+        let (tx, rx) = mpsc::channel(OPTIMIZE_EVENTS);
+        // Forwards progress, then the outcome. Returning drops `run`, which
+        // cancels the solve when the client has gone away.
+        tokio::spawn(async move {
+            let event = |e| Ok(v1::OptimizeEvent { event: Some(e) });
+            loop {
+                let progress = tokio::select! {
+                    () = tx.closed() => return,
+                    progress = run.progress.recv() => progress,
+                };
+                let Some(progress) = progress else { break };
+                if tx
+                    .send(event(v1::optimize_event::Event::Progress(progress)))
+                    .await
+                    .is_err()
+                {
+                    return;
+                }
+            }
+            let outcome = tokio::select! {
+                () = tx.closed() => return,
+                outcome = &mut run.result => outcome,
+            };
+            let message = match outcome {
+                Ok(Ok(result)) => event(v1::optimize_event::Event::Result((*result).clone())),
+                Ok(Err(e)) => Err(Status::from(e)),
+                Err(_) => Err(ServiceError::SessionGone(session.id.clone()).into()),
+            };
+            // The client may have gone away.
+            let _ = tx.send(message).await;
+        });
+        Ok(Response::new(ReceiverStream::new(rx)))
+    }
+
+    async fn cancel_optimize(
+        &self,
+        request: Request<v1::SessionRef>,
+    ) -> Reply<v1::CancelOptimizeResponse> {
+        let id = request.into_inner().session_id;
+        let session = self.registry.get(Self::session_id(&id)?)?;
+        Ok(Response::new(v1::CancelOptimizeResponse {
+            cancelled: session.cancel_optimize(),
+        }))
+    }
+
+    async fn get_design(&self, request: Request<v1::SessionRef>) -> Reply<v1::DesignResult> {
+        let id = request.into_inner().session_id;
+        let session = self.registry.get(Self::session_id(&id)?)?;
+        Ok(Response::new((*session.last_design()?).clone()))
     }
 }

@@ -44,6 +44,31 @@ region = { min = [0.0, 0.0, 0.0], max = [0.2, 0.2, 0.2] }
     .to_owned()
 }
 
+/// A small elastic solid (a 0.2 x 0.2 x 0.4 m box, 128 particles, centred
+/// at (0.5, 0.5, 0.5)) as TOML, frames every step: the object of the
+/// design tests.
+pub fn small_solid_scene() -> String {
+    r#"
+name = "small column"
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [1.0, 1.0, 1.0]
+[time]
+dt = 0.002
+[output]
+frame_every = 1
+[[systems]]
+kind = "solid"
+shape = { type = "box", half_extents = [0.1, 0.1, 0.2] }
+position = [0.5, 0.5, 0.5]
+spacing = 0.05
+density = 1000.0
+young = 1.0e5
+poisson = 0.3
+"#
+    .to_owned()
+}
+
 /// Where cargo put one of the workspace's binaries (`meshless-server`,
 /// `meshless`): beside this test executable's `deps/` folder.
 ///

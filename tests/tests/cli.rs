@@ -411,3 +411,38 @@ async fn solid_study_writes_the_cantilever_error() {
     let png = std::fs::read(dir.0.join("study_solid_spacing.png")).expect("chart");
     assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"));
 }
+
+/// `meshless optimise` on the shipped Figure 13 problem, embedded: the
+/// column's designed surface and its design particles are written, and
+/// the summary reports a converged solve with every energy term.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn optimise_writes_the_designed_surface() {
+    let dir = TempDir::new("optimise");
+    let problem = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes/design_stretch.toml");
+    let out = dir.0.join("design");
+    let stdout = meshless_ok(&[
+        "optimise",
+        problem.to_str().expect("utf-8"),
+        "--out",
+        out.to_str().expect("utf-8"),
+    ])
+    .await;
+    assert_eq!(
+        listing(&out),
+        ["design_0000.obj", "design_particles_0000.vtk"],
+        "{stdout}"
+    );
+    let obj = std::fs::read_to_string(out.join("design_0000.obj")).expect("the surface");
+    let top = obj
+        .lines()
+        .filter_map(|l| l.strip_prefix("v "))
+        .filter_map(|v| v.split_whitespace().nth(2)?.parse::<f64>().ok())
+        .fold(f64::MIN, f64::max);
+    assert!(
+        (top - 3.0).abs() < 0.1,
+        "the column's top is lifted from 2 m to 3 m: {top}\n{stdout}"
+    );
+    for expected in ["converged", "handle", "volume", "total"] {
+        assert!(stdout.contains(expected), "{expected} in\n{stdout}");
+    }
+}

@@ -14,11 +14,11 @@ from .frames import Body, Frame, SolidRange, SolidSurface, Surface, decode_frame
 def __getattr__(name: str):
     # The client needs the generated modules; import it lazily so that
     # `decode_frame` works before they are generated.
-    if name in ("Client", "Frames"):
+    if name in ("Client", "Design", "Frames"):
         from . import client
 
         return getattr(client, name)
     raise AttributeError(name)
 
 
-__all__ = ["Body", "Client", "Frame", "Frames", "SolidRange", "SolidSurface", "Surface", "decode_frame", "frames_key", "latest_key", "status_key"]
+__all__ = ["Body", "Client", "Design", "Frame", "Frames", "SolidRange", "SolidSurface", "Surface", "decode_frame", "frames_key", "latest_key", "status_key"]

@@ -4,14 +4,59 @@ from __future__ import annotations
 
 import json
 import queue
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable, Iterable
 
 import grpc
+import numpy as np
 import zenoh
 
 from .frames import Frame, decode_frame, frames_key, latest_key
 
 DEFAULT_TIMEOUT = 30.0
+
+
+@dataclass
+class Design:
+    """A solved design: the design particles' rest positions and their
+    displacements per frame, as numpy arrays (lengths checked)."""
+
+    session_id: str
+    system: int
+    kind: str
+    info: object
+    rest_positions: np.ndarray
+    times: np.ndarray
+    displacements: np.ndarray
+
+    @classmethod
+    def from_proto(cls, result) -> "Design":
+        from .v1 import design_pb2
+
+        rest = np.asarray(result.rest_positions, dtype=np.float64)
+        times = np.asarray(result.times, dtype=np.float64)
+        values = np.asarray(result.displacements, dtype=np.float64)
+        if rest.size % 3 or times.size == 0 or values.size != rest.size * times.size:
+            raise ValueError(
+                f"malformed design: {rest.size} rest coordinates, {times.size} times, "
+                f"{values.size} displacement values"
+            )
+        n = rest.size // 3
+        kind = design_pb2.DesignKind.Name(result.kind).removeprefix("DESIGN_KIND_").lower()
+        return cls(
+            session_id=result.session_id,
+            system=result.system,
+            kind=kind,
+            info=result.info,
+            rest_positions=rest.reshape(n, 3),
+            times=times,
+            displacements=values.reshape(times.size, n, 3),
+        )
+
+    def positions(self, frame: int) -> np.ndarray:
+        """The design particles' positions at ``frame``."""
+        return self.rest_positions + self.displacements[frame]
 
 
 class Client:
@@ -86,6 +131,43 @@ class Client:
         """The latest frame over gRPC, decoded."""
         message = self._stub.GetLatestFrame(self._ref(session_id), timeout=self._timeout)
         return decode_frame(message.SerializeToString())
+
+    def edit_constraints(self, session_id: str, edits: Iterable) -> list:
+        """Applies ``ConstraintEdit`` messages all or nothing; returns the
+        constraints in name order. INVALID_ARGUMENT names the bad one."""
+        from .v1 import design_pb2
+
+        request = design_pb2.EditConstraintsRequest(session_id=session_id, edits=list(edits))
+        return list(self._stub.EditConstraints(request, timeout=self._timeout).constraints)
+
+    def list_constraints(self, session_id: str) -> list:
+        return list(self._stub.ListConstraints(self._ref(session_id), timeout=self._timeout).constraints)
+
+    def optimize(
+        self,
+        request,
+        on_progress: Callable[[object], None] | None = None,
+        timeout: float | None = None,
+    ) -> Design:
+        """Runs an ``OptimizeRequest`` to its end, calling ``on_progress``
+        with each ``DesignProgress``; returns the :class:`Design`. Raises
+        ``grpc.RpcError`` (CANCELLED, INVALID_ARGUMENT, ABORTED) on failure."""
+        for event in self._stub.Optimize(request, timeout=timeout):
+            which = event.WhichOneof("event")
+            if which == "progress":
+                if on_progress is not None:
+                    on_progress(event.progress)
+            elif which == "result":
+                return Design.from_proto(event.result)
+        raise RuntimeError("the optimisation stream ended without a result")
+
+    def cancel_optimize(self, session_id: str) -> bool:
+        """Cancels the running optimisation; whether there was one."""
+        return self._stub.CancelOptimize(self._ref(session_id), timeout=self._timeout).cancelled
+
+    def get_design(self, session_id: str) -> Design:
+        """The last successful design; NOT_FOUND before the first."""
+        return Design.from_proto(self._stub.GetDesign(self._ref(session_id), timeout=self._timeout))
 
 
 class Frames:

@@ -291,3 +291,89 @@ def test_a_solid_carries_its_embedded_surface_as_it_falls(server):
     surface = first.vertices[:, 1].mean() - last.vertices[:, 1].mean()
     assert particles > 0.1, particles
     assert abs(surface / particles - 1.0) < 0.05, (surface, particles)
+
+
+COLUMN = """
+name = "python column"
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [1.0, 1.0, 1.0]
+[time]
+dt = 0.002
+[[systems]]
+kind = "solid"
+shape = { type = "box", half_extents = [0.1, 0.1, 0.2] }
+position = [0.5, 0.5, 0.5]
+spacing = 0.05
+density = 1000.0
+young = 1.0e5
+poisson = 0.3
+"""
+
+
+def test_constraints_and_a_shape_optimisation(server):
+    """Constraint edits are atomic and name the bad constraint; a shape
+    optimisation reports progress and returns the design as numpy arrays,
+    the column's top lifted by its handle."""
+    from meshless import Client
+    from meshless.v1 import design_pb2 as d
+    from meshless.v1 import scene_pb2 as sc
+
+    def region_handle(name, zmin, zmax, lift):
+        return d.ConstraintEdit(
+            add=d.Constraint(
+                name=name,
+                handle=d.HandleConstraint(
+                    points=d.Selection(
+                        region=sc.Aabb(min=sc.Vec3(x=0.3, y=0.3, z=zmin), max=sc.Vec3(x=0.7, y=0.7, z=zmax))
+                    ),
+                    target=d.DesignTarget(transform=d.TransformTarget(translation=sc.Vec3(z=lift))),
+                ),
+            )
+        )
+
+    with Client(server.grpc_target) as client:
+        session = client.create_session(COLUMN)
+        listed = client.edit_constraints(
+            session.id, [region_handle("bottom", 0.25, 0.36, 0.0), region_handle("top", 0.64, 0.75, 0.1)]
+        )
+        assert [c.name for c in listed] == ["bottom", "top"]
+
+        bad = d.ConstraintEdit(
+            add=d.Constraint(
+                name="far",
+                handle=d.HandleConstraint(
+                    points=d.Selection(particles=d.ParticleSelection(system=0, indices=[100000])),
+                    target=d.DesignTarget(positions=d.PositionsTarget(positions=[sc.Vec3()])),
+                ),
+            )
+        )
+        with pytest.raises(grpc.RpcError) as error:
+            client.edit_constraints(session.id, [d.ConstraintEdit(remove="top"), bad])
+        assert error.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+        assert "far" in error.value.details()
+        assert [c.name for c in client.list_constraints(session.id)] == ["bottom", "top"]
+
+        with pytest.raises(grpc.RpcError) as error:
+            client.get_design(session.id)
+        assert error.value.code() == grpc.StatusCode.NOT_FOUND
+
+        progress = []
+        request = d.OptimizeRequest(
+            session_id=session.id,
+            system=0,
+            design=d.DesignSettings(particles=40),
+            shape=d.ShapeProblem(),
+        )
+        design = client.optimize(request, on_progress=progress.append, timeout=TIMEOUT)
+        assert len(progress) >= 1
+        assert design.kind == "shape"
+        assert design.info.converged
+        assert design.info.energies.handle < 1.0
+        n = design.rest_positions.shape[0]
+        assert design.displacements.shape == (1, n, 3)
+        lift = design.displacements[0, :, 2].max()
+        assert abs(lift - 0.1) < 0.02, lift
+        again = client.get_design(session.id)
+        np.testing.assert_array_equal(again.positions(0), design.positions(0))
+        assert client.cancel_optimize(session.id) is False

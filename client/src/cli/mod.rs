@@ -5,6 +5,8 @@ mod chart;
 #[cfg(feature = "embedded")]
 mod demo;
 #[cfg(feature = "embedded")]
+mod optimise;
+#[cfg(feature = "embedded")]
 mod output;
 #[cfg(feature = "embedded")]
 mod run;
@@ -34,6 +36,10 @@ enum Command {
     /// it over gRPC and zenoh, write the frames, print a summary.
     #[cfg(feature = "embedded")]
     Demo(demo::DemoArgs),
+    /// Shape or motion design of a scene's solid from a TOML problem file
+    /// (embedded server unless --server): writes the designed surfaces.
+    #[cfg(feature = "embedded")]
+    Optimise(optimise::OptimiseArgs),
     /// Run a scene file in this process (no server) and write its frames.
     #[cfg(feature = "embedded")]
     Run(run::RunArgs),
@@ -55,6 +61,8 @@ pub async fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         #[cfg(feature = "embedded")]
         Command::Demo(args) => demo::demo(args).await,
+        #[cfg(feature = "embedded")]
+        Command::Optimise(args) => optimise::optimise(args).await,
         #[cfg(feature = "embedded")]
         Command::Run(args) => run::run(args),
         #[cfg(feature = "embedded")]

@@ -1,17 +1,21 @@
 //! A session: one world stepping on its own compute thread, driven by
 //! commands from gRPC handlers and publishing frames and status on zenoh.
 
+mod optimize;
 mod publish;
 mod worker;
 
 use crate::convert::scene_to_proto;
 use crate::error::ServiceError;
+use meshless_engine::design::{self, Constraint, ConstraintSet, Context, Edit};
 use meshless_engine::{BuildOptions, Frame, Scene, World};
 use meshless_proto::{keys, v1};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use tokio_util::sync::CancellationToken;
 
+pub use optimize::{OptimizeJob, Problem};
 use worker::Message;
 pub use worker::RunTarget;
 
@@ -35,6 +39,42 @@ pub type LatestFrame = Arc<Mutex<Arc<Frame>>>;
 const FRAME_QUEUE: usize = 4;
 /// Status changes buffered per watcher.
 const STATUS_EVENTS: usize = 64;
+/// Progress reports queued per optimisation before new ones are dropped.
+const PROGRESS_QUEUE: usize = 16;
+
+/// A session's constraints and designs, shared by the gRPC handlers and
+/// the compute thread. Never locked across a solve.
+#[derive(Debug, Default)]
+pub struct DesignState {
+    pub constraints: ConstraintSet,
+    /// The last successful optimisation.
+    pub last: Option<Arc<v1::DesignResult>>,
+    /// The cancel flag of the optimisation queued or running, if any.
+    pub running: Option<Arc<AtomicBool>>,
+}
+
+type SharedDesign = Arc<Mutex<DesignState>>;
+
+fn lock(design: &SharedDesign) -> std::sync::MutexGuard<'_, DesignState> {
+    design
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// An optimisation handed to the compute thread: its progress reports,
+/// then its outcome. Dropping it cancels the optimisation.
+#[derive(Debug)]
+pub struct Optimization {
+    pub progress: mpsc::Receiver<v1::DesignProgress>,
+    pub result: oneshot::Receiver<Result<Arc<v1::DesignResult>, ServiceError>>,
+    cancel: Arc<AtomicBool>,
+}
+
+impl Drop for Optimization {
+    fn drop(&mut self) {
+        self.cancel.store(true, Ordering::Relaxed);
+    }
+}
 
 /// The handle gRPC handlers hold. Cheap to share; the world itself lives
 /// on the compute thread.
@@ -51,6 +91,9 @@ pub struct Session {
     latest: LatestFrame,
     cancel: CancellationToken,
     thread: Mutex<Option<std::thread::JoinHandle<()>>>,
+    /// What constraints are checked against; fixed by the scene.
+    context: Context,
+    design: SharedDesign,
 }
 
 impl Session {
@@ -66,6 +109,8 @@ impl Session {
     ) -> std::io::Result<Arc<Self>> {
         let scene = world.scene().clone();
         let particle_count = world.particle_count();
+        let context = design::context(&world);
+        let design = SharedDesign::default();
         let initial = v1::SessionStatus {
             session_id: id.clone(),
             state: v1::SessionState::Idle as i32,
@@ -94,6 +139,7 @@ impl Session {
                 frames: frames_tx,
                 latest: latest.clone(),
             },
+            design.clone(),
             cancel.clone(),
         );
         let thread = std::thread::Builder::new()
@@ -110,6 +156,8 @@ impl Session {
             latest,
             cancel,
             thread: Mutex::new(Some(thread)),
+            context,
+            design,
         }))
     }
 
@@ -125,6 +173,90 @@ impl Session {
         answer
             .await
             .map_err(|_| ServiceError::SessionGone(self.id.clone()))?
+    }
+
+    /// Applies constraint edits all or nothing; returns the constraints.
+    ///
+    /// # Errors
+    /// [`ServiceError::Design`] naming the constraint at fault; nothing
+    /// is changed.
+    pub fn edit_constraints(&self, edits: &[Edit]) -> Result<Vec<Constraint>, ServiceError> {
+        let mut design = lock(&self.design);
+        design
+            .constraints
+            .apply(edits, &self.context)
+            .map_err(design::DesignError::from)?;
+        Ok(design.constraints.iter().cloned().collect())
+    }
+
+    /// The constraints in name order.
+    pub fn constraints(&self) -> Vec<Constraint> {
+        lock(&self.design).constraints.iter().cloned().collect()
+    }
+
+    /// The last successful design.
+    ///
+    /// # Errors
+    /// [`ServiceError::NoDesign`] before the first.
+    pub fn last_design(&self) -> Result<Arc<v1::DesignResult>, ServiceError> {
+        lock(&self.design)
+            .last
+            .clone()
+            .ok_or_else(|| ServiceError::NoDesign(self.id.clone()))
+    }
+
+    /// Queues an optimisation on the compute thread; it starts once the
+    /// commands before it are done, and commands after it wait for it.
+    ///
+    /// # Errors
+    /// [`ServiceError::WrongState`] while another optimisation is queued
+    /// or running; [`ServiceError::SessionGone`].
+    pub fn optimize(&self, job: OptimizeJob) -> Result<Optimization, ServiceError> {
+        let cancel = Arc::new(AtomicBool::new(false));
+        {
+            let mut design = lock(&self.design);
+            if design.running.is_some() {
+                return Err(ServiceError::WrongState {
+                    session_id: self.id.clone(),
+                    state: "optimising",
+                    action: "optimise",
+                    hint: "cancel the running optimisation or wait for it",
+                });
+            }
+            design.running = Some(cancel.clone());
+        }
+        let (progress_tx, progress) = mpsc::channel(PROGRESS_QUEUE);
+        let (result_tx, result) = oneshot::channel();
+        let channels = optimize::Channels {
+            progress: progress_tx,
+            result: result_tx,
+            cancel: cancel.clone(),
+        };
+        if self
+            .commands
+            .send(Message::Optimize(Box::new(job), channels))
+            .is_err()
+        {
+            lock(&self.design).running = None;
+            return Err(ServiceError::SessionGone(self.id.clone()));
+        }
+        Ok(Optimization {
+            progress,
+            result,
+            cancel,
+        })
+    }
+
+    /// Cancels the optimisation queued or running; returns whether there
+    /// was one.
+    pub fn cancel_optimize(&self) -> bool {
+        match &lock(&self.design).running {
+            Some(cancel) => {
+                cancel.store(true, Ordering::Relaxed);
+                true
+            }
+            None => false,
+        }
     }
 
     /// The current status (step and time are kept current while running).

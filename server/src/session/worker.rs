@@ -2,7 +2,8 @@
 //! between steps, and hands frames and status to the publishing tasks
 //! without ever waiting on them.
 
-use super::{Command, LatestFrame, Reply};
+use super::optimize::{self, Channels, OptimizeJob, WarmStart};
+use super::{Command, LatestFrame, Reply, SharedDesign, lock};
 use crate::error::{ServiceError, state_name};
 use meshless_engine::{BuildOptions, Frame, World};
 use meshless_proto::v1::{SessionState, SessionStatus};
@@ -25,6 +26,7 @@ pub struct RunTarget {
 #[derive(Debug)]
 pub enum Message {
     Command(Command, Reply),
+    Optimize(Box<OptimizeJob>, Channels),
     /// Stop and exit; sent on delete and server shutdown.
     Shutdown,
 }
@@ -68,6 +70,8 @@ pub struct Worker {
     pacing: Option<Pacing>,
     published_step: Option<u64>,
     dropped_frames: u64,
+    design: SharedDesign,
+    warm: Option<WarmStart>,
 }
 
 impl Worker {
@@ -76,6 +80,7 @@ impl Worker {
         world: World,
         options: BuildOptions,
         out: Outputs,
+        design: SharedDesign,
         cancel: CancellationToken,
     ) -> Self {
         let mut worker = Self {
@@ -90,6 +95,8 @@ impl Worker {
             pacing: None,
             published_step: None,
             dropped_frames: 0,
+            design,
+            warm: None,
         };
         worker.publish_frame();
         worker
@@ -121,6 +128,7 @@ impl Worker {
                     // The caller may have gone away; the command still applied.
                     let _ = reply.send(result);
                 }
+                Some(Message::Optimize(job, channels)) => self.optimize(&job, channels),
                 Some(Message::Shutdown) => break,
                 None if self.cancel.is_cancelled() => break,
                 None => {
@@ -151,6 +159,52 @@ impl Worker {
             Command::Resume => self.resume(),
             Command::Reset => self.reset(),
         }
+    }
+
+    /// Runs an optimisation to its end and reports it. The world and the
+    /// constraints are left as they were; a success becomes the session's
+    /// last design.
+    fn optimize(&mut self, job: &OptimizeJob, channels: Channels) {
+        let outcome = if matches!(self.state, SessionState::Running | SessionState::Faulted) {
+            Err(self.refuse("optimise", "pause it first"))
+        } else {
+            let constraints = lock(&self.design).constraints.clone();
+            optimize::solve(
+                &self.id,
+                &self.world,
+                &constraints,
+                job,
+                self.warm.as_ref(),
+                &channels,
+                &self.cancel,
+            )
+        };
+        let Channels {
+            progress, result, ..
+        } = channels;
+        // The progress stream ends before the result.
+        drop(progress);
+        let outcome = outcome.map(|solved| {
+            if solved.warm.is_some() {
+                self.warm = solved.warm;
+            }
+            for frame in solved.playback {
+                // Waits for the publisher rather than dropping: playback
+                // frames are few and each one matters.
+                if self.out.frames.blocking_send(Arc::new(frame)).is_err() {
+                    self.dropped_frames += 1;
+                }
+            }
+            let result = Arc::new(solved.result);
+            lock(&self.design).last = Some(result.clone());
+            result
+        });
+        lock(&self.design).running = None;
+        if let Err(e) = &outcome {
+            tracing::info!(session = %self.id, "optimisation ended: {e}");
+        }
+        // The caller may have gone away.
+        let _ = result.send(outcome);
     }
 
     fn refuse(&self, action: &'static str, hint: &'static str) -> ServiceError {

@@ -1,0 +1,172 @@
+//! Optimisation on a session's compute thread (tutorial Section 8): the
+//! job a gRPC handler hands the worker, the solve with its progress and
+//! cancellation, the result kept for `GetDesign` and the playback frames.
+
+use crate::convert::design::{info_to_proto, progress_to_proto};
+use crate::error::ServiceError;
+use meshless_engine::design::{
+    ConstraintSet, DesignParams, DesignTarget, MotionParams, Progress, solve_motion, solve_shape,
+};
+use meshless_engine::math::Vector;
+use meshless_engine::{Frame, World};
+use meshless_proto::v1;
+use std::ops::ControlFlow;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use tokio::sync::{mpsc, oneshot};
+use tokio_util::sync::CancellationToken;
+
+/// Most playback frames one motion publishes; a higher rate is cut there.
+const MAX_PLAYBACK_FRAMES: usize = 10_000;
+
+/// What to optimise.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OptimizeJob {
+    /// The scene system (an elastic solid).
+    pub system: usize,
+    pub params: DesignParams,
+    pub problem: Problem,
+    /// Publish the result as frames.
+    pub playback: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Problem {
+    Shape,
+    Motion {
+        params: MotionParams,
+        /// Playback frames per second of design time, > 0.
+        playback_rate: f64,
+    },
+}
+
+/// Where an optimisation reports, and how it is stopped.
+#[derive(Debug)]
+pub struct Channels {
+    /// Progress, dropped when the reader is behind.
+    pub progress: mpsc::Sender<v1::DesignProgress>,
+    pub result: oneshot::Sender<Result<Arc<v1::DesignResult>, ServiceError>>,
+    /// Set by `CancelOptimize` or when the client drops the stream.
+    pub cancel: Arc<AtomicBool>,
+}
+
+/// The last shape solve, to start the next one of the same system and
+/// settings from (dragging a handle re-solves from where the shape is).
+#[derive(Debug, Clone)]
+pub struct WarmStart {
+    system: usize,
+    params: DesignParams,
+    displacements: Vec<Vector>,
+}
+
+/// A solved design, ready to keep and to play back.
+#[derive(Debug)]
+pub struct Solved {
+    pub result: v1::DesignResult,
+    /// Set for a shape: the next warm start.
+    pub warm: Option<WarmStart>,
+    /// The design posed at each playback time (empty without playback).
+    pub playback: Vec<Frame>,
+}
+
+/// Solves `job` on `world`'s solid against `constraints`. Stops with
+/// [`meshless_engine::design::DesignError::Cancelled`] once `cancel` or
+/// `shutdown` is set, or the progress reader is gone.
+///
+/// # Errors
+/// The engine's design errors; nothing is changed.
+pub fn solve(
+    id: &str,
+    world: &World,
+    constraints: &ConstraintSet,
+    job: &OptimizeJob,
+    warm: Option<&WarmStart>,
+    channels: &Channels,
+    shutdown: &CancellationToken,
+) -> Result<Solved, ServiceError> {
+    let mut observer = |p: &Progress| {
+        if channels.cancel.load(Ordering::Relaxed)
+            || shutdown.is_cancelled()
+            || channels.progress.is_closed()
+        {
+            return ControlFlow::Break(());
+        }
+        // A full queue drops this report: the reader sees later ones.
+        let _ = channels.progress.try_send(progress_to_proto(p));
+        ControlFlow::Continue(())
+    };
+    let target = DesignTarget::new(world, job.system, &job.params)?;
+    let body = target.body();
+    let rest_positions = flatten(body.rest());
+    let now = world.clock().time;
+    let (kind, info, times, frames, warm, playback) = match job.problem {
+        Problem::Shape => {
+            let warm = warm
+                .filter(|w| w.system == job.system && w.params == job.params)
+                .map(|w| w.displacements.as_slice());
+            let solution = solve_shape(body, constraints, &job.params, warm, &mut observer)?;
+            let playback = if job.playback {
+                vec![target.frame(world, &solution.displacements, now)]
+            } else {
+                Vec::new()
+            };
+            let frames = flatten(&solution.displacements);
+            let warm = WarmStart {
+                system: job.system,
+                params: job.params,
+                displacements: solution.displacements,
+            };
+            (
+                v1::DesignKind::Shape,
+                solution.info,
+                vec![0.0],
+                frames,
+                Some(warm),
+                playback,
+            )
+        }
+        Problem::Motion {
+            params,
+            playback_rate,
+        } => {
+            let solution = solve_motion(body, constraints, &job.params, &params, &mut observer)?;
+            let mut playback = Vec::new();
+            if job.playback {
+                let (start, end) = solution.span();
+                let count =
+                    (((end - start) * playback_rate).floor() as usize + 1).min(MAX_PLAYBACK_FRAMES);
+                for k in 0..count {
+                    let t = (start + k as f64 / playback_rate).min(end);
+                    let u = solution.displacements_at(t)?;
+                    playback.push(target.frame(world, &u, t));
+                }
+            }
+            let frames = solution.frames().iter().flat_map(|f| flatten(f)).collect();
+            (
+                v1::DesignKind::Motion,
+                solution.info,
+                solution.times().to_vec(),
+                frames,
+                None,
+                playback,
+            )
+        }
+    };
+    Ok(Solved {
+        result: v1::DesignResult {
+            session_id: id.to_owned(),
+            system: u32::try_from(job.system).unwrap_or(u32::MAX),
+            kind: kind as i32,
+            info: Some(info_to_proto(&info)),
+            rest_positions,
+            times,
+            displacements: frames,
+        },
+        warm,
+        playback,
+    })
+}
+
+fn flatten(vectors: &[Vector]) -> Vec<f64> {
+    vectors.iter().flat_map(|v| [v.x, v.y, v.z]).collect()
+}
