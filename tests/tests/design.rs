@@ -529,3 +529,83 @@ async fn bad_optimisations_are_invalid_arguments() {
         .expect_err("failed optimisations store nothing");
     assert_eq!(missing.code(), Some(Code::NotFound));
 }
+
+/// A keyframe handle on the whole column, moved by `translation` at `time`.
+fn keyframe(name: &str, time: f64, translation: [f64; 3]) -> v1::Constraint {
+    let mut c = region_handle(name, [0.0; 3], [1.0; 3], translation);
+    if let Some(v1::constraint::Kind::Handle(h)) = &mut c.kind {
+        h.time = Some(time);
+    }
+    c
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn motion_optimisation_plays_back_along_the_motion() {
+    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let client = server.client().await.expect("client");
+    let info = within("info", client.server_info()).await.expect("info");
+    let session = within("create", client.create_session_toml(&small_solid_scene()))
+        .await
+        .expect("valid scene");
+    let id = session.id.clone();
+    let edits = vec![
+        add(keyframe("start", 0.0, [0.0; 3])),
+        add(keyframe("middle", 0.5, [0.1, 0.0, 0.0])),
+        add(keyframe("end", 1.0, [0.2, 0.1, 0.0])),
+    ];
+    within("edit", client.edit_constraints(&id, edits))
+        .await
+        .expect("valid keyframes");
+    let link = within("zenoh", ZenohLink::connect(&info.zenoh_locators))
+        .await
+        .expect("zenoh link");
+    let frames = within("frames", link.frames(&id)).await.expect("frames");
+    let rate = 10.0;
+    let request = v1::OptimizeRequest {
+        session_id: id.clone(),
+        system: 0,
+        design: Some(small_design()),
+        problem: Some(v1::optimize_request::Problem::Motion(v1::MotionProblem {
+            settings: None,
+            playback_rate: Some(rate),
+        })),
+        playback: true,
+    };
+    let (progress, design) = optimise(&client, request).await;
+    assert!(progress >= 1);
+    assert_eq!(design.kind, DesignKind::Motion);
+    assert!(design.times.len() >= 3, "frames at the keyframes at least");
+    assert_eq!(design.times.first(), Some(&0.0));
+    assert_eq!(design.times.last(), Some(&1.0));
+    assert!(design.info.converged, "{:?}", design.info);
+
+    // span * rate + 1 frames, in time order, the column moving with the
+    // keyframes: 0.2 m along x by the end.
+    let mean_x = |frame: &meshless_client::FrameView| {
+        let p = frame.field(v1::FieldKind::Position).expect("positions");
+        let xs: Vec<f64> = p.values.chunks_exact(3).map(|p| f64::from(p[0])).collect();
+        xs.iter().sum::<f64>() / xs.len() as f64
+    };
+    let mut played = Vec::new();
+    for _ in 0..11 {
+        played.push(
+            within("playback frame", frames.recv())
+                .await
+                .expect("a frame"),
+        );
+    }
+    let times: Vec<f64> = played.iter().map(|f| f.time).collect();
+    assert!(
+        times.windows(2).all(|w| w[1] > w[0]),
+        "playback times increase: {times:?}"
+    );
+    assert!(
+        (times[0] - 0.0).abs() < 1e-9 && (times[10] - 1.0).abs() < 1e-9,
+        "{times:?}"
+    );
+    let shift = mean_x(&played[10]) - mean_x(&played[0]);
+    assert!(
+        (shift - 0.2).abs() < 0.01,
+        "the column ends 0.2 m along x: {shift}"
+    );
+}

@@ -13,7 +13,9 @@ use super::output::SurfaceFormat;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use meshless_client::{Client, Design, v1};
-use meshless_engine::design::{Constraint, DesignParams, DesignTarget, MotionParams};
+use meshless_engine::design::{
+    Constraint, DesignParams, DesignTarget, MotionParams, TemporalBasis,
+};
 use meshless_engine::io::{MeshFormat, write_mesh_ply, write_obj, write_vtk};
 use meshless_engine::math::Vector;
 use meshless_engine::{BuildOptions, FieldData, FieldKind, Frame, Scene};
@@ -145,9 +147,13 @@ async fn drive(args: &OptimiseArgs, problem: &ProblemFile, scene: &str, url: &st
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     let format = MeshFormat::from(args.format);
     let mut surfaces = 0;
-    for (k, (u, &time)) in design.displacements.iter().zip(&design.times).enumerate() {
-        let u: Vec<Vector> = u.iter().map(|&u| Vector::from(u)).collect();
-        if let Some(surface) = target.surface(&u) {
+    let poses = poses(
+        &design,
+        problem.playback_rate.unwrap_or(DEFAULT_PLAYBACK_RATE),
+    )?;
+    for (k, (time, u)) in poses.iter().enumerate() {
+        let time = *time;
+        if let Some(surface) = target.surface(u) {
             let path = args
                 .out
                 .join(format!("design_{k:04}.{}", format.extension()));
@@ -167,7 +173,13 @@ async fn drive(args: &OptimiseArgs, problem: &ProblemFile, scene: &str, url: &st
             .with_context(|| format!("cannot write {}", path.display()))?;
             surfaces += 1;
         }
-        let positions = design.positions(k).unwrap_or_default();
+        let positions: Vec<[f64; 3]> = target
+            .body()
+            .rest()
+            .iter()
+            .zip(u)
+            .map(|(x, u)| (x + u).into())
+            .collect();
         let path = args.out.join(format!("design_particles_{k:04}.vtk"));
         let mut file = std::io::BufWriter::new(
             std::fs::File::create(&path)
@@ -176,8 +188,45 @@ async fn drive(args: &OptimiseArgs, problem: &ProblemFile, scene: &str, url: &st
         write_vtk(&mut file, &particles_frame(k, time, &positions))
             .with_context(|| format!("cannot write {}", path.display()))?;
     }
-    summary(args, &design, wall, surfaces);
+    summary(args, &design, wall, surfaces, poses.len());
     Ok(())
+}
+
+/// Playback frames per second of design time when the problem names none.
+const DEFAULT_PLAYBACK_RATE: f64 = 30.0;
+
+/// The design's poses to write: a shape's one, or a motion sampled at
+/// `rate` frames per second along the temporal MLS (Eq. 80), the same
+/// frames the server plays back.
+fn poses(design: &Design, rate: f64) -> Result<Vec<(f64, Vec<Vector>)>> {
+    let frames: Vec<Vec<Vector>> = design
+        .displacements
+        .iter()
+        .map(|f| f.iter().map(|&u| Vector::from(u)).collect())
+        .collect();
+    if design.times.len() < 2 {
+        return Ok(design.times.iter().copied().zip(frames).collect());
+    }
+    if !(rate.is_finite() && rate > 0.0) {
+        bail!("playback_rate is {rate}; give a positive number of frames per second");
+    }
+    let basis = TemporalBasis::new(&design.times)?;
+    let (start, end) = (design.times[0], design.times[design.times.len() - 1]);
+    let count = ((end - start) * rate).floor() as usize + 1;
+    let mut weights = Vec::new();
+    (0..count)
+        .map(|k| {
+            let t = (start + k as f64 / rate).min(end);
+            basis.shape_functions(t, &mut weights)?;
+            let mut u = vec![Vector::zeros(); frames[0].len()];
+            for w in &weights {
+                for (u, f) in u.iter_mut().zip(&frames[w.frame]) {
+                    *u += f * w.value;
+                }
+            }
+            Ok((t, u))
+        })
+        .collect()
 }
 
 /// Sets the constraints and optimises, with a progress bar.
@@ -234,7 +283,7 @@ fn particles_frame(k: usize, time: f64, positions: &[[f64; 3]]) -> Frame {
     }
 }
 
-fn summary(args: &OptimiseArgs, design: &Design, wall: f64, surfaces: usize) {
+fn summary(args: &OptimiseArgs, design: &Design, wall: f64, surfaces: usize, poses: usize) {
     let info = &design.info;
     println!("meshless optimise: {}", args.problem.display());
     println!(
@@ -279,9 +328,8 @@ fn summary(args: &OptimiseArgs, design: &Design, wall: f64, surfaces: usize) {
         let total: f64 = terms.iter().map(|(_, v)| v).sum();
         println!("    {:<16} {total:.4e}", "total");
     }
-    let frames = design.times.len();
     println!(
-        "  output            {}/design_*.{} ({surfaces} surfaces), design_particles_*.vtk ({frames})",
+        "  output            {}/design_*.{} ({surfaces} surfaces), design_particles_*.vtk ({poses})",
         args.out.display(),
         MeshFormat::from(args.format).extension()
     );

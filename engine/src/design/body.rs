@@ -84,6 +84,28 @@ impl Embedding {
     }
 }
 
+/// The lattice spacing that puts close to `particles` particles in
+/// `shape`: `(V / n)^(1/dim)` to start, then corrected by the count a
+/// few times (a lattice fills a box's corners or not depending on where
+/// its planes fall).
+fn spacing_for(shape: &Shape, dim: usize, volume: Real, particles: u32) -> Real {
+    let target = Real::from(particles);
+    let mut spacing = (volume / target).powf(1.0 / dim as Real);
+    let mut best = (Real::INFINITY, spacing);
+    for _ in 0..8 {
+        let count = shape.sample_volume(spacing, dim).map_or(0, |p| p.len()) as Real;
+        let miss = (count / target).ln().abs();
+        if miss < best.0 {
+            best = (miss, spacing);
+        }
+        if miss < 0.05 || count == 0.0 {
+            break;
+        }
+        spacing *= (count / target).powf(1.0 / dim as Real);
+    }
+    best.1
+}
+
 /// The design particles of a shape and their deformation field.
 #[derive(Debug, Clone)]
 pub struct DesignBody {
@@ -151,7 +173,7 @@ impl DesignBody {
                     format!("is {}; ask for at least 8", params.particles),
                 );
             }
-            (volume / params.particles as Real).powf(1.0 / dim as Real)
+            spacing_for(shape, dim, volume, params.particles)
         } else {
             params.spacing
         };

@@ -389,3 +389,161 @@ impl Target {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn context() -> Context {
+        Context {
+            dim: 3,
+            solids: vec![None, Some(10)],
+        }
+    }
+
+    fn handle(name: &str, points: Selection, target: Target) -> Constraint {
+        Constraint {
+            name: name.into(),
+            kind: ConstraintKind::Handle(Handle {
+                points,
+                target,
+                time: None,
+            }),
+        }
+    }
+
+    fn pin(name: &str) -> Constraint {
+        handle(
+            name,
+            Selection::Particles {
+                system: 1,
+                indices: vec![0, 9],
+            },
+            Target::Positions(vec![[0.0; 3], [1.0; 3]]),
+        )
+    }
+
+    fn ball(name: &str, radius: Real, path: Vec<Waypoint>) -> Constraint {
+        Constraint {
+            name: name.into(),
+            kind: ConstraintKind::Obstacle(Obstacle {
+                shape: ShapeSpec::Sphere { radius },
+                orientation: [0.0; 3],
+                path,
+            }),
+        }
+    }
+
+    fn at(time: Real) -> Waypoint {
+        Waypoint {
+            time,
+            position: [0.0; 3],
+        }
+    }
+
+    /// Each bad constraint is refused with its name and a reason, and the
+    /// batch it came in changes nothing.
+    #[test]
+    fn bad_constraints_are_refused_by_name_and_change_nothing() {
+        let mut set = ConstraintSet::new();
+        set.apply(&[Edit::Add(pin("a"))], &context())
+            .expect("valid");
+        let before = set.clone();
+        let bad: Vec<(Constraint, &str)> = vec![
+            (pin("a"), "exists"),
+            (
+                handle(
+                    "b",
+                    Selection::Particles {
+                        system: 1,
+                        indices: vec![10],
+                    },
+                    Target::Positions(vec![[0.0; 3]]),
+                ),
+                "particle 10 does not exist",
+            ),
+            (
+                handle(
+                    "c",
+                    Selection::Particles {
+                        system: 0,
+                        indices: vec![0],
+                    },
+                    Target::Positions(vec![[0.0; 3]]),
+                ),
+                "not an elastic solid",
+            ),
+            (
+                handle(
+                    "d",
+                    Selection::Points(vec![[0.0; 3]]),
+                    Target::Positions(vec![[Real::NAN, 0.0, 0.0]]),
+                ),
+                "not finite",
+            ),
+            (
+                handle(
+                    "e",
+                    Selection::Region {
+                        min: [1.0; 3],
+                        max: [0.0; 3],
+                    },
+                    Target::Transform {
+                        translation: [0.0; 3],
+                        rotation: [0.0; 3],
+                        centre: [0.0; 3],
+                    },
+                ),
+                "exceeds",
+            ),
+            (
+                handle(
+                    "f",
+                    Selection::Region {
+                        min: [0.0; 3],
+                        max: [1.0; 3],
+                    },
+                    Target::Positions(vec![[0.0; 3]]),
+                ),
+                "region",
+            ),
+            (ball("g", 0.0, vec![at(0.0)]), "radius"),
+            (ball("h", 1.0, vec![]), "path is empty"),
+            (ball("i", 1.0, vec![at(1.0), at(1.0)]), "must increase"),
+            (pin(" "), "name is empty"),
+        ];
+        for (c, reason) in bad {
+            let name = c.name.clone();
+            let err = set
+                .apply(&[Edit::Add(pin("new")), Edit::Add(c)], &context())
+                .expect_err(reason);
+            assert_eq!(err.name, name);
+            assert!(err.message.contains(reason), "{name}: {err}");
+            assert_eq!(set, before, "{name}: the set changed");
+        }
+        assert!(set.apply(&[Edit::Remove("zz".into())], &context()).is_err());
+        assert!(set.apply(&[Edit::Replace(pin("zz"))], &context()).is_err());
+        set.apply(&[Edit::Replace(pin("a")), Edit::Add(pin("b"))], &context())
+            .expect("valid");
+        assert_eq!(
+            set.iter().map(|c| c.name.as_str()).collect::<Vec<_>>(),
+            ["a", "b"]
+        );
+        set.apply(&[Edit::Clear], &context()).expect("valid");
+        assert!(set.is_empty());
+    }
+
+    #[test]
+    fn transforms_turn_about_their_centre_then_move() {
+        let target = Target::Transform {
+            translation: [1.0, 0.0, 0.0],
+            rotation: [0.0, 0.0, std::f64::consts::FRAC_PI_2],
+            centre: [1.0, 0.0, 0.0],
+        };
+        let moved = target.resolve(&[Vector::new(2.0, 0.0, 0.0)]);
+        assert!(
+            (moved[0] - Vector::new(2.0, 1.0, 0.0)).norm() < 1e-12,
+            "{moved:?}"
+        );
+    }
+}

@@ -106,10 +106,11 @@ impl Inside {
         let mut value = 0.0;
         for c in 0..corners {
             let bit = |a: usize| (c >> a) & 1;
-            let mut w = 1.0;
-            for a in 0..self.dim {
-                w *= if bit(a) == 1 { frac[a] } else { 1.0 - frac[a] };
-            }
+            let w: Real = frac[..self.dim]
+                .iter()
+                .enumerate()
+                .map(|(a, f)| if bit(a) == 1 { *f } else { 1.0 - f })
+                .product();
             let idx = |a: usize| if a < self.dim { base[a] + bit(a) } else { 0 };
             value += w * at(idx(0), idx(1), idx(2));
         }

@@ -68,7 +68,7 @@ pub(crate) struct Rows {
 }
 
 impl Rows {
-    fn clear(&mut self, jacobian: bool) {
+    pub(crate) fn reset(&mut self, jacobian: bool) {
         self.residuals.clear();
         self.terms.clear();
         self.offsets.clear();
@@ -114,7 +114,8 @@ impl Rows {
         e
     }
 
-    fn row(&self, k: usize) -> (&[u32], &[Real]) {
+    /// Row `k`'s columns and values.
+    pub(crate) fn entries(&self, k: usize) -> (&[u32], &[Real]) {
         let r = self.offsets[k] as usize..self.offsets[k + 1] as usize;
         (&self.columns[r.clone()], &self.values[r])
     }
@@ -143,14 +144,14 @@ fn evaluate(problem: &impl LeastSquares, x: &[Real], jacobian: bool, out: &mut R
         .into_par_iter()
         .map(|c| {
             let mut rows = Rows::default();
-            rows.clear(jacobian);
+            rows.reset(jacobian);
             for g in c * GROUP_CHUNK..((c + 1) * GROUP_CHUNK).min(problem.groups()) {
                 problem.group(g, x, &mut rows);
             }
             rows
         })
         .collect();
-    out.clear(jacobian);
+    out.reset(jacobian);
     for p in &parts {
         out.append(p);
     }
@@ -178,7 +179,7 @@ impl Transposed {
         self.rows.resize(j.columns.len(), 0);
         self.values.resize(j.columns.len(), 0.0);
         for k in 0..j.residuals.len() {
-            let (cs, vs) = j.row(k);
+            let (cs, vs) = j.entries(k);
             for (&c, &v) in cs.iter().zip(vs) {
                 let at = next[c as usize] as usize;
                 self.rows[at] = k as u32;
@@ -204,7 +205,7 @@ impl Transposed {
 /// `out = J v`.
 fn apply_j(j: &Rows, v: &[Real], out: &mut [Real]) {
     out.par_iter_mut().enumerate().for_each(|(k, o)| {
-        let (cs, vs) = j.row(k);
+        let (cs, vs) = j.entries(k);
         *o = cs.iter().zip(vs).map(|(&c, a)| a * v[c as usize]).sum();
     });
 }
@@ -488,7 +489,7 @@ impl LineBlocks {
                     let mut blocks = vec![0.0; lines * size];
                     let mut entries: Vec<(u32, u32, Real)> = Vec::new();
                     for k in c * chunk..((c + 1) * chunk).min(rows) {
-                        let (cs, vs) = j.row(k);
+                        let (cs, vs) = j.entries(k);
                         // A row within one frame adds only to diagonals.
                         let first = cs.first().map_or(0, |&c| c as usize / lines);
                         if cs.iter().all(|&c| c as usize / lines == first) {
@@ -625,5 +626,81 @@ fn cholesky_solve(l: &[Real], n: usize, y: &mut [Real]) {
             v -= l[m * n + i] * y[m];
         }
         y[i] = v / l[i * n + i];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Rosenbrock's function as least squares, `r = (10 (y - x^2), 1 -
+    /// x)`: the curved valley that defeats plain Gauss–Newton steps and
+    /// that the damping must follow to the minimum at (1, 1).
+    struct Rosenbrock;
+
+    impl LeastSquares for Rosenbrock {
+        fn unknowns(&self) -> usize {
+            2
+        }
+        fn groups(&self) -> usize {
+            1
+        }
+        fn group(&self, _: usize, x: &[Real], rows: &mut Rows) {
+            rows.push(
+                Term::Handle,
+                10.0 * (x[1] - x[0] * x[0]),
+                [(0, -20.0 * x[0]), (1, 10.0)],
+            );
+            rows.push(Term::Rigidity, 1.0 - x[0], [(0, -1.0)]);
+        }
+    }
+
+    #[test]
+    fn levenberg_marquardt_finds_rosenbrocks_minimum() {
+        let mut x = [-1.2, 1.0];
+        let params = SolverParams {
+            tolerance: 1e-12,
+            linear_tolerance: 1e-10,
+            ..SolverParams::default()
+        };
+        let mut run = RunState::default();
+        let info = minimise(&Rosenbrock, &mut x, &params, &mut run, &mut |_| {
+            ControlFlow::Continue(())
+        })
+        .expect("solves");
+        assert!(
+            (x[0] - 1.0).abs() < 1e-6 && (x[1] - 1.0).abs() < 1e-6,
+            "{x:?} {info:?}"
+        );
+        assert!(info.converged && info.energies.total() < 1e-12, "{info:?}");
+    }
+
+    #[test]
+    fn a_non_finite_energy_names_its_term() {
+        struct Broken;
+        impl LeastSquares for Broken {
+            fn unknowns(&self) -> usize {
+                1
+            }
+            fn groups(&self) -> usize {
+                1
+            }
+            fn group(&self, _: usize, x: &[Real], rows: &mut Rows) {
+                rows.push(Term::Volume, Real::NAN * x[0], [(0, 1.0)]);
+            }
+        }
+        let mut x = [1.0];
+        let err = minimise(
+            &Broken,
+            &mut x,
+            &SolverParams::default(),
+            &mut RunState::default(),
+            &mut |_| ControlFlow::Continue(()),
+        )
+        .expect_err("NaN");
+        assert!(
+            matches!(err, DesignError::Diverged { term: "volume", .. }),
+            "{err}"
+        );
     }
 }

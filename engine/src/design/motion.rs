@@ -81,7 +81,7 @@ impl MotionSolution {
     /// # Errors
     /// [`DesignError::Parameter`] for a time outside [`Self::span`].
     pub fn displacements_at(&self, t: Real) -> Result<Vec<Vector>, DesignError> {
-        Ok(blend(&self.basis, &self.frames, t, Derivative::Value)?)
+        blend(&self.basis, &self.frames, t, Derivative::Value)
     }
 
     /// Their first time derivative at `t`.
@@ -89,7 +89,7 @@ impl MotionSolution {
     /// # Errors
     /// As [`Self::displacements_at`].
     pub fn velocities_at(&self, t: Real) -> Result<Vec<Vector>, DesignError> {
-        Ok(blend(&self.basis, &self.frames, t, Derivative::First)?)
+        blend(&self.basis, &self.frames, t, Derivative::First)
     }
 }
 

@@ -335,6 +335,7 @@ pub fn progress_to_proto(p: &Progress) -> v1::DesignProgress {
         iteration,
         energies,
         gradient_norm,
+        linear_iterations,
         frames,
         inserted,
         sampling_error,
@@ -346,6 +347,7 @@ pub fn progress_to_proto(p: &Progress) -> v1::DesignProgress {
         frames: count(*frames),
         inserted: count(*inserted),
         sampling_error: *sampling_error,
+        linear_iterations: *linear_iterations,
     }
 }
 
@@ -354,6 +356,7 @@ pub fn info_to_proto(i: &SolveInfo) -> v1::DesignInfo {
         iterations,
         energies,
         gradient_norm,
+        linear_iterations,
         converged,
         frames,
         inserted,
@@ -367,6 +370,7 @@ pub fn info_to_proto(i: &SolveInfo) -> v1::DesignInfo {
         frames: count(*frames),
         inserted: count(*inserted),
         sampling_error: *sampling_error,
+        linear_iterations: *linear_iterations,
     }
 }
 
