@@ -446,3 +446,46 @@ async fn optimise_writes_the_designed_surface() {
         assert!(stdout.contains(expected), "{expected} in\n{stdout}");
     }
 }
+
+/// `meshless study --knob design-particles` solves the Figure 13 stretch
+/// and the passage: the volume is kept, the ball cleared, and each
+/// experiment gets its chart.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn design_study_writes_both_experiments() {
+    let dir = TempDir::new("design-study");
+    meshless_ok(&[
+        "study",
+        "--knob",
+        "design-particles",
+        "--values",
+        "stretch:120,passage:60",
+        "--output",
+        dir.0.to_str().expect("utf-8"),
+    ])
+    .await;
+    let csv = std::fs::read_to_string(dir.0.join("study_design_particles.csv")).expect("csv");
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|r| r.split(',').collect())
+        .collect();
+    assert_eq!(rows.len(), 2, "{csv}");
+    let number = |row: &[&str], column: usize| -> f64 {
+        row[column]
+            .parse()
+            .unwrap_or_else(|_| panic!("column {column} of {row:?}"))
+    };
+    let (stretch, passage) = (&rows[0], &rows[1]);
+    assert_eq!((stretch[2], stretch[14]), ("stretch", "ok"), "{csv}");
+    assert!(number(stretch, 7).abs() < 0.03, "volume change: {csv}");
+    assert!(number(stretch, 8) < 0.1, "handle error: {csv}");
+    assert_eq!((passage[2], passage[14]), ("passage", "ok"), "{csv}");
+    // Sampling checks 10 times per interval against a 0.1-spacing
+    // tolerance; the 201 times measured may find a little more.
+    assert!(number(passage, 11) < 0.15, "penetration: {csv}");
+    for chart in ["stretch", "passage"] {
+        let png = std::fs::read(dir.0.join(format!("study_design_particles_{chart}.png")))
+            .expect("chart");
+        assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"));
+    }
+}

@@ -43,12 +43,18 @@ fn font() -> bool {
     })
 }
 
-/// Draws `points` as error (y) against cost (x), each labelled. Returns
-/// false, drawing nothing, when no font is available for the text.
+/// Draws `points` as error (y, described by `y_desc`) against cost (x),
+/// each labelled. Returns false, drawing nothing, when no font is
+/// available for the text.
 ///
 /// # Errors
 /// When the PNG cannot be written.
-pub fn error_against_cost(path: &Path, title: &str, points: &[Point]) -> Result<bool> {
+pub fn error_against_cost(
+    path: &Path,
+    title: &str,
+    y_desc: &str,
+    points: &[Point],
+) -> Result<bool> {
     if !font() {
         return Ok(false);
     }
@@ -66,7 +72,7 @@ pub fn error_against_cost(path: &Path, title: &str, points: &[Point]) -> Result<
         chart
             .configure_mesh()
             .x_desc("wall-clock time [s]")
-            .y_desc("rms front error, 1 <= T <= 3 [%]")
+            .y_desc(y_desc)
             .label_style(("sans-serif", 15))
             .draw()?;
         chart.draw_series(

@@ -13,6 +13,7 @@ mod run;
 mod session;
 #[cfg(feature = "embedded")]
 mod study;
+mod study_design;
 mod study_solid;
 mod watch;
 

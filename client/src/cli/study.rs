@@ -1,7 +1,8 @@
 //! `meshless study`: sweep one speed-against-accuracy knob on the dam break
 //! and report the surge-front error against Martin & Moyce (1952) and the
 //! cost of each setting, as CSV and a PNG chart. The `solid-*` knobs sweep
-//! the cantilever instead (`study_solid.rs`).
+//! the cantilever instead (`study_solid.rs`), the `design-*` knobs the
+//! shape and motion optimiser's experiments (`study_design.rs`).
 
 use super::chart;
 use anyhow::{Context, Result, bail};
@@ -41,6 +42,14 @@ pub enum Knob {
     SolidDt,
     /// Elastic solid: hourglass-control weight relative to Young's modulus.
     SolidHourglass,
+    /// Design: particles of the Figure 13 stretch with the volume energy
+    /// (`stretch:N`) and of the cube passing a ball (`passage:N`).
+    DesignParticles,
+    /// Design: solver tolerance of the Figure 13 stretch.
+    DesignTolerance,
+    /// Design: adaptive-sampling tolerance of the cube passing a ball
+    /// (`off`: the keyframes alone).
+    DesignAdaptive,
 }
 
 impl Knob {
@@ -56,6 +65,9 @@ impl Knob {
             Self::SolidIntegrator => "solid_integrator",
             Self::SolidDt => "solid_dt",
             Self::SolidHourglass => "solid_hourglass",
+            Self::DesignParticles => "design_particles",
+            Self::DesignTolerance => "design_tolerance",
+            Self::DesignAdaptive => "design_adaptive",
         }
     }
 
@@ -71,6 +83,14 @@ impl Knob {
         )
     }
 
+    /// Whether the knob belongs to the design study.
+    fn is_design(self) -> bool {
+        matches!(
+            self,
+            Self::DesignParticles | Self::DesignTolerance | Self::DesignAdaptive
+        )
+    }
+
     fn presets(self) -> &'static [&'static str] {
         match self {
             Self::Spacing => &["0.04", "0.03", "0.025", "0.02"],
@@ -83,6 +103,18 @@ impl Knob {
             Self::SolidIntegrator => &["explicit", "implicit"],
             Self::SolidDt => &["0.0005", "0.001", "0.002", "0.005", "0.01"],
             Self::SolidHourglass => &["0", "0.1", "1"],
+            Self::DesignParticles => &[
+                "stretch:30",
+                "stretch:60",
+                "stretch:120",
+                "stretch:250",
+                "stretch:500",
+                "passage:60",
+                "passage:120",
+                "passage:200",
+            ],
+            Self::DesignTolerance => &["1e-2", "1e-3", "1e-4", "1e-6"],
+            Self::DesignAdaptive => &["1.0", "0.5", "0.2", "0.1", "0.05", "off"],
         }
     }
 
@@ -127,6 +159,9 @@ impl Knob {
             | Self::SolidDt
             | Self::SolidHourglass => {
                 bail!("{} is a cantilever knob, not a dam-break one", self.name())
+            }
+            Self::DesignParticles | Self::DesignTolerance | Self::DesignAdaptive => {
+                bail!("{} is a design knob, not a dam-break one", self.name())
             }
         }
         Ok(())
@@ -246,6 +281,14 @@ pub fn study(args: StudyArgs) -> Result<()> {
             &args.output,
         );
     }
+    if args.knob.is_design() {
+        return super::study_design::study(
+            args.knob.name(),
+            args.knob.presets(),
+            &args.values,
+            &args.output,
+        );
+    }
     let text = match &args.scene {
         Some(path) => std::fs::read_to_string(path)
             .with_context(|| format!("cannot read {}", path.display()))?,
@@ -331,6 +374,7 @@ pub fn study(args: StudyArgs) -> Result<()> {
     match chart::error_against_cost(
         &png_path,
         &format!("dam break: front error against cost, sweeping {name}"),
+        "rms front error, 1 <= T <= 3 [%]",
         &points,
     )? {
         true => println!("  chart             {}", png_path.display()),

@@ -191,6 +191,7 @@ pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> 
     match chart::error_against_cost(
         &png_path,
         &format!("cantilever: {what} error against cost, sweeping {name}"),
+        &format!("|{what} error| [%]"),
         &points,
     )? {
         true => println!("  chart             {}", png_path.display()),

@@ -219,6 +219,7 @@ impl DesignBody {
             Quadrature::Particles => (body.field.clone(), body.volumes.clone()),
             Quadrature::Cells => {
                 let corners = 1usize << dim;
+                let inside = &body.inside;
                 let points: Vec<Vector> = body
                     .rest
                     .iter()
@@ -231,7 +232,11 @@ impl DesignBody {
                                     0.0
                                 }
                             });
-                            x + rotation * local * spacing
+                            // A lattice need not align with the shape's
+                            // faces: a point that falls outside moves back
+                            // onto its particle.
+                            let p = x + rotation * local * spacing;
+                            if inside.distance(&p) > 0.0 { *x } else { p }
                         })
                     })
                     .collect();
