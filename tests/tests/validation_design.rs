@@ -29,6 +29,23 @@ fn set_of(constraints: Vec<Constraint>) -> ConstraintSet {
     set
 }
 
+/// Keyframes on the whole cube at `(time, x)`.
+fn keyframes_along_x(keys: &[(Real, Real)]) -> Vec<Constraint> {
+    keys.iter()
+        .enumerate()
+        .map(|(k, &(t, x))| {
+            region_handle(
+                &format!("key{k}"),
+                [-1.0; 3],
+                [1.0; 3],
+                [x, 0.0, 0.0],
+                [0.0; 3],
+                Some(t),
+            )
+        })
+        .collect()
+}
+
 /// Figure 13: rigidity alone lets the stretched box gain about half its
 /// volume (the tutorial reports +53 %); the volume energy holds it within
 /// 3 %. Both measured on the embedded surface, the shape a user sees.
@@ -208,21 +225,7 @@ fn the_motion_is_smoother_than_linear_interpolation() {
     let params = DesignParams::default();
     let body = passage.body(&params).expect("body");
     let keys = [(0.0, 0.0), (1.0, 1.0), (2.0, 3.0)];
-    let set = set_of(
-        keys.iter()
-            .enumerate()
-            .map(|(k, &(t, x))| {
-                region_handle(
-                    &format!("key{k}"),
-                    [-1.0; 3],
-                    [1.0; 3],
-                    [x, 0.0, 0.0],
-                    [0.0; 3],
-                    Some(t),
-                )
-            })
-            .collect(),
-    );
+    let set = set_of(keyframes_along_x(&keys));
     let motion = solve_motion(&body, &set, &params, &MotionParams::default(), &mut |_| {
         ControlFlow::Continue(())
     })
@@ -298,20 +301,7 @@ fn a_keyframe_velocity_is_matched() {
     let params = DesignParams::default();
     let body = passage.body(&params).expect("body");
     let target = Vector::new(0.0, 1.5, 0.0);
-    let mut constraints: Vec<Constraint> = [(0.0, 0.0), (1.0, 2.0), (2.0, 4.0)]
-        .iter()
-        .enumerate()
-        .map(|(k, &(t, x))| {
-            region_handle(
-                &format!("key{k}"),
-                [-1.0; 3],
-                [1.0; 3],
-                [x, 0.0, 0.0],
-                [0.0; 3],
-                Some(t),
-            )
-        })
-        .collect();
+    let mut constraints = keyframes_along_x(&[(0.0, 0.0), (1.0, 2.0), (2.0, 4.0)]);
     constraints.push(Constraint {
         name: "launch".into(),
         kind: ConstraintKind::Velocity(Velocity {

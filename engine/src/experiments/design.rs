@@ -65,6 +65,28 @@ fn constraint_set(constraints: Vec<Constraint>) -> ConstraintSet {
     set
 }
 
+/// About `particles` design particles in a box of `half` extents centred
+/// on the origin.
+fn box_body(
+    half: Vector,
+    particles: u32,
+    params: &DesignParams,
+) -> Result<DesignBody, DesignError> {
+    let shape = Shape::Box { half_extents: half };
+    let params = DesignParams {
+        particles,
+        ..*params
+    };
+    DesignBody::new(
+        &shape,
+        Vector::zeros(),
+        Rotation3::identity(),
+        3,
+        &params,
+        None,
+    )
+}
+
 /// The tutorial's Figure 13 stretch.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Stretch {
@@ -105,21 +127,7 @@ impl Stretch {
     /// # Errors
     /// From [`DesignBody::new`] for unusable `params`.
     pub fn body(&self, params: &DesignParams) -> Result<DesignBody, DesignError> {
-        let shape = Shape::Box {
-            half_extents: Vector::from(Self::HALF),
-        };
-        let params = DesignParams {
-            particles: self.particles,
-            ..*params
-        };
-        DesignBody::new(
-            &shape,
-            Vector::zeros(),
-            Rotation3::identity(),
-            3,
-            &params,
-            None,
-        )
+        box_body(Vector::from(Self::HALF), self.particles, params)
     }
 
     /// Bottom fixed, top pulled up.
@@ -270,21 +278,7 @@ impl Passage {
     /// # Errors
     /// From [`DesignBody::new`].
     pub fn body(&self, params: &DesignParams) -> Result<DesignBody, DesignError> {
-        let shape = Shape::Box {
-            half_extents: Vector::repeat(0.25),
-        };
-        let params = DesignParams {
-            particles: self.particles,
-            ..*params
-        };
-        DesignBody::new(
-            &shape,
-            Vector::zeros(),
-            Rotation3::identity(),
-            3,
-            &params,
-            None,
-        )
+        box_body(Vector::repeat(0.25), self.particles, params)
     }
 
     /// Keyframes on every particle and the ball.
