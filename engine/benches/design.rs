@@ -155,8 +155,8 @@ fn main() {
                 ..DesignParams::default()
             };
             params.solver.tolerance = tolerance;
-            // Reported, not fatal: a sparse lattice may leave a cell's
-            // quadrature point outside the box, seeing no particle.
+            // Reported, not fatal: a setting the body refuses is a row
+            // of the table too.
             let body = match stretch.body(&params) {
                 Ok(body) => body,
                 Err(e) => {
