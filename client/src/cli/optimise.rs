@@ -14,7 +14,7 @@ use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use meshless_client::{Client, Design, v1};
 use meshless_engine::design::{
-    Constraint, DesignParams, DesignTarget, MotionParams, TemporalBasis,
+    Constraint, Derivative, DesignParams, DesignTarget, MotionParams, TemporalBasis, blend,
 };
 use meshless_engine::io::{MeshFormat, write_mesh_ply, write_obj, write_vtk};
 use meshless_engine::math::Vector;
@@ -213,18 +213,10 @@ fn poses(design: &Design, rate: f64) -> Result<Vec<(f64, Vec<Vector>)>> {
     let basis = TemporalBasis::new(&design.times)?;
     let (start, end) = (design.times[0], design.times[design.times.len() - 1]);
     let count = ((end - start) * rate).floor() as usize + 1;
-    let mut weights = Vec::new();
     (0..count)
         .map(|k| {
             let t = (start + k as f64 / rate).min(end);
-            basis.shape_functions(t, &mut weights)?;
-            let mut u = vec![Vector::zeros(); frames[0].len()];
-            for w in &weights {
-                for (u, f) in u.iter_mut().zip(&frames[w.frame]) {
-                    *u += f * w.value;
-                }
-            }
-            Ok((t, u))
+            Ok((t, blend(&basis, &frames, t, Derivative::Value)?))
         })
         .collect()
 }

@@ -28,7 +28,7 @@ pub use constraints::{
     Constraint, ConstraintError, ConstraintKind, ConstraintSet, Context, Edit, Handle, Obstacle,
     Selection, Target, Velocity, Waypoint,
 };
-pub use motion::{MotionSolution, solve_motion};
+pub use motion::{Derivative, MotionSolution, blend, solve_motion};
 pub use params::{DesignParams, MotionParams, Quadrature, SolverParams, Weights};
 pub use progress::{Energies, Observer, Progress, SolveInfo};
 pub use shape::{ShapeSolution, solve_shape};

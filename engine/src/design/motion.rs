@@ -93,13 +93,20 @@ impl MotionSolution {
     }
 }
 
-#[derive(Debug, Clone, Copy)]
-enum Derivative {
+/// Which of the blend's time derivatives [`blend`] returns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Derivative {
     Value,
     First,
 }
 
-fn blend(
+/// `sum_j Phi_j(t) u_(., j)` (Eq. 80), or its time derivative, of
+/// per-frame displacements `frames` on `basis`: what a motion's playback
+/// and a client holding only a result's frames both evaluate.
+///
+/// # Errors
+/// [`DesignError::Parameter`] for a time outside the frames' span.
+pub fn blend(
     basis: &TemporalBasis,
     frames: &[Vec<Vector>],
     t: Real,
