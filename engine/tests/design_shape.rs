@@ -3,8 +3,8 @@
 //! shape only, selections and bad input.
 
 use meshless_engine::design::{
-    ConstraintSet, Context, DesignBody, DesignError, DesignParams, Edit, Progress, Selection,
-    solve_shape,
+    Constraint, ConstraintKind, ConstraintSet, Context, DesignBody, DesignError, DesignParams,
+    Edit, Handle, Progress, Selection, Target, solve_shape,
 };
 use meshless_engine::experiments::design::{Stretch, region_handle};
 use meshless_engine::geometry::{MeshSolid, Shape, TriMesh};
@@ -347,4 +347,51 @@ fn extremes_end_finite_or_in_clear_errors() {
     )
     .expect_err("support too small");
     assert!(err.to_string().contains("support"), "{err}");
+}
+
+/// A first solve starts from the rigid motion that best takes the handles
+/// to their targets. Handles that fix no rotation, one point or points on
+/// a line, get only its translation, and still solve to their targets.
+#[test]
+fn handles_that_fix_no_rotation_start_from_a_translation() {
+    let params = DesignParams::default();
+    let stretch = Stretch::default();
+    let body = stretch.body(&params).expect("body");
+    let point = |name: &str, points: Vec<[Real; 3]>, targets: Vec<[Real; 3]>| Constraint {
+        name: name.into(),
+        kind: ConstraintKind::Handle(Handle {
+            points: Selection::Points(points),
+            target: Target::Positions(targets),
+            time: None,
+        }),
+    };
+    let cases = [
+        vec![point("tip", vec![[0.0, 0.0, 0.8]], vec![[0.3, -0.2, 1.3]])],
+        vec![point(
+            "axis",
+            vec![[0.0, 0.0, -0.8], [0.0, 0.0, 0.8]],
+            vec![[0.2, 0.0, -0.7], [0.2, 0.0, 1.1]],
+        )],
+    ];
+    for constraints in cases {
+        let name = constraints[0].name.clone();
+        let mut set = ConstraintSet::new();
+        set.apply(
+            &constraints.into_iter().map(Edit::Add).collect::<Vec<_>>(),
+            &context(),
+        )
+        .expect("valid handles");
+        let s = solve_shape(&body, &set, &params, None, &mut go).expect("solves");
+        assert!(
+            s.displacements
+                .iter()
+                .all(|u| u.iter().all(|c| c.is_finite())),
+            "{name}: finite"
+        );
+        assert!(s.info.converged, "{name}: {:?}", s.info);
+        // The handle energy is the weight times the squared misses in
+        // spacings.
+        let miss = (s.info.energies.handle / params.weights.handle).sqrt();
+        assert!(miss < 0.05, "{name}: handles missed by {miss} spacings");
+    }
 }

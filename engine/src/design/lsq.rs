@@ -4,33 +4,45 @@
 //! residuals that are polynomials in the unknowns (linear for handles,
 //! velocities and accelerations; quadratic for rigidity, `grad f^T grad f -
 //! I`; cubic for volume, `det grad f - 1`; piecewise for obstacles), so
-//! `E(x) = |r(x)|^2` and Gauss–Newton's model `|r + J d|^2` is exact for
-//! the linear terms and needs no second derivatives for the rest. Each
-//! iteration solves
+//! `E(x) = |r(x)|^2`. Each iteration solves
 //!
 //! ```text
-//! (J^T J + mu D) d = -J^T r,       D = diag(J^T J)
+//! (J^T J + K^T K + mu D) d = -J^T r,       D = diag(J^T J + K^T K)
 //! ```
 //!
-//! by conjugate gradients on products with `J` and `J^T` (both kept as
-//! sparse rows; `J^T J` is never formed), preconditioned by the diagonal.
+//! by conjugate gradients on products with `J`, `K` and their transposes
+//! (the normal matrix is never formed), preconditioned by `LineBlocks`.
+//! `K` holds *curvature rows* (residual zero): the positive part of the
+//! second-order term `sum r_k grad^2 r_k` that Gauss–Newton drops (see
+//! [`super::energy`]). Without them a stretched shape, whose rigidity
+//! residuals are far from zero, gets steps that overshoot, and the solve
+//! crawls; with them a drag frame converges in two or three iterations.
 //! The damping `mu` follows Nielsen (1999): shrunk after a step that
 //! lowered the energy, by how well the model predicted it, and doubled in
-//! growth after one that did not (which is then retried). Starting from
-//! the previous solution (a handle dragged a little), the first step is
-//! nearly a Gauss–Newton step and one or two suffice.
+//! growth after one that did not. Before such a step is thrown away, the
+//! minimum of the energy's parabola along it is tried, which costs one
+//! evaluation instead of a new linear solve.
+//!
+//! **The Jacobian by blocks.** Each residual depends on the unknowns only
+//! through a few *features* of a neighbourhood: the displacement gradient
+//! at a quadrature point, or the field at a point. A block stores its
+//! stencil once, column bases `b_j` and weights `w_j`, with features
+//! `z_(a, c) = sum_j w_(j, c) x_(b_j + a)`, and each of its rows as a
+//! derivative by the features; its Jacobian is that small matrix times the
+//! stencil. A gradient block's seven to sixteen rows then cost one gather
+//! and one scatter of its forty-odd neighbours, where explicit rows would
+//! repeat the neighbours in every row.
 //!
 //! Why not a crate: the well-kept ones (argmin, levenberg-marquardt) work
 //! on dense Jacobians, and a motion's has thousands of columns of which
-//! each row touches a hundred. The sparse linear algebra here is two
-//! loops; the optimiser's numerics are the product.
+//! each row touches a hundred. The optimiser's numerics are the product.
 
 use super::DesignError;
 use super::params::SolverParams;
 use super::progress::{Energies, Observer, Progress, SolveInfo};
 use crate::math::Real;
 use rayon::prelude::*;
-use std::ops::ControlFlow;
+use std::ops::{ControlFlow, Range};
 
 /// Which energy a residual belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -56,14 +68,45 @@ impl Term {
     }
 }
 
-/// Residuals and, when asked for, their Jacobian as sparse rows.
+/// Features per block at most: a 3x3 gradient.
+const MAX_FEATURES: usize = 9;
+
+/// Rows of a block that spans frames (a keyframe, velocity, obstacle or
+/// acceleration block has one per dimension, or one per obstacle) that
+/// the preconditioner couples across frames; larger ones, which no
+/// energy here makes, would count only on the diagonal.
+const MAX_ROWS: usize = 8;
+
+/// Where a block's rows, stencil and matrix start.
+#[derive(Debug, Clone, Copy)]
+struct Block {
+    row: u32,
+    stencil: u32,
+    /// Weights are `q` per stencil entry, so their start differs.
+    weight: u32,
+    matrix: u32,
+    /// Unknowns per stencil entry (the dimension).
+    dim: u8,
+    /// Weights per stencil entry.
+    q: u8,
+}
+
+impl Block {
+    fn features(&self) -> usize {
+        usize::from(self.dim) * usize::from(self.q)
+    }
+}
+
+/// Residuals and, when asked for, their Jacobian by blocks.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Rows {
     pub residuals: Vec<Real>,
     pub terms: Vec<Term>,
-    offsets: Vec<u32>,
-    columns: Vec<u32>,
-    values: Vec<Real>,
+    blocks: Vec<Block>,
+    bases: Vec<u32>,
+    weights: Vec<Real>,
+    /// Each block's rows' derivatives by its features, row-major.
+    matrix: Vec<Real>,
     jacobian: bool,
 }
 
@@ -71,39 +114,80 @@ impl Rows {
     pub(crate) fn reset(&mut self, jacobian: bool) {
         self.residuals.clear();
         self.terms.clear();
-        self.offsets.clear();
-        self.offsets.push(0);
-        self.columns.clear();
-        self.values.clear();
+        self.blocks.clear();
+        self.bases.clear();
+        self.weights.clear();
+        self.matrix.clear();
         self.jacobian = jacobian;
     }
 
-    /// Appends a residual and its derivative entries `(column, value)`.
-    pub fn push(
+    /// Starts a block: the rows pushed next depend on the unknowns
+    /// through features `z_(a, c) = sum_j w_(j, c) x_(b_j + a)`, `a <
+    /// dim`, `c < q`, over the `stencil` entries `(b_j, w_j)` (the first
+    /// `q` weights of each are used). `q` is 1 (a field value) or `dim`
+    /// (a gradient).
+    pub fn block(
         &mut self,
-        term: Term,
-        residual: Real,
-        entries: impl IntoIterator<Item = (u32, Real)>,
+        dim: usize,
+        q: usize,
+        stencil: impl IntoIterator<Item = (usize, [Real; 3])>,
     ) {
+        // An internal invariant, not input: the products are specialised
+        // for these shapes.
+        assert!(
+            (1..=3).contains(&dim) && (q == 1 || q == dim),
+            "a block has dim 1 to 3 and one or dim weights per entry"
+        );
+        if !self.jacobian {
+            return;
+        }
+        self.blocks.push(Block {
+            row: self.residuals.len() as u32,
+            stencil: self.bases.len() as u32,
+            weight: self.weights.len() as u32,
+            matrix: self.matrix.len() as u32,
+            dim: dim as u8,
+            q: q as u8,
+        });
+        for (base, w) in stencil {
+            self.bases.push(base as u32);
+            self.weights.extend_from_slice(&w[..q]);
+        }
+    }
+
+    /// Appends a residual of the current block and its derivative by the
+    /// block's features, feature `(a, c)` at `a * q + c`.
+    pub fn push(&mut self, term: Term, residual: Real, derivative: &[Real]) {
         self.residuals.push(residual);
         self.terms.push(term);
         if self.jacobian {
-            for (c, v) in entries {
-                self.columns.push(c);
-                self.values.push(v);
-            }
+            debug_assert_eq!(
+                Some(derivative.len()),
+                self.blocks.last().map(Block::features)
+            );
+            self.matrix.extend_from_slice(derivative);
         }
-        self.offsets.push(self.columns.len() as u32);
     }
 
     fn append(&mut self, other: &Rows) {
-        let base = self.columns.len() as u32;
+        let (row, stencil, weight, matrix) = (
+            self.residuals.len() as u32,
+            self.bases.len() as u32,
+            self.weights.len() as u32,
+            self.matrix.len() as u32,
+        );
         self.residuals.extend_from_slice(&other.residuals);
         self.terms.extend_from_slice(&other.terms);
-        self.offsets
-            .extend(other.offsets[1..].iter().map(|o| o + base));
-        self.columns.extend_from_slice(&other.columns);
-        self.values.extend_from_slice(&other.values);
+        self.blocks.extend(other.blocks.iter().map(|b| Block {
+            row: b.row + row,
+            stencil: b.stencil + stencil,
+            weight: b.weight + weight,
+            matrix: b.matrix + matrix,
+            ..*b
+        }));
+        self.bases.extend_from_slice(&other.bases);
+        self.weights.extend_from_slice(&other.weights);
+        self.matrix.extend_from_slice(&other.matrix);
     }
 
     fn energies(&self) -> Energies {
@@ -114,10 +198,118 @@ impl Rows {
         e
     }
 
-    /// Row `k`'s columns and values.
-    pub(crate) fn entries(&self, k: usize) -> (&[u32], &[Real]) {
-        let r = self.offsets[k] as usize..self.offsets[k + 1] as usize;
-        (&self.columns[r.clone()], &self.values[r])
+    /// Block `b`'s rows and stencil entries.
+    fn ranges(&self, b: usize) -> (Range<usize>, Range<usize>) {
+        let this = &self.blocks[b];
+        let (row_end, stencil_end) = match self.blocks.get(b + 1) {
+            Some(next) => (next.row as usize, next.stencil as usize),
+            None => (self.residuals.len(), self.bases.len()),
+        };
+        (
+            this.row as usize..row_end,
+            this.stencil as usize..stencil_end,
+        )
+    }
+
+    /// The weights of stencil entry `s` of block `b`.
+    fn weights_of(&self, b: usize, s: usize) -> &[Real] {
+        let block = &self.blocks[b];
+        let q = usize::from(block.q);
+        let start = block.weight as usize + (s - block.stencil as usize) * q;
+        &self.weights[start..start + q]
+    }
+
+    /// Block `b`'s features of `v`.
+    fn gather(&self, b: usize, stencil: Range<usize>, v: &[Real]) -> [Real; MAX_FEATURES] {
+        match (self.blocks[b].dim, self.blocks[b].q) {
+            (3, 3) => self.gather_fixed::<3, 3>(b, stencil, v),
+            (3, 1) => self.gather_fixed::<3, 1>(b, stencil, v),
+            (2, 2) => self.gather_fixed::<2, 2>(b, stencil, v),
+            (2, 1) => self.gather_fixed::<2, 1>(b, stencil, v),
+            _ => self.gather_fixed::<1, 1>(b, stencil, v),
+        }
+    }
+
+    /// [`Self::gather`] with the block's shape known to the compiler,
+    /// which unrolls the inner loops: the products spend their time here.
+    fn gather_fixed<const D: usize, const Q: usize>(
+        &self,
+        b: usize,
+        stencil: Range<usize>,
+        v: &[Real],
+    ) -> [Real; MAX_FEATURES] {
+        let start = self.blocks[b].weight as usize;
+        let bases = &self.bases[stencil];
+        let weights = &self.weights[start..start + bases.len() * Q];
+        let mut z = [0.0; MAX_FEATURES];
+        for (&base, w) in bases.iter().zip(weights.chunks_exact(Q)) {
+            let x = &v[base as usize..base as usize + D];
+            for a in 0..D {
+                for c in 0..Q {
+                    z[a * Q + c] += w[c] * x[a];
+                }
+            }
+        }
+        z
+    }
+
+    /// `out[b_j + a] += sum_c w_(j, c) y_(a, c)` over block `b`'s stencil.
+    fn scatter(&self, b: usize, stencil: Range<usize>, y: &[Real], out: &mut [Real]) {
+        match (self.blocks[b].dim, self.blocks[b].q) {
+            (3, 3) => self.scatter_fixed::<3, 3>(b, stencil, y, out),
+            (3, 1) => self.scatter_fixed::<3, 1>(b, stencil, y, out),
+            (2, 2) => self.scatter_fixed::<2, 2>(b, stencil, y, out),
+            (2, 1) => self.scatter_fixed::<2, 1>(b, stencil, y, out),
+            _ => self.scatter_fixed::<1, 1>(b, stencil, y, out),
+        }
+    }
+
+    fn scatter_fixed<const D: usize, const Q: usize>(
+        &self,
+        b: usize,
+        stencil: Range<usize>,
+        y: &[Real],
+        out: &mut [Real],
+    ) {
+        let start = self.blocks[b].weight as usize;
+        let bases = &self.bases[stencil];
+        let weights = &self.weights[start..start + bases.len() * Q];
+        let y = &y[..D * Q];
+        for (&base, w) in bases.iter().zip(weights.chunks_exact(Q)) {
+            let out = &mut out[base as usize..base as usize + D];
+            for a in 0..D {
+                let mut sum = 0.0;
+                for c in 0..Q {
+                    sum += w[c] * y[a * Q + c];
+                }
+                out[a] += sum;
+            }
+        }
+    }
+
+    /// Block `b`'s matrix, `rows x features`.
+    fn matrix_of(&self, b: usize, rows: usize) -> &[Real] {
+        let block = &self.blocks[b];
+        let start = block.matrix as usize;
+        &self.matrix[start..start + rows * block.features()]
+    }
+
+    /// `d r_k / d x_c`, for tests.
+    #[cfg(test)]
+    pub(crate) fn derivative(&self, k: usize, c: usize) -> Real {
+        let b = self.blocks.partition_point(|b| b.row as usize <= k) - 1;
+        let (rows, stencil) = self.ranges(b);
+        let block = self.blocks[b];
+        let (dim, q) = (usize::from(block.dim), usize::from(block.q));
+        let row = &self.matrix_of(b, rows.len())[(k - rows.start) * block.features()..];
+        stencil
+            .filter(|&s| (self.bases[s] as usize..self.bases[s] as usize + dim).contains(&c))
+            .map(|s| {
+                let a = c - self.bases[s] as usize;
+                let w = self.weights_of(b, s);
+                (0..q).map(|cc| row[a * q + cc] * w[cc]).sum::<Real>()
+            })
+            .sum()
     }
 }
 
@@ -157,57 +349,142 @@ fn evaluate(problem: &impl LeastSquares, x: &[Real], jacobian: bool, out: &mut R
     }
 }
 
-/// `J^T` as sparse rows over the unknowns, for parallel products.
+/// The Jacobian's blocks split into one contiguous run per thread, with a
+/// scratch vector each for the scattered products.
 #[derive(Debug, Default)]
-struct Transposed {
-    offsets: Vec<u32>,
-    rows: Vec<u32>,
-    values: Vec<Real>,
+struct Products {
+    /// Block boundaries of the runs.
+    runs: Vec<usize>,
+    scratch: Vec<Vec<Real>>,
 }
 
-impl Transposed {
-    fn build(&mut self, j: &Rows, n: usize) {
-        self.offsets.clear();
-        self.offsets.resize(n + 1, 0);
-        for &c in &j.columns {
-            self.offsets[c as usize + 1] += 1;
+impl Products {
+    /// Splits `j`'s blocks into runs of about equal work.
+    fn split(&mut self, j: &Rows, n: usize) {
+        let parts = rayon::current_num_threads().max(1);
+        let work = |b: usize| {
+            let (rows, stencil) = j.ranges(b);
+            rows.len() * j.blocks[b].features() + stencil.len() * j.blocks[b].features()
+        };
+        let total: usize = (0..j.blocks.len()).map(work).sum();
+        self.runs.clear();
+        self.runs.push(0);
+        let mut done = 0;
+        for b in 0..j.blocks.len() {
+            done += work(b);
+            if done * parts >= total * self.runs.len() && self.runs.len() < parts {
+                self.runs.push(b + 1);
+            }
         }
-        for k in 0..n {
-            self.offsets[k + 1] += self.offsets[k];
+        if *self.runs.last().unwrap_or(&0) != j.blocks.len() {
+            self.runs.push(j.blocks.len());
         }
-        let mut next: Vec<u32> = self.offsets[..n].to_vec();
-        self.rows.resize(j.columns.len(), 0);
-        self.values.resize(j.columns.len(), 0.0);
-        for k in 0..j.residuals.len() {
-            let (cs, vs) = j.entries(k);
-            for (&c, &v) in cs.iter().zip(vs) {
-                let at = next[c as usize] as usize;
-                self.rows[at] = k as u32;
-                self.values[at] = v;
-                next[c as usize] += 1;
+        self.scratch.resize_with(self.runs.len() - 1, Vec::new);
+        for s in &mut self.scratch {
+            s.clear();
+            s.resize(n, 0.0);
+        }
+    }
+
+    /// `out = J v`; each run writes its own rows.
+    fn apply_j(&self, j: &Rows, v: &[Real], out: &mut [Real]) {
+        let mut slices = Vec::with_capacity(self.runs.len());
+        let mut rest = &mut out[..];
+        let mut at = 0;
+        for w in self.runs.windows(2) {
+            let end = j
+                .blocks
+                .get(w[1])
+                .map_or(j.residuals.len(), |b| b.row as usize);
+            let (head, tail) = rest.split_at_mut(end - at);
+            slices.push((w[0]..w[1], at, head));
+            rest = tail;
+            at = end;
+        }
+        slices.into_par_iter().for_each(|(blocks, first, out)| {
+            for b in blocks {
+                let (rows, stencil) = j.ranges(b);
+                let z = j.gather(b, stencil, v);
+                let p = j.blocks[b].features();
+                let m = j.matrix_of(b, rows.len());
+                for (k, row) in rows.clone().zip(m.chunks_exact(p)) {
+                    out[k - first] = row.iter().zip(&z).map(|(a, z)| a * z).sum();
+                }
+            }
+        });
+    }
+
+    /// `out = J^T w`, run by run into the scratch vectors, then summed.
+    fn apply_jt(&mut self, j: &Rows, w: &[Real], out: &mut [Real]) {
+        self.scratch
+            .par_iter_mut()
+            .zip(self.runs.par_windows(2))
+            .for_each(|(scratch, run)| {
+                scratch.fill(0.0);
+                for b in run[0]..run[1] {
+                    let (rows, stencil) = j.ranges(b);
+                    let p = j.blocks[b].features();
+                    let m = j.matrix_of(b, rows.len());
+                    // y = A^T w over the block's rows, then scattered.
+                    let mut y = [0.0; MAX_FEATURES];
+                    for (row, w) in m.chunks_exact(p).zip(&w[rows]) {
+                        for (y, a) in y.iter_mut().zip(row) {
+                            *y += a * w;
+                        }
+                    }
+                    j.scatter(b, stencil, &y, scratch);
+                }
+            });
+        self.sum_into(out);
+    }
+
+    fn sum_into(&self, out: &mut [Real]) {
+        out.fill(0.0);
+        for s in &self.scratch {
+            for (o, v) in out.iter_mut().zip(s) {
+                *o += v;
             }
         }
     }
 
-    /// `out = J^T w`.
-    fn apply(&self, w: &[Real], out: &mut [Real]) {
-        out.par_iter_mut().enumerate().for_each(|(c, o)| {
-            let r = self.offsets[c] as usize..self.offsets[c + 1] as usize;
-            *o = self.rows[r.clone()]
-                .iter()
-                .zip(&self.values[r])
-                .map(|(&k, v)| v * w[k as usize])
-                .sum();
-        });
+    /// `out = diag(J^T J)`: per stencil entry and component, the squared
+    /// norm of its Jacobian column within the block.
+    fn diagonal(&mut self, j: &Rows, out: &mut [Real]) {
+        self.scratch
+            .par_iter_mut()
+            .zip(self.runs.par_windows(2))
+            .for_each(|(scratch, run)| {
+                scratch.fill(0.0);
+                for b in run[0]..run[1] {
+                    let (rows, stencil) = j.ranges(b);
+                    let block = j.blocks[b];
+                    let (dim, q, p) = (
+                        usize::from(block.dim),
+                        usize::from(block.q),
+                        block.features(),
+                    );
+                    let m = j.matrix_of(b, rows.len());
+                    for s in stencil {
+                        let base = j.bases[s] as usize;
+                        let w = j.weights_of(b, s);
+                        for a in 0..dim {
+                            scratch[base + a] += m
+                                .chunks_exact(p)
+                                .map(|row| {
+                                    let v: Real = row[a * q..(a + 1) * q]
+                                        .iter()
+                                        .zip(w)
+                                        .map(|(r, w)| r * w)
+                                        .sum();
+                                    v * v
+                                })
+                                .sum::<Real>();
+                        }
+                    }
+                }
+            });
+        self.sum_into(out);
     }
-}
-
-/// `out = J v`.
-fn apply_j(j: &Rows, v: &[Real], out: &mut [Real]) {
-    out.par_iter_mut().enumerate().for_each(|(k, o)| {
-        let (cs, vs) = j.entries(k);
-        *o = cs.iter().zip(vs).map(|(&c, a)| a * v[c as usize]).sum();
-    });
 }
 
 fn dot(a: &[Real], b: &[Real]) -> Real {
@@ -240,7 +517,7 @@ pub(crate) fn minimise(
     let n = problem.unknowns();
     let mut rows = Rows::default();
     let mut trial_rows = Rows::default();
-    let mut jt = Transposed::default();
+    let mut products = Products::default();
     let mut g = vec![0.0; n];
     let mut diag = vec![0.0; n];
     let mut step = vec![0.0; n];
@@ -257,8 +534,8 @@ pub(crate) fn minimise(
         energies = rows.energies();
         check_finite(&energies, run.iteration)?;
         let energy = energies.total();
-        jt.build(&rows, n);
-        jt.apply(&rows.residuals, &mut g);
+        products.split(&rows, n);
+        products.apply_jt(&rows, &rows.residuals, &mut g);
         gradient_norm = g.iter().fold(0.0, |m: Real, v| m.max(v.abs()));
         let report = Progress {
             iteration: run.iteration,
@@ -283,10 +560,7 @@ pub(crate) fn minimise(
         }
         // D = diag(J^T J), floored so that unknowns no residual touches
         // stay put instead of making the system singular.
-        diag.par_iter_mut().enumerate().for_each(|(c, d)| {
-            let r = jt.offsets[c] as usize..jt.offsets[c + 1] as usize;
-            *d = jt.values[r].iter().map(|v| v * v).sum();
-        });
+        products.diagonal(&rows, &mut diag);
         let floor = 1e-12 * diag.iter().fold(0.0, |m: Real, v| m.max(*v)).max(1e-300);
         diag.iter_mut().for_each(|d| *d = d.max(floor));
         blocks.assemble(&rows, &diag);
@@ -294,8 +568,16 @@ pub(crate) fn minimise(
             iterations += 1;
             run.iteration += 1;
             blocks.factor(&diag, mu);
-            run.linear_iterations +=
-                cg.solve(&rows, &jt, &diag, mu, &blocks, &g, &mut step, params);
+            run.linear_iterations += cg.solve(
+                &rows,
+                &mut products,
+                &diag,
+                mu,
+                &blocks,
+                &g,
+                &mut step,
+                params,
+            );
             for ((t, x), d) in trial.iter_mut().zip(x.iter()).zip(&step) {
                 *t = x + d;
             }
@@ -304,7 +586,7 @@ pub(crate) fn minimise(
             // Model decrease: -(2 g.d + d^T J^T J d) = -(g.d) + mu d^T D d
             // at the CG solution; computed directly, it is robust to an
             // inexact solve.
-            let jd = cg.jd(&rows, &step);
+            let jd = cg.jd(&rows, &products, &step);
             let predicted = -(2.0 * dot(&g, &step) + dot(&jd, &jd));
             if new_energy.is_finite() && new_energy < energy {
                 let rho = (energy - new_energy) / predicted.max(Real::MIN_POSITIVE);
@@ -312,6 +594,28 @@ pub(crate) fn minimise(
                 growth = 2.0;
                 x.copy_from_slice(&trial);
                 break Some(new_energy);
+            }
+            // The model still misses curvature where the volume's or a
+            // compressed rigidity's second-order terms matter: before a
+            // new damped solve, try the minimum of the energy's parabola
+            // along this step, which costs one evaluation.
+            let slope = 2.0 * dot(&g, &step);
+            let curvature = new_energy - energy - slope;
+            if new_energy.is_finite() && slope < 0.0 && curvature > 0.0 {
+                let alpha = (-slope / (2.0 * curvature)).clamp(0.1, 0.9);
+                for ((t, x), d) in trial.iter_mut().zip(x.iter()).zip(&step) {
+                    *t = x + alpha * d;
+                }
+                evaluate(problem, &trial, false, &mut trial_rows);
+                let shorter = trial_rows.energies().total();
+                if shorter.is_finite() && shorter < energy {
+                    // Accepted, but the model was poor: damp the next step.
+                    mu *= 2.0;
+                    growth = 2.0;
+                    step.iter_mut().for_each(|d| *d *= alpha);
+                    x.copy_from_slice(&trial);
+                    break Some(shorter);
+                }
             }
             mu *= growth;
             growth *= 2.0;
@@ -334,8 +638,8 @@ pub(crate) fn minimise(
                     converged = true;
                     evaluate(problem, x, true, &mut rows);
                     energies = rows.energies();
-                    jt.build(&rows, n);
-                    jt.apply(&rows.residuals, &mut g);
+                    products.split(&rows, n);
+                    products.apply_jt(&rows, &rows.residuals, &mut g);
                     gradient_norm = g.iter().fold(0.0, |m: Real, v| m.max(v.abs()));
                     break;
                 }
@@ -386,9 +690,9 @@ impl Cg {
         }
     }
 
-    fn jd(&mut self, j: &Rows, d: &[Real]) -> Vec<Real> {
+    fn jd(&mut self, j: &Rows, products: &Products, d: &[Real]) -> Vec<Real> {
         let mut out = vec![0.0; j.residuals.len()];
-        apply_j(j, d, &mut out);
+        products.apply_j(j, d, &mut out);
         out
     }
 
@@ -396,7 +700,7 @@ impl Cg {
     fn solve(
         &mut self,
         j: &Rows,
-        jt: &Transposed,
+        products: &mut Products,
         diag: &[Real],
         mu: Real,
         blocks: &LineBlocks,
@@ -417,8 +721,8 @@ impl Cg {
         let mut iterations = 0;
         while iterations < params.max_linear_iterations {
             iterations += 1;
-            apply_j(j, p, jp);
-            jt.apply(jp, q);
+            products.apply_j(j, p, jp);
+            products.apply_jt(j, jp, q);
             for ((q, p), d) in q.iter_mut().zip(p.iter()).zip(diag) {
                 *q += mu * d * p;
             }
@@ -474,43 +778,65 @@ impl LineBlocks {
         }
     }
 
-    /// Accumulates the line blocks from `J`'s rows; the diagonal is
+    /// Accumulates the line blocks from `J`'s blocks; the diagonal is
     /// `diag` (already floored).
     fn assemble(&mut self, j: &Rows, diag: &[Real]) {
         let (lines, length) = (self.lines, self.length);
         let size = length * length;
         self.blocks.fill(0.0);
         if length > 1 {
-            let rows = j.residuals.len();
-            let chunk = rows.div_ceil(rayon::current_num_threads().max(1)).max(1);
-            let partial: Vec<Vec<Real>> = (0..rows.div_ceil(chunk))
+            let count = j.blocks.len();
+            let chunk = count.div_ceil(rayon::current_num_threads().max(1)).max(1);
+            let partial: Vec<Vec<Real>> = (0..count.div_ceil(chunk))
                 .into_par_iter()
                 .map(|c| {
                     let mut blocks = vec![0.0; lines * size];
-                    let mut entries: Vec<(u32, u32, Real)> = Vec::new();
-                    for k in c * chunk..((c + 1) * chunk).min(rows) {
-                        let (cs, vs) = j.entries(k);
-                        // A row within one frame adds only to diagonals.
-                        let first = cs.first().map_or(0, |&c| c as usize / lines);
-                        if cs.iter().all(|&c| c as usize / lines == first) {
+                    // (line, frame, column of J within the block).
+                    let mut columns: Vec<(u32, u32, [Real; MAX_ROWS])> = Vec::new();
+                    for b in c * chunk..((c + 1) * chunk).min(count) {
+                        let (rows, stencil) = j.ranges(b);
+                        let block = j.blocks[b];
+                        // A block within one frame adds only to diagonals.
+                        let frame = |s: usize| j.bases[s] as usize / lines;
+                        let first = frame(stencil.start);
+                        if stencil.clone().all(|s| frame(s) == first) || rows.len() > MAX_ROWS {
                             continue;
                         }
-                        entries.clear();
-                        entries.extend(cs.iter().zip(vs).map(|(&c, &v)| {
-                            let c = c as usize;
-                            ((c % lines) as u32, (c / lines) as u32, v)
-                        }));
-                        entries.sort_unstable_by_key(|e| (e.0, e.1));
+                        let (dim, q, p) = (
+                            usize::from(block.dim),
+                            usize::from(block.q),
+                            block.features(),
+                        );
+                        let m = j.matrix_of(b, rows.len());
+                        columns.clear();
+                        for s in stencil {
+                            let base = j.bases[s] as usize;
+                            let w = j.weights_of(b, s);
+                            for a in 0..dim {
+                                let mut column = [0.0; MAX_ROWS];
+                                for (v, row) in column.iter_mut().zip(m.chunks_exact(p)) {
+                                    *v = row[a * q..(a + 1) * q]
+                                        .iter()
+                                        .zip(w)
+                                        .map(|(r, w)| r * w)
+                                        .sum();
+                                }
+                                let c = base + a;
+                                columns.push(((c % lines) as u32, (c / lines) as u32, column));
+                            }
+                        }
+                        columns.sort_unstable_by_key(|e| (e.0, e.1));
                         let mut start = 0;
-                        while start < entries.len() {
-                            let line = entries[start].0;
+                        while start < columns.len() {
+                            let line = columns[start].0;
                             let end =
-                                start + entries[start..].iter().take_while(|e| e.0 == line).count();
+                                start + columns[start..].iter().take_while(|e| e.0 == line).count();
                             let block = &mut blocks[line as usize * size..][..size];
-                            for a in &entries[start..end] {
-                                for b in &entries[start..end] {
-                                    if a.1 != b.1 {
-                                        block[a.1 as usize * length + b.1 as usize] += a.2 * b.2;
+                            for x in &columns[start..end] {
+                                for y in &columns[start..end] {
+                                    if x.1 != y.1 {
+                                        block[x.1 as usize * length + y.1 as usize] +=
+                                            dot(&x.2[..rows.len()], &y.2[..rows.len()]);
                                     }
                                 }
                             }
@@ -646,12 +972,14 @@ mod tests {
             1
         }
         fn group(&self, _: usize, x: &[Real], rows: &mut Rows) {
+            // Features: the two unknowns themselves.
+            rows.block(2, 1, [(0, [1.0, 0.0, 0.0])]);
             rows.push(
                 Term::Handle,
                 10.0 * (x[1] - x[0] * x[0]),
-                [(0, -20.0 * x[0]), (1, 10.0)],
+                &[-20.0 * x[0], 10.0],
             );
-            rows.push(Term::Rigidity, 1.0 - x[0], [(0, -1.0)]);
+            rows.push(Term::Rigidity, 1.0 - x[0], &[-1.0, 0.0]);
         }
     }
 
@@ -686,7 +1014,8 @@ mod tests {
                 1
             }
             fn group(&self, _: usize, x: &[Real], rows: &mut Rows) {
-                rows.push(Term::Volume, Real::NAN * x[0], [(0, 1.0)]);
+                rows.block(1, 1, [(0, [1.0, 0.0, 0.0])]);
+                rows.push(Term::Volume, Real::NAN * x[0], &[1.0]);
             }
         }
         let mut x = [1.0];
@@ -702,5 +1031,68 @@ mod tests {
             matches!(err, DesignError::Diverged { term: "volume", .. }),
             "{err}"
         );
+    }
+
+    /// Blocks of both kinds, overlapping stencils: the products and the
+    /// diagonal by blocks against the Jacobian entry by entry.
+    #[test]
+    fn block_products_match_the_jacobian() {
+        struct Mixed;
+        impl LeastSquares for Mixed {
+            fn unknowns(&self) -> usize {
+                3 * 7
+            }
+            fn groups(&self) -> usize {
+                40
+            }
+            fn group(&self, g: usize, _: &[Real], rows: &mut Rows) {
+                let value = |k: usize| ((g * 31 + k * 17) % 13) as Real / 6.0 - 1.0;
+                let stencil = (0..3).map(|j| {
+                    let particle = (g + 2 * j) % 7;
+                    (particle * 3, [value(j), value(j + 3), value(j + 6)])
+                });
+                let (q, rows_here) = if g % 2 == 0 { (3, 5) } else { (1, 2) };
+                rows.block(3, q, stencil);
+                for r in 0..rows_here {
+                    let derivative: Vec<Real> = (0..3 * q).map(|f| value(10 + r * 9 + f)).collect();
+                    rows.push(Term::Rigidity, value(r), &derivative);
+                }
+            }
+        }
+        let n = Mixed.unknowns();
+        let mut rows = Rows::default();
+        evaluate(&Mixed, &vec![0.0; n], true, &mut rows);
+        let m = rows.residuals.len();
+        let dense: Vec<Vec<Real>> = (0..m)
+            .map(|k| (0..n).map(|c| rows.derivative(k, c)).collect())
+            .collect();
+        let v: Vec<Real> = (0..n).map(|c| (c as Real * 0.37).sin()).collect();
+        let w: Vec<Real> = (0..m).map(|k| (k as Real * 0.53).cos()).collect();
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("pool");
+            pool.install(|| {
+                let mut products = Products::default();
+                products.split(&rows, n);
+                let mut jv = vec![0.0; m];
+                products.apply_j(&rows, &v, &mut jv);
+                let mut jtw = vec![0.0; n];
+                products.apply_jt(&rows, &w, &mut jtw);
+                let mut diag = vec![0.0; n];
+                products.diagonal(&rows, &mut diag);
+                for k in 0..m {
+                    let expected = dot(&dense[k], &v);
+                    assert!((jv[k] - expected).abs() < 1e-12, "J v, row {k}");
+                }
+                for c in 0..n {
+                    let expected: Real = (0..m).map(|k| dense[k][c] * w[k]).sum();
+                    assert!((jtw[c] - expected).abs() < 1e-12, "J^T w, column {c}");
+                    let expected: Real = (0..m).map(|k| dense[k][c] * dense[k][c]).sum();
+                    assert!((diag[c] - expected).abs() < 1e-12, "diagonal, column {c}");
+                }
+            });
+        }
     }
 }

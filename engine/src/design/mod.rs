@@ -37,6 +37,15 @@ pub use temporal::{TemporalBasis, TemporalError, TemporalWeight};
 
 use crate::math::Real;
 
+/// Runs `f` on a thread of rayon's pool. From a thread outside it (a
+/// session's compute thread), every parallel loop of a solve would hand
+/// its work to the pool and block until it is done; a drag frame runs
+/// hundreds of small loops, and in a profile of one the hand-overs cost
+/// two thirds of its time. Within the pool this is a plain call.
+fn on_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    rayon::scope(|_| f())
+}
+
 /// Why a design could not be solved. Nothing the caller owns is changed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DesignError {

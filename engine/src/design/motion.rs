@@ -19,9 +19,10 @@
 //! **Initial frames and guess.** The frames start at the keyframes, plus
 //! one in the middle of each interval next to a velocity constraint (three
 //! frames fix the quadratic blend, leaving a velocity no freedom). Each
-//! keyframe is first solved as a shape problem (its handles alone, warm-
-//! started from the previous keyframe), the extra frames start between
-//! them, and the joint solve goes on from there.
+//! keyframe is first solved as a shape problem (its handles alone, from
+//! the previous keyframe's pose carried by the rigid motion that best fits
+//! its handles), the extra frames start between them, and the joint solve
+//! goes on from there.
 //!
 //! **Adaptive temporal sampling.** The penalties hold only at frames, so
 //! the motion between them may pass through an obstacle or shear. After
@@ -40,7 +41,7 @@ use super::constraints::{ConstraintKind, ConstraintSet, resolve_shape};
 use super::energy::{deformation_gradient, push_shape_terms};
 use super::lsq::{self, LeastSquares, Rows, RunState, Term};
 use super::progress::{Observer, SolveInfo};
-use super::shape::{Handles, push_point, scale_into, solve_handles, unscale};
+use super::shape::{Handles, Start, push_point, scale_into, solve_handles, unscale};
 use super::temporal::{TemporalBasis, TemporalWeight};
 use super::{DesignError, DesignParams, MotionParams, SolverParams, Weights};
 
@@ -208,6 +209,16 @@ pub fn solve_motion(
     motion: &MotionParams,
     observer: &mut Observer<'_>,
 ) -> Result<MotionSolution, DesignError> {
+    super::on_pool(|| motion_on_pool(body, constraints, params, motion, observer))
+}
+
+fn motion_on_pool(
+    body: &DesignBody,
+    constraints: &ConstraintSet,
+    params: &DesignParams,
+    motion: &MotionParams,
+    observer: &mut Observer<'_>,
+) -> Result<MotionSolution, DesignError> {
     super::check_params(params)?;
     check_motion(motion)?;
     let setup = Setup::new(body, constraints, params, motion)?;
@@ -219,7 +230,8 @@ pub fn solve_motion(
         ..RunState::default()
     };
 
-    // Keyframe poses as shape problems, each warm-started from the last.
+    // Keyframe poses as shape problems, each from the last carried
+    // rigidly onto its handles.
     let mut frames: Vec<Vec<Vector>> = Vec::with_capacity(keyframe_times.len());
     for k in &setup.keyframes {
         let (u, _) = solve_handles(
@@ -227,7 +239,7 @@ pub fn solve_motion(
             k.handles.points.rest(),
             k.handles.targets.clone(),
             params,
-            frames.last().map(Vec::as_slice),
+            Start::Rigid(frames.last().map(Vec::as_slice)),
             &mut run,
             observer,
         )?;
@@ -705,16 +717,22 @@ impl LeastSquares for MotionProblem<'_, '_> {
                 }
                 let time = self.times[j];
                 let weight = (w.obstacle * v).sqrt();
+                let mut block = false;
                 for o in &setup.obstacles {
                     let (d, normal) = o.distance(&p, time);
                     let depth = (setup.radius - d) / s;
                     if depth > 0.0 {
+                        // One block of the field at the particle, for
+                        // every obstacle it touches.
+                        if !block {
+                            rows.block(dim, 1, entries.iter().map(|&(b, c)| (b, [c, 0.0, 0.0])));
+                            block = true;
+                        }
+                        let derivative = -weight * normal;
                         rows.push(
                             Term::Obstacle,
                             weight * depth,
-                            entries.iter().flat_map(|&(b, c)| {
-                                (0..dim).map(move |a| ((b + a) as u32, -weight * c * normal[a]))
-                            }),
+                            &derivative.as_slice()[..dim],
                         );
                     }
                 }

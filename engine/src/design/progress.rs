@@ -60,8 +60,9 @@ pub struct Progress {
     pub sampling_error: Option<Real>,
 }
 
-/// Receives progress; `Break` cancels the solve.
-pub type Observer<'a> = dyn FnMut(&Progress) -> ControlFlow<()> + 'a;
+/// Receives progress; `Break` cancels the solve. `Send`, because a solve
+/// runs on a thread of rayon's pool (see `design::on_pool`).
+pub type Observer<'a> = dyn FnMut(&Progress) -> ControlFlow<()> + Send + 'a;
 
 /// How a solve ended.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]

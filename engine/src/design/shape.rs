@@ -4,7 +4,8 @@
 //! rigid (Eq. 76) and volume-preserving (Eq. 77) as it can be.
 //!
 //! A solve starts from the caller's previous solution, so dragging a
-//! handle re-solves from where the shape already is.
+//! handle re-solves from where the shape already is; without one, from the
+//! rest shape carried by the rigid motion that best fits the handles.
 
 use super::body::{DesignBody, Embedding};
 use super::constraints::{ConstraintKind, ConstraintSet};
@@ -13,6 +14,7 @@ use super::lsq::{self, LeastSquares, Rows, RunState, Term};
 use super::progress::{Observer, SolveInfo};
 use super::{DesignError, DesignParams, Weights};
 use crate::math::{Real, Vector};
+use nalgebra::Matrix3;
 
 /// The handle points of a problem and their targets.
 #[derive(Debug, Clone)]
@@ -62,7 +64,8 @@ pub struct ShapeSolution {
 }
 
 /// Solves the shape problem the untimed handles of `constraints` pose
-/// on `body`, from `warm` (the previous displacements) or the rest shape.
+/// on `body`, from `warm` (the previous displacements) or else the rest
+/// shape moved rigidly onto the handles (see `Start::Rigid`).
 ///
 /// # Errors
 /// [`DesignError::Constraint`] for a handle that selects nothing usable;
@@ -71,6 +74,16 @@ pub struct ShapeSolution {
 /// `warm` of the wrong length; [`DesignError::Cancelled`] and
 /// [`DesignError::Diverged`] from the solver.
 pub fn solve_shape(
+    body: &DesignBody,
+    constraints: &ConstraintSet,
+    params: &DesignParams,
+    warm: Option<&[Vector]>,
+    observer: &mut Observer<'_>,
+) -> Result<ShapeSolution, DesignError> {
+    super::on_pool(|| shape_on_pool(body, constraints, params, warm, observer))
+}
+
+fn shape_on_pool(
     body: &DesignBody,
     constraints: &ConstraintSet,
     params: &DesignParams,
@@ -100,12 +113,31 @@ pub fn solve_shape(
         frames: 1,
         ..RunState::default()
     };
+    let start = match warm {
+        Some(warm) => Start::Warm(warm),
+        None => Start::Rigid(None),
+    };
     let (displacements, info) =
-        solve_handles(body, &points, targets, params, warm, &mut run, observer)?;
+        solve_handles(body, &points, targets, params, start, &mut run, observer)?;
     Ok(ShapeSolution {
         displacements,
         info,
     })
+}
+
+/// Where a solve starts.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Start<'a> {
+    /// From these displacements as they are: a dragged handle has moved a
+    /// little, and the rest of the shape is already where it should be.
+    Warm(&'a [Vector]),
+    /// From these displacements (the rest shape for `None`) carried by
+    /// the rigid motion that best takes the handles to their targets: a
+    /// keyframe or a first solve whose handles moved far. A rigid motion
+    /// costs no rigidity or volume, so when the handles move rigidly
+    /// this is the solution, and otherwise the solver starts from a shape
+    /// instead of from stretching particles one neighbourhood at a time.
+    Rigid(Option<&'a [Vector]>),
 }
 
 /// Minimises Eq. 78 for handle `points` at rest and their `targets`.
@@ -114,7 +146,7 @@ pub(crate) fn solve_handles(
     points: &[Vector],
     targets: Vec<Vector>,
     params: &DesignParams,
-    warm: Option<&[Vector]>,
+    start: Start<'_>,
     run: &mut RunState,
     observer: &mut Observer<'_>,
 ) -> Result<(Vec<Vector>, SolveInfo), DesignError> {
@@ -130,11 +162,58 @@ pub(crate) fn solve_handles(
     let dim = body.dim();
     let s = body.spacing();
     let mut x = vec![0.0; body.len() * dim];
-    if let Some(warm) = warm {
-        scale_into(warm, dim, s, &mut x);
+    match start {
+        Start::Warm(warm) => scale_into(warm, dim, s, &mut x),
+        Start::Rigid(base) => {
+            let carried = carry_rigidly(body, &handles, base);
+            scale_into(&carried, dim, s, &mut x);
+        }
     }
     let info = lsq::minimise(&problem, &mut x, &params.solver, run, observer)?;
     Ok((unscale(&x, dim, s), info))
+}
+
+/// The displacements `base` (zero for `None`) followed by the rigid
+/// motion that best takes the handle points, displaced by `base`, to
+/// their targets in the least-squares sense (Kabsch's SVD fit). Handles
+/// that fix no rotation (a point, or points on a line in 3D) get only the
+/// translation.
+fn carry_rigidly(body: &DesignBody, handles: &Handles, base: Option<&[Vector]>) -> Vec<Vector> {
+    let displaced = |i: usize| base.map_or(Vector::zeros(), |u| u[i]);
+    let from: Vec<Vector> = (0..handles.targets.len())
+        .map(|k| {
+            let (js, phi, _) = handles.points.row(k);
+            handles.points.rest()[k]
+                + js.iter()
+                    .zip(phi)
+                    .map(|(&j, &p)| displaced(j as usize) * p)
+                    .sum::<Vector>()
+        })
+        .collect();
+    let count = from.len() as Real;
+    let centre = from.iter().sum::<Vector>() / count;
+    let target = handles.targets.iter().sum::<Vector>() / count;
+    let mut cross = Matrix3::zeros();
+    for (p, q) in from.iter().zip(&handles.targets) {
+        cross += (p - centre) * (q - target).transpose();
+    }
+    let svd = cross.svd(true, true);
+    let dim = body.dim();
+    let rotation = match (svd.u, svd.v_t) {
+        (Some(u), Some(v_t)) if svd.singular_values[dim - 2] > 1e-9 * svd.singular_values[0] => {
+            let v = v_t.transpose();
+            let mut flip = Matrix3::identity();
+            // The last axis of the fit: z in 2D, where it must stay z.
+            flip[(2, 2)] = (v * u.transpose()).determinant().signum();
+            v * flip * u.transpose()
+        }
+        _ => Matrix3::identity(),
+    };
+    body.rest()
+        .iter()
+        .enumerate()
+        .map(|(i, x)| rotation * (x + displaced(i) - centre) + target - x)
+        .collect()
 }
 
 /// Writes displacements in metres as unknowns in spacings.
@@ -155,7 +234,7 @@ pub(crate) fn unscale(x: &[Real], dim: usize, s: Real) -> Vec<Vector> {
 
 /// The handle residuals of point `k` of `handles`, the field at it
 /// `sum_j phi_j x_(j, .)` with the unknowns of particle `j` from
-/// `base(j)`, scaled by `weight` (already square-rooted).
+/// `base(j)`, as one block, scaled by `weight` (already square-rooted).
 pub(crate) fn push_point(
     rows: &mut Rows,
     term: Term,
@@ -165,13 +244,13 @@ pub(crate) fn push_point(
     x: &[Real],
     weight: Real,
 ) {
+    rows.block(dim, 1, entries.iter().map(|&(b, c)| (b, [c, 0.0, 0.0])));
+    let mut d = [0.0; 3];
     for a in 0..dim {
         let value = offset[a] + entries.iter().map(|&(b, c)| c * x[b + a]).sum::<Real>();
-        rows.push(
-            term,
-            weight * value,
-            entries.iter().map(|&(b, c)| ((b + a) as u32, weight * c)),
-        );
+        d.fill(0.0);
+        d[a] = weight;
+        rows.push(term, weight * value, &d[..dim]);
     }
 }
 
