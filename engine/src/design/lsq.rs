@@ -1051,7 +1051,7 @@ mod tests {
                     let particle = (g + 2 * j) % 7;
                     (particle * 3, [value(j), value(j + 3), value(j + 6)])
                 });
-                let (q, rows_here) = if g % 2 == 0 { (3, 5) } else { (1, 2) };
+                let (q, rows_here) = if g.is_multiple_of(2) { (3, 5) } else { (1, 2) };
                 rows.block(3, q, stencil);
                 for r in 0..rows_here {
                     let derivative: Vec<Real> = (0..3 * q).map(|f| value(10 + r * 9 + f)).collect();
