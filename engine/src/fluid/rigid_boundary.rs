@@ -44,6 +44,13 @@ use std::ops::Range;
 /// Force and torque (about the body's centre) per body.
 type Loads = Vec<(Vector, Vector)>;
 
+/// Particles per partial sum of the loads. Partial sums over fixed chunks,
+/// added in order, keep the loads independent of how rayon splits the
+/// work: summed in another order they round differently, and a body
+/// rocking on a film of particles turns that rounding into a different
+/// motion from run to run.
+const LOAD_CHUNK: usize = 512;
+
 fn no_loads(n: usize) -> Loads {
     vec![(Vector::zeros(), Vector::zeros()); n]
 }
@@ -287,7 +294,8 @@ impl RigidBodies {
         let loads = accelerations
             .par_iter_mut()
             .enumerate()
-            .fold(
+            .fold_chunks(
+                LOAD_CHUNK,
                 || no_loads(this.bodies.len()),
                 |mut loads, (i, a)| {
                     let (xi, vi, rho) = (positions[i], velocities[i], densities[i]);
@@ -312,7 +320,9 @@ impl RigidBodies {
                     loads
                 },
             )
-            .reduce(|| no_loads(this.bodies.len()), add_loads);
+            .collect::<Vec<_>>()
+            .into_iter()
+            .fold(no_loads(this.bodies.len()), add_loads);
         self.loads = add_loads(std::mem::take(&mut self.loads), loads);
     }
 
@@ -331,7 +341,8 @@ impl RigidBodies {
         let kernel = &this.gradient_kernel;
         let loads = (0..positions.len())
             .into_par_iter()
-            .fold(
+            .fold_chunks(
+                LOAD_CHUNK,
                 || no_loads(this.bodies.len()),
                 |mut loads, i| {
                     let xi = positions[i];
@@ -351,7 +362,9 @@ impl RigidBodies {
                     loads
                 },
             )
-            .reduce(|| no_loads(this.bodies.len()), add_loads);
+            .collect::<Vec<_>>()
+            .into_iter()
+            .fold(no_loads(this.bodies.len()), add_loads);
         self.loads = add_loads(std::mem::take(&mut self.loads), loads);
     }
 
@@ -417,7 +430,8 @@ impl RigidBodies {
         let (loads, hits) = positions
             .par_iter_mut()
             .zip(velocities.par_iter_mut())
-            .fold(
+            .fold_chunks(
+                LOAD_CHUNK,
                 || (no_loads(this.bodies.len()), 0usize),
                 |(mut loads, mut hits), (x, v)| {
                     for (k, body) in this.bodies.iter().enumerate() {
@@ -444,10 +458,11 @@ impl RigidBodies {
                     (loads, hits)
                 },
             )
-            .reduce(
-                || (no_loads(this.bodies.len()), 0),
-                |a, b| (add_loads(a.0, b.0), a.1 + b.1),
-            );
+            .collect::<Vec<_>>()
+            .into_iter()
+            .fold((no_loads(this.bodies.len()), 0), |a, b| {
+                (add_loads(a.0, b.0), a.1 + b.1)
+            });
         self.projections += hits;
         self.loads = add_loads(std::mem::take(&mut self.loads), loads);
         self.kick(dt);
