@@ -219,6 +219,13 @@ impl Rows {
         &self.weights[start..start + q]
     }
 
+    /// Starts a block of the field's value at a point, `sum_j c_j
+    /// x_(b_j + .)`, over `(b_j, c_j)`: a handle, keyframe, velocity,
+    /// acceleration or obstacle.
+    pub fn value_block(&mut self, dim: usize, entries: &[(usize, Real)]) {
+        self.block(dim, 1, entries.iter().map(|&(b, c)| (b, [c, 0.0, 0.0])));
+    }
+
     /// Block `b`'s features of `v`.
     fn gather(&self, b: usize, stencil: Range<usize>, v: &[Real]) -> [Real; MAX_FEATURES] {
         match (self.blocks[b].dim, self.blocks[b].q) {
@@ -300,16 +307,31 @@ impl Rows {
         let b = self.blocks.partition_point(|b| b.row as usize <= k) - 1;
         let (rows, stencil) = self.ranges(b);
         let block = self.blocks[b];
-        let (dim, q) = (usize::from(block.dim), usize::from(block.q));
+        let dim = usize::from(block.dim);
         let row = &self.matrix_of(b, rows.len())[(k - rows.start) * block.features()..];
         stencil
             .filter(|&s| (self.bases[s] as usize..self.bases[s] as usize + dim).contains(&c))
-            .map(|s| {
-                let a = c - self.bases[s] as usize;
-                let w = self.weights_of(b, s);
-                (0..q).map(|cc| row[a * q + cc] * w[cc]).sum::<Real>()
-            })
+            .map(|s| column_entry(row, c - self.bases[s] as usize, self.weights_of(b, s)))
             .sum()
+    }
+}
+
+/// The entry of a block's Jacobian in `row` (its derivative by the
+/// features) and the column of component `a` of a stencil entry with
+/// weights `w`: `sum_c row_(a, c) w_c`.
+fn column_entry(row: &[Real], a: usize, w: &[Real]) -> Real {
+    let q = w.len();
+    row[a * q..(a + 1) * q]
+        .iter()
+        .zip(w)
+        .map(|(r, w)| r * w)
+        .sum()
+}
+
+/// `out = x + alpha step`.
+fn step_from(x: &[Real], step: &[Real], alpha: Real, out: &mut [Real]) {
+    for ((o, x), d) in out.iter_mut().zip(x).zip(step) {
+        *o = x + alpha * d;
     }
 }
 
@@ -458,11 +480,7 @@ impl Products {
                 for b in run[0]..run[1] {
                     let (rows, stencil) = j.ranges(b);
                     let block = j.blocks[b];
-                    let (dim, q, p) = (
-                        usize::from(block.dim),
-                        usize::from(block.q),
-                        block.features(),
-                    );
+                    let (dim, p) = (usize::from(block.dim), block.features());
                     let m = j.matrix_of(b, rows.len());
                     for s in stencil {
                         let base = j.bases[s] as usize;
@@ -470,14 +488,7 @@ impl Products {
                         for a in 0..dim {
                             scratch[base + a] += m
                                 .chunks_exact(p)
-                                .map(|row| {
-                                    let v: Real = row[a * q..(a + 1) * q]
-                                        .iter()
-                                        .zip(w)
-                                        .map(|(r, w)| r * w)
-                                        .sum();
-                                    v * v
-                                })
+                                .map(|row| column_entry(row, a, w).powi(2))
                                 .sum::<Real>();
                         }
                     }
@@ -578,9 +589,7 @@ pub(crate) fn minimise(
                 &mut step,
                 params,
             );
-            for ((t, x), d) in trial.iter_mut().zip(x.iter()).zip(&step) {
-                *t = x + d;
-            }
+            step_from(x, &step, 1.0, &mut trial);
             evaluate(problem, &trial, false, &mut trial_rows);
             let new_energy = trial_rows.energies().total();
             // Model decrease: -(2 g.d + d^T J^T J d) = -(g.d) + mu d^T D d
@@ -603,9 +612,7 @@ pub(crate) fn minimise(
             let curvature = new_energy - energy - slope;
             if new_energy.is_finite() && slope < 0.0 && curvature > 0.0 {
                 let alpha = (-slope / (2.0 * curvature)).clamp(0.1, 0.9);
-                for ((t, x), d) in trial.iter_mut().zip(x.iter()).zip(&step) {
-                    *t = x + alpha * d;
-                }
+                step_from(x, &step, alpha, &mut trial);
                 evaluate(problem, &trial, false, &mut trial_rows);
                 let shorter = trial_rows.energies().total();
                 if shorter.is_finite() && shorter < energy {
@@ -802,11 +809,7 @@ impl LineBlocks {
                         if stencil.clone().all(|s| frame(s) == first) || rows.len() > MAX_ROWS {
                             continue;
                         }
-                        let (dim, q, p) = (
-                            usize::from(block.dim),
-                            usize::from(block.q),
-                            block.features(),
-                        );
+                        let (dim, p) = (usize::from(block.dim), block.features());
                         let m = j.matrix_of(b, rows.len());
                         columns.clear();
                         for s in stencil {
@@ -815,11 +818,7 @@ impl LineBlocks {
                             for a in 0..dim {
                                 let mut column = [0.0; MAX_ROWS];
                                 for (v, row) in column.iter_mut().zip(m.chunks_exact(p)) {
-                                    *v = row[a * q..(a + 1) * q]
-                                        .iter()
-                                        .zip(w)
-                                        .map(|(r, w)| r * w)
-                                        .sum();
+                                    *v = column_entry(row, a, w);
                                 }
                                 let c = base + a;
                                 columns.push(((c % lines) as u32, (c / lines) as u32, column));

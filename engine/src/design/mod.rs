@@ -40,8 +40,8 @@ use crate::math::Real;
 /// Runs `f` on a thread of rayon's pool. From a thread outside it (a
 /// session's compute thread), every parallel loop of a solve would hand
 /// its work to the pool and block until it is done; a drag frame runs
-/// hundreds of small loops, and in a profile of one the hand-overs cost
-/// two thirds of its time. Within the pool this is a plain call.
+/// hundreds of small loops, each smaller than its hand-over. Within the
+/// pool this is a plain call.
 fn on_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     rayon::scope(|_| f())
 }

@@ -725,7 +725,7 @@ impl LeastSquares for MotionProblem<'_, '_> {
                         // One block of the field at the particle, for
                         // every obstacle it touches.
                         if !block {
-                            rows.block(dim, 1, entries.iter().map(|&(b, c)| (b, [c, 0.0, 0.0])));
+                            rows.value_block(dim, &entries);
                             block = true;
                         }
                         let derivative = -weight * normal;

@@ -180,16 +180,10 @@ pub(crate) fn solve_handles(
 /// translation.
 fn carry_rigidly(body: &DesignBody, handles: &Handles, base: Option<&[Vector]>) -> Vec<Vector> {
     let displaced = |i: usize| base.map_or(Vector::zeros(), |u| u[i]);
-    let from: Vec<Vector> = (0..handles.targets.len())
-        .map(|k| {
-            let (js, phi, _) = handles.points.row(k);
-            handles.points.rest()[k]
-                + js.iter()
-                    .zip(phi)
-                    .map(|(&j, &p)| displaced(j as usize) * p)
-                    .sum::<Vector>()
-        })
-        .collect();
+    let mut from = handles.points.rest().to_vec();
+    if let Some(u) = base {
+        handles.points.deform(u, &mut from);
+    }
     let count = from.len() as Real;
     let centre = from.iter().sum::<Vector>() / count;
     let target = handles.targets.iter().sum::<Vector>() / count;
@@ -244,7 +238,7 @@ pub(crate) fn push_point(
     x: &[Real],
     weight: Real,
 ) {
-    rows.block(dim, 1, entries.iter().map(|&(b, c)| (b, [c, 0.0, 0.0])));
+    rows.value_block(dim, entries);
     let mut d = [0.0; 3];
     for a in 0..dim {
         let value = offset[a] + entries.iter().map(|&(b, c)| c * x[b + a]).sum::<Real>();
