@@ -22,51 +22,29 @@ pub async fn within<T>(what: &str, future: impl Future<Output = T>) -> T {
     }
 }
 
-/// A small fluid scene (125 particles) as TOML, frames every step.
+/// A fixture scene shared by the Rust and Python tests:
+/// `tests/fixtures/NAME.toml`, as TOML text.
+///
+/// # Panics
+/// When the fixture is missing: a broken checkout, not a test result.
+pub fn fixture(name: &str) -> String {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("fixtures")
+        .join(format!("{name}.toml"));
+    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// A small fluid scene (125 particles) as TOML, frames every step
+/// (`tests/fixtures/small_tank.toml`).
 pub fn small_scene() -> String {
-    r#"
-name = "small tank"
-[domain]
-min = [0.0, 0.0, 0.0]
-max = [0.5, 0.5, 0.5]
-[time]
-dt = 0.01
-[output]
-fields = ["velocity", "density"]
-frame_every = 1
-[[systems]]
-kind = "fluid"
-spacing = 0.04
-stiffness = 2.0e4
-[[systems.blocks]]
-region = { min = [0.0, 0.0, 0.0], max = [0.2, 0.2, 0.2] }
-"#
-    .to_owned()
+    fixture("small_tank")
 }
 
 /// A small elastic solid (a 0.2 x 0.2 x 0.4 m box, 128 particles, centred
 /// at (0.5, 0.5, 0.5)) as TOML, frames every step: the object of the
-/// design tests.
+/// design tests (`tests/fixtures/small_column.toml`).
 pub fn small_solid_scene() -> String {
-    r#"
-name = "small column"
-[domain]
-min = [0.0, 0.0, 0.0]
-max = [1.0, 1.0, 1.0]
-[time]
-dt = 0.002
-[output]
-frame_every = 1
-[[systems]]
-kind = "solid"
-shape = { type = "box", half_extents = [0.1, 0.1, 0.2] }
-position = [0.5, 0.5, 0.5]
-spacing = 0.05
-density = 1000.0
-young = 1.0e5
-poisson = 0.3
-"#
-    .to_owned()
+    fixture("small_column")
 }
 
 /// Where cargo put one of the workspace's binaries (`meshless-server`,

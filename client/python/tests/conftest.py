@@ -13,6 +13,13 @@ import pytest
 
 TIMEOUT = 30.0
 
+ROOT = Path(__file__).resolve().parents[3]
+
+
+def fixture(name: str) -> str:
+    """A scene shared with the Rust tests: ``tests/fixtures/NAME.toml``."""
+    return (ROOT / "tests" / "fixtures" / f"{name}.toml").read_text()
+
 
 @dataclass
 class Server:
@@ -24,8 +31,7 @@ def _server_binary() -> str:
     path = os.environ.get("MESHLESS_SERVER_BIN")
     if path:
         return path
-    root = Path(__file__).resolve().parents[3]
-    return str(root / "target" / "debug" / "meshless-server")
+    return str(ROOT / "target" / "debug" / "meshless-server")
 
 
 @pytest.fixture()

@@ -12,25 +12,10 @@ import numpy as np
 import pytest
 import zenoh
 
-from conftest import TIMEOUT
+from conftest import TIMEOUT, fixture
 from meshless import decode_frame, frames_key, latest_key
 
-SCENE = """
-name = "python tank"
-[domain]
-min = [0.0, 0.0, 0.0]
-max = [0.5, 0.5, 0.5]
-[time]
-dt = 0.01
-[output]
-fields = ["velocity", "pressure"]
-[[systems]]
-kind = "fluid"
-spacing = 0.05
-stiffness = 2.0e4
-[[systems.blocks]]
-region = { min = [0.0, 0.0, 0.0], max = [0.2, 0.3, 0.2] }
-"""
+SCENE = fixture("python_tank")
 
 
 def stub(server):
@@ -293,22 +278,7 @@ def test_a_solid_carries_its_embedded_surface_as_it_falls(server):
     assert abs(surface / particles - 1.0) < 0.05, (surface, particles)
 
 
-COLUMN = """
-name = "python column"
-[domain]
-min = [0.0, 0.0, 0.0]
-max = [1.0, 1.0, 1.0]
-[time]
-dt = 0.002
-[[systems]]
-kind = "solid"
-shape = { type = "box", half_extents = [0.1, 0.1, 0.2] }
-position = [0.5, 0.5, 0.5]
-spacing = 0.05
-density = 1000.0
-young = 1.0e5
-poisson = 0.3
-"""
+COLUMN = fixture("small_column")
 
 
 def test_constraints_and_a_shape_optimisation(server):
