@@ -15,6 +15,7 @@ pub mod fluid;
 pub mod frame;
 pub mod geometry;
 pub mod io;
+pub mod linalg;
 pub mod math;
 pub mod neighbors;
 pub mod scene;

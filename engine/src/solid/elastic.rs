@@ -1,64 +1,30 @@
-//! An MLS elastic solid: its particles, reference shape and state.
+//! An MLS elastic solid as the world steps it: its [`Body`] (the state)
+//! and the integrator that advances it (the buffers its steps reuse).
 
+use super::body::{Body, SolidError};
 use super::contact::Obstacles;
-use super::material::StressState;
+use super::integrate::{Integrator, SolidStep};
 use super::params::SolidParams;
-use super::topology::Topology;
-use crate::approx::mls::{MlsError, Order};
 use crate::math::{Real, Vector};
 use nalgebra::Matrix3;
+use std::ops::{Deref, DerefMut};
 
 /// A body sampled by particles whose elastic forces come from the MLS
-/// displacement gradient in material coordinates (tutorial Section 7.1).
+/// displacement gradient in material coordinates (tutorial Section 7.1),
+/// with its time integrator.
+///
+/// It reads as its body: `solid.positions`, `solid.len()`, `solid.save(..)`
+/// are the [`Body`]'s, so that only stepping goes through the integrator.
 #[derive(Debug, Clone)]
 pub struct ElasticSolid {
-    pub params: SolidParams,
-    /// Reference (material) positions `X`.
-    pub(super) rest: Vec<Vector>,
-    pub positions: Vec<Vector>,
-    pub velocities: Vec<Vector>,
-    /// Reference volume and mass of each particle.
-    pub(super) volumes: Vec<Real>,
-    pub(super) masses: Vec<Real>,
-    /// Anchored particles: they never move.
-    pub(super) fixed: Vec<bool>,
-    pub(super) topology: Topology,
-    /// Plastic strain per particle, only when the solid is plastic.
-    pub(super) plastic: Option<Vec<Matrix3<Real>>>,
-    pub(super) obstacles: Obstacles,
-    /// Scratch of the force passes, reused every step.
-    pub(super) scratch: Scratch,
-}
-
-/// Per-particle and per-edge buffers of one force evaluation.
-#[derive(Debug, Clone, Default)]
-pub(super) struct Scratch {
-    /// Stress state at the positions of the last force evaluation.
-    pub states: Vec<StressState>,
-    pub split: super::forces::Split,
-    pub forces: Vec<Vector>,
-    /// Implicit solver vectors.
-    pub implicit: super::implicit::Buffers,
-}
-
-/// Why a solid cannot be built.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum SolidError {
-    #[error("the solid has no particles; enlarge its shape or shrink its spacing")]
-    Empty,
-    #[error("{what}: expected one entry per particle ({expected}), got {got}")]
-    Length {
-        what: &'static str,
-        expected: usize,
-        got: usize,
-    },
-    #[error(transparent)]
-    Mls(#[from] MlsError),
+    body: Body,
+    integrator: Integrator,
 }
 
 impl ElasticSolid {
     /// A solid at rest shape `rest` with initial `velocities` and the
-    /// particles flagged in `fixed` anchored, colliding with `obstacles`.
+    /// particles flagged in `fixed` anchored, colliding with `obstacles`,
+    /// advanced by the integrator `params.integrator` names.
     ///
     /// # Errors
     /// [`SolidError`] when the inputs disagree in length, are empty, or
@@ -70,145 +36,25 @@ impl ElasticSolid {
         fixed: Vec<bool>,
         obstacles: Obstacles,
     ) -> Result<Self, SolidError> {
-        let n = rest.len();
-        if n == 0 {
-            return Err(SolidError::Empty);
-        }
-        for (what, got) in [("velocities", velocities.len()), ("fixed", fixed.len())] {
-            if got != n {
-                return Err(SolidError::Length {
-                    what,
-                    expected: n,
-                    got,
-                });
-            }
-        }
-        let topology = Topology::build(&rest, params.dim, params.order, params.support)?;
-        let volume = params.particle_volume();
-        let mut velocities = velocities;
-        for (v, &f) in velocities.iter_mut().zip(&fixed) {
-            if f {
-                *v = Vector::zeros();
-            }
-        }
+        let integrator = Integrator::new(&params.integrator);
         Ok(Self {
-            positions: rest.clone(),
-            rest,
-            velocities,
-            volumes: vec![volume; n],
-            masses: vec![volume * params.density; n],
-            fixed,
-            topology,
-            plastic: params.plasticity.map(|_| vec![Matrix3::zeros(); n]),
-            obstacles,
-            params,
-            scratch: Scratch::default(),
+            body: Body::new(params, rest, velocities, fixed, obstacles)?,
+            integrator,
         })
     }
 
-    pub fn len(&self) -> usize {
-        self.positions.len()
+    /// Advances by `dt` under `gravity`, in at most `max_substeps`
+    /// explicit sub-steps.
+    pub fn step(&mut self, dt: Real, gravity: &Vector, max_substeps: u32) -> SolidStep {
+        self.integrator
+            .step(&mut self.body, dt, gravity, max_substeps)
     }
 
-    pub fn is_empty(&self) -> bool {
-        self.positions.is_empty()
-    }
-
-    /// Reference positions.
-    pub fn rest_positions(&self) -> &[Vector] {
-        &self.rest
-    }
-
-    pub fn masses(&self) -> &[Real] {
-        &self.masses
-    }
-
-    pub fn is_fixed(&self, i: usize) -> bool {
-        self.fixed[i]
-    }
-
-    /// The MLS order each particle's gradient actually uses (lower than
-    /// requested where its neighbourhood is degenerate).
-    pub fn orders(&self) -> &[Order] {
-        self.topology.gradients.orders()
-    }
-
-    /// Moves the particles to `positions` with `velocities` (a deformed
-    /// initial state, say), keeping the reference shape.
-    ///
-    /// # Errors
-    /// [`SolidError::Length`] when either has the wrong length.
-    pub fn set_state(
-        &mut self,
-        positions: Vec<Vector>,
-        velocities: Vec<Vector>,
-    ) -> Result<(), SolidError> {
-        for (what, got) in [
-            ("positions", positions.len()),
-            ("velocities", velocities.len()),
-        ] {
-            if got != self.len() {
-                return Err(SolidError::Length {
-                    what,
-                    expected: self.len(),
-                    got,
-                });
-            }
-        }
-        self.positions = positions;
-        self.velocities = velocities;
-        Ok(())
-    }
-
-    /// `grad u = F - I` of every particle, for surface embedding.
-    pub fn displacement_gradients(&self, out: &mut Vec<Matrix3<Real>>) {
-        out.clear();
-        out.extend(
-            self.current_states()
-                .iter()
-                .map(|s| s.f - Matrix3::identity()),
-        );
-    }
-
-    /// Current density `m / (V det F)` of every particle.
-    pub fn densities(&self) -> Vec<Real> {
-        self.current_states()
-            .iter()
-            .zip(&self.masses)
-            .zip(&self.volumes)
-            .map(|((s, m), v)| m / (v * s.det.max(Real::EPSILON)))
-            .collect()
-    }
-
-    /// Mean compressive stress `-tr(sigma) / 3` of every particle, with
-    /// the Cauchy stress `sigma = P F^T / det F`, Pa.
-    pub fn pressures(&self) -> Vec<Real> {
-        let material = self.params.material;
-        self.current_states()
-            .iter()
-            .map(|s| {
-                let p = material.first_piola(s);
-                -(p * s.f.transpose()).trace() / (3.0 * s.det.max(Real::EPSILON))
-            })
-            .collect()
-    }
-
-    /// Kinetic energy, J.
-    pub fn kinetic_energy(&self) -> Real {
-        self.velocities
-            .iter()
-            .zip(&self.masses)
-            .map(|(v, m)| 0.5 * m * v.norm_squared())
-            .sum()
-    }
-
-    /// Total volume `sum V_i det F_i`, m^3 (area in 2D).
-    pub fn current_volume(&self) -> Real {
-        self.current_states()
-            .iter()
-            .zip(&self.volumes)
-            .map(|(s, v)| v * s.det)
-            .sum()
+    /// Bytes held by the implicit integrator's last sparse Cholesky factor
+    /// (0 before one was computed, and for other integrators): the direct
+    /// solver's dominant memory.
+    pub fn cholesky_factor_bytes(&self) -> usize {
+        self.integrator.cholesky_factor_bytes()
     }
 
     /// The first particle whose state is not finite, that moves faster
@@ -217,11 +63,12 @@ impl ElasticSolid {
     /// physics (walls and obstacles can stop runaway particles, but not
     /// hide the strain they left).
     pub(crate) fn first_invalid(&self) -> Option<(usize, &'static str, Real)> {
-        let limit = 10.0 * self.params.wave_speed() + 1e3;
-        let moving = self
+        let body = &self.body;
+        let limit = 10.0 * body.params.wave_speed() + 1e3;
+        let moving = body
             .positions
             .iter()
-            .zip(&self.velocities)
+            .zip(&body.velocities)
             .enumerate()
             .find_map(|(i, (x, v))| {
                 if !x.iter().all(|c| c.is_finite()) {
@@ -232,11 +79,15 @@ impl ElasticSolid {
                 }
             });
         moving.or_else(|| {
-            self.scratch.states.iter().enumerate().find_map(|(i, s)| {
-                let strain =
-                    (s.e + self.plastic.as_ref().map_or_else(Matrix3::zeros, |p| p[i])).norm();
-                (strain.is_nan() || strain > Self::MAX_STRAIN).then_some((i, "strain", strain))
-            })
+            self.integrator
+                .states()
+                .iter()
+                .enumerate()
+                .find_map(|(i, s)| {
+                    let strain =
+                        (s.e + body.plastic.as_ref().map_or_else(Matrix3::zeros, |p| p[i])).norm();
+                    (strain.is_nan() || strain > Self::MAX_STRAIN).then_some((i, "strain", strain))
+                })
         })
     }
 
@@ -245,28 +96,16 @@ impl ElasticSolid {
     pub const MAX_STRAIN: Real = 100.0;
 }
 
-/// What a failed step restores: positions, velocities and plastic strain.
-#[derive(Debug, Clone, Default)]
-pub struct SolidState {
-    positions: Vec<Vector>,
-    velocities: Vec<Vector>,
-    plastic: Option<Vec<Matrix3<Real>>>,
+impl Deref for ElasticSolid {
+    type Target = Body;
+
+    fn deref(&self) -> &Body {
+        &self.body
+    }
 }
 
-impl ElasticSolid {
-    /// Copies the state into `out`, reusing its buffers.
-    pub fn save(&self, out: &mut SolidState) {
-        out.positions.clone_from(&self.positions);
-        out.velocities.clone_from(&self.velocities);
-        out.plastic.clone_from(&self.plastic);
-    }
-
-    /// Returns to a state saved by [`Self::save`] (of this solid). A
-    /// reference shape re-based since is kept: re-basing is a change of
-    /// description, not of state.
-    pub fn restore(&mut self, saved: &SolidState) {
-        self.positions.clone_from(&saved.positions);
-        self.velocities.clone_from(&saved.velocities);
-        self.plastic.clone_from(&saved.plastic);
+impl DerefMut for ElasticSolid {
+    fn deref_mut(&mut self) -> &mut Body {
+        &mut self.body
     }
 }

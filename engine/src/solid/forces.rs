@@ -37,7 +37,7 @@
 //! w~_ij`, equal and opposite on the pair: it damps relative motion only,
 //! so a falling or spinning body is not slowed.
 
-use super::elastic::ElasticSolid;
+use super::body::Body;
 use super::material::{Material, StressState};
 use super::topology::Topology;
 use crate::math::{Real, Vector};
@@ -275,7 +275,42 @@ impl Model<'_> {
     }
 }
 
-impl ElasticSolid {
+/// The buffers of one evaluation of the internal forces, which every
+/// integrator owns one of: the stress states there (which plasticity and
+/// the blow-up check read after a step), the split of pass 1 and the
+/// gathered forces.
+#[derive(Debug, Clone, Default)]
+pub(super) struct InternalForces {
+    pub states: Vec<StressState>,
+    pub split: Split,
+    pub forces: Vec<Vector>,
+}
+
+impl InternalForces {
+    /// Internal forces (elastic, hourglass, damping) of `body` at
+    /// positions `x` (default: the current ones) and velocities `v` into
+    /// `self.forces`, with the stress states there in `self.states`;
+    /// returns the potential energy when `energy` is asked for.
+    pub fn evaluate(
+        &mut self,
+        body: &Body,
+        x: Option<&[Vector]>,
+        v: Option<&[Vector]>,
+        energy: bool,
+    ) -> Real {
+        let n = body.len();
+        self.states.resize(n, Material::rest_state());
+        self.forces.resize(n, Vector::zeros());
+        self.split.resize(n, body.topology.owner.len());
+        let model = body.model();
+        let x = x.unwrap_or(&body.positions);
+        let total = model.particle_pass(x, v, &mut self.states, &mut self.split, energy);
+        model.gather(&self.split, &mut self.forces);
+        total
+    }
+}
+
+impl Body {
     /// The fixed parts the force passes read.
     pub(super) fn model(&self) -> Model<'_> {
         let p = &self.params;
@@ -288,29 +323,6 @@ impl ElasticSolid {
             hourglass: p.hourglass * p.young / (p.support * p.support),
             damping: p.damping,
         }
-    }
-
-    /// Internal forces (elastic, hourglass, damping) at positions `x`
-    /// (default: the current ones) and velocities `v` into
-    /// `scratch.forces`, with the stress states there in `scratch.states`;
-    /// returns the potential energy when `energy` is asked for.
-    pub(super) fn internal_forces(
-        &mut self,
-        x: Option<&[Vector]>,
-        v: Option<&[Vector]>,
-        energy: bool,
-    ) -> Real {
-        let n = self.len();
-        let mut scratch = std::mem::take(&mut self.scratch);
-        scratch.states.resize(n, Material::rest_state());
-        scratch.forces.resize(n, Vector::zeros());
-        scratch.split.resize(n, self.topology.owner.len());
-        let model = self.model();
-        let x = x.unwrap_or(&self.positions);
-        let total = model.particle_pass(x, v, &mut scratch.states, &mut scratch.split, energy);
-        model.gather(&scratch.split, &mut scratch.forces);
-        self.scratch = scratch;
-        total
     }
 
     /// The stress state of every particle at the current positions.

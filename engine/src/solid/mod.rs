@@ -5,30 +5,33 @@
 //! conservation, hourglass control, damping, anchors, obstacles,
 //! plasticity, and explicit or implicit integration.
 //!
+//! - `body.rs`: a solid's particles, reference shape and state;
+//! - `elastic.rs`: [`ElasticSolid`], a body with its integrator;
 //! - `material.rs`: strain, stress and energy (Eq. 61-65);
 //! - `topology.rs`: the Lagrangian neighbourhoods, built once;
 //! - `forces.rs`: the force passes and their linearisation;
-//! - `integrate.rs`, `implicit.rs`: time stepping;
-//! - `hessian.rs`: the assembled Hessian and its sparse Cholesky solve;
+//! - `integrate/`: time stepping, each integrator owning its buffers
+//!   (explicit, implicit, and the implicit one's assembled Hessian and
+//!   sparse Cholesky solve);
 //! - `plasticity.rs`: Eq. 69 and the reference-shape update;
 //! - `contact.rs`: obstacles and walls;
 //! - `embedded.rs`: high-resolution surfaces that follow the particles
 //!   (Section 7.2).
 
+mod body;
 mod contact;
 mod elastic;
 pub mod embedded;
 mod forces;
-mod hessian;
-mod implicit;
 mod integrate;
 mod material;
 mod params;
 mod plasticity;
 mod topology;
 
+pub use body::{Body, SolidError, SolidState};
 pub use contact::{Obstacle, Obstacles};
-pub use elastic::{ElasticSolid, SolidError, SolidState};
+pub use elastic::ElasticSolid;
 pub use integrate::SolidStep;
 pub use material::{Material, StressState, cofactor, green_strain};
 pub use params::{ImplicitParams, Integrator, LinearSolver, Plasticity, SolidParams};

@@ -15,19 +15,20 @@
 //! measured against (`eps_p <- eps_p - eps`), so the elastic strain is
 //! unchanged at that instant (exact for small rotations).
 
-use super::elastic::ElasticSolid;
+use super::body::Body;
+use super::material::StressState;
 use super::topology::Topology;
 
-impl ElasticSolid {
-    /// Applies the plastic update with the stress states of the positions
-    /// before the last move, and re-bases when a strain passed the
-    /// threshold.
-    pub(super) fn flow(&mut self) {
+impl Body {
+    /// Applies the plastic update with `states`, the stress states of the
+    /// positions before the last move, and re-bases when a strain passed
+    /// the threshold.
+    pub(super) fn flow(&mut self, states: &[StressState]) {
         let (Some(rule), Some(plastic)) = (self.params.plasticity, self.plastic.as_mut()) else {
             return;
         };
         let mut rebase = false;
-        for (p, state) in plastic.iter_mut().zip(&self.scratch.states) {
+        for (p, state) in plastic.iter_mut().zip(states) {
             let elastic = state.e;
             if elastic.norm() > rule.yield_strain {
                 *p += elastic * rule.creep;
