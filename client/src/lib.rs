@@ -20,9 +20,9 @@
 //! # Ok(()) }
 //! ```
 //!
-//! The library depends on neither the engine nor the server; the
-//! `embedded` feature (on by default, for the `meshless` binary) adds them
-//! for `meshless run` and `meshless demo`.
+//! The library depends on the protocol alone, neither the engine nor the
+//! server, and has no features to turn on. The `meshless` command line is
+//! the `meshless-cli` crate.
 
 mod client;
 mod design;

@@ -93,6 +93,20 @@ impl ZenohLink {
     /// # Errors
     /// [`ClientError::Zenoh`] or [`ClientError::Decode`].
     pub async fn latest_frame(&self, session_id: &str) -> Result<Option<FrameView>> {
+        self.latest_message(session_id)
+            .await?
+            .map(FrameView::from_proto)
+            .transpose()
+    }
+
+    /// [`ZenohLink::latest_frame`] as the protocol's message, decoded but
+    /// not checked: for programs that convert frames themselves (`meshless
+    /// demo` hands them to `meshless-wire`).
+    ///
+    /// # Errors
+    /// [`ClientError::Zenoh`], or [`ClientError::Decode`] when the bytes
+    /// are no `Frame` message.
+    pub async fn latest_message(&self, session_id: &str) -> Result<Option<v1::Frame>> {
         let replies = self
             .session
             .get(keys::latest(session_id))
@@ -101,7 +115,7 @@ impl ZenohLink {
         let mut latest = None;
         while let Ok(reply) = replies.recv_async().await {
             match reply.result() {
-                Ok(sample) => latest = Some(FrameView::decode(&sample.payload().to_bytes())?),
+                Ok(sample) => latest = Some(decode_frame(&sample.payload().to_bytes())?),
                 Err(e) => {
                     return Err(ClientError::Zenoh(format!(
                         "latest frame: {}",
@@ -135,13 +149,29 @@ impl Frames {
     /// [`ClientError::Closed`] when the zenoh session closed;
     /// [`ClientError::Decode`] for a malformed frame.
     pub async fn recv(&self) -> Result<FrameView> {
+        FrameView::from_proto(self.recv_message().await?)
+    }
+
+    /// The next frame as the protocol's message, decoded but not checked:
+    /// for programs that convert frames themselves (`meshless demo` hands
+    /// them to `meshless-wire`).
+    ///
+    /// # Errors
+    /// [`ClientError::Closed`] when the zenoh session closed;
+    /// [`ClientError::Decode`] when the bytes are no `Frame` message.
+    pub async fn recv_message(&self) -> Result<v1::Frame> {
         let sample = self
             .subscriber
             .recv_async()
             .await
             .map_err(|_| ClientError::Closed)?;
-        FrameView::decode(&sample.payload().to_bytes())
+        decode_frame(&sample.payload().to_bytes())
     }
+}
+
+/// A `Frame` message of its encoded bytes.
+fn decode_frame(bytes: &[u8]) -> Result<v1::Frame> {
+    v1::Frame::decode(bytes).map_err(|e| ClientError::Decode(e.to_string()))
 }
 
 /// Status changes of one session.

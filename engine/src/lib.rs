@@ -10,7 +10,6 @@
 
 pub mod approx;
 pub mod design;
-pub mod experiments;
 pub mod fluid;
 pub mod frame;
 pub mod geometry;

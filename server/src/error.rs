@@ -1,8 +1,11 @@
 //! Errors of the service and their one mapping to gRPC status codes.
 
+#![warn(clippy::wildcard_enum_match_arm)]
+
 use meshless_engine::SceneError;
 use meshless_engine::design::DesignError;
 use meshless_proto::v1::SessionState;
+use meshless_wire::WireError;
 use tonic::{Code, Status};
 
 /// Why a request was refused. Every message says what to change.
@@ -66,6 +69,14 @@ impl ServiceError {
             Self::SessionGone(_) => Code::Unavailable,
             Self::Internal(_) => Code::Internal,
         }
+    }
+}
+
+/// A message that does not convert is a bad argument, named by its path.
+impl From<WireError> for ServiceError {
+    fn from(error: WireError) -> Self {
+        let WireError { field, message } = error;
+        Self::InvalidArgument { field, message }
     }
 }
 

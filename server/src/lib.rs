@@ -9,7 +9,6 @@
 //! signal handling.
 
 pub mod config;
-mod convert;
 mod error;
 mod pubsub;
 mod registry;
@@ -17,11 +16,6 @@ mod service;
 mod session;
 
 pub use config::{ServerConfig, ZenohMode};
-/// The wire forms of design problems, for clients that read them from the
-/// engine's TOML problem files (`meshless optimise`).
-pub use convert::design::{
-    constraint_to_proto, design_settings_to_proto, motion_settings_to_proto,
-};
 
 use anyhow::{Context, Result};
 use meshless_engine::BuildOptions;

@@ -2,16 +2,17 @@
 //! validates a request, converts it, calls the registry or a session, and
 //! converts the answer back.
 
-use crate::convert::design::{
-    constraint_to_proto, design_params_from_proto, edit_from_proto, motion_params_from_proto,
-};
-use crate::convert::scene_from_proto;
 use crate::error::ServiceError;
 use crate::registry::Registry;
 use crate::session::{Command, OptimizeJob, Problem, RunTarget};
 use meshless_engine::Scene;
 use meshless_engine::design::Constraint;
 use meshless_proto::v1::{self, simulation_server::Simulation};
+use meshless_wire::design::{
+    constraint_to_proto, design_params_from_proto, edit_from_proto, motion_params_from_proto,
+};
+use meshless_wire::frame::frame_to_proto;
+use meshless_wire::scene::scene_from_proto;
 use std::sync::Arc;
 use tokio::sync::{broadcast, mpsc};
 use tokio_stream::wrappers::ReceiverStream;
@@ -113,7 +114,9 @@ impl Simulation for SimulationService {
     ) -> Reply<v1::Session> {
         let v1::CreateSessionRequest { source } = request.into_inner();
         let scene = match source {
-            Some(v1::create_session_request::Source::Scene(spec)) => scene_from_proto(spec)?,
+            Some(v1::create_session_request::Source::Scene(spec)) => {
+                scene_from_proto(spec).map_err(ServiceError::from)?
+            }
             Some(v1::create_session_request::Source::SceneToml(text)) => {
                 Scene::from_toml_str(&text).map_err(ServiceError::from)?
             }
@@ -261,10 +264,9 @@ impl Simulation for SimulationService {
         let frame = session.latest_frame();
         let id = session.id.clone();
         // Encoding a large frame is CPU work: keep it off the I/O threads.
-        let message =
-            tokio::task::spawn_blocking(move || crate::convert::frame_to_proto(&id, &frame))
-                .await
-                .map_err(|e| ServiceError::Internal(format!("frame encoding failed: {e}")))?;
+        let message = tokio::task::spawn_blocking(move || frame_to_proto(&id, &frame))
+            .await
+            .map_err(|e| ServiceError::Internal(format!("frame encoding failed: {e}")))?;
         Ok(Response::new(message))
     }
 
@@ -278,7 +280,8 @@ impl Simulation for SimulationService {
             .into_iter()
             .enumerate()
             .map(|(k, e)| edit_from_proto(e, &format!("edits[{k}]")))
-            .collect::<Result<Vec<_>, _>>()?;
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(ServiceError::from)?;
         let constraints = session.edit_constraints(&edits)?;
         Ok(Response::new(constraint_list(&constraints)))
     }

@@ -1,14 +1,35 @@
-//! The engine is a plain library: it must never depend, even indirectly,
-//! on the async runtime, gRPC or zenoh (DESIGN.md, "Workspace").
+//! The crate rules (DESIGN.md, "Workspace"), checked on the real
+//! dependency graph with `cargo tree`. The engine is a plain library: it
+//! must never depend, even indirectly, on the async runtime, gRPC or
+//! zenoh. The protocol and the engine meet only in `meshless-wire`
+//! (`wire -> {engine, proto}`, `server -> {engine, wire, proto}`); the
+//! client library depends on the protocol alone; the command line
+//! (`cli -> {client, wire, validation}`) links the engine and a server
+//! only under its `embedded` feature; validation sits on the engine alone.
+
+use std::collections::BTreeSet;
 
 const FORBIDDEN: &[&str] = &["tokio", "tonic", "zenoh", "prost", "hyper", "mio"];
 
-#[test]
-fn the_engine_depends_on_no_networking_crate() {
+/// The workspace's own crates.
+const WORKSPACE: &[&str] = &[
+    "meshless-proto",
+    "meshless-engine",
+    "meshless-wire",
+    "meshless-validation",
+    "meshless-server",
+    "meshless-client",
+    "meshless-cli",
+    "meshless-tests",
+];
+
+/// The package names of `package`'s normal (non-dev, non-build)
+/// dependency tree on this platform, one per line of `cargo tree`, the
+/// package itself first; `args` adds flags (`--depth 1`,
+/// `--no-default-features`).
+fn tree(package: &str, args: &[&str]) -> Vec<String> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let manifest = concat!(env!("CARGO_MANIFEST_DIR"), "/../Cargo.toml");
-    // The engine's normal (non-dev, non-build) dependency tree on this
-    // platform, one package per line.
     let output = std::process::Command::new(cargo)
         .args([
             "tree",
@@ -16,31 +37,132 @@ fn the_engine_depends_on_no_networking_crate() {
             "--manifest-path",
             manifest,
             "-p",
-            "meshless-engine",
+            package,
         ])
         .args(["-e", "normal", "--prefix", "none", "--format", "{p}"])
+        .args(args)
         .output()
         .expect("cargo tree runs");
     assert!(
         output.status.success(),
-        "{}",
+        "cargo tree -p {package} {args:?}: {}",
         String::from_utf8_lossy(&output.stderr)
     );
-    let tree = String::from_utf8_lossy(&output.stdout);
-    let names: Vec<&str> = tree
+    let names: Vec<String> = String::from_utf8_lossy(&output.stdout)
         .lines()
         .filter_map(|l| l.split_whitespace().next())
+        .map(str::to_owned)
         .collect();
+    assert_eq!(
+        names.first().map(String::as_str),
+        Some(package),
+        "the walk starts at {package}"
+    );
+    names
+}
+
+/// The workspace crates in a tree, the package itself left out.
+fn workspace_crates(names: &[String]) -> BTreeSet<&str> {
+    names[1..]
+        .iter()
+        .map(String::as_str)
+        .filter(|name| WORKSPACE.contains(name))
+        .collect()
+}
+
+/// The workspace crates `package` depends on directly.
+fn direct(package: &str, args: &[&str]) -> BTreeSet<String> {
+    let names = tree(package, &[&["--depth", "1"], args].concat());
+    workspace_crates(&names)
+        .into_iter()
+        .map(str::to_owned)
+        .collect()
+}
+
+fn set(names: &[&str]) -> BTreeSet<String> {
+    names.iter().map(|&n| n.to_owned()).collect()
+}
+
+#[test]
+fn the_engine_depends_on_no_networking_crate() {
+    let names = tree("meshless-engine", &[]);
     for name in &names {
         assert!(
-            !FORBIDDEN.contains(name),
+            !FORBIDDEN.contains(&name.as_str()),
             "meshless-engine depends on {name}; keep networking out of the engine"
         );
     }
     // The walk really covered the engine's dependencies.
-    assert_eq!(names.first(), Some(&"meshless-engine"));
     assert!(
-        names.contains(&"nalgebra") && names.contains(&"rayon"),
+        names.iter().any(|n| n == "nalgebra") && names.iter().any(|n| n == "rayon"),
         "{names:?}"
     );
+    assert!(
+        workspace_crates(&names).is_empty(),
+        "the engine depends on {:?}; it knows neither the protocol nor the wire",
+        workspace_crates(&names)
+    );
+}
+
+/// Proto and engine types meet in the wire crate, which the server uses.
+#[test]
+fn the_protocol_meets_the_engine_only_in_the_wire_crate() {
+    assert_eq!(
+        direct("meshless-wire", &[]),
+        set(&["meshless-engine", "meshless-proto"])
+    );
+    assert_eq!(
+        direct("meshless-server", &[]),
+        set(&["meshless-engine", "meshless-proto", "meshless-wire"])
+    );
+}
+
+/// A program that only talks to servers links neither engine, server nor
+/// wire.
+#[test]
+fn the_client_library_depends_on_the_protocol_alone() {
+    let names = tree("meshless-client", &[]);
+    assert_eq!(
+        workspace_crates(&names),
+        BTreeSet::from(["meshless-proto"]),
+        "meshless-client must stay thin"
+    );
+}
+
+/// `meshless` with its default `embedded` feature runs scenes and servers
+/// in-process; without it, it is a client and nothing more.
+#[test]
+fn the_command_line_links_engine_and_server_only_when_embedded() {
+    assert_eq!(
+        direct("meshless-cli", &[]),
+        set(&[
+            "meshless-client",
+            "meshless-engine",
+            "meshless-server",
+            "meshless-validation",
+            "meshless-wire",
+        ])
+    );
+    let thin = tree("meshless-cli", &["--no-default-features"]);
+    assert_eq!(
+        workspace_crates(&thin),
+        BTreeSet::from(["meshless-client", "meshless-proto"]),
+        "meshless-cli --no-default-features links only the client library"
+    );
+}
+
+/// The experiments need the engine and nothing networked.
+#[test]
+fn validation_sits_on_the_engine_alone() {
+    let names = tree("meshless-validation", &[]);
+    assert_eq!(
+        workspace_crates(&names),
+        BTreeSet::from(["meshless-engine"])
+    );
+    for name in &names {
+        assert!(
+            !FORBIDDEN.contains(&name.as_str()),
+            "meshless-validation depends on {name}; the experiments need no networking"
+        );
+    }
 }

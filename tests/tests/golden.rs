@@ -10,10 +10,10 @@
 //! purpose regenerates the files with `MESHLESS_BLESS_GOLDEN=1 cargo test
 //! -p meshless-tests --test golden` and says why in its commit.
 
-use meshless_engine::experiments::design::{Stretch, stretch_params};
 use meshless_engine::scene::{IntegratorKind, SystemSpec};
 use meshless_engine::solid::LinearSolver;
 use meshless_engine::{BuildOptions, Frame, Scene};
+use meshless_validation::design::{Stretch, stretch_params};
 use std::path::PathBuf;
 
 /// FNV-1a over 64-bit words.

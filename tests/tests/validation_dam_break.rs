@@ -4,11 +4,11 @@
 //! within 10 % for 1 <= T <= 3 with the shipped dam-break scene.
 
 use meshless_engine::approx::KernelKind;
-use meshless_engine::experiments::{
-    MARTIN_MOYCE_FRONT, dam_break_time_scale, interpolate, surge_front,
-};
 use meshless_engine::scene::{SolverKind, SystemSpec, WallModel};
 use meshless_engine::{BuildOptions, Scene};
+use meshless_validation::dam_break::{
+    MARTIN_MOYCE_FRONT, dam_break_time_scale, interpolate, surge_front,
+};
 
 const A: f64 = 0.3;
 const G: f64 = 9.81;

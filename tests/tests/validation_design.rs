@@ -10,8 +10,8 @@ use meshless_engine::design::{
     Constraint, ConstraintKind, ConstraintSet, Context, DesignError, DesignParams, Edit,
     MotionParams, Quadrature, Velocity, solve_motion, solve_shape,
 };
-use meshless_engine::experiments::design::{Passage, Stretch, region_handle, stretch_params};
 use meshless_engine::math::{Real, Vector};
+use meshless_validation::design::{Passage, Stretch, region_handle, stretch_params};
 use nalgebra::Rotation3;
 use std::ops::ControlFlow;
 

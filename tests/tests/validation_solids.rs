@@ -6,9 +6,9 @@
 //!     cargo test -p meshless-tests --test validation_solids -- --nocapture
 
 use meshless_engine::approx::mls::Order;
-use meshless_engine::experiments::cantilever::Cantilever;
 use meshless_engine::math::{Real, Vector};
 use meshless_engine::{BuildOptions, Scene, StepError, World};
+use meshless_validation::cantilever::Cantilever;
 use nalgebra::Rotation3;
 
 /// A scene with one solid (`solid` holds its TOML keys) in a 10 m box

@@ -373,8 +373,9 @@ pub(crate) fn resolve_shape(spec: &ShapeSpec, dim: usize) -> Result<Shape, Strin
 }
 
 impl Target {
-    /// The target of each of `rest` (the selected points at rest).
-    pub(crate) fn resolve(&self, rest: &[Vector]) -> Vec<Vector> {
+    /// The target of each of `rest` (the selected points at rest); public
+    /// so that experiments can measure how closely a solve met it.
+    pub fn resolve(&self, rest: &[Vector]) -> Vec<Vector> {
         match self {
             Self::Positions(p) => p.iter().map(|&p| vector(p)).collect(),
             Self::Transform {

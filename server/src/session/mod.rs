@@ -5,11 +5,11 @@ mod optimize;
 mod publish;
 mod worker;
 
-use crate::convert::scene_to_proto;
 use crate::error::ServiceError;
 use meshless_engine::design::{self, Constraint, ConstraintSet, Context, Edit};
 use meshless_engine::{BuildOptions, Frame, Scene, World};
 use meshless_proto::{keys, v1};
+use meshless_wire::scene::scene_to_proto;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};

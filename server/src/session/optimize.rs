@@ -2,7 +2,6 @@
 //! job a gRPC handler hands the worker, the solve with its progress and
 //! cancellation, the result kept for `GetDesign` and the playback frames.
 
-use crate::convert::design::{info_to_proto, progress_to_proto};
 use crate::error::ServiceError;
 use meshless_engine::design::{
     ConstraintSet, DesignParams, DesignTarget, MotionParams, Progress, solve_motion, solve_shape,
@@ -10,6 +9,7 @@ use meshless_engine::design::{
 use meshless_engine::math::Vector;
 use meshless_engine::{Frame, World};
 use meshless_proto::v1;
+use meshless_wire::design::{info_to_proto, progress_to_proto};
 use std::ops::ControlFlow;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};

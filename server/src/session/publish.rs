@@ -3,9 +3,9 @@
 //! the latest frame. The compute thread only hands them data.
 
 use super::LatestFrame;
-use crate::convert::frame_to_proto;
 use meshless_engine::Frame;
 use meshless_proto::{keys, v1};
+use meshless_wire::frame::frame_to_proto;
 use prost::Message;
 use std::sync::Arc;
 use tokio::sync::{broadcast, mpsc};

@@ -1,6 +1,6 @@
 //! `meshless run SCENE`: the engine in this process, no server.
 
-use super::output::{Format, FrameFiles, SurfaceFormat};
+use crate::output::{Format, FrameFiles, SurfaceFormat};
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use meshless_engine::{BuildOptions, Scene};
@@ -81,7 +81,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         .collect();
     println!(
         "  particles         {}",
-        super::particle_summary(world.particle_count() as u64, &solids)
+        crate::command::particle_summary(world.particle_count() as u64, &solids)
     );
     println!(
         "  simulated         {:.3} s in {steps} steps ({substeps} sub-steps)",

@@ -1,6 +1,6 @@
 //! `meshless watch`: frame rate and particle counts of a session's stream.
 
-use super::ServerArg;
+use crate::command::ServerArg;
 use anyhow::Result;
 use meshless_client::{Client, ZenohLink};
 use std::time::{Duration, Instant};
@@ -62,7 +62,7 @@ pub async fn watch(args: WatchArgs) -> Result<()> {
                 match &last {
                     Some((step, time, particles, solids)) => println!(
                         "{rate:6.1} frames/s  step {step:>8}  t = {time:9.4} s  particles {}",
-                        super::particle_summary(*particles as u64, solids)
+                        crate::command::particle_summary(*particles as u64, solids)
                     ),
                     None => println!("{rate:6.1} frames/s  (no frame yet)"),
                 }

@@ -2,13 +2,10 @@
 //! receiving waits on the disk.
 
 use anyhow::{Context, Result};
-use meshless_client::{FrameView, v1};
-use meshless_engine::geometry::TriMesh;
+use meshless_engine::Frame;
 use meshless_engine::io::{
     ExportFormat, MeshFormat, write_frame, write_solid_surface, write_surface,
 };
-use meshless_engine::math::Vector;
-use meshless_engine::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
 use std::path::Path;
 use std::sync::mpsc;
 use std::thread::JoinHandle;
@@ -176,96 +173,6 @@ impl FrameFiles {
             solid_surfaces,
             patterns: self.patterns,
         })
-    }
-}
-
-/// An engine frame of a decoded wire frame (same fields, same order).
-pub fn engine_frame(frame: FrameView) -> Frame {
-    let fields = frame
-        .fields
-        .into_iter()
-        .filter_map(|f| {
-            let kind = match f.kind {
-                v1::FieldKind::Position => FieldKind::Position,
-                v1::FieldKind::Velocity => FieldKind::Velocity,
-                v1::FieldKind::Density => FieldKind::Density,
-                v1::FieldKind::Pressure => FieldKind::Pressure,
-                v1::FieldKind::Unspecified => return None,
-            };
-            Some(FieldData {
-                kind,
-                components: f.components,
-                values: f.values,
-            })
-        })
-        .collect();
-    Frame {
-        step: frame.step,
-        time: frame.time,
-        substeps: frame.substeps,
-        substep_dt: frame.substep_dt,
-        solver_iterations: frame.solver_iterations,
-        density_error: frame.density_error,
-        particle_count: frame.particle_count,
-        fields,
-        bodies: frame.bodies.iter().map(body_pose).collect(),
-        surface: frame.surface.map(|surface| TriMesh {
-            vertices: vectors(&surface.vertices),
-            triangles: surface.triangles,
-        }),
-        solids: frame
-            .solids
-            .iter()
-            .map(|r| SolidRange {
-                system: r.system as usize,
-                first: r.first as usize,
-                count: r.count as usize,
-            })
-            .collect(),
-        solid_surfaces: frame
-            .solid_surfaces
-            .into_iter()
-            .map(|s| SolidSurface {
-                system: s.system as usize,
-                normals: vectors(&s.mesh.normals),
-                mesh: TriMesh {
-                    vertices: vectors(&s.mesh.vertices),
-                    triangles: s.mesh.triangles,
-                },
-            })
-            .collect(),
-    }
-}
-
-fn vectors(values: &[[f32; 3]]) -> Vec<Vector> {
-    values
-        .iter()
-        .map(|v| Vector::from(v.map(f64::from)))
-        .collect()
-}
-
-/// An engine body pose of a wire one; missing vectors read as zero.
-fn body_pose(pose: &v1::BodyPose) -> BodyPose {
-    let v1::BodyPose {
-        system,
-        position,
-        orientation,
-        velocity,
-        angular_velocity,
-    } = pose;
-    let vec3 = |v: &Option<v1::Vec3>| v.map_or([0.0; 3], |v| [v.x, v.y, v.z]);
-    let q = orientation.unwrap_or(v1::Quaternion {
-        x: 0.0,
-        y: 0.0,
-        z: 0.0,
-        w: 1.0,
-    });
-    BodyPose {
-        system: *system as usize,
-        position: vec3(position),
-        orientation: [q.x, q.y, q.z, q.w],
-        velocity: vec3(velocity),
-        angular_velocity: vec3(angular_velocity),
     }
 }
 

@@ -9,7 +9,7 @@
 //! `[motion]` settings and its `[[constraints]]`, all in the engine's
 //! serde format (`meshless_engine::design`).
 
-use super::output::SurfaceFormat;
+use crate::output::SurfaceFormat;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use meshless_client::{Client, Design, v1};
@@ -20,6 +20,9 @@ use meshless_engine::io::{MeshFormat, write_mesh_ply, write_obj, write_vtk};
 use meshless_engine::math::Vector;
 use meshless_engine::{BuildOptions, FieldData, FieldKind, Frame, Scene};
 use meshless_server::ServerConfig;
+use meshless_wire::design::{
+    constraint_to_proto, design_settings_to_proto, motion_settings_to_proto,
+};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -91,14 +94,14 @@ impl ProblemFile {
         let problem = match self.problem {
             ProblemKind::Shape => v1::optimize_request::Problem::Shape(v1::ShapeProblem {}),
             ProblemKind::Motion => v1::optimize_request::Problem::Motion(v1::MotionProblem {
-                settings: Some(meshless_server::motion_settings_to_proto(&self.motion)),
+                settings: Some(motion_settings_to_proto(&self.motion)),
                 playback_rate: self.playback_rate,
             }),
         };
         v1::OptimizeRequest {
             session_id: session_id.to_owned(),
             system: self.system,
-            design: Some(meshless_server::design_settings_to_proto(&self.design)),
+            design: Some(design_settings_to_proto(&self.design)),
             problem: Some(problem),
             playback: false,
         }
@@ -227,9 +230,7 @@ async fn design(client: &Client, id: &str, problem: &ProblemFile) -> Result<(Des
         edit: Some(v1::constraint_edit::Edit::Clear(v1::ClearConstraints {})),
     }];
     edits.extend(problem.constraints.iter().map(|c| v1::ConstraintEdit {
-        edit: Some(v1::constraint_edit::Edit::Add(
-            meshless_server::constraint_to_proto(c),
-        )),
+        edit: Some(v1::constraint_edit::Edit::Add(constraint_to_proto(c))),
     }));
     client.edit_constraints(id, edits).await?;
     let bar = ProgressBar::new_spinner().with_style(

@@ -17,11 +17,11 @@
 //! about 1 % to the deflection, below the tolerances used here. Poisson's
 //! ratio is 0 so that plane strain (2D) and the beam's plane stress agree.
 
-use crate::BuildOptions;
-use crate::approx::mls::Order;
-use crate::math::Real;
-use crate::scene::{IntegratorKind, Scene, SceneError};
-use crate::world::{StepError, World};
+use meshless_engine::BuildOptions;
+use meshless_engine::approx::mls::Order;
+use meshless_engine::math::Real;
+use meshless_engine::scene::{IntegratorKind, Scene, SceneError};
+use meshless_engine::world::{StepError, World};
 
 /// First root of the clamped-free frequency equation.
 const BETA_1: Real = 1.875_104_068_711_961;
@@ -61,7 +61,7 @@ impl Default for Cantilever {
             spacing: 0.0125,
             order: Order::Linear,
             support: 2.0,
-            hourglass: crate::scene::solid_defaults::HOURGLASS,
+            hourglass: meshless_engine::scene::solid_defaults::HOURGLASS,
             integrator: IntegratorKind::Explicit,
             dt: 1e-3,
         }
@@ -256,7 +256,7 @@ impl Cantilever {
     }
 
     /// `|f + m g| / |m g|` over the free particles.
-    fn imbalance(&self, solid: &crate::solid::ElasticSolid) -> Real {
+    fn imbalance(&self, solid: &meshless_engine::solid::ElasticSolid) -> Real {
         let forces = solid.forces();
         let (mut unbalanced, mut weight) = (0.0, 0.0);
         for (i, (f, m)) in forces.iter().zip(solid.masses()).enumerate() {
@@ -304,6 +304,34 @@ impl Cantilever {
             steps: world.clock().step,
             amplitude: samples[1].1 / (2.0 * deflection),
         })
+    }
+}
+
+/// What a cantilever study measures (`meshless study --knob solid-*`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Quantity {
+    /// Static tip deflection (a Newton solve).
+    Deflection,
+    /// First bending period of the released beam (a dynamic run).
+    Period,
+}
+
+/// Out-of-balance force, as a fraction of the weight, at which a study's
+/// static solve counts as settled.
+const STUDY_TOLERANCE: Real = 1e-6;
+
+impl Cantilever {
+    /// Measures `quantity`: the static deflection settled to a
+    /// millionth of the weight ([`Cantilever::settle`]), or the first
+    /// period ([`Cantilever::period`]).
+    ///
+    /// # Errors
+    /// As those.
+    pub fn measure(&self, quantity: Quantity) -> Result<Measured, CantileverError> {
+        match quantity {
+            Quantity::Deflection => self.settle(STUDY_TOLERANCE),
+            Quantity::Period => self.period(),
+        }
     }
 }
 

@@ -1,14 +1,25 @@
 //! Conversions of the design messages (`design.proto`): constraints and
-//! their edits, the optimiser's settings, its progress and results.
+//! their edits, the optimiser's settings, its progress and results, and
+//! the table of the enum declared there.
 
-use super::{Result, aabb, required, shape_from_proto, to_aabb, to_shape, to_vec3, vec3};
-use crate::error::ServiceError;
+use crate::WireError;
+use crate::enums::{WireEnum, enum_or, wire_enum};
+use crate::error::{Result, required};
+use crate::scene::{aabb, shape_from_proto, to_aabb, to_shape, to_vec3, vec3};
 use meshless_engine::design::{
     Constraint, ConstraintKind, DesignParams, Edit, Energies, Handle, MotionParams, Obstacle,
     Progress, Quadrature, Selection, SolveInfo, Target, Velocity, Waypoint,
 };
 use meshless_engine::scene::Aabb;
 use meshless_proto::v1;
+
+wire_enum! {
+    /// Where the optimiser's energies are integrated.
+    Quadrature <-> DesignQuadrature, "quadrature" {
+        "particles" => Particles,
+        "cells" => Cells,
+    }
+}
 
 /// A vector that defaults to zero when unset.
 fn vec3_or_zero(v: Option<v1::Vec3>) -> [f64; 3] {
@@ -74,7 +85,7 @@ pub fn constraint_from_proto(c: v1::Constraint, field: &str) -> Result<Constrain
                 .collect::<Result<_>>()?,
         }),
         None => {
-            return Err(ServiceError::invalid(
+            return Err(WireError::new(
                 format!("{field}.kind"),
                 format!("constraint `{name}` has no kind; set handle, velocity or obstacle"),
             ));
@@ -99,7 +110,7 @@ fn selection_from_proto(s: Option<v1::Selection>, field: &str) -> Result<Selecti
             let Aabb { min, max } = aabb(Some(region), &format!("{field}.region"))?;
             Ok(Selection::Region { min, max })
         }
-        None => Err(ServiceError::invalid(
+        None => Err(WireError::new(
             format!("{field}.kind"),
             "is required; select particles, points or a region",
         )),
@@ -121,7 +132,7 @@ fn target_from_proto(t: Option<v1::DesignTarget>, field: &str) -> Result<Target>
             rotation: vec3_or_zero(rotation),
             centre: vec3_or_zero(centre),
         }),
-        None => Err(ServiceError::invalid(
+        None => Err(WireError::new(
             format!("{field}.kind"),
             "is required; give positions or a transform",
         )),
@@ -223,7 +234,7 @@ pub fn edit_from_proto(e: v1::ConstraintEdit, field: &str) -> Result<Edit> {
         )?)),
         Some(v1::constraint_edit::Edit::Remove(name)) => Ok(Edit::Remove(name)),
         Some(v1::constraint_edit::Edit::Clear(v1::ClearConstraints {})) => Ok(Edit::Clear),
-        None => Err(ServiceError::invalid(
+        None => Err(WireError::new(
             format!("{field}.edit"),
             "is required; set add, replace, remove or clear",
         )),
@@ -247,17 +258,7 @@ pub fn design_params_from_proto(s: Option<v1::DesignSettings>) -> Result<DesignP
     params.spacing = spacing.unwrap_or(params.spacing);
     params.particles = particles.unwrap_or(params.particles);
     params.support = support.unwrap_or(params.support);
-    params.quadrature = match v1::DesignQuadrature::try_from(quadrature) {
-        Ok(v1::DesignQuadrature::Unspecified) => params.quadrature,
-        Ok(v1::DesignQuadrature::Particles) => Quadrature::Particles,
-        Ok(v1::DesignQuadrature::Cells) => Quadrature::Cells,
-        Err(_) => {
-            return Err(ServiceError::invalid(
-                "design.quadrature",
-                format!("unknown quadrature {quadrature}; use particles or cells"),
-            ));
-        }
-    };
+    params.quadrature = enum_or(quadrature, params.quadrature, "design.quadrature")?;
     if let Some(v1::DesignWeights {
         handle,
         rigidity,
@@ -330,6 +331,7 @@ fn energies_to_proto(e: &Energies) -> v1::DesignEnergies {
     }
 }
 
+/// The wire form of one report of the optimiser's progress.
 pub fn progress_to_proto(p: &Progress) -> v1::DesignProgress {
     let Progress {
         iteration,
@@ -351,6 +353,7 @@ pub fn progress_to_proto(p: &Progress) -> v1::DesignProgress {
     }
 }
 
+/// The wire form of what a finished solve reports.
 pub fn info_to_proto(i: &SolveInfo) -> v1::DesignInfo {
     let SolveInfo {
         iterations,
@@ -388,10 +391,7 @@ pub fn design_settings_to_proto(p: &DesignParams) -> v1::DesignSettings {
         spacing: Some(spacing),
         particles: Some(particles),
         support: Some(support),
-        quadrature: match quadrature {
-            Quadrature::Particles => v1::DesignQuadrature::Particles,
-            Quadrature::Cells => v1::DesignQuadrature::Cells,
-        } as i32,
+        quadrature: quadrature.to_i32(),
         weights: Some(v1::DesignWeights {
             handle: Some(weights.handle),
             rigidity: Some(weights.rigidity),

@@ -10,15 +10,15 @@
 //!   keyframes alone drive the cube through it and only the obstacle term
 //!   between frames, found by adaptive temporal sampling, steers it clear.
 
-use crate::design::{
+use meshless_engine::design::{
     Constraint, ConstraintKind, ConstraintSet, Context, DesignBody, DesignError, DesignParams,
     Edit, Handle, MotionParams, MotionSolution, Obstacle, Progress, Quadrature, Selection,
     ShapeSolution, Target, Waypoint, solve_motion, solve_shape,
 };
-use crate::geometry::{Shape, TriMesh};
-use crate::math::{Real, Vector};
-use crate::scene::ShapeSpec;
-use crate::solid::embedded::DeformedSurface;
+use meshless_engine::geometry::{Shape, TriMesh};
+use meshless_engine::math::{Real, Vector};
+use meshless_engine::scene::ShapeSpec;
+use meshless_engine::solid::embedded::DeformedSurface;
 use nalgebra::{Matrix3, Rotation3};
 use std::ops::ControlFlow;
 use std::time::{Duration, Instant};

@@ -1,22 +1,9 @@
-//! Commands of the `meshless` binary.
+//! The commands of the `meshless` binary: the argument parser, the
+//! dispatch to each command's module, and what several commands share.
 
 #[cfg(feature = "embedded")]
-mod chart;
-#[cfg(feature = "embedded")]
-mod demo;
-#[cfg(feature = "embedded")]
-mod optimise;
-#[cfg(feature = "embedded")]
-mod output;
-#[cfg(feature = "embedded")]
-mod run;
-mod session;
-#[cfg(feature = "embedded")]
-mod study;
-mod study_design;
-mod study_solid;
-mod watch;
-
+use crate::{demo, optimise, run, study};
+use crate::{session, watch};
 use clap::{Parser, Subcommand};
 
 /// Meshless physics as a service: run scenes embedded, or drive a
@@ -89,7 +76,7 @@ pub struct ServerArg {
 /// A particle count for the summaries of `run`, `demo` and `watch`,
 /// split into fluid and solid particles when the scene has elastic solids
 /// (`solids`: each solid's count), since the two move so differently.
-fn particle_summary(total: u64, solids: &[u64]) -> String {
+pub(crate) fn particle_summary(total: u64, solids: &[u64]) -> String {
     if solids.is_empty() {
         return total.to_string();
     }

@@ -1,6 +1,6 @@
 //! `meshless session …`: one subcommand per gRPC call.
 
-use super::ServerArg;
+use crate::command::ServerArg;
 use anyhow::{Context, Result};
 use clap::Subcommand;
 use meshless_client::{Client, v1};

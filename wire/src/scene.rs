@@ -1,15 +1,15 @@
-//! Conversions between the protocol's messages and the engine's types.
-//! Messages are destructured exhaustively, so a new proto field breaks the
-//! build here until it is handled.
+//! Conversions of the scene messages (`scene.proto`): the scene spec and
+//! its systems, both directions, and the tables of the enums declared
+//! there. Unset optional fields take the scene file's defaults, so both
+//! front doors (TOML and gRPC) build the same scene; ranges are checked
+//! later by `Scene::validate`, with the same field names.
 
-pub mod design;
-
-use crate::error::ServiceError;
+use crate::WireError;
+use crate::enums::{WireEnum, enum_or, optional_enum, required_enum, wire_enum};
+use crate::error::{Result, required};
 use meshless_engine::approx::KernelKind;
 use meshless_engine::approx::mls::Order;
 use meshless_engine::fluid::ViscosityModel;
-use meshless_engine::geometry::TriMesh;
-use meshless_engine::math::Vector;
 use meshless_engine::scene::{
     Aabb, FluidBlock, FluidSpec, IntegratorKind, MotionKind, OscillationSpec, OutputSpec,
     ParticleSpec, RigidBodySpec, ShapeSpec, SlipKind, SolidSpec, SolidSurfaceSpec, SolverKind,
@@ -17,21 +17,119 @@ use meshless_engine::scene::{
 };
 use meshless_engine::solid::embedded::EmbeddingMethod;
 use meshless_engine::solid::{ImplicitParams, LinearSolver, Plasticity};
-use meshless_engine::{FieldKind, Frame, Scene, SolidRange, SolidSurface};
+use meshless_engine::{FieldKind, Scene};
 use meshless_proto::v1;
 
-type Result<T> = std::result::Result<T, ServiceError>;
-
-fn required<T>(value: Option<T>, field: &str) -> Result<T> {
-    value.ok_or_else(|| ServiceError::invalid(field, "is required"))
+wire_enum! {
+    /// The fields a frame can carry (`output.fields`, frame headers).
+    FieldKind <-> FieldKind, "field kind" {
+        "position" => Position,
+        "velocity" => Velocity,
+        "density" => Density,
+        "pressure" => Pressure,
+    }
 }
 
-fn vec3(v: v1::Vec3) -> [f64; 3] {
+wire_enum! {
+    /// SPH kernels, for densities and for gradients.
+    KernelKind <-> KernelKind, "kernel" {
+        "poly6" => Poly6,
+        "spiky" => Spiky,
+        "viscosity" => Viscosity,
+        "cubic_spline" => CubicSpline,
+        "wendland_c2" => WendlandC2,
+    }
+}
+
+wire_enum! {
+    /// How a fluid meets the domain's walls.
+    WallModel <-> WallModel, "wall model" {
+        "solid" => Solid,
+        "reflect" => Reflect,
+    }
+}
+
+wire_enum! {
+    /// A fluid's viscosity term.
+    ViscosityModel <-> ViscosityModel, "viscosity model" {
+        "morris" => Morris,
+        "kernel_laplacian" => KernelLaplacian,
+    }
+}
+
+wire_enum! {
+    /// A fluid's pressure solver.
+    SolverKind <-> SolverKind, "solver" {
+        "wcsph" => Wcsph,
+        "dfsph" => Dfsph,
+    }
+}
+
+wire_enum! {
+    /// How a rigid body moves.
+    MotionKind <-> RigidMotion, "motion" {
+        "static" => Static,
+        "kinematic" => Kinematic,
+        "dynamic" => Dynamic,
+    }
+}
+
+wire_enum! {
+    /// The tangential condition where the fluid meets a body.
+    SlipKind <-> SlipCondition, "slip condition" {
+        "free" => Free,
+        "no" => No,
+    }
+}
+
+wire_enum! {
+    /// The MLS basis order of a solid.
+    Order <-> MlsOrder, "MLS order" {
+        "constant" => Constant,
+        "linear" => Linear,
+        "quadratic" => Quadratic,
+    }
+}
+
+wire_enum! {
+    /// A solid's time integrator.
+    IntegratorKind <-> SolidIntegrator, "integrator" {
+        "explicit" => Explicit,
+        "implicit" => Implicit,
+    }
+}
+
+wire_enum! {
+    /// How a solid's surface follows its particles.
+    EmbeddingMethod <-> EmbeddingMethod, "embedding method" {
+        "shape_functions" => ShapeFunctions,
+        "gradients" => Gradients,
+    }
+}
+
+wire_enum! {
+    /// The implicit solid's linear solver.
+    LinearSolver <-> LinearSolver, "linear solver" {
+        "auto" => Auto,
+        "cholesky" => Cholesky,
+        "conjugate_gradient" => ConjugateGradient,
+    }
+}
+
+/// A kernel field: unset gives `default`; a set value must name a kernel
+/// (its error shows the plain number).
+fn kernel_kind(value: Option<i32>, default: KernelKind, field: &str) -> Result<KernelKind> {
+    value.map_or(Ok(default), |value| required_enum(value, field))
+}
+
+/// The engine form of a vector.
+pub(crate) fn vec3(v: v1::Vec3) -> [f64; 3] {
     let v1::Vec3 { x, y, z } = v;
     [x, y, z]
 }
 
-fn to_vec3(v: [f64; 3]) -> v1::Vec3 {
+/// The wire form of a vector.
+pub(crate) fn to_vec3(v: [f64; 3]) -> v1::Vec3 {
     v1::Vec3 {
         x: v[0],
         y: v[1],
@@ -39,7 +137,8 @@ fn to_vec3(v: [f64; 3]) -> v1::Vec3 {
     }
 }
 
-fn aabb(b: Option<v1::Aabb>, field: &str) -> Result<Aabb> {
+/// The engine box of a required `Aabb` field.
+pub(crate) fn aabb(b: Option<v1::Aabb>, field: &str) -> Result<Aabb> {
     let v1::Aabb { min, max } = required(b, field)?;
     Ok(Aabb {
         min: vec3(required(min, &format!("{field}.min"))?),
@@ -47,127 +146,14 @@ fn aabb(b: Option<v1::Aabb>, field: &str) -> Result<Aabb> {
     })
 }
 
-fn to_aabb(b: &Aabb) -> v1::Aabb {
+/// The wire form of a box.
+pub(crate) fn to_aabb(b: &Aabb) -> v1::Aabb {
     v1::Aabb {
         min: Some(to_vec3(b.min)),
         max: Some(to_vec3(b.max)),
     }
 }
 
-/// Engine field kind of a proto enum value.
-pub fn field_kind(value: i32, field: &str) -> Result<FieldKind> {
-    match v1::FieldKind::try_from(value) {
-        Ok(v1::FieldKind::Position) => Ok(FieldKind::Position),
-        Ok(v1::FieldKind::Velocity) => Ok(FieldKind::Velocity),
-        Ok(v1::FieldKind::Density) => Ok(FieldKind::Density),
-        Ok(v1::FieldKind::Pressure) => Ok(FieldKind::Pressure),
-        Ok(v1::FieldKind::Unspecified) | Err(_) => Err(ServiceError::invalid(
-            field,
-            format!("unknown field kind {value}; use position, velocity, density or pressure"),
-        )),
-    }
-}
-
-/// Engine kernel of a proto enum value; `None` (unset) gives `default`.
-fn kernel_kind(value: Option<i32>, default: KernelKind, field: &str) -> Result<KernelKind> {
-    let Some(value) = value else {
-        return Ok(default);
-    };
-    match v1::KernelKind::try_from(value) {
-        Ok(v1::KernelKind::Poly6) => Ok(KernelKind::Poly6),
-        Ok(v1::KernelKind::Spiky) => Ok(KernelKind::Spiky),
-        Ok(v1::KernelKind::Viscosity) => Ok(KernelKind::Viscosity),
-        Ok(v1::KernelKind::CubicSpline) => Ok(KernelKind::CubicSpline),
-        Ok(v1::KernelKind::WendlandC2) => Ok(KernelKind::WendlandC2),
-        Ok(v1::KernelKind::Unspecified) | Err(_) => Err(ServiceError::invalid(
-            field,
-            format!(
-                "unknown kernel {value}; use poly6, spiky, viscosity, cubic_spline or wendland_c2"
-            ),
-        )),
-    }
-}
-
-/// Engine wall model of a proto enum value; unset gives the default.
-fn wall_model(value: Option<i32>, field: &str) -> Result<WallModel> {
-    match value.map(v1::WallModel::try_from) {
-        None => Ok(defaults::WALLS),
-        Some(Ok(v1::WallModel::Solid)) => Ok(WallModel::Solid),
-        Some(Ok(v1::WallModel::Reflect)) => Ok(WallModel::Reflect),
-        Some(Ok(v1::WallModel::Unspecified) | Err(_)) => Err(ServiceError::invalid(
-            field,
-            format!("unknown wall model {value:?}; use solid or reflect"),
-        )),
-    }
-}
-
-/// Engine viscosity model of a proto enum value; unset gives the default.
-fn viscosity_model(value: Option<i32>, field: &str) -> Result<ViscosityModel> {
-    match value.map(v1::ViscosityModel::try_from) {
-        None => Ok(defaults::VISCOSITY_MODEL),
-        Some(Ok(v1::ViscosityModel::Morris)) => Ok(ViscosityModel::Morris),
-        Some(Ok(v1::ViscosityModel::KernelLaplacian)) => Ok(ViscosityModel::KernelLaplacian),
-        Some(Ok(v1::ViscosityModel::Unspecified) | Err(_)) => Err(ServiceError::invalid(
-            field,
-            format!("unknown viscosity model {value:?}; use morris or kernel_laplacian"),
-        )),
-    }
-}
-
-fn to_viscosity_model(model: ViscosityModel) -> v1::ViscosityModel {
-    match model {
-        ViscosityModel::Morris => v1::ViscosityModel::Morris,
-        ViscosityModel::KernelLaplacian => v1::ViscosityModel::KernelLaplacian,
-    }
-}
-
-/// Engine solver of a proto enum value; unset gives the default.
-fn solver_kind(value: Option<i32>, field: &str) -> Result<SolverKind> {
-    match value.map(v1::SolverKind::try_from) {
-        None => Ok(defaults::SOLVER),
-        Some(Ok(v1::SolverKind::Wcsph)) => Ok(SolverKind::Wcsph),
-        Some(Ok(v1::SolverKind::Dfsph)) => Ok(SolverKind::Dfsph),
-        Some(Ok(v1::SolverKind::Unspecified) | Err(_)) => Err(ServiceError::invalid(
-            field,
-            format!("unknown solver {value:?}; use wcsph or dfsph"),
-        )),
-    }
-}
-
-fn to_solver_kind(solver: SolverKind) -> v1::SolverKind {
-    match solver {
-        SolverKind::Wcsph => v1::SolverKind::Wcsph,
-        SolverKind::Dfsph => v1::SolverKind::Dfsph,
-    }
-}
-
-fn to_wall_model(walls: WallModel) -> v1::WallModel {
-    match walls {
-        WallModel::Solid => v1::WallModel::Solid,
-        WallModel::Reflect => v1::WallModel::Reflect,
-    }
-}
-
-fn to_kernel_kind(kind: KernelKind) -> v1::KernelKind {
-    match kind {
-        KernelKind::Poly6 => v1::KernelKind::Poly6,
-        KernelKind::Spiky => v1::KernelKind::Spiky,
-        KernelKind::Viscosity => v1::KernelKind::Viscosity,
-        KernelKind::CubicSpline => v1::KernelKind::CubicSpline,
-        KernelKind::WendlandC2 => v1::KernelKind::WendlandC2,
-    }
-}
-
-pub fn to_field_kind(kind: FieldKind) -> v1::FieldKind {
-    match kind {
-        FieldKind::Position => v1::FieldKind::Position,
-        FieldKind::Velocity => v1::FieldKind::Velocity,
-        FieldKind::Density => v1::FieldKind::Density,
-        FieldKind::Pressure => v1::FieldKind::Pressure,
-    }
-}
-
-/// The engine scene of a `SceneSpec`, defaults filled in. Ranges are
 /// checked later by `Scene::validate`, with the same field names.
 pub fn scene_from_proto(spec: v1::SceneSpec) -> Result<Scene> {
     let v1::SceneSpec {
@@ -200,7 +186,7 @@ pub fn scene_from_proto(spec: v1::SceneSpec) -> Result<Scene> {
             fields: fields
                 .into_iter()
                 .enumerate()
-                .map(|(i, f)| field_kind(f, &format!("output.fields[{i}]")))
+                .map(|(i, f)| required_enum::<FieldKind>(f, &format!("output.fields[{i}]")))
                 .collect::<Result<_>>()?,
             frame_every: frame_every.unwrap_or(defaults::FRAME_EVERY),
             surface: surface.map(|surface| {
@@ -240,14 +226,15 @@ fn system_from_proto(system: v1::SystemSpec, field: &str) -> Result<SystemSpec> 
         Some(v1::system_spec::Kind::Solid(solid)) => {
             Ok(SystemSpec::Solid(solid_from_proto(solid, field)?))
         }
-        None => Err(ServiceError::invalid(
+        None => Err(WireError::new(
             format!("{field}.kind"),
             "unknown or missing system kind; this server simulates: fluid, rigid_body, solid",
         )),
     }
 }
 
-fn shape_from_proto(shape: Option<v1::Shape>, field: &str) -> Result<ShapeSpec> {
+/// The engine shape of a required `Shape` field.
+pub(crate) fn shape_from_proto(shape: Option<v1::Shape>, field: &str) -> Result<ShapeSpec> {
     let v1::Shape { kind } = required(shape, field)?;
     match kind {
         Some(v1::shape::Kind::Box(v1::BoxShape { half_extents })) => Ok(ShapeSpec::Box {
@@ -270,14 +257,15 @@ fn shape_from_proto(shape: Option<v1::Shape>, field: &str) -> Result<ShapeSpec> 
         Some(v1::shape::Kind::Mesh(v1::MeshShape { path, scale })) => {
             Ok(ShapeSpec::Mesh { path, scale })
         }
-        None => Err(ServiceError::invalid(
+        None => Err(WireError::new(
             format!("{field}.kind"),
             "unknown or missing shape; use box, sphere, capsule, plane or mesh",
         )),
     }
 }
 
-fn to_shape(shape: &ShapeSpec) -> v1::Shape {
+/// The wire form of a shape.
+pub(crate) fn to_shape(shape: &ShapeSpec) -> v1::Shape {
     let kind = match shape {
         ShapeSpec::Box { half_extents } => v1::shape::Kind::Box(v1::BoxShape {
             half_extents: Some(to_vec3(*half_extents)),
@@ -304,48 +292,6 @@ fn to_shape(shape: &ShapeSpec) -> v1::Shape {
     v1::Shape { kind: Some(kind) }
 }
 
-/// Engine motion of a proto enum value; unset gives the default.
-fn motion_kind(value: i32, field: &str) -> Result<MotionKind> {
-    match v1::RigidMotion::try_from(value) {
-        Ok(v1::RigidMotion::Unspecified) => Ok(defaults::MOTION),
-        Ok(v1::RigidMotion::Static) => Ok(MotionKind::Static),
-        Ok(v1::RigidMotion::Kinematic) => Ok(MotionKind::Kinematic),
-        Ok(v1::RigidMotion::Dynamic) => Ok(MotionKind::Dynamic),
-        Err(_) => Err(ServiceError::invalid(
-            field,
-            format!("unknown motion {value}; use static, kinematic or dynamic"),
-        )),
-    }
-}
-
-fn to_motion_kind(motion: MotionKind) -> v1::RigidMotion {
-    match motion {
-        MotionKind::Static => v1::RigidMotion::Static,
-        MotionKind::Kinematic => v1::RigidMotion::Kinematic,
-        MotionKind::Dynamic => v1::RigidMotion::Dynamic,
-    }
-}
-
-/// Engine slip condition of a proto enum value; unset gives the default.
-fn slip_kind(value: i32, field: &str) -> Result<SlipKind> {
-    match v1::SlipCondition::try_from(value) {
-        Ok(v1::SlipCondition::Unspecified) => Ok(defaults::SLIP),
-        Ok(v1::SlipCondition::Free) => Ok(SlipKind::Free),
-        Ok(v1::SlipCondition::No) => Ok(SlipKind::No),
-        Err(_) => Err(ServiceError::invalid(
-            field,
-            format!("unknown slip condition {value}; use free or no"),
-        )),
-    }
-}
-
-fn to_slip_kind(slip: SlipKind) -> v1::SlipCondition {
-    match slip {
-        SlipKind::Free => v1::SlipCondition::Free,
-        SlipKind::No => v1::SlipCondition::No,
-    }
-}
-
 fn body_from_proto(body: v1::RigidBodySpec, field: &str) -> Result<RigidBodySpec> {
     let v1::RigidBodySpec {
         shape,
@@ -366,7 +312,7 @@ fn body_from_proto(body: v1::RigidBodySpec, field: &str) -> Result<RigidBodySpec
                 amplitude,
                 frequency,
             } = o;
-            Ok::<_, ServiceError>(OscillationSpec {
+            Ok::<_, WireError>(OscillationSpec {
                 amplitude: vec3(required(
                     amplitude,
                     &format!("{field}.oscillation.amplitude"),
@@ -379,12 +325,12 @@ fn body_from_proto(body: v1::RigidBodySpec, field: &str) -> Result<RigidBodySpec
         shape: shape_from_proto(shape, &format!("{field}.shape"))?,
         position: vec3(required(position, &format!("{field}.position"))?),
         orientation: orientation.map_or([0.0; 3], vec3),
-        motion: motion_kind(motion, &format!("{field}.motion"))?,
+        motion: enum_or(motion, defaults::MOTION, &format!("{field}.motion"))?,
         density,
         velocity: velocity.map_or([0.0; 3], vec3),
         angular_velocity: angular_velocity.map_or([0.0; 3], vec3),
         oscillation,
-        slip: slip_kind(slip, &format!("{field}.slip"))?,
+        slip: enum_or(slip, defaults::SLIP, &format!("{field}.slip"))?,
         viscosity,
         hollow,
     })
@@ -395,7 +341,7 @@ fn to_body(b: &RigidBodySpec) -> v1::RigidBodySpec {
         shape: Some(to_shape(&b.shape)),
         position: Some(to_vec3(b.position)),
         orientation: Some(to_vec3(b.orientation)),
-        motion: to_motion_kind(b.motion) as i32,
+        motion: b.motion.to_i32(),
         density: b.density,
         velocity: Some(to_vec3(b.velocity)),
         angular_velocity: Some(to_vec3(b.angular_velocity)),
@@ -403,77 +349,14 @@ fn to_body(b: &RigidBodySpec) -> v1::RigidBodySpec {
             amplitude: Some(to_vec3(o.amplitude)),
             frequency: o.frequency,
         }),
-        slip: to_slip_kind(b.slip) as i32,
+        slip: b.slip.to_i32(),
         viscosity: b.viscosity,
         hollow: b.hollow,
     }
 }
 
 /// Engine MLS order of a proto enum value; unset gives the default.
-fn mls_order(value: Option<i32>, field: &str) -> Result<Order> {
-    match value.map(v1::MlsOrder::try_from) {
-        None => Ok(solid_defaults::ORDER),
-        Some(Ok(v1::MlsOrder::Constant)) => Ok(Order::Constant),
-        Some(Ok(v1::MlsOrder::Linear)) => Ok(Order::Linear),
-        Some(Ok(v1::MlsOrder::Quadratic)) => Ok(Order::Quadratic),
-        Some(Ok(v1::MlsOrder::Unspecified) | Err(_)) => Err(ServiceError::invalid(
-            field,
-            format!("unknown MLS order {value:?}; use constant, linear or quadratic"),
-        )),
-    }
-}
 
-fn to_mls_order(order: Order) -> v1::MlsOrder {
-    match order {
-        Order::Constant => v1::MlsOrder::Constant,
-        Order::Linear => v1::MlsOrder::Linear,
-        Order::Quadratic => v1::MlsOrder::Quadratic,
-    }
-}
-
-/// Engine solid integrator of a proto enum value; unset gives explicit,
-/// the engine's default.
-fn integrator_kind(value: Option<i32>, field: &str) -> Result<IntegratorKind> {
-    match value.map(v1::SolidIntegrator::try_from) {
-        None => Ok(IntegratorKind::default()),
-        Some(Ok(v1::SolidIntegrator::Explicit)) => Ok(IntegratorKind::Explicit),
-        Some(Ok(v1::SolidIntegrator::Implicit)) => Ok(IntegratorKind::Implicit),
-        Some(Ok(v1::SolidIntegrator::Unspecified) | Err(_)) => Err(ServiceError::invalid(
-            field,
-            format!("unknown integrator {value:?}; use explicit or implicit"),
-        )),
-    }
-}
-
-fn to_integrator_kind(integrator: IntegratorKind) -> v1::SolidIntegrator {
-    match integrator {
-        IntegratorKind::Explicit => v1::SolidIntegrator::Explicit,
-        IntegratorKind::Implicit => v1::SolidIntegrator::Implicit,
-    }
-}
-
-/// Engine embedding method of a proto enum value; unset gives shape
-/// functions, the scene file's default.
-fn embedding_method(value: Option<i32>, field: &str) -> Result<EmbeddingMethod> {
-    match value.map(v1::EmbeddingMethod::try_from) {
-        None => Ok(EmbeddingMethod::ShapeFunctions),
-        Some(Ok(v1::EmbeddingMethod::ShapeFunctions)) => Ok(EmbeddingMethod::ShapeFunctions),
-        Some(Ok(v1::EmbeddingMethod::Gradients)) => Ok(EmbeddingMethod::Gradients),
-        Some(Ok(v1::EmbeddingMethod::Unspecified) | Err(_)) => Err(ServiceError::invalid(
-            field,
-            format!("unknown embedding method {value:?}; use shape_functions or gradients"),
-        )),
-    }
-}
-
-fn to_embedding_method(method: EmbeddingMethod) -> v1::EmbeddingMethod {
-    match method {
-        EmbeddingMethod::ShapeFunctions => v1::EmbeddingMethod::ShapeFunctions,
-        EmbeddingMethod::Gradients => v1::EmbeddingMethod::Gradients,
-    }
-}
-
-/// Implicit settings with each unset field at the engine's default.
 fn implicit_from_proto(
     settings: Option<v1::ImplicitSettings>,
     field: &str,
@@ -494,20 +377,11 @@ fn implicit_from_proto(
         max_newton_iterations: max_newton_iterations.unwrap_or(defaults.max_newton_iterations),
         cg_tolerance: cg_tolerance.unwrap_or(defaults.cg_tolerance),
         max_cg_iterations: max_cg_iterations.unwrap_or(defaults.max_cg_iterations),
-        linear_solver: match v1::LinearSolver::try_from(linear_solver) {
-            Ok(v1::LinearSolver::Unspecified) => defaults.linear_solver,
-            Ok(v1::LinearSolver::Cholesky) => LinearSolver::Cholesky,
-            Ok(v1::LinearSolver::ConjugateGradient) => LinearSolver::ConjugateGradient,
-            Ok(v1::LinearSolver::Auto) => LinearSolver::Auto,
-            Err(_) => {
-                return Err(ServiceError::invalid(
-                    format!("{field}.implicit.linear_solver"),
-                    format!(
-                        "unknown linear solver {linear_solver}; use auto, cholesky or conjugate_gradient"
-                    ),
-                ));
-            }
-        },
+        linear_solver: enum_or::<LinearSolver>(
+            linear_solver,
+            defaults.linear_solver,
+            &format!("{field}.implicit.linear_solver"),
+        )?,
     })
 }
 
@@ -524,11 +398,7 @@ fn to_implicit(params: &ImplicitParams) -> v1::ImplicitSettings {
         max_newton_iterations: Some(max_newton_iterations),
         cg_tolerance: Some(cg_tolerance),
         max_cg_iterations: Some(max_cg_iterations),
-        linear_solver: match linear_solver {
-            LinearSolver::Cholesky => v1::LinearSolver::Cholesky,
-            LinearSolver::ConjugateGradient => v1::LinearSolver::ConjugateGradient,
-            LinearSolver::Auto => v1::LinearSolver::Auto,
-        } as i32,
+        linear_solver: linear_solver.to_i32(),
     }
 }
 
@@ -562,8 +432,12 @@ fn solid_from_proto(solid: v1::SolidSpec, field: &str) -> Result<SolidSpec> {
                 method,
                 subdivisions,
             } = surface;
-            Ok::<_, ServiceError>(SolidSurfaceSpec {
-                method: embedding_method(method, &format!("{field}.surface.method"))?,
+            Ok::<_, WireError>(SolidSurfaceSpec {
+                method: optional_enum(
+                    method,
+                    EmbeddingMethod::ShapeFunctions,
+                    &format!("{field}.surface.method"),
+                )?,
                 subdivisions: subdivisions.unwrap_or(solid_defaults::SURFACE_SUBDIVISIONS),
             })
         })
@@ -596,12 +470,16 @@ fn solid_from_proto(solid: v1::SolidSpec, field: &str) -> Result<SolidSpec> {
         young,
         poisson: poisson.unwrap_or(solid_defaults::POISSON),
         volume_stiffness: volume_stiffness.unwrap_or(0.0),
-        order: mls_order(order, &format!("{field}.order"))?,
+        order: optional_enum(order, solid_defaults::ORDER, &format!("{field}.order"))?,
         support: support.unwrap_or(solid_defaults::SUPPORT),
         hourglass: hourglass.unwrap_or(solid_defaults::HOURGLASS),
         damping: damping.unwrap_or(0.0),
         friction: friction.unwrap_or(solid_defaults::FRICTION),
-        integrator: integrator_kind(integrator, &format!("{field}.integrator"))?,
+        integrator: optional_enum(
+            integrator,
+            IntegratorKind::default(),
+            &format!("{field}.integrator"),
+        )?,
         cfl: cfl.unwrap_or(solid_defaults::CFL),
         implicit: implicit_from_proto(implicit, field)?,
         velocity: velocity.map_or([0.0; 3], vec3),
@@ -647,12 +525,12 @@ fn to_solid(solid: &SolidSpec) -> v1::SolidSpec {
         young: *young,
         poisson: Some(*poisson),
         volume_stiffness: Some(*volume_stiffness),
-        order: Some(to_mls_order(*order) as i32),
+        order: Some(order.to_i32()),
         support: Some(*support),
         hourglass: Some(*hourglass),
         damping: Some(*damping),
         friction: Some(*friction),
-        integrator: Some(to_integrator_kind(*integrator) as i32),
+        integrator: Some(integrator.to_i32()),
         cfl: Some(*cfl),
         implicit: Some(to_implicit(implicit)),
         velocity: Some(to_vec3(*velocity)),
@@ -678,23 +556,10 @@ fn to_solid(solid: &SolidSpec) -> v1::SolidSpec {
                 subdivisions,
             } = *surface;
             v1::SolidSurfaceSpec {
-                method: Some(to_embedding_method(method) as i32),
+                method: Some(method.to_i32()),
                 subdivisions: Some(subdivisions),
             }
         }),
-    }
-}
-
-fn to_solid_range(range: &SolidRange) -> v1::SolidRange {
-    let SolidRange {
-        system,
-        first,
-        count,
-    } = *range;
-    v1::SolidRange {
-        system: system as u32,
-        first: first as u64,
-        count: count as u64,
     }
 }
 
@@ -754,9 +619,13 @@ fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
             .unwrap_or(defaults::NEGATIVE_PRESSURE_SCALE),
         xsph: xsph.unwrap_or(defaults::XSPH),
         viscosity: viscosity.unwrap_or(defaults::VISCOSITY),
-        viscosity_model: viscosity_model(model, &format!("{field}.viscosity_model"))?,
-        walls: wall_model(walls, &format!("{field}.walls"))?,
-        solver: solver_kind(solver, &format!("{field}.solver"))?,
+        viscosity_model: optional_enum(
+            model,
+            defaults::VISCOSITY_MODEL,
+            &format!("{field}.viscosity_model"),
+        )?,
+        walls: optional_enum(walls, defaults::WALLS, &format!("{field}.walls"))?,
+        solver: optional_enum(solver, defaults::SOLVER, &format!("{field}.solver"))?,
         density_tolerance: density_tolerance.unwrap_or(defaults::DENSITY_TOLERANCE),
         divergence_tolerance: divergence_tolerance.unwrap_or(defaults::DIVERGENCE_TOLERANCE),
         max_solver_iterations: max_solver_iterations.unwrap_or(defaults::MAX_SOLVER_ITERATIONS),
@@ -805,12 +674,12 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
                         gamma: Some(f.gamma),
                         negative_pressure_scale: Some(f.negative_pressure_scale),
                         xsph: Some(f.xsph),
-                        density_kernel: Some(to_kernel_kind(f.density_kernel) as i32),
-                        gradient_kernel: Some(to_kernel_kind(f.gradient_kernel) as i32),
+                        density_kernel: Some(f.density_kernel.to_i32()),
+                        gradient_kernel: Some(f.gradient_kernel.to_i32()),
                         viscosity: Some(f.viscosity),
-                        viscosity_model: Some(to_viscosity_model(f.viscosity_model) as i32),
-                        walls: Some(to_wall_model(f.walls) as i32),
-                        solver: Some(to_solver_kind(f.solver) as i32),
+                        viscosity_model: Some(f.viscosity_model.to_i32()),
+                        walls: Some(f.walls.to_i32()),
+                        solver: Some(f.solver.to_i32()),
                         density_tolerance: Some(f.density_tolerance),
                         divergence_tolerance: Some(f.divergence_tolerance),
                         max_solver_iterations: Some(f.max_solver_iterations),
@@ -837,12 +706,7 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
             })
             .collect(),
         output: Some(v1::OutputSpec {
-            fields: scene
-                .output
-                .fields
-                .iter()
-                .map(|&k| to_field_kind(k) as i32)
-                .collect(),
+            fields: scene.output.fields.iter().map(|&k| k.to_i32()).collect(),
             frame_every: Some(scene.output.frame_every),
             surface: scene.output.surface.as_ref().map(|surface| {
                 let spacing = scene.fluid().map(|f| f.spacing);
@@ -855,93 +719,10 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
     }
 }
 
-/// A frame on the wire: each field as packed little-endian f32.
-pub fn frame_to_proto(session_id: &str, frame: &Frame) -> v1::Frame {
-    v1::Frame {
-        header: Some(v1::FrameHeader {
-            session_id: session_id.to_owned(),
-            step: frame.step,
-            time: frame.time,
-            particle_count: frame.particle_count as u64,
-            substeps: frame.substeps,
-            substep_dt: frame.substep_dt,
-            solver_iterations: frame.solver_iterations,
-            density_error: frame.density_error,
-            fields: frame
-                .fields
-                .iter()
-                .map(|f| to_field_kind(f.kind) as i32)
-                .collect(),
-        }),
-        fields: frame
-            .fields
-            .iter()
-            .map(|f| v1::FieldData {
-                kind: to_field_kind(f.kind) as i32,
-                components: f.components as u32,
-                scalar: v1::ScalarType::F32 as i32,
-                data: f.values.iter().flat_map(|v| v.to_le_bytes()).collect(),
-            })
-            .collect(),
-        bodies: frame
-            .bodies
-            .iter()
-            .map(|b| {
-                let [x, y, z, w] = b.orientation;
-                v1::BodyPose {
-                    system: b.system as u32,
-                    position: Some(to_vec3(b.position)),
-                    orientation: Some(v1::Quaternion { x, y, z, w }),
-                    velocity: Some(to_vec3(b.velocity)),
-                    angular_velocity: Some(to_vec3(b.angular_velocity)),
-                }
-            })
-            .collect(),
-        surface: frame
-            .surface
-            .as_ref()
-            .map(|mesh| to_surface_mesh(mesh, &[])),
-        solids: frame.solids.iter().map(to_solid_range).collect(),
-        solid_surfaces: frame.solid_surfaces.iter().map(to_solid_surface).collect(),
-    }
-}
-
-/// Packed little-endian f32 vectors, three per entry.
-fn pack_vectors(vectors: &[Vector]) -> Vec<u8> {
-    vectors
-        .iter()
-        .flat_map(|v| v.iter().flat_map(|&c| (c as f32).to_le_bytes()))
-        .collect()
-}
-
-/// A mesh on the wire; `normals` empty sends none (the fluid's surface).
-fn to_surface_mesh(mesh: &TriMesh, normals: &[Vector]) -> v1::SurfaceMesh {
-    v1::SurfaceMesh {
-        vertices: pack_vectors(&mesh.vertices),
-        triangles: mesh
-            .triangles
-            .iter()
-            .flat_map(|t| t.iter().flat_map(|i| i.to_le_bytes()))
-            .collect(),
-        normals: pack_vectors(normals),
-    }
-}
-
-fn to_solid_surface(surface: &SolidSurface) -> v1::SolidSurface {
-    let SolidSurface {
-        system,
-        mesh,
-        normals,
-    } = surface;
-    v1::SolidSurface {
-        system: *system as u32,
-        mesh: Some(to_surface_mesh(mesh, normals)),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::frame::frame_to_proto;
     use meshless_engine::BuildOptions;
 
     fn dam_break() -> Scene {
@@ -1221,20 +1002,6 @@ mod tests {
         spec.output.as_mut().expect("output").fields.push(99);
         let err = scene_from_proto(spec).expect_err("bad field");
         assert!(err.to_string().starts_with("output.fields[3]:"), "{err}");
-    }
-
-    #[test]
-    fn frames_pack_fields_little_endian() {
-        let world = dam_break().build(&BuildOptions::default()).expect("world");
-        let frame = world.frame();
-        let wire = frame_to_proto("s", &frame);
-        let positions = &wire.fields[0];
-        assert_eq!(positions.data.len(), 4 * 3 * frame.particle_count);
-        let x0 = f32::from_le_bytes(positions.data[0..4].try_into().expect("4 bytes"));
-        assert_eq!(x0, frame.fields[0].values[0]);
-        assert_eq!(wire.header.expect("header").fields.len(), wire.fields.len());
-        assert_eq!(wire.surface, None, "no surface unless the scene asks");
-        assert!(wire.solid_surfaces.is_empty());
     }
 
     /// A surface request crosses with its default cell made explicit, and

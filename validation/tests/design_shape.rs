@@ -6,10 +6,10 @@ use meshless_engine::design::{
     Constraint, ConstraintKind, ConstraintSet, Context, DesignBody, DesignError, DesignParams,
     Edit, Handle, Progress, Selection, Target, solve_shape,
 };
-use meshless_engine::experiments::design::{Stretch, region_handle};
 use meshless_engine::geometry::{MeshSolid, Shape, TriMesh};
 use meshless_engine::math::{Real, Vector};
 use meshless_engine::solid::embedded::DeformedSurface;
+use meshless_validation::design::{Stretch, region_handle};
 use nalgebra::Rotation3;
 use std::ops::ControlFlow;
 

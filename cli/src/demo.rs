@@ -3,17 +3,18 @@
 //! break; this command drives it as any remote client would: gRPC for
 //! control and status, zenoh for frames.
 
-use super::output::{Format, FrameFiles, SurfaceFormat, engine_frame};
+use crate::output::{Format, FrameFiles, SurfaceFormat};
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use meshless_client::{Client, ZenohLink, v1};
 use meshless_server::ServerConfig;
+use meshless_wire::frame::frame_from_proto;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use tokio_stream::StreamExt;
 
 /// The scene the demo runs unless told otherwise.
-const DAM_BREAK: &str = include_str!("../../../scenes/dam_break.toml");
+const DAM_BREAK: &str = include_str!("../../scenes/dam_break.toml");
 
 /// Longest wait for any sign of progress before giving up.
 const STALL: Duration = Duration::from_secs(60);
@@ -73,10 +74,11 @@ async fn drive(
     let mut last_step = 0;
     // Each solid's particle count, which the frames carry.
     let mut solids = Vec::new();
-    if let Some(first) = link.latest_frame(&id).await? {
+    if let Some(first) = link.latest_message(&id).await? {
+        let first = frame_from_proto(first)?;
         last_step = first.step;
-        solids = first.solids.iter().map(|r| r.count).collect();
-        files.write(engine_frame(first));
+        solids = first.solids.iter().map(|r| r.count as u64).collect();
+        files.write(first);
         received += 1;
     }
     let mut statuses = client.watch_status(&id).await?;
@@ -93,12 +95,12 @@ async fn drive(
             break;
         }
         tokio::select! {
-            frame = frames.recv() => {
-                let frame = frame?;
+            frame = frames.recv_message() => {
+                let frame = frame_from_proto(frame?)?;
                 last_step = frame.step;
                 bar.set_position((frame.time * 1000.0).round() as u64);
                 bar.set_message(format!("t = {:.3} s, step {}", frame.time, frame.step));
-                files.write(engine_frame(frame));
+                files.write(frame);
                 received += 1;
             }
             status = statuses.next() => {
@@ -129,7 +131,7 @@ async fn drive(
     println!("meshless demo: {}", session.name);
     println!(
         "  particles         {}",
-        super::particle_summary(session.particle_count, &solids)
+        crate::command::particle_summary(session.particle_count, &solids)
     );
     println!(
         "  simulated         {:.3} s in {} steps",

@@ -4,19 +4,19 @@
 //! the cantilever instead (`study_solid.rs`), the `design-*` knobs the
 //! shape and motion optimiser's experiments (`study_design.rs`).
 
-use super::chart;
+use crate::chart;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
+use meshless_engine::Scene;
 use meshless_engine::approx::KernelKind;
-use meshless_engine::experiments::{dam_break_time_scale, front_error, surge_front};
 use meshless_engine::scene::{FluidSpec, SolverKind, SystemSpec};
-use meshless_engine::{BuildOptions, Scene};
+use meshless_validation::dam_break::{FrontRun, RunStatus, column_width, run_front};
+use meshless_wire::WireEnum;
 use std::fmt::Write as _;
 use std::path::PathBuf;
-use std::time::Instant;
 
 /// The built-in dam break.
-const DAM_BREAK: &str = include_str!("../../../scenes/dam_break.toml");
+const DAM_BREAK: &str = include_str!("../../scenes/dam_break.toml");
 
 /// Knobs that trade speed for accuracy.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -143,11 +143,8 @@ impl Knob {
             }
             Self::Cfl => scene.time.cfl = number()?,
             Self::Solver => {
-                fluid.solver = match value {
-                    "wcsph" => SolverKind::Wcsph,
-                    "dfsph" => SolverKind::Dfsph,
-                    other => bail!("solver: {other:?}; use wcsph or dfsph"),
-                };
+                fluid.solver = SolverKind::from_name(value)
+                    .with_context(|| format!("solver: {value:?}; use {}", SolverKind::choices()))?;
             }
             Self::DensityTolerance => {
                 fluid.solver = SolverKind::Dfsph;
@@ -198,83 +195,12 @@ pub struct StudyArgs {
 #[derive(Debug, Clone)]
 struct Row {
     value: String,
-    particles: usize,
-    substeps: u64,
-    iterations: u64,
-    seconds: f64,
-    /// Worst and rms front error for 1 <= T <= 3, when the run finished.
-    error: Option<(f64, f64)>,
-    status: String,
-}
-
-/// The column width `a`, checking the scene is a Martin & Moyce column.
-fn column_width(scene: &mut Scene) -> Result<f64> {
-    let domain_min = scene.domain.min;
-    let fluid = fluid(scene)?;
-    let column = fluid
-        .blocks
-        .first()
-        .context("the fluid has no block")?
-        .region;
-    let (a, height) = (column.max[0] - column.min[0], column.max[1] - column.min[1]);
-    if (column.min[0] - domain_min[0]).abs() > 1e-9
-        || (column.min[1] - domain_min[1]).abs() > 1e-9
-        || (height - 2.0 * a).abs() > 0.01 * a
-    {
-        bail!(
-            "the study compares with Martin & Moyce: the first block must be a column of width a \
-             and height 2a standing in the corner at the domain's min x and min y"
-        );
-    }
-    Ok(a)
-}
-
-/// Runs one setting to `T = 3.4`, measuring the front after every step.
-fn run_one(scene: &Scene, a: f64, bar: &ProgressBar) -> Row {
-    let scale = dam_break_time_scale(a, -scene.gravity[1]);
-    let mut row = Row {
-        value: String::new(),
-        particles: 0,
-        substeps: 0,
-        iterations: 0,
-        seconds: 0.0,
-        error: None,
-        status: "ok".into(),
-    };
-    let mut world = match scene.build(&BuildOptions::default()) {
-        Ok(world) => world,
-        Err(e) => {
-            row.status = format!("invalid: {e}");
-            return row;
-        }
-    };
-    row.particles = world.particle_count();
-    let start = Instant::now();
-    let mut curve = Vec::new();
-    while world.clock().time * scale < 3.4 {
-        match world.step() {
-            Ok(info) => {
-                row.substeps += u64::from(info.substeps);
-                row.iterations += u64::from(info.solver_iterations);
-            }
-            Err(e) => {
-                row.status = format!("failed: {e}");
-                break;
-            }
-        }
-        if let Some(z) = world.fluid().and_then(|f| surge_front(&f.positions, a)) {
-            curve.push((world.clock().time * scale, z));
-        }
-        bar.set_message(format!("T = {:.2}", world.clock().time * scale));
-    }
-    row.seconds = start.elapsed().as_secs_f64();
-    row.error = front_error(&curve);
-    row
+    run: FrontRun,
 }
 
 pub fn study(args: StudyArgs) -> Result<()> {
     if args.knob.is_solid() {
-        return super::study_solid::study(
+        return crate::study_solid::study(
             args.knob.name(),
             args.knob.presets(),
             &args.values,
@@ -282,7 +208,7 @@ pub fn study(args: StudyArgs) -> Result<()> {
         );
     }
     if args.knob.is_design() {
-        return super::study_design::study(
+        return crate::study_design::study(
             args.knob.name(),
             args.knob.presets(),
             &args.values,
@@ -315,11 +241,13 @@ pub fn study(args: StudyArgs) -> Result<()> {
     for value in &values {
         let mut scene = base.clone();
         args.knob.apply(value, &mut scene)?;
-        let a = column_width(&mut scene)?;
+        let a = column_width(&scene)?;
         bar.set_prefix(format!("{} = {value}", args.knob.name()));
-        let mut row = run_one(&scene, a, &bar);
-        row.value = value.clone();
-        rows.push(row);
+        let run = run_front(&scene, a, |t| bar.set_message(format!("T = {t:.2}")));
+        rows.push(Row {
+            value: value.clone(),
+            run,
+        });
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -331,29 +259,33 @@ pub fn study(args: StudyArgs) -> Result<()> {
     );
     println!("meshless study: dam break against Martin & Moyce (1952), sweeping {name}");
     println!("  value        particles  sub-steps  iterations  wall [s]  worst error  rms error");
-    for r in &rows {
-        let rate = r.particles as f64 * r.substeps as f64 / r.seconds.max(1e-9);
-        let (worst, rms) = r.error.map_or((f64::NAN, f64::NAN), |e| e);
+    for Row { value, run } in &rows {
+        let rate = run.particles as f64 * run.substeps as f64 / run.seconds.max(1e-9);
+        let (worst, rms) = run.error.map_or((f64::NAN, f64::NAN), |e| e);
+        let status = run.status.to_string();
         writeln!(
             csv,
-            "{name},{},{},{},{},{:.3},{rate:.4e},{worst:.5},{rms:.5},{}",
-            r.value,
-            r.particles,
-            r.substeps,
-            r.iterations,
-            r.seconds,
-            r.status.replace(',', ";")
+            "{name},{value},{},{},{},{:.3},{rate:.4e},{worst:.5},{rms:.5},{}",
+            run.particles,
+            run.substeps,
+            run.iterations,
+            run.seconds,
+            status.replace(',', ";")
         )?;
         println!(
             "  {:<12} {:>9}  {:>9}  {:>10}  {:>8.2}  {:>10.1} %  {:>7.1} %  {}",
-            r.value,
-            r.particles,
-            r.substeps,
-            r.iterations,
-            r.seconds,
+            value,
+            run.particles,
+            run.substeps,
+            run.iterations,
+            run.seconds,
             100.0 * worst,
             100.0 * rms,
-            if r.status == "ok" { "" } else { &r.status }
+            if matches!(run.status, RunStatus::Ok) {
+                ""
+            } else {
+                &status
+            }
         );
     }
     std::fs::write(&csv_path, csv)
@@ -363,8 +295,8 @@ pub fn study(args: StudyArgs) -> Result<()> {
     let points: Vec<chart::Point> = rows
         .iter()
         .filter_map(|r| {
-            r.error.map(|(_, rms)| chart::Point {
-                cost: r.seconds,
+            r.run.error.map(|(_, rms)| chart::Point {
+                cost: r.run.seconds,
                 error: 100.0 * rms,
                 label: r.value.clone(),
             })

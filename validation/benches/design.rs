@@ -15,7 +15,7 @@
 //!
 //! Prints tables; asserts nothing.
 //!
-//!     cargo bench -p meshless-engine --bench design
+//!     cargo bench -p meshless-validation --bench design
 //!
 //! For scale, Adams et al. 2008 report 55 frames/s for 60 particles and a
 //! 100k-vertex surface on a 2008 GPU.
@@ -23,9 +23,9 @@
 use meshless_engine::design::{
     ConstraintSet, Context, DesignBody, DesignParams, Edit, MotionParams, Quadrature, solve_shape,
 };
-use meshless_engine::experiments::design::{Passage, Stretch};
 use meshless_engine::math::Vector;
 use meshless_engine::solid::embedded::{DeformedSurface, EmbeddedSurface};
+use meshless_validation::design::{Passage, Stretch};
 use std::ops::ControlFlow;
 use std::time::{Duration, Instant};
 

@@ -7,13 +7,11 @@
 //! - the passage: how deep the cube's particle spheres enter the ball
 //!   between frames, and how closely the keyframes are met.
 
-use super::chart;
+use crate::chart;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use meshless_engine::design::{DesignParams, MotionParams};
-use meshless_engine::experiments::design::{
-    Passage, PassageResult, Stretch, StretchResult, stretch_params,
-};
+use meshless_validation::design::{Passage, PassageResult, Stretch, StretchResult, stretch_params};
 use std::fmt::Write as _;
 use std::path::Path;
 

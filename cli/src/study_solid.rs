@@ -5,24 +5,16 @@
 //! first-period error of the released beam (integrator, step), with the
 //! wall time of each setting, as CSV and a PNG chart.
 
-use super::chart;
+use crate::chart;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use meshless_engine::approx::mls::Order;
-use meshless_engine::experiments::cantilever::{Cantilever, Measured};
 use meshless_engine::scene::IntegratorKind;
+use meshless_validation::cantilever::{Cantilever, Measured, Quantity};
+use meshless_wire::WireEnum;
 use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
-
-/// What a knob's runs measure.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Quantity {
-    /// Static tip deflection (a Newton solve).
-    Deflection,
-    /// First bending period of the released beam (a dynamic run).
-    Period,
-}
 
 /// The cantilever for one value of knob `name`.
 fn setting(name: &str, value: &str) -> Result<(Cantilever, Quantity)> {
@@ -56,11 +48,12 @@ fn setting(name: &str, value: &str) -> Result<(Cantilever, Quantity)> {
             )
         }
         "solid_integrator" => {
-            let integrator = match value {
-                "explicit" => IntegratorKind::Explicit,
-                "implicit" => IntegratorKind::Implicit,
-                other => bail!("solid_integrator: {other:?}; use explicit or implicit"),
-            };
+            let integrator = IntegratorKind::from_name(value).with_context(|| {
+                format!(
+                    "solid_integrator: {value:?}; use {}",
+                    IntegratorKind::choices()
+                )
+            })?;
             (Cantilever { integrator, ..base }, Quantity::Period)
         }
         "solid_hourglass" => (
@@ -107,11 +100,7 @@ pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> 
         let (cantilever, quantity) = setting(name, value)?;
         bar.set_prefix(format!("{name} = {value}"));
         let start = Instant::now();
-        let outcome = match quantity {
-            Quantity::Deflection => cantilever.settle(1e-6),
-            Quantity::Period => cantilever.period(),
-        }
-        .map_err(|e| e.to_string());
+        let outcome = cantilever.measure(quantity).map_err(|e| e.to_string());
         rows.push(Row {
             value: value.clone(),
             quantity,

@@ -1,0 +1,19 @@
+//! # meshless-validation
+//!
+//! Reference data with their sources, the experiments that reproduce
+//! them through the engine, and the measurements that compare the two.
+//! The validation tests, `meshless study` and the benchmarks share them,
+//! so a figure in a test, a study table and a benchmark come from the same
+//! code. Kept out of the engine, which stays the numerics alone; this
+//! crate depends on the engine and nothing networked.
+//!
+//! - [`dam_break`]: the collapsing water column against Martin & Moyce
+//!   (1952);
+//! - [`cantilever`]: an elastic beam under its own weight against
+//!   Euler–Bernoulli theory;
+//! - [`design`]: the optimiser's Figure 13 stretch and the cube passing a
+//!   ball.
+
+pub mod cantilever;
+pub mod dam_break;
+pub mod design;
