@@ -1,14 +1,56 @@
-//! Frames: immutable snapshots of the particle fields a scene asked for.
+//! Frames: immutable snapshots of the particle fields a scene asked for,
+//! and the kinds of field a frame can carry.
+//!
+//! Adding a field: a [`FieldKind`] variant here (its name and component
+//! count) and its values in each system's field writer
+//! (`world/system.rs`).
 
 use crate::geometry::TriMesh;
 use crate::math::Real;
-use crate::scene::FieldKind;
+use serde::{Deserialize, Serialize};
+
+/// A particle field a frame can carry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FieldKind {
+    /// Particle positions, m (3 components).
+    Position,
+    /// Particle velocities, m/s (3 components).
+    Velocity,
+    /// Densities, kg/m^3.
+    Density,
+    /// Pressures, Pa.
+    Pressure,
+}
+
+impl FieldKind {
+    /// Scalars per particle.
+    pub fn components(self) -> usize {
+        match self {
+            Self::Position | Self::Velocity => 3,
+            Self::Density | Self::Pressure => 1,
+        }
+    }
+
+    /// Lower-case name, as in scene files and exported files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Position => "position",
+            Self::Velocity => "velocity",
+            Self::Density => "density",
+            Self::Pressure => "pressure",
+        }
+    }
+}
 
 /// One particle field, `components` f32 per particle, particle-major.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FieldData {
+    /// Which field.
     pub kind: FieldKind,
+    /// Scalars per particle ([`FieldKind::components`]).
     pub components: usize,
+    /// `components` values per particle, particle after particle.
     pub values: Vec<f32>,
 }
 
@@ -21,11 +63,13 @@ pub struct Frame {
     pub time: Real,
     /// Sub-steps the last step was split into, and the shortest of them.
     pub substeps: u32,
+    /// The shortest sub-step, s.
     pub substep_dt: Real,
     /// Pressure-solver iterations of the last step (0 for WCSPH).
     pub solver_iterations: u32,
     /// Worst average density error of the last step's solves (fraction).
     pub density_error: Real,
+    /// Particles over all systems: the length of each field.
     pub particle_count: usize,
     /// Positions first, then the requested fields in scene order.
     pub fields: Vec<FieldData>,
@@ -46,6 +90,7 @@ pub struct Frame {
 pub struct SolidSurface {
     /// Index of the solid's system in the scene.
     pub system: usize,
+    /// The deformed mesh.
     pub mesh: TriMesh,
     /// Unit normal per vertex.
     pub normals: Vec<crate::math::Vector>,
@@ -56,7 +101,9 @@ pub struct SolidSurface {
 pub struct SolidRange {
     /// Index of the solid's system in the scene.
     pub system: usize,
+    /// Its first particle in the frame's fields.
     pub first: usize,
+    /// How many particles it has.
     pub count: usize,
 }
 

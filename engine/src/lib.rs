@@ -1,8 +1,8 @@
 //! # meshless-engine
 //!
 //! The numerics of meshless: kernels and approximations, neighbour search,
-//! SPH fluids, scenes, frames and file export. A plain library with no
-//! networking: embed it in any program.
+//! SPH fluids, rigid bodies, MLS solids, scenes, frames and file export. A
+//! plain library with no networking: embed it in any program.
 //!
 //! The data flow is `Scene` (validated description) -> [`Scene::build`] ->
 //! [`World`] (state, stepped by [`World::step`]) -> [`Frame`] (snapshot of
@@ -17,6 +17,7 @@ pub mod io;
 pub mod linalg;
 pub mod math;
 pub mod neighbors;
+pub mod rigid;
 pub mod scene;
 pub mod solid;
 pub mod stats;
@@ -25,6 +26,6 @@ pub mod surface;
 mod testing;
 pub mod world;
 
-pub use frame::{BodyPose, FieldData, Frame, SolidRange, SolidSurface};
-pub use scene::{BuildOptions, FieldKind, Scene, SceneError};
+pub use frame::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
+pub use scene::{BuildOptions, Scene, SceneError};
 pub use world::{Clock, StepError, StepInfo, World};

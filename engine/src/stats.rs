@@ -7,17 +7,26 @@ use std::time::Instant;
 /// A pass of the step pipeline.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stage {
+    /// Grid rebuild and neighbour lists.
     NeighborSearch,
+    /// Density sums (and WCSPH's equation of state, DFSPH's factors).
     Density,
+    /// WCSPH's pressure accelerations (Eq. 51).
     PressureForce,
+    /// DFSPH's constant-density solve.
     PressureSolve,
+    /// DFSPH's divergence-free solve.
     DivergenceSolve,
+    /// Physical viscosity (and bodies' no-slip terms).
     Viscosity,
+    /// XSPH smoothing (Eq. 53).
     Xsph,
+    /// Time integration and the bodies' motion.
     Integrate,
 }
 
 impl Stage {
+    /// Every stage, in pipeline order.
     pub const ALL: [Stage; 8] = [
         Stage::NeighborSearch,
         Stage::Density,
@@ -29,6 +38,7 @@ impl Stage {
         Stage::Integrate,
     ];
 
+    /// The stage's name for people.
     pub fn name(self) -> &'static str {
         match self {
             Stage::NeighborSearch => "neighbour search",
@@ -46,7 +56,9 @@ impl Stage {
 /// Runs and wall-clock seconds of one stage.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StageStats {
+    /// Times the stage ran.
     pub runs: u64,
+    /// Wall-clock seconds it took in all.
     pub seconds: f64,
 }
 
@@ -68,6 +80,7 @@ impl StageTimer {
         result
     }
 
+    /// The counters of one stage.
     pub fn get(&self, stage: Stage) -> StageStats {
         self.stats[stage as usize]
     }

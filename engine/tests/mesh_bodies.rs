@@ -5,9 +5,9 @@
 //! as the primitive box (Archimedes); bad mesh specs are rejected naming
 //! their field. 3D, as meshes are.
 
-use meshless_engine::fluid::RigidBody;
 use meshless_engine::geometry::{Shape, TriMesh};
 use meshless_engine::math::{Real, Vector};
+use meshless_engine::rigid::RigidBody;
 use meshless_engine::{BuildOptions, Scene, SceneError, World};
 use std::path::{Path, PathBuf};
 
@@ -101,7 +101,7 @@ density = 500.0
     );
     let world = build(&tank_text(0.6, 0.04, 0.2, &bodies));
     let b = body(&world);
-    let q = meshless_engine::fluid::Rotation::from_scaled_axis(Vector::from(turn));
+    let q = meshless_engine::rigid::Rotation::from_scaled_axis(Vector::from(turn));
     let p = Vector::new(0.3, 0.45, 0.25);
     let centre = Vector::new(0.1, 0.05, 0.05);
     let file = TriMesh::from_path(Path::new(&box_path())).expect("reads");
@@ -121,7 +121,7 @@ density = 500.0
         pose.orientation[2],
     );
     assert!((reported - q.into_inner()).norm() < 1e-9 || (reported + q.into_inner()).norm() < 1e-9);
-    let meshless_engine::fluid::Motion::Dynamic { mass, .. } = b.motion else {
+    let meshless_engine::rigid::Motion::Dynamic { mass, .. } = b.motion else {
         panic!("dynamic");
     };
     assert!((mass - 500.0 * 0.002).abs() < 1e-9, "mass {mass}");

@@ -5,8 +5,8 @@
 //! and no slip does not; the coupling conserves momentum; a moving paddle
 //! moves the fluid. All 2D, where they are cheap.
 
-use meshless_engine::fluid::RigidBody;
 use meshless_engine::math::Vector;
+use meshless_engine::rigid::RigidBody;
 use meshless_engine::{BuildOptions, Scene, World};
 
 mod common;
@@ -358,7 +358,7 @@ velocity = [0.5, 0.0, 0.0]
         let fluid = world.fluid().expect("fluid");
         let b = body(world);
         let mass = match b.motion {
-            meshless_engine::fluid::Motion::Dynamic { mass, .. } => mass,
+            meshless_engine::rigid::Motion::Dynamic { mass, .. } => mass,
             _ => panic!("the disc is dynamic"),
         };
         let fluid_momentum: Vector = fluid.velocities.iter().sum::<Vector>() * fluid.params.mass;

@@ -422,7 +422,7 @@ impl<'a> Setup<'a> {
                     let shape = resolve_shape(&o.shape, dim)
                         .map_err(|m| DesignError::constraint(&c.name, m))?;
                     let (_, rotation) =
-                        crate::world::shape_pose([0.0; 3], o.orientation, &shape, dim);
+                        crate::scene::shape_pose([0.0; 3], o.orientation, &shape, dim);
                     obstacles.push(Placed {
                         shape,
                         rotation: rotation.to_rotation_matrix(),

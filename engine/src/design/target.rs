@@ -60,14 +60,14 @@ impl DesignTarget {
             .map(|(_, solid)| solid)
             .ok_or_else(not_solid)?;
         let at = format!("systems[{system}].shape");
-        let shape = crate::world::body_shape(&spec.shape, dim, &at).map_err(|e| {
+        let shape = crate::scene::body_shape(&spec.shape, dim, &at).map_err(|e| {
             DesignError::Parameter {
                 field: "shape",
                 message: e.to_string(),
             }
         })?;
         let (centre, rotation) =
-            crate::world::shape_pose(spec.position, spec.orientation, &shape, dim);
+            crate::scene::shape_pose(spec.position, spec.orientation, &shape, dim);
         let rest = solid.rest_positions().to_vec();
         let body = DesignBody::new(
             &shape,

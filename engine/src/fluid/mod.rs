@@ -1,20 +1,152 @@
 //! SPH fluids: the weakly compressible solver of the Adams–Wicke tutorial
 //! (Section 6, Algorithm 5) with the Tait equation of state, DFSPH, the
 //! domain's walls and rigid bodies coupled both ways.
+//!
+//! [`Fluid`] (`particles.rs`) is the particles' state with the passes
+//! every solver shares; [`Pressure`] (`pressure/`) is the solver, which
+//! owns its parameters and scratch; [`FluidSystem`], here, is the two
+//! together: what a world steps.
 
-mod dfsph;
 mod eos;
+mod particles;
+mod pressure;
 mod reorder;
-mod rigid_body;
-mod rigid_boundary;
 mod viscosity;
 mod walls;
-mod wcsph;
 
-pub use dfsph::{DfsphParams, SolveInfo};
 pub use eos::Tait;
-pub use rigid_body::{BodyState, Motion, Oscillation, RigidBody, Rotation, Slip};
-pub use rigid_boundary::RigidBodies;
+pub use particles::{Fluid, FluidParams, FluidState, Invalid};
+pub use pressure::{Dfsph, DfsphParams, Pressure, SolveInfo, Wcsph};
 pub use viscosity::ViscosityModel;
 pub use walls::BoxWalls;
-pub use wcsph::{Fluid, FluidParams, FluidState, Invalid, PressureSolver};
+
+use crate::math::{Real, Vector};
+use crate::neighbors::{Periodic, UniformGrid};
+use crate::rigid::RigidBodies;
+use crate::stats::StageTimer;
+
+/// A fluid and its pressure solver: built, sub-stepped, checked, saved
+/// and restored as one.
+#[derive(Debug, Clone)]
+pub struct FluidSystem {
+    fluid: Fluid,
+    pressure: Pressure,
+}
+
+impl FluidSystem {
+    /// A fluid with the given particles, stepped by `pressure`; `grid`
+    /// must cover the domain with cells of at least the support radius and
+    /// wrap around the same `periodic` axes.
+    pub fn new(
+        params: FluidParams,
+        mut pressure: Pressure,
+        positions: Vec<Vector>,
+        velocities: Vec<Vector>,
+        walls: Option<BoxWalls>,
+        grid: UniformGrid,
+        periodic: Option<Periodic>,
+    ) -> Self {
+        let mut fluid = Fluid::new(params, positions, velocities, walls, grid, periodic);
+        // Densities and pressures of the initial state, so frame 0 and the
+        // first stability limit see real values.
+        fluid.find_neighbors();
+        fluid.compute_densities();
+        pressure.solver_mut().init(&mut fluid);
+        let mut system = Self { fluid, pressure };
+        system.reorder();
+        system
+    }
+
+    /// Puts rigid bodies into the fluid and recomputes the densities,
+    /// pressures and solver factors they change.
+    pub fn attach_bodies(&mut self, bodies: RigidBodies) {
+        self.fluid.rigid = Some(bodies);
+        self.refresh();
+    }
+
+    /// The fluid's particles.
+    pub fn fluid(&self) -> &Fluid {
+        &self.fluid
+    }
+
+    /// The fluid's particles, to set up an initial state a scene cannot
+    /// describe.
+    pub fn fluid_mut(&mut self) -> &mut Fluid {
+        &mut self.fluid
+    }
+
+    /// The pressure solver.
+    pub fn pressure(&self) -> &Pressure {
+        &self.pressure
+    }
+
+    /// The largest sub-step the scheme allows now: the solver's CFL and
+    /// force conditions (see each solver) and, with viscosity, the
+    /// diffusion condition.
+    pub fn stable_dt(&self, cfl: Real) -> Real {
+        let v_max = self.fluid.max_speed();
+        let dt = self.pressure.solver().stable_dt(&self.fluid, cfl, v_max);
+        self.fluid.viscous_limit(dt)
+    }
+
+    /// One sub-step of length `dt` with the scene's solver, reflecting
+    /// particles off the walls of `[min, max]`.
+    pub fn substep(
+        &mut self,
+        dt: Real,
+        gravity: &Vector,
+        min: &Vector,
+        max: &Vector,
+        timer: &mut StageTimer,
+    ) {
+        self.fluid.substeps_since_reorder += 1;
+        self.pressure
+            .solver_mut()
+            .substep(&mut self.fluid, dt, gravity, min, max, timer);
+    }
+
+    /// The first particle whose state cannot go on: a position, velocity,
+    /// density or pressure that is not finite or does not fit a frame's
+    /// f32, or a speed above the solver's limit ([`Wcsph::SPEED_LIMIT`]
+    /// times the speed of sound, [`Dfsph::SPEED_LIMIT`]); or a rigid
+    /// body's state that is not finite.
+    pub fn first_invalid(&self) -> Option<Invalid> {
+        let limit = self.pressure.solver().speed_limit(&self.fluid.params);
+        self.fluid.first_invalid(limit)
+    }
+
+    /// Copies the evolving state into `backup`, reusing its buffers.
+    pub fn save(&self, backup: &mut FluidState) {
+        self.fluid.save(backup);
+    }
+
+    /// Puts back a state saved by [`Self::save`], with the neighbour
+    /// lists (and DFSPH's factors and pair gradients) of its positions, so
+    /// that the next step starts from the saved state alone.
+    pub fn restore(&mut self, backup: &FluidState) {
+        self.fluid.restore(backup);
+        self.pressure.solver_mut().rebuild(&self.fluid);
+    }
+
+    /// Removes the particles whose id `removed` marks (one flag per
+    /// particle), renumbering the survivors' ids in order, and recomputes
+    /// the survivors' densities, pressures and solver factors, as after
+    /// bodies attach. Call between steps, never during one.
+    ///
+    /// # Panics
+    /// If `removed` does not hold one flag per particle.
+    pub fn remove(&mut self, removed: &[bool]) {
+        assert_eq!(removed.len(), self.fluid.len(), "one flag per particle");
+        let kept = self.fluid.retain(removed);
+        self.pressure.solver_mut().follow(&kept, removed.len());
+        self.refresh();
+    }
+
+    /// Neighbours, densities and what the solver derives from them, from
+    /// scratch.
+    fn refresh(&mut self) {
+        self.fluid.find_neighbors();
+        self.fluid.compute_densities();
+        self.pressure.solver_mut().init(&mut self.fluid);
+    }
+}

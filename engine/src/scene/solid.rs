@@ -1,16 +1,14 @@
-//! Elastic solids in a scene: the TOML/protocol description, its
-//! validation, and the engine solid it builds.
+//! Elastic solids in a scene: the TOML/protocol description and its
+//! validation (the world's builder makes the engine solid of it).
 
-use super::{Aabb, Scene, SceneError, ShapeSpec, check_positive, check_range, check_vector};
+use super::error::{check_box, check_positive, check_range, check_vector};
+use super::{Aabb, Scene, SceneError, ShapeSpec, shape_pose};
 use crate::approx::mls::Order;
 use crate::geometry::Shape;
 use crate::geometry::TriMesh;
 use crate::math::{Real, Vector, vector};
 use crate::solid::embedded::{EmbeddedSurface, EmbeddingMethod};
-use crate::solid::{
-    ElasticSolid, ImplicitParams, Integrator, Material, Obstacle, Obstacles, Plasticity,
-    SolidParams,
-};
+use crate::solid::{ImplicitParams, Integrator, Material, Plasticity, SolidParams};
 use serde::{Deserialize, Serialize};
 
 /// Defaults of the optional solid parameters, shared with the protocol
@@ -19,7 +17,9 @@ pub mod defaults {
     use crate::approx::mls::Order;
     use crate::math::Real;
 
+    /// kg/m^3, water-like.
     pub const DENSITY: Real = 1000.0;
+    /// Poisson's ratio of a rubber-like solid.
     pub const POISSON: Real = 0.3;
     /// Linear: Müller et al. 2004's choice, exact for affine motion, and a
     /// third of the quadratic's cost (the cantilever table in the README
@@ -32,6 +32,7 @@ pub mod defaults {
     /// zero-energy modes while adding under 1 % to a cantilever's stiffness
     /// at 10 particles across (README).
     pub const HOURGLASS: Real = 0.1;
+    /// Coulomb coefficient against walls and obstacles.
     pub const FRICTION: Real = 0.5;
     /// Explicit steps at half the wave limit.
     pub const CFL: Real = 0.5;
@@ -43,8 +44,10 @@ pub mod defaults {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum IntegratorKind {
+    /// Symplectic Euler, sub-stepped within the wave limit.
     #[default]
     Explicit,
+    /// Backward Euler with Newton steps, any step length.
     Implicit,
 }
 
@@ -66,6 +69,7 @@ pub struct SolidSpec {
     pub orientation: [Real; 3],
     /// Particle spacing, m: each particle stands for `spacing^dim`.
     pub spacing: Real,
+    /// kg/m^3.
     #[serde(default = "default_density")]
     pub density: Real,
     /// Young's modulus, Pa.
@@ -91,6 +95,7 @@ pub struct SolidSpec {
     /// Coulomb friction against walls and static rigid bodies.
     #[serde(default = "default_friction")]
     pub friction: Real,
+    /// How it advances in time.
     #[serde(default)]
     pub integrator: IntegratorKind,
     /// Explicit only: the sub-step as a fraction of the wave limit.
@@ -202,8 +207,7 @@ impl SolidSpec {
             Shape::Mesh(solid) => solid.mesh().clone(),
             Shape::Capsule { .. } | Shape::Plane { .. } => return None,
         };
-        let (centre, rotation) =
-            crate::world::shape_pose(self.position, self.orientation, shape, dim);
+        let (centre, rotation) = shape_pose(self.position, self.orientation, shape, dim);
         Some(TriMesh {
             vertices: local
                 .vertices
@@ -240,10 +244,15 @@ impl SolidSpec {
         )
     }
 
+    /// Whether a particle at `x` lies in one of the anchor boxes, and so
+    /// is fixed.
+    pub(crate) fn anchored(&self, x: &Vector, dim: usize) -> bool {
+        self.anchors.iter().any(|b| inside(b, x, dim))
+    }
+
     /// Particle positions (world frame) and initial velocities.
     pub(crate) fn particles(&self, shape: &Shape, dim: usize) -> Vec<(Vector, Vector)> {
-        let (centre, rotation) =
-            crate::world::shape_pose(self.position, self.orientation, shape, dim);
+        let (centre, rotation) = shape_pose(self.position, self.orientation, shape, dim);
         let (v, w) = (vector(self.velocity), vector(self.angular_velocity));
         shape
             .sample_volume(self.spacing, dim)
@@ -397,7 +406,7 @@ impl Scene {
         }
         for (k, anchor) in solid.anchors.iter().enumerate() {
             let field = format!("{at}.anchors[{k}]");
-            super::check_box(&field, anchor, dim)?;
+            check_box(&field, anchor, dim)?;
             if !particles.iter().any(|(x, _)| inside(anchor, x, dim)) {
                 return Err(SceneError::invalid(
                     field,
@@ -433,33 +442,4 @@ impl Scene {
 
 fn inside(b: &Aabb, x: &Vector, dim: usize) -> bool {
     (0..dim).all(|a| x[a] >= b.min[a] && x[a] <= b.max[a])
-}
-
-/// Builds the engine solid of a validated spec, colliding with the
-/// domain's walls and `obstacles`.
-pub(crate) fn build_solid(
-    spec: &SolidSpec,
-    shape: &Shape,
-    dim: usize,
-    walls: (Vector, Vector),
-    obstacles: Vec<Obstacle>,
-) -> (ElasticSolid, Option<EmbeddedSurface>) {
-    let (rest, velocities): (Vec<Vector>, Vec<Vector>) =
-        spec.particles(shape, dim).into_iter().unzip();
-    let fixed = rest
-        .iter()
-        .map(|x| spec.anchors.iter().any(|b| inside(b, x, dim)))
-        .collect();
-    let obstacles = Obstacles {
-        shapes: obstacles,
-        walls: Some(walls),
-    };
-    // Validated by Scene::validate: a surface that cannot be embedded was
-    // refused there.
-    let surface = spec
-        .embedded_surface(shape, dim, &rest)
-        .and_then(Result::ok);
-    let solid = ElasticSolid::new(spec.params(dim), rest, velocities, fixed, obstacles)
-        .expect("validated by Scene::validate");
-    (solid, surface)
 }

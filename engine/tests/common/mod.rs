@@ -1,7 +1,7 @@
 //! Helpers shared by the rigid-body test files.
 
 use meshless_engine::World;
-use meshless_engine::fluid::RigidBody;
+use meshless_engine::rigid::RigidBody;
 
 /// The first rigid body of a world that has one.
 pub fn body(world: &World) -> &RigidBody {

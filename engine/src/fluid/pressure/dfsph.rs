@@ -11,9 +11,12 @@
 //! a density source `s_i` becomes `kappa_i = s_i alpha_i / dt^k` and
 //! `v_i -= dt sum_j m_j (kappa_i / rho_i + kappa_j / rho_j) grad W_ij`, the
 //! symmetric pressure form of Eq. 51 with `kappa = p / rho`. Walls enter
-//! through the gradient of their density (see [`super::BoxWalls`]).
+//! through the gradient of their density (see [`crate::fluid::BoxWalls`]).
 
-use super::wcsph::{Fluid, confine};
+use super::{PressureSolver, SolveInfo};
+use crate::fluid::particles::confine;
+use crate::fluid::reorder::gather;
+use crate::fluid::{Fluid, FluidParams};
 use crate::math::{Real, Vector};
 use crate::neighbors::NeighborList;
 use crate::stats::{Stage, StageTimer};
@@ -34,21 +37,11 @@ pub struct DfsphParams {
     pub max_iterations: u32,
 }
 
-/// What the solves of the last sub-step achieved.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct SolveInfo {
-    pub density_iterations: u32,
-    /// Average density error after the constant-density solve (fraction).
-    pub density_error: Real,
-    pub divergence_iterations: u32,
-    /// Average density change rate times the sub-step after the
-    /// divergence solve (fraction).
-    pub divergence_error: Real,
-}
-
-/// Per-particle scratch of the solves.
-#[derive(Debug, Clone, Default)]
-pub struct SolverScratch {
+/// The DFSPH solver: its parameters and the per-particle scratch of its
+/// solves.
+#[derive(Debug, Clone)]
+pub struct Dfsph {
+    params: DfsphParams,
     /// `alpha_i`.
     factors: Vec<Real>,
     /// Gradient of the density of the walls and rigid bodies at each
@@ -78,7 +71,6 @@ pub struct SolverScratch {
     /// half of it warm-starts the next solve (as is usual, to avoid
     /// overshoot).
     density_kappa: Vec<Real>,
-    pub(super) last: SolveInfo,
 }
 
 /// Which density source a solve drives to zero.
@@ -90,111 +82,146 @@ enum Solve {
     DivergenceFree,
 }
 
-impl Fluid {
-    /// Allocates the solver scratch and computes the factors of the
-    /// initial state.
-    /// Follows a reordering of the particles (see `reorder.rs`): the
-    /// warm-start pressures move with their particles; everything else is
-    /// recomputed before it is read.
-    pub(super) fn permute_solver(&mut self, order: &[u32]) {
-        super::reorder::gather(&mut self.solver.density_kappa, order);
+impl Dfsph {
+    /// Speeds above this count as a blow-up: an incompressible solver has
+    /// no sound speed, and no liquid flow a scene can describe comes near
+    /// it.
+    pub const SPEED_LIMIT: Real = 1e4;
+
+    /// A solver with `params` and no scratch yet (sized by the fluid it
+    /// joins).
+    pub fn new(params: DfsphParams) -> Self {
+        Self {
+            params,
+            factors: Vec::new(),
+            wall_gradients: Vec::new(),
+            boundary_flux: Vec::new(),
+            divergence_kappa: Vec::new(),
+            gradients: Vec::new(),
+            source: Vec::new(),
+            kappa: Vec::new(),
+            density_kappa: Vec::new(),
+        }
     }
 
-    pub(super) fn prepare_dfsph(&mut self) {
-        let n = self.len();
-        let scratch = &mut self.solver;
-        scratch.factors.resize(n, 0.0);
-        scratch.wall_gradients.resize(n, Vector::zeros());
-        scratch.source.resize(n, 0.0);
-        scratch.kappa.resize(n, 0.0);
-        scratch.density_kappa.resize(n, 0.0);
-        let coupled = if self.rigid.is_some() { n } else { 0 };
-        scratch.boundary_flux.resize(coupled, 0.0);
-        scratch.divergence_kappa.resize(coupled, 0.0);
-        self.compute_factors();
+    /// The parameters of the solves.
+    pub fn params(&self) -> &DfsphParams {
+        &self.params
+    }
+}
+
+impl PressureSolver for Dfsph {
+    /// Allocates the solver scratch and computes the factors of the
+    /// current state.
+    fn init(&mut self, fluid: &mut Fluid) {
+        let n = fluid.len();
+        self.factors.resize(n, 0.0);
+        self.wall_gradients.resize(n, Vector::zeros());
+        self.source.resize(n, 0.0);
+        self.kappa.resize(n, 0.0);
+        self.density_kappa.resize(n, 0.0);
+        let coupled = if fluid.rigid.is_some() { n } else { 0 };
+        self.boundary_flux.resize(coupled, 0.0);
+        self.divergence_kappa.resize(coupled, 0.0);
+        self.compute_factors(fluid);
+    }
+
+    /// No sound speed: a particle moves at most `cfl` spacings,
+    /// `cfl * dx / |v|_max`, and the force condition
+    /// `0.25 cfl sqrt(dx / |a|_max)`.
+    fn stable_dt(&self, fluid: &Fluid, cfl: Real, v_max: Real) -> Real {
+        let mut dt = cfl * fluid.params.spacing / v_max;
+        if fluid.max_acceleration > 0.0 {
+            // Measured, not derived: a resting DFSPH tank under gravity
+            // rings from about 2x this step (tests/tests/validation_tank.rs).
+            dt = dt.min(0.25 * cfl * (fluid.params.spacing / fluid.max_acceleration).sqrt());
+        }
+        dt
+    }
+
+    fn speed_limit(&self, _params: &FluidParams) -> Real {
+        Self::SPEED_LIMIT
     }
 
     /// One DFSPH sub-step of length `dt`.
-    pub(super) fn dfsph_substep(
+    fn substep(
         &mut self,
+        fluid: &mut Fluid,
         dt: Real,
         gravity: &Vector,
         min: &Vector,
         max: &Vector,
-        params: &DfsphParams,
         timer: &mut StageTimer,
     ) {
         let g = *gravity;
-        self.accelerations.par_iter_mut().for_each(|a| *a = g);
-        if let Some(kernel) = self.viscosity_kernel {
-            let model = self.params.viscosity_model;
-            timer.time(Stage::Viscosity, || self.apply_viscosity(model, &kernel));
+        fluid.accelerations.par_iter_mut().for_each(|a| *a = g);
+        if let Some(kernel) = fluid.viscosity_kernel {
+            let model = fluid.params.viscosity_model;
+            timer.time(Stage::Viscosity, || fluid.apply_viscosity(model, &kernel));
         }
-        if let Some(rigid) = &mut self.rigid {
+        if let Some(rigid) = &mut fluid.rigid {
             // No-slip bodies' viscosity; pressure comes from the solves.
             timer.time(Stage::Viscosity, || {
                 rigid.add_forces(
-                    &self.positions,
-                    &self.velocities,
-                    &self.densities,
+                    &fluid.positions,
+                    &fluid.velocities,
+                    &fluid.densities,
                     None,
-                    self.params.mass,
-                    &mut self.accelerations,
+                    fluid.params.mass,
+                    &mut fluid.accelerations,
                 )
             });
         }
-        if self.params.xsph > 0.0 {
-            timer.time(Stage::Xsph, || self.apply_xsph());
+        if fluid.params.xsph > 0.0 {
+            timer.time(Stage::Xsph, || fluid.apply_xsph());
         }
         timer.time(Stage::Integrate, || {
-            self.record_max_acceleration();
-            self.velocities
+            fluid.record_max_acceleration();
+            fluid
+                .velocities
                 .par_iter_mut()
-                .zip(self.accelerations.par_iter())
+                .zip(fluid.accelerations.par_iter())
                 .for_each(|(v, a)| *v += a * dt);
         });
-        self.pressures.par_iter_mut().for_each(|p| *p = 0.0);
+        fluid.pressures.par_iter_mut().for_each(|p| *p = 0.0);
         let (density_iterations, density_error) = timer.time(Stage::PressureSolve, || {
-            self.solve(Solve::ConstantDensity, dt, params)
+            self.solve(fluid, Solve::ConstantDensity, dt)
         });
-        if let Some(rigid) = &mut self.rigid {
+        if let Some(rigid) = &mut fluid.rigid {
             // The solve's total kappa is what `density_kappa` now holds.
-            rigid.add_pressure_reaction(
-                &self.positions,
-                &self.solver.density_kappa,
-                self.params.mass,
-            );
+            rigid.add_pressure_reaction(&fluid.positions, &self.density_kappa, fluid.params.mass);
         }
         timer.time(Stage::Integrate, || {
-            let periodic = self.periodic.as_ref();
-            self.positions
+            let periodic = fluid.periodic.as_ref();
+            fluid
+                .positions
                 .par_iter_mut()
-                .zip(self.velocities.par_iter_mut())
+                .zip(fluid.velocities.par_iter_mut())
                 .for_each(|(x, v)| {
                     *x += *v * dt;
                     confine(x, v, min, max, periodic);
                 });
-            self.move_bodies(dt, gravity, min, max);
+            fluid.move_bodies(dt, gravity, min, max);
         });
-        timer.time(Stage::NeighborSearch, || self.find_neighbors());
+        timer.time(Stage::NeighborSearch, || fluid.find_neighbors());
         timer.time(Stage::Density, || {
-            self.compute_densities();
-            self.compute_factors();
+            fluid.compute_densities();
+            self.compute_factors(fluid);
         });
         let (divergence_iterations, divergence_error) = timer.time(Stage::DivergenceSolve, || {
-            self.solve(Solve::DivergenceFree, dt, params)
+            self.solve(fluid, Solve::DivergenceFree, dt)
         });
-        if let Some(rigid) = &mut self.rigid {
+        if let Some(rigid) = &mut fluid.rigid {
             // The fluid's velocities changed at the end of the sub-step;
             // so do the bodies'.
             rigid.add_pressure_reaction(
-                &self.positions,
-                &self.solver.divergence_kappa,
-                self.params.mass,
+                &fluid.positions,
+                &self.divergence_kappa,
+                fluid.params.mass,
             );
             rigid.kick(dt);
         }
-        self.solver.last = SolveInfo {
+        fluid.last_solve = SolveInfo {
             density_iterations,
             density_error,
             divergence_iterations,
@@ -202,27 +229,37 @@ impl Fluid {
         };
     }
 
+    /// The warm-start pressures move with their particles; everything
+    /// else is recomputed before it is read.
+    fn follow(&mut self, order: &[u32], slots: usize) {
+        gather(&mut self.density_kappa, order, slots);
+    }
+
+    /// The factors and pair gradients belong to the neighbour lists.
+    fn rebuild(&mut self, fluid: &Fluid) {
+        self.compute_factors(fluid);
+    }
+}
+
+impl Dfsph {
     /// `alpha_i`, the walls' and bodies' density gradient at every
     /// particle and the pair gradients `m_j grad W_ij` the solves reuse.
-    pub(super) fn compute_factors(&mut self) {
+    fn compute_factors(&mut self, fluid: &Fluid) {
         let (positions, densities, neighbors, kernel, mass, walls, rigid) = (
-            &self.positions,
-            &self.densities,
-            &self.neighbors,
-            &self.params.gradient_kernel,
-            self.params.mass,
-            self.walls.as_ref(),
-            self.rigid.as_ref(),
+            &fluid.positions,
+            &fluid.densities,
+            &fluid.neighbors,
+            &fluid.params.gradient_kernel,
+            fluid.params.mass,
+            fluid.walls.as_ref(),
+            fluid.rigid.as_ref(),
         );
-        let scratch = &mut self.solver;
-        scratch
-            .gradients
+        self.gradients
             .resize(neighbors.pair_count(), Vector3::zeros());
-        scratch
-            .factors
+        self.factors
             .par_chunks_mut(BLOCK)
-            .zip(scratch.wall_gradients.par_chunks_mut(BLOCK))
-            .zip(pair_blocks(neighbors, &mut scratch.gradients))
+            .zip(self.wall_gradients.par_chunks_mut(BLOCK))
+            .zip(pair_blocks(neighbors, &mut self.gradients))
             .enumerate()
             .for_each(|(b, ((factors, wall_gradients), gradients))| {
                 let first = b * BLOCK;
@@ -259,36 +296,31 @@ impl Fluid {
     /// nothing every sub-step, one particle layer per iteration. The
     /// divergence solve starts from zero: warm-starting it as well made a
     /// resting tank blow up.
-    fn solve(&mut self, solve: Solve, dt: Real, params: &DfsphParams) -> (u32, Real) {
-        let rest = self.params.eos.rest_density;
-        let n = self.len().max(1) as Real;
+    fn solve(&mut self, fluid: &mut Fluid, solve: Solve, dt: Real) -> (u32, Real) {
+        let params = self.params;
+        let rest = fluid.params.eos.rest_density;
+        let n = fluid.len().max(1) as Real;
         let (tolerance, scale) = match solve {
             Solve::ConstantDensity => (params.density_tolerance, 1.0 / dt / dt),
             Solve::DivergenceFree => (params.divergence_tolerance, 1.0 / dt),
         };
-        if let Some(rigid) = &self.rigid {
-            let positions = &self.positions;
-            let scratch = &mut self.solver;
-            scratch
-                .boundary_flux
+        if let Some(rigid) = &fluid.rigid {
+            let positions = &fluid.positions;
+            self.boundary_flux
                 .par_iter_mut()
                 .enumerate()
                 .for_each(|(i, flux)| *flux = rigid.velocity_flux(i, &positions[i]));
-            scratch
-                .divergence_kappa
-                .par_iter_mut()
-                .for_each(|k| *k = 0.0);
+            self.divergence_kappa.par_iter_mut().for_each(|k| *k = 0.0);
         }
         if solve == Solve::ConstantDensity {
-            let scratch = &mut self.solver;
-            scratch.density_kappa.par_iter_mut().for_each(|k| *k *= 0.5);
-            scratch.kappa.clone_from(&scratch.density_kappa);
-            self.apply_kappa(dt);
-            self.add_pressure();
+            self.density_kappa.par_iter_mut().for_each(|k| *k *= 0.5);
+            self.kappa.clone_from(&self.density_kappa);
+            self.apply_kappa(fluid, dt);
+            self.add_pressure(fluid);
         }
         let mut iterations = 0;
         loop {
-            let mean = self.compute_source(solve, dt) / n;
+            let mean = self.compute_source(fluid, solve, dt) / n;
             let error = match solve {
                 Solve::ConstantDensity => mean / rest,
                 Solve::DivergenceFree => mean * dt / rest,
@@ -296,37 +328,36 @@ impl Fluid {
             if error <= tolerance || iterations >= params.max_iterations {
                 return (iterations, error);
             }
-            let scratch = &mut self.solver;
-            let densities = &self.densities;
-            scratch
-                .kappa
+            let densities = &fluid.densities;
+            self.kappa
                 .par_iter_mut()
-                .zip(scratch.source.par_iter())
-                .zip(scratch.factors.par_iter())
+                .zip(self.source.par_iter())
+                .zip(self.factors.par_iter())
                 .zip(densities.par_iter())
                 .for_each(|(((kappa, s), alpha), rho)| *kappa = s * alpha * scale / rho);
             let total = match solve {
-                Solve::ConstantDensity => &mut scratch.density_kappa,
+                Solve::ConstantDensity => &mut self.density_kappa,
                 // Empty without rigid bodies: nothing to sum.
-                Solve::DivergenceFree => &mut scratch.divergence_kappa,
+                Solve::DivergenceFree => &mut self.divergence_kappa,
             };
             total
                 .par_iter_mut()
-                .zip(scratch.kappa.par_iter())
+                .zip(self.kappa.par_iter())
                 .for_each(|(total, kappa)| *total += kappa);
-            self.add_pressure();
-            self.apply_kappa(dt);
+            self.add_pressure(fluid);
+            self.apply_kappa(fluid, dt);
             iterations += 1;
         }
     }
 
     /// Both solves push with the pressure form of Eq. 51, `kappa = p / rho`:
     /// the pressure a frame reports is their sum, `p = rho sum kappa`.
-    fn add_pressure(&mut self) {
-        let kappa = &self.solver.kappa;
-        self.pressures
+    fn add_pressure(&self, fluid: &mut Fluid) {
+        let kappa = &self.kappa;
+        fluid
+            .pressures
             .par_iter_mut()
-            .zip(self.densities.par_iter())
+            .zip(fluid.densities.par_iter())
             .enumerate()
             .for_each(|(i, (p, rho))| *p += kappa[i] * rho * rho);
     }
@@ -338,18 +369,12 @@ impl Fluid {
     /// `D rho_i / Dt = sum_j m_j (v_i - v_j) . grad W_ij + v_i . grad rho_wall`,
     /// less `sum_b psi_b v_b . grad W_ib` where rigid bodies move.
     /// Only compression is corrected: free surfaces may expand.
-    fn compute_source(&mut self, solve: Solve, dt: Real) -> Real {
+    fn compute_source(&mut self, fluid: &Fluid, solve: Solve, dt: Real) -> Real {
         let (velocities, densities, neighbors) =
-            (&self.velocities, &self.densities, &self.neighbors);
-        let rest = self.params.eos.rest_density;
-        let scratch = &mut self.solver;
-        let (walls, flux, gradients) = (
-            &scratch.wall_gradients,
-            &scratch.boundary_flux,
-            &scratch.gradients,
-        );
-        scratch
-            .source
+            (&fluid.velocities, &fluid.densities, &fluid.neighbors);
+        let rest = fluid.params.eos.rest_density;
+        let (walls, flux, gradients) = (&self.wall_gradients, &self.boundary_flux, &self.gradients);
+        self.source
             .par_iter_mut()
             .enumerate()
             .map(|(i, source)| {
@@ -370,12 +395,11 @@ impl Fluid {
 
     /// `v_i -= dt (sum_j m_j (kappa_i / rho_i + kappa_j / rho_j) grad W_ij
     /// + kappa_i / rho_i grad rho_wall)`.
-    fn apply_kappa(&mut self, dt: Real) {
-        let neighbors = &self.neighbors;
-        let scratch = &self.solver;
-        let (kappa, walls, gradients) =
-            (&scratch.kappa, &scratch.wall_gradients, &scratch.gradients);
-        self.velocities
+    fn apply_kappa(&self, fluid: &mut Fluid, dt: Real) {
+        let neighbors = &fluid.neighbors;
+        let (kappa, walls, gradients) = (&self.kappa, &self.wall_gradients, &self.gradients);
+        fluid
+            .velocities
             .par_iter_mut()
             .enumerate()
             .for_each(|(i, v)| {
@@ -389,14 +413,9 @@ impl Fluid {
                 *v -= push * dt;
             });
     }
-
-    /// What the last sub-step's solves achieved (zero for WCSPH).
-    pub fn last_solve(&self) -> SolveInfo {
-        self.solver.last
-    }
 }
 
-/// Particles per parallel work item of [`Fluid::compute_factors`].
+/// Particles per parallel work item of `Dfsph::compute_factors`.
 const BLOCK: usize = 256;
 
 /// Splits per-pair data aligned with `neighbors` into the runs of

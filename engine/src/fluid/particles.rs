@@ -1,27 +1,22 @@
-//! Weakly compressible SPH, tutorial Algorithm 5: neighbour search ->
-//! densities -> pressures -> pressure forces -> viscosity -> XSPH ->
-//! explicit integration with reflection off the domain walls.
+//! A fluid's particles: the state as structure of arrays and the passes
+//! every pressure solver shares: neighbour search -> densities -> viscosity
+//! -> XSPH -> integration with reflection off the domain's walls, plus the
+//! rigid bodies' motion and the checks of a sub-step's result.
+//!
+//! The pressure solvers (`pressure/`) run these passes in their own order
+//! and add their own; what is theirs (parameters, scratch) they keep.
 
-use super::dfsph::{DfsphParams, SolverScratch};
-use super::rigid_body::BodyState;
-use super::{BoxWalls, RigidBodies, Tait, ViscosityModel};
+use super::pressure::SolveInfo;
+use super::{BoxWalls, Tait, ViscosityModel};
 use crate::approx::{Kernel, KernelKind};
 use crate::math::{Real, Vector};
 use crate::neighbors::{CandidateSearch, NeighborList, Periodic, UniformGrid};
-use crate::stats::{Stage, StageTimer};
+use crate::rigid::{BodyState, BoundaryParams, RigidBodies};
 use rayon::prelude::*;
 
-/// Which pressure solver steps the fluid.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum PressureSolver {
-    /// Weakly compressible SPH with the Tait equation (Algorithm 5).
-    Wcsph,
-    /// Divergence-free SPH (Bender & Koschier 2015), iterated to a density
-    /// tolerance.
-    Dfsph(DfsphParams),
-}
-
-/// Physical and numerical parameters of one fluid.
+/// Physical and numerical parameters of one fluid, shared by every
+/// pressure solver (each solver keeps its own knobs, see
+/// [`super::Pressure`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FluidParams {
     /// Kernel support radius h, m.
@@ -30,6 +25,8 @@ pub struct FluidParams {
     pub density_kernel: Kernel,
     /// Kernel of the pressure gradient (spiky in Algorithm 5).
     pub gradient_kernel: Kernel,
+    /// The equation of state (tutorial Eq. 47): its rest density is every
+    /// solver's rho_0, its stiffness the weakly compressible solver's.
     pub eos: Tait,
     /// XSPH factor xi (Eq. 53); 0 skips the XSPH pass.
     pub xsph: Real,
@@ -41,7 +38,6 @@ pub struct FluidParams {
     pub mass: Real,
     /// Initial particle spacing, m.
     pub spacing: Real,
-    pub solver: PressureSolver,
 }
 
 impl FluidParams {
@@ -63,53 +59,61 @@ impl FluidParams {
         }
         rest_density / sum
     }
+
+    /// What rigid bodies in this fluid take from it: its spacing, rest
+    /// density and kernels.
+    pub fn boundary(&self) -> BoundaryParams {
+        BoundaryParams {
+            spacing: self.spacing,
+            rest_density: self.eos.rest_density,
+            density_kernel: self.density_kernel,
+            gradient_kernel: self.gradient_kernel,
+        }
+    }
 }
 
-/// A fluid: particle state as structure of arrays, plus the scratch the
-/// solver reuses every sub-step.
+/// A fluid's particles as structure of arrays, with what the shared
+/// passes read (kernels, walls, bodies, neighbour lists) and the buffers
+/// they reuse every sub-step.
 #[derive(Debug, Clone)]
 pub struct Fluid {
+    /// The parameters it was built with.
     pub params: FluidParams,
+    /// x_i, m, one per slot (see [`Fluid::ids`] for the particle in a slot).
     pub positions: Vec<Vector>,
+    /// v_i, m/s.
     pub velocities: Vec<Vector>,
     /// rho_i from the last density pass, kg/m^3.
     pub densities: Vec<Real>,
     /// p_i from the last pressure pass, Pa.
     pub pressures: Vec<Real>,
-    pub(super) accelerations: Vec<Vector>,
-    pub(super) smoothed_velocities: Vec<Vector>,
+    pub(in crate::fluid) accelerations: Vec<Vector>,
+    pub(in crate::fluid) smoothed_velocities: Vec<Vector>,
     /// Solid walls of the domain, when the scene asks for them.
-    pub(super) walls: Option<BoxWalls>,
+    pub(in crate::fluid) walls: Option<BoxWalls>,
     /// The kernel of the viscosity pass, when the scene has viscosity.
-    pub(super) viscosity_kernel: Option<Kernel>,
+    pub(in crate::fluid) viscosity_kernel: Option<Kernel>,
     /// Rigid bodies in the fluid, when the scene has any.
-    pub(super) rigid: Option<RigidBodies>,
-    pub(super) grid: UniformGrid,
+    pub(in crate::fluid) rigid: Option<RigidBodies>,
+    pub(in crate::fluid) grid: UniformGrid,
     /// Periodic axes of the domain, when the scene names any.
-    pub(super) periodic: Option<Periodic>,
-    pub(super) neighbors: NeighborList,
+    pub(in crate::fluid) periodic: Option<Periodic>,
+    pub(in crate::fluid) neighbors: NeighborList,
     /// Each slot's particle id (its index in the scene's order): the
     /// arrays are kept in Z order (see `reorder.rs`).
-    pub(super) ids: Vec<u32>,
-    pub(super) substeps_since_reorder: u32,
-    pub(super) max_acceleration: Real,
-    /// Scratch of the iterative solver, empty for WCSPH.
-    pub(super) solver: SolverScratch,
+    pub(in crate::fluid) ids: Vec<u32>,
+    pub(in crate::fluid) substeps_since_reorder: u32,
+    pub(in crate::fluid) max_acceleration: Real,
+    /// What the last sub-step's pressure solve achieved.
+    pub(in crate::fluid) last_solve: SolveInfo,
 }
 
 impl Fluid {
-    /// Particle speeds above this multiple of the speed of sound count as
-    /// a blow-up (WCSPH).
-    pub const SPEED_LIMIT: Real = 100.0;
-    /// Speeds above this count as a blow-up for incompressible solvers,
-    /// which have no sound speed: no liquid flow a scene can describe
-    /// comes near it.
-    pub const INCOMPRESSIBLE_SPEED_LIMIT: Real = 1e4;
-
     /// A fluid with the given particles; `grid` must cover the domain with
     /// cells of at least the support radius and wrap around the same
-    /// `periodic` axes.
-    pub fn new(
+    /// `periodic` axes. Densities and pressures start at rest: the
+    /// fluid's system computes them with its solver.
+    pub(in crate::fluid) fn new(
         params: FluidParams,
         positions: Vec<Vector>,
         velocities: Vec<Vector>,
@@ -118,7 +122,7 @@ impl Fluid {
         periodic: Option<Periodic>,
     ) -> Self {
         let n = positions.len();
-        let mut fluid = Self {
+        Self {
             params,
             positions,
             velocities,
@@ -146,29 +150,7 @@ impl Fluid {
             ids: (0..n as u32).collect(),
             substeps_since_reorder: 0,
             max_acceleration: 0.0,
-            solver: SolverScratch::default(),
-        };
-        // Densities and pressures of the initial state, so frame 0 and the
-        // first stability limit see real values.
-        fluid.find_neighbors();
-        fluid.compute_densities();
-        match params.solver {
-            PressureSolver::Wcsph => fluid.compute_pressures(),
-            PressureSolver::Dfsph(_) => fluid.prepare_dfsph(),
-        }
-        fluid.reorder();
-        fluid
-    }
-
-    /// Puts rigid bodies into the fluid and recomputes the densities,
-    /// pressures and solver factors they change.
-    pub fn attach_bodies(&mut self, bodies: RigidBodies) {
-        self.rigid = Some(bodies);
-        self.find_neighbors();
-        self.compute_densities();
-        match self.params.solver {
-            PressureSolver::Wcsph => self.compute_pressures(),
-            PressureSolver::Dfsph(_) => self.prepare_dfsph(),
+            last_solve: SolveInfo::default(),
         }
     }
 
@@ -177,10 +159,12 @@ impl Fluid {
         self.rigid.as_ref()
     }
 
+    /// Number of particles.
     pub fn len(&self) -> usize {
         self.positions.len()
     }
 
+    /// Whether the fluid has no particle.
     pub fn is_empty(&self) -> bool {
         self.positions.is_empty()
     }
@@ -190,35 +174,28 @@ impl Fluid {
         self.neighbors.pair_count()
     }
 
-    /// The largest sub-step the scheme allows now. WCSPH: the CFL condition
-    /// `cfl * h / (c_0 + |v|_max)` and the force condition
-    /// `cfl * sqrt(h / |a|_max)` (Monaghan 1992). DFSPH: `cfl * dx / |v|_max`
-    /// and `0.25 cfl sqrt(dx / |a|_max)`. With viscosity, also the diffusion
-    /// condition `0.125 (h/2)^2 rho_0 / mu` (Morris et al. 1997).
-    pub fn stable_dt(&self, cfl: Real) -> Real {
-        let h = self.params.support_radius;
-        let v_max = self
-            .velocities
+    /// What the last sub-step's pressure solve achieved (zero for WCSPH,
+    /// which does not iterate).
+    pub fn last_solve(&self) -> SolveInfo {
+        self.last_solve
+    }
+
+    /// The largest speed of a particle or of a body's surface: what the
+    /// CFL conditions of the solvers bound.
+    pub(in crate::fluid) fn max_speed(&self) -> Real {
+        self.velocities
             .par_iter()
             .map(|v| v.norm_squared())
             .reduce(|| 0.0, Real::max)
             .sqrt()
-            .max(self.rigid.as_ref().map_or(0.0, RigidBodies::max_speed));
-        let mut dt = match self.params.solver {
-            PressureSolver::Wcsph => cfl * h / (self.params.eos.sound_speed() + v_max),
-            // No sound speed: a particle moves at most `cfl` spacings.
-            PressureSolver::Dfsph(_) => cfl * self.params.spacing / v_max,
-        };
-        if self.max_acceleration > 0.0 {
-            dt = dt.min(match self.params.solver {
-                PressureSolver::Wcsph => cfl * (h / self.max_acceleration).sqrt(),
-                // Measured, not derived: a resting DFSPH tank under gravity
-                // rings from about 2x this step (tests/tests/validation_tank.rs).
-                PressureSolver::Dfsph(_) => {
-                    0.25 * cfl * (self.params.spacing / self.max_acceleration).sqrt()
-                }
-            });
-        }
+            .max(self.rigid.as_ref().map_or(0.0, RigidBodies::max_speed))
+    }
+
+    /// `dt` bounded, with viscosity, by the diffusion condition
+    /// `0.125 (h/2)^2 rho_0 / mu` (Morris et al. 1997), which every solver
+    /// obeys.
+    pub(in crate::fluid) fn viscous_limit(&self, mut dt: Real) -> Real {
+        let h = self.params.support_radius;
         if self.params.viscosity > 0.0 {
             // Morris et al. state the condition with the smoothing length
             // of kernels whose support is twice it, so here with `h / 2`;
@@ -233,76 +210,7 @@ impl Fluid {
         dt
     }
 
-    /// One sub-step of length `dt` with the scene's solver, reflecting
-    /// particles off the walls of `[min, max]`.
-    pub fn substep(
-        &mut self,
-        dt: Real,
-        gravity: &Vector,
-        min: &Vector,
-        max: &Vector,
-        timer: &mut StageTimer,
-    ) {
-        self.substeps_since_reorder += 1;
-        match self.params.solver {
-            PressureSolver::Wcsph => self.wcsph_substep(dt, gravity, min, max, timer),
-            PressureSolver::Dfsph(params) => {
-                self.dfsph_substep(dt, gravity, min, max, &params, timer)
-            }
-        }
-    }
-
-    /// One explicit WCSPH sub-step (Algorithm 5).
-    fn wcsph_substep(
-        &mut self,
-        dt: Real,
-        gravity: &Vector,
-        min: &Vector,
-        max: &Vector,
-        timer: &mut StageTimer,
-    ) {
-        timer.time(Stage::NeighborSearch, || self.find_neighbors());
-        timer.time(Stage::Density, || {
-            self.compute_densities();
-            self.compute_pressures();
-        });
-        timer.time(Stage::PressureForce, || {
-            pressure_accelerations(
-                &self.positions,
-                &self.densities,
-                &self.pressures,
-                self.params.mass,
-                &self.neighbors,
-                &self.params.gradient_kernel,
-                self.walls.as_ref(),
-                gravity,
-                &mut self.accelerations,
-            );
-            if let Some(rigid) = &mut self.rigid {
-                rigid.add_forces(
-                    &self.positions,
-                    &self.velocities,
-                    &self.densities,
-                    Some(&self.pressures),
-                    self.params.mass,
-                    &mut self.accelerations,
-                );
-            }
-        });
-        if let Some(kernel) = self.viscosity_kernel {
-            let model = self.params.viscosity_model;
-            timer.time(Stage::Viscosity, || self.apply_viscosity(model, &kernel));
-        }
-        if self.params.xsph > 0.0 {
-            timer.time(Stage::Xsph, || self.apply_xsph());
-        }
-        timer.time(Stage::Integrate, || {
-            self.integrate(dt, min, max);
-            self.move_bodies(dt, gravity, min, max);
-        });
-    }
-
-    pub(super) fn find_neighbors(&mut self) {
+    pub(in crate::fluid) fn find_neighbors(&mut self) {
         self.grid.rebuild(&self.positions);
         self.neighbors.build_periodic(
             &self.grid,
@@ -317,7 +225,13 @@ impl Fluid {
 
     /// Advances the rigid bodies by `dt` under the loads the fluid put on
     /// them, then puts fluid particles that ended up in a body back out.
-    pub(super) fn move_bodies(&mut self, dt: Real, gravity: &Vector, min: &Vector, max: &Vector) {
+    pub(in crate::fluid) fn move_bodies(
+        &mut self,
+        dt: Real,
+        gravity: &Vector,
+        min: &Vector,
+        max: &Vector,
+    ) {
         if let Some(rigid) = &mut self.rigid {
             rigid.advance(dt, gravity, min, max);
             rigid.enforce(
@@ -331,7 +245,7 @@ impl Fluid {
 
     /// `rho_i = sum_j m_j omega(|x_i - x_j|)` (Algorithm 5; poly6 by
     /// default), plus the walls' ghost layers (Eq. 55).
-    pub(super) fn compute_densities(&mut self) {
+    pub(in crate::fluid) fn compute_densities(&mut self) {
         let (positions, neighbors, kernel, mass, walls, rigid) = (
             &self.positions,
             &self.neighbors,
@@ -354,14 +268,6 @@ impl Fluid {
             });
     }
 
-    fn compute_pressures(&mut self) {
-        let eos = self.params.eos;
-        self.pressures
-            .par_iter_mut()
-            .zip(self.densities.par_iter())
-            .for_each(|(p, &rho)| *p = eos.pressure(rho));
-    }
-
     /// XSPH artificial viscosity (tutorial Eq. 53, Monaghan 1989) in its
     /// difference form:
     /// `v_i <- v_i + xi sum_j (2 m / (rho_i + rho_j)) (v_j - v_i) omega_ij`.
@@ -373,7 +279,7 @@ impl Fluid {
     /// written brakes uniform motion, every sub-step. The difference form
     /// leaves uniform motion alone and, with the pair-symmetric density,
     /// conserves momentum.
-    pub(super) fn apply_xsph(&mut self) {
+    pub(in crate::fluid) fn apply_xsph(&mut self) {
         let (positions, velocities, densities, neighbors, kernel, mass) = (
             &self.positions,
             &self.velocities,
@@ -401,7 +307,7 @@ impl Fluid {
     }
 
     /// Eq. 58-59 (symplectic Euler), then reflection off the walls.
-    pub(super) fn integrate(&mut self, dt: Real, min: &Vector, max: &Vector) {
+    pub(in crate::fluid) fn integrate(&mut self, dt: Real, min: &Vector, max: &Vector) {
         self.record_max_acceleration();
         let periodic = self.periodic.as_ref();
         self.positions
@@ -417,7 +323,7 @@ impl Fluid {
 
     /// Keeps the largest acceleration for the force condition of the next
     /// sub-step's limit.
-    pub(super) fn record_max_acceleration(&mut self) {
+    pub(in crate::fluid) fn record_max_acceleration(&mut self) {
         self.max_acceleration = self
             .accelerations
             .par_iter()
@@ -428,18 +334,14 @@ impl Fluid {
 
     /// The first particle whose state cannot go on: a position, velocity,
     /// density or pressure that is not finite or does not fit a frame's
-    /// f32, or a speed above [`Self::SPEED_LIMIT`] times the speed of
-    /// sound (the weakly compressible model is void there; this is how an
-    /// unstable run shows before it overflows).
-    pub fn first_invalid(&self) -> Option<Invalid> {
+    /// f32, or a speed above `max_speed` (the solver's limit: beyond it
+    /// its model is void; this is how an unstable run shows before it
+    /// overflows).
+    pub(in crate::fluid) fn first_invalid(&self, max_speed: Real) -> Option<Invalid> {
         const MAX: Real = f32::MAX as Real;
         let bad_vector = |v: &Vector| v.iter().any(|c| !c.is_finite() || c.abs() >= MAX);
         // NaN fails `is_finite`; infinities and huge values fail the bound.
         let bad_scalar = |s: &Real| !s.is_finite() || s.abs() >= MAX;
-        let max_speed = match self.params.solver {
-            PressureSolver::Wcsph => Self::SPEED_LIMIT * self.params.eos.sound_speed(),
-            PressureSolver::Dfsph(_) => Self::INCOMPRESSIBLE_SPEED_LIMIT,
-        };
         let found = |quantity, i: Option<usize>, value: Real| {
             i.map(|slot| Invalid {
                 quantity,
@@ -475,7 +377,7 @@ impl Fluid {
     }
 
     /// Copies the evolving state into `backup`, reusing its buffers.
-    pub fn save(&self, backup: &mut FluidState) {
+    pub(in crate::fluid) fn save(&self, backup: &mut FluidState) {
         backup.positions.clone_from(&self.positions);
         backup.velocities.clone_from(&self.velocities);
         backup.densities.clone_from(&self.densities);
@@ -487,9 +389,9 @@ impl Fluid {
     }
 
     /// Puts back a state saved by [`Fluid::save`], with the neighbour
-    /// lists (and DFSPH's factors and pair gradients) of its positions, so
-    /// that the next step starts from the saved state alone.
-    pub fn restore(&mut self, backup: &FluidState) {
+    /// lists of its positions (the solver rebuilds what it derives from
+    /// them).
+    pub(in crate::fluid) fn restore(&mut self, backup: &FluidState) {
         self.positions.clone_from(&backup.positions);
         self.velocities.clone_from(&backup.velocities);
         self.densities.clone_from(&backup.densities);
@@ -499,9 +401,6 @@ impl Fluid {
             rigid.restore(&backup.bodies);
         }
         self.find_neighbors();
-        if let PressureSolver::Dfsph(_) = self.params.solver {
-            self.compute_factors();
-        }
     }
 }
 
@@ -519,6 +418,7 @@ pub struct FluidState {
 /// A particle quantity that left its valid range.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Invalid {
+    /// What left its range ("position", "velocity", "density", ...).
     pub quantity: &'static str,
     /// The particle (or, for a body quantity, the body's index among the
     /// fluid's bodies).
@@ -530,7 +430,7 @@ pub struct Invalid {
 /// Keeps a particle in the domain: wraps it around the periodic axes, then
 /// reflects it off the walls of the others.
 #[inline]
-pub(super) fn confine(
+pub(in crate::fluid) fn confine(
     x: &mut Vector,
     v: &mut Vector,
     min: &Vector,
@@ -548,7 +448,7 @@ pub(super) fn confine(
 /// Mirrors a particle that crossed a wall back inside and flips its normal
 /// velocity ("reflect them off solid boundaries", tutorial Section 6.4).
 #[inline]
-pub(super) fn reflect(x: &mut Vector, v: &mut Vector, min: &Vector, max: &Vector) {
+fn reflect(x: &mut Vector, v: &mut Vector, min: &Vector, max: &Vector) {
     for a in 0..3 {
         if x[a] < min[a] {
             x[a] = min[a] + (min[a] - x[a]);
@@ -562,110 +462,9 @@ pub(super) fn reflect(x: &mut Vector, v: &mut Vector, min: &Vector, max: &Vector
     }
 }
 
-/// Accelerations from the symmetric SPH pressure gradient (tutorial
-/// Eq. 51), the walls' pressure (see [`BoxWalls`]) and gravity:
-/// `a_i = g - sum_j m_j (p_i / rho_i^2 + p_j / rho_j^2) grad omega(x_i - x_j)`
-/// (spiky in Algorithm 5). The pair terms are antisymmetric, so pressure
-/// conserves linear and angular momentum.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn pressure_accelerations(
-    positions: &[Vector],
-    densities: &[Real],
-    pressures: &[Real],
-    mass: Real,
-    neighbors: &NeighborList,
-    kernel: &Kernel,
-    walls: Option<&BoxWalls>,
-    gravity: &Vector,
-    out: &mut [Vector],
-) {
-    out.par_iter_mut().enumerate().for_each(|(i, a)| {
-        let xi = positions[i];
-        let pi = pressures[i] / (densities[i] * densities[i]);
-        let mut sum = Vector::zeros();
-        for (j, r) in neighbors.pairs(i, positions) {
-            if j == i {
-                continue;
-            }
-            let pj = pressures[j] / (densities[j] * densities[j]);
-            sum += kernel.gradient(&r, r.norm()) * (pi + pj);
-        }
-        let wall = walls.map_or(Vector::zeros(), |w| {
-            w.pressure_acceleration(&xi, pressures[i], densities[i])
-        });
-        *a = gravity - sum * mass + wall;
-    });
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testing::uniform;
-
-    /// Eq. 51 is antisymmetric in each pair, so on any particle layout and
-    /// any pressures the pressure forces sum to zero: the total momentum
-    /// change from pressure must vanish to round-off, relative to the sum of
-    /// the force magnitudes.
-    #[test]
-    fn symmetric_pressure_forces_sum_to_zero() {
-        let mut seed = 11;
-        let h = 0.1;
-        let spacing = 0.05;
-        let mut positions = Vec::new();
-        for i in 0..12 {
-            for j in 0..12 {
-                for k in 0..12 {
-                    let jitter =
-                        Vector::new(uniform(&mut seed), uniform(&mut seed), uniform(&mut seed))
-                            .map(|c| (c - 0.5) * 0.6 * spacing);
-                    positions.push(
-                        Vector::new(i as Real, j as Real, k as Real) * spacing
-                            + Vector::repeat(0.2)
-                            + jitter,
-                    );
-                }
-            }
-        }
-        let n = positions.len();
-        let min = Vector::zeros();
-        let max = Vector::repeat(1.0);
-        let mut grid = UniformGrid::new(min, max, h).expect("grid");
-        grid.rebuild(&positions);
-        let mut neighbors = NeighborList::default();
-        neighbors.build(&grid, &positions, h);
-        let densities: Vec<Real> = (0..n).map(|_| 900.0 + 200.0 * uniform(&mut seed)).collect();
-        let pressures: Vec<Real> = (0..n).map(|_| -1e3 + 1e5 * uniform(&mut seed)).collect();
-        let mass = 0.125;
-        let mut accelerations = vec![Vector::zeros(); n];
-        pressure_accelerations(
-            &positions,
-            &densities,
-            &pressures,
-            mass,
-            &neighbors,
-            &Kernel::new_3d(KernelKind::Spiky, h),
-            None,
-            &Vector::zeros(),
-            &mut accelerations,
-        );
-        let total: Vector = accelerations.iter().map(|a| a * mass).sum();
-        let scale: Real = accelerations.iter().map(|a| a.norm() * mass).sum();
-        assert!(scale > 0.0);
-        assert!(
-            total.norm() < 1e-9 * scale,
-            "net pressure force {total:?} against total magnitude {scale}"
-        );
-        // Angular momentum: every pair force is parallel to x_i - x_j.
-        let torque: Vector = positions
-            .iter()
-            .zip(&accelerations)
-            .map(|(x, a)| x.cross(&(a * mass)))
-            .sum();
-        assert!(
-            torque.norm() < 1e-9 * scale,
-            "net pressure torque {torque:?}"
-        );
-    }
 
     /// The calibrated mass gives interior lattice particles the rest
     /// density, for every kernel fit for densities.

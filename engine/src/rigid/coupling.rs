@@ -14,7 +14,7 @@
 //! - pressure: `a_i -= sum_b psi_b (p_i / rho_i^2) grad W(x_i - x_b)`
 //!   (Akinci Eq. 10): the boundary's share of `-(p_i / rho_i^2) grad rho_i`,
 //!   with the fluid's own pressure and not doubled, for the reason
-//!   [`super::BoxWalls`] gives;
+//!   [`crate::fluid::BoxWalls`] gives;
 //! - no-slip (per body): the Laplacian viscosity of Morris et al. (1997) in
 //!   the form of Monaghan (2005) with the body's surface velocity `v_b`,
 //!   `a_i += 2 (d + 2) nu sum_b (psi_b / rho_i)
@@ -33,8 +33,7 @@
 //! fluid particle found in a body is put back on its surface and loses its
 //! velocity into it (tutorial Section 6.4), the impulse going to the body.
 
-use super::FluidParams;
-use super::rigid_body::{BodyState, RigidBody, Slip};
+use super::body::{BodyState, RigidBody, Slip};
 use crate::approx::Kernel;
 use crate::math::{Real, Vector};
 use crate::neighbors::{CandidateSearch, NeighborList, UniformGrid};
@@ -61,6 +60,22 @@ fn add_loads(mut a: Loads, b: Loads) -> Loads {
         x.1 += y.1;
     }
     a
+}
+
+/// What the boundary samples take from the fluid they bound: they are
+/// spaced like its particles, stand for its rest density and enter its
+/// sums through its kernels. A plain copy of those fluid parameters, so
+/// that the bodies need not know the fluid's type.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoundaryParams {
+    /// The fluid's particle spacing, m: the samples' spacing.
+    pub spacing: Real,
+    /// The fluid's rest density rho_0, kg/m^3 (`psi_b = rho_0 V_b`).
+    pub rest_density: Real,
+    /// The fluid's density kernel (sample volumes, Akinci Eq. 4 and 6).
+    pub density_kernel: Kernel,
+    /// The fluid's gradient kernel (pressure and friction, Akinci Eq. 10).
+    pub gradient_kernel: Kernel,
 }
 
 /// The rigid bodies of a fluid with their boundary samples, flat over all
@@ -108,12 +123,12 @@ impl RigidBodies {
     /// that box with cells of the support radius.
     pub fn new(
         bodies: Vec<RigidBody>,
-        fluid: &FluidParams,
+        fluid: &BoundaryParams,
         min: &Vector,
         max: &Vector,
         grid: UniformGrid,
     ) -> Self {
-        let (spacing, rest_density) = (fluid.spacing, fluid.eos.rest_density);
+        let (spacing, rest_density) = (fluid.spacing, fluid.rest_density);
         let (density_kernel, gradient_kernel) = (fluid.density_kernel, fluid.gradient_kernel);
         let h = density_kernel.support();
         let (centre, half) = ((min + max) * 0.5, (max - min) * 0.5);
@@ -175,6 +190,7 @@ impl RigidBodies {
         set
     }
 
+    /// The bodies, in scene order.
     pub fn bodies(&self) -> &[RigidBody] {
         &self.bodies
     }

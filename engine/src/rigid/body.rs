@@ -33,8 +33,11 @@ pub enum Motion {
     /// pose, translation at `velocity` plus the oscillation, and rotation
     /// at the constant `angular_velocity` (world frame) about its centre.
     Kinematic {
+        /// m/s.
         velocity: Vector,
+        /// rad/s, world frame.
         angular_velocity: Vector,
+        /// Added to the path.
         oscillation: Option<Oscillation>,
     },
     /// Moved by gravity and the fluid (two-way coupling).
@@ -54,7 +57,10 @@ pub enum Slip {
     /// A viscous wall term with the body's surface velocity (see
     /// [`super::RigidBodies`]); `viscosity` is its dynamic viscosity mu,
     /// Pa s.
-    No { viscosity: Real },
+    No {
+        /// mu, Pa s.
+        viscosity: Real,
+    },
 }
 
 /// The part of a body that moves.
@@ -62,6 +68,7 @@ pub enum Slip {
 pub struct BodyState {
     /// Centre (of mass), m.
     pub position: Vector,
+    /// Turns the body frame into the world frame.
     pub orientation: Rotation,
     /// Velocity of the centre, m/s.
     pub velocity: Vector,
@@ -74,8 +81,11 @@ pub struct BodyState {
 /// A rigid body.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RigidBody {
+    /// Its shape in the body frame.
     pub shape: Shape,
+    /// How it moves.
     pub motion: Motion,
+    /// How the fluid meets its surface.
     pub slip: Slip,
     /// The fluid fills the inside of the shape (a container) instead of
     /// surrounding it.
@@ -84,12 +94,14 @@ pub struct RigidBody {
     pub system: usize,
     /// 2 or 3; in 2D the body moves in the plane z = 0 and turns about z.
     pub dim: usize,
+    /// Where it is and how it moves now.
     pub state: BodyState,
     /// The state it was built with: the origin of a kinematic path.
     initial: BodyState,
 }
 
 impl RigidBody {
+    /// A body in `state`, which is also the origin of a kinematic path.
     pub fn new(
         shape: Shape,
         motion: Motion,

@@ -1,0 +1,376 @@
+//! The fluid of a scene: its blocks and hand-placed particles, its
+//! physical and numerical knobs (pressure solver, kernels, walls,
+//! viscosity), and their validation.
+
+use super::error::{check_box, check_positive, check_range, check_vector};
+use super::{Aabb, Scene, SceneError, defaults};
+use crate::approx::KernelKind;
+use crate::fluid::ViscosityModel;
+use crate::math::Real;
+use crate::neighbors::{GridError, UniformGrid};
+use serde::{Deserialize, Serialize};
+
+/// A box filled with fluid particles on a regular lattice.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FluidBlock {
+    /// The box the lattice fills.
+    pub region: Aabb,
+    /// Initial velocity, m/s.
+    #[serde(default)]
+    pub velocity: [Real; 3],
+}
+
+/// One particle placed by hand, besides the blocks' lattices.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParticleSpec {
+    /// Where it starts, m.
+    pub position: [Real; 3],
+    /// Initial velocity, m/s.
+    #[serde(default)]
+    pub velocity: [Real; 3],
+}
+
+/// The pressure solver of a fluid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SolverKind {
+    /// Weakly compressible SPH (tutorial Algorithm 5): explicit, the step
+    /// limited by the sound speed that `stiffness` sets.
+    Wcsph,
+    /// Divergence-free SPH (Bender & Koschier 2015): iterated to
+    /// `density_tolerance`, the step limited by the flow speed.
+    Dfsph,
+}
+
+/// How the fluid meets the walls of the domain.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum WallModel {
+    /// Walls count in densities and push back through pressure, like layers
+    /// of ghost particles (tutorial Eq. 55); reflection guards the rest.
+    Solid,
+    /// Particles are only reflected (tutorial Section 6.4): cheaper, but
+    /// particles beside a wall lack density and cling to it.
+    Reflect,
+}
+
+/// A weakly compressible SPH fluid (Adams–Wicke tutorial, Algorithm 5).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FluidSpec {
+    /// Initial particle spacing, m.
+    pub spacing: Real,
+    /// Kernel support radius h, m; default `2 * spacing`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub support_radius: Option<Real>,
+    /// Rest density rho_0, kg/m^3.
+    #[serde(default = "default_rest_density")]
+    pub rest_density: Real,
+    /// Tait stiffness K, Pa (Eq. 47); required by the WCSPH solver.
+    #[serde(default)]
+    pub stiffness: Real,
+    /// Tait exponent gamma (Eq. 47).
+    #[serde(default = "default_gamma")]
+    pub gamma: Real,
+    /// Factor zeta on negative pressures (Eq. 54).
+    #[serde(default = "default_negative_pressure_scale")]
+    pub negative_pressure_scale: Real,
+    /// XSPH factor xi (Eq. 53); 0 runs no XSPH pass.
+    #[serde(default = "default_xsph")]
+    pub xsph: Real,
+    /// Dynamic viscosity mu, Pa s; 0 runs no viscosity pass.
+    #[serde(default = "default_viscosity")]
+    pub viscosity: Real,
+    /// The SPH form of the viscous Laplacian.
+    #[serde(default = "default_viscosity_model")]
+    pub viscosity_model: ViscosityModel,
+    /// How the fluid meets the domain's walls.
+    #[serde(default = "default_walls")]
+    pub walls: WallModel,
+    /// The pressure solver.
+    #[serde(default = "default_solver")]
+    pub solver: SolverKind,
+    /// DFSPH: largest average density error accepted (fraction of rho_0).
+    #[serde(default = "default_density_tolerance")]
+    pub density_tolerance: Real,
+    /// DFSPH: largest average density change per sub-step accepted by the
+    /// divergence-free solve (fraction of rho_0).
+    #[serde(default = "default_divergence_tolerance")]
+    pub divergence_tolerance: Real,
+    /// DFSPH: iteration cap of each solve.
+    #[serde(default = "default_max_solver_iterations")]
+    pub max_solver_iterations: u32,
+    /// Kernel of densities and XSPH averages.
+    #[serde(default = "default_density_kernel")]
+    pub density_kernel: KernelKind,
+    /// Kernel of the pressure gradient.
+    #[serde(default = "default_gradient_kernel")]
+    pub gradient_kernel: KernelKind,
+    /// Boxes filled with particles on a lattice of `spacing`.
+    #[serde(default)]
+    pub blocks: Vec<FluidBlock>,
+    /// Single particles besides the blocks (a measured state, a velocity
+    /// field); they take the blocks' particle mass.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub particles: Vec<ParticleSpec>,
+}
+
+impl FluidSpec {
+    /// The support radius h, with its default applied.
+    pub fn support_radius(&self) -> Real {
+        self.support_radius
+            .unwrap_or(defaults::SUPPORT_RATIO * self.spacing)
+    }
+
+    /// Lattice points per axis of a block in `dim` dimensions. Points sit
+    /// at the centres of spacing-sized cells, so adjacent blocks tile
+    /// without overlap; in 2D there is one layer, at z = 0.
+    fn lattice_dims(&self, block: &FluidBlock, dim: usize) -> [f64; 3] {
+        [0, 1, 2].map(|a| {
+            if a < dim {
+                (block.region.extent(a) / self.spacing + 1e-9)
+                    .floor()
+                    .max(0.0)
+            } else {
+                1.0
+            }
+        })
+    }
+
+    /// Number of particles the blocks and single particles create in
+    /// `dim` dimensions.
+    pub fn particle_count(&self, dim: usize) -> f64 {
+        self.blocks
+            .iter()
+            .map(|b| self.lattice_dims(b, dim).iter().product::<f64>())
+            .sum::<f64>()
+            + self.particles.len() as f64
+    }
+
+    /// Lattice positions of all blocks in `dim` dimensions, with each
+    /// particle's block index.
+    pub fn lattice(&self, dim: usize) -> impl Iterator<Item = ([Real; 3], usize)> + '_ {
+        self.blocks.iter().enumerate().flat_map(move |(b, block)| {
+            let [nx, ny, nz] = self.lattice_dims(block, dim).map(|n| n as usize);
+            let s = self.spacing;
+            let min = block.region.min;
+            let z = move |k: usize| {
+                if dim == 2 {
+                    0.0
+                } else {
+                    min[2] + (k as Real + 0.5) * s
+                }
+            };
+            (0..nz).flat_map(move |k| {
+                (0..ny).flat_map(move |j| {
+                    (0..nx).map(move |i| {
+                        (
+                            [
+                                min[0] + (i as Real + 0.5) * s,
+                                min[1] + (j as Real + 0.5) * s,
+                                z(k),
+                            ],
+                            b,
+                        )
+                    })
+                })
+            })
+        })
+    }
+}
+
+impl Scene {
+    pub(super) fn validate_fluid(&self, at: &str, fluid: &FluidSpec) -> Result<(), SceneError> {
+        check_positive(&format!("{at}.spacing"), fluid.spacing)?;
+        let h = fluid.support_radius();
+        check_range(
+            &format!("{at}.support_radius"),
+            h,
+            fluid.spacing,
+            5.0 * fluid.spacing,
+        )
+        .map_err(|e| match e {
+            SceneError::Invalid { field, message } => SceneError::Invalid {
+                field,
+                message: format!("{message} (between 1 and 5 times `spacing`)"),
+            },
+            other => other,
+        })?;
+        check_positive(&format!("{at}.rest_density"), fluid.rest_density)?;
+        match fluid.solver {
+            SolverKind::Wcsph => {
+                check_positive(&format!("{at}.stiffness"), fluid.stiffness).map_err(
+                    |e| match e {
+                        SceneError::Invalid { field, message } => SceneError::Invalid {
+                            field,
+                            message: format!(
+                                "{message} (the wcsph solver needs the Tait stiffness)"
+                            ),
+                        },
+                        other => other,
+                    },
+                )?;
+                // Water's bulk modulus is 2.2e9 Pa; beyond 1e12 the explicit
+                // sub-steps would be needlessly tiny and pressures overflow frames.
+                check_range(&format!("{at}.stiffness"), fluid.stiffness, 0.0, 1e12)?;
+            }
+            SolverKind::Dfsph => {
+                check_range(
+                    &format!("{at}.density_tolerance"),
+                    fluid.density_tolerance,
+                    1e-6,
+                    0.1,
+                )?;
+                check_range(
+                    &format!("{at}.divergence_tolerance"),
+                    fluid.divergence_tolerance,
+                    1e-6,
+                    0.1,
+                )?;
+                if fluid.max_solver_iterations == 0 || fluid.max_solver_iterations > 10_000 {
+                    return Err(SceneError::invalid(
+                        format!("{at}.max_solver_iterations"),
+                        format!("must be in [1, 10000], got {}", fluid.max_solver_iterations),
+                    ));
+                }
+            }
+        }
+        check_range(&format!("{at}.gamma"), fluid.gamma, 1.0, 10.0)?;
+        check_range(
+            &format!("{at}.negative_pressure_scale"),
+            fluid.negative_pressure_scale,
+            0.0,
+            1.0,
+        )?;
+        check_range(&format!("{at}.xsph"), fluid.xsph, 0.0, 1.0)?;
+        // Honey is about 10 Pa s; beyond 1e4 the diffusion limit of the
+        // explicit step makes sub-steps vanishingly small.
+        check_range(&format!("{at}.viscosity"), fluid.viscosity, 0.0, 1e4)?;
+        if fluid.density_kernel == KernelKind::Viscosity {
+            return Err(SceneError::invalid(
+                format!("{at}.density_kernel"),
+                "viscosity is infinite at zero distance; use poly6, cubic_spline, wendland_c2 or spiky",
+            ));
+        }
+        if fluid.blocks.is_empty() && fluid.particles.is_empty() {
+            return Err(SceneError::invalid(
+                format!("{at}.blocks"),
+                "is empty and so is `particles`; add at least one block of fluid",
+            ));
+        }
+        for (i, particle) in fluid.particles.iter().enumerate() {
+            let field = format!("{at}.particles[{i}]");
+            check_vector(&format!("{field}.position"), particle.position)?;
+            check_vector(&format!("{field}.velocity"), particle.velocity)?;
+            let outside = (0..self.dimension).find(|&a| {
+                particle.position[a] < self.domain.min[a]
+                    || particle.position[a] > self.domain.max[a]
+            });
+            if let Some(a) = outside {
+                let axis = ["x", "y", "z"][a];
+                return Err(SceneError::invalid(
+                    format!("{field}.position"),
+                    format!(
+                        "lies outside the domain: {axis} = {} is not in [{}, {}]; move the particle \
+                         inside or widen the domain",
+                        particle.position[a], self.domain.min[a], self.domain.max[a]
+                    ),
+                ));
+            }
+        }
+        let domain = Aabb {
+            min: self.domain.min,
+            max: self.domain.max,
+        };
+        for (b, block) in fluid.blocks.iter().enumerate() {
+            let field = format!("{at}.blocks[{b}]");
+            check_box(&format!("{field}.region"), &block.region, self.dimension)?;
+            check_vector(&format!("{field}.velocity"), block.velocity)?;
+            if !domain.contains(&block.region, 1e-9 * fluid.spacing, self.dimension) {
+                return Err(SceneError::invalid(
+                    format!("{field}.region"),
+                    "must lie inside the domain",
+                ));
+            }
+            if fluid.lattice_dims(block, self.dimension).contains(&0.0) {
+                return Err(SceneError::invalid(
+                    format!("{field}.region"),
+                    format!(
+                        "holds no particle at spacing {}; make it at least one spacing wide on every axis",
+                        fluid.spacing
+                    ),
+                ));
+            }
+            if let Some(o) = fluid.blocks[..b]
+                .iter()
+                .position(|other| other.region.overlaps(&block.region, self.dimension))
+            {
+                return Err(SceneError::invalid(
+                    format!("{field}.region"),
+                    format!("overlaps {at}.blocks[{o}]; particles would coincide"),
+                ));
+            }
+        }
+        let (min, max) = self.simulation_box(h);
+        let periodic = self.periodic_axes();
+        for (a, axis) in ["x", "y", "z"].iter().enumerate() {
+            let period = max[a] - min[a];
+            let needed = UniformGrid::MIN_PERIODIC_CELLS as Real * h;
+            if periodic[a] && period < needed {
+                return Err(SceneError::invalid(
+                    format!("periodic.{axis}"),
+                    format!(
+                        "the domain spans {period} m along {axis}, below {} support radii \
+                         ({needed} m); widen the domain or make {axis} non-periodic",
+                        UniformGrid::MIN_PERIODIC_CELLS
+                    ),
+                ));
+            }
+        }
+        UniformGrid::with_periodic(min, max, h, periodic)
+            .map_err(|e: GridError| SceneError::invalid("domain", e.to_string()))?;
+        Ok(())
+    }
+}
+
+fn default_rest_density() -> Real {
+    defaults::REST_DENSITY
+}
+fn default_gamma() -> Real {
+    defaults::GAMMA
+}
+fn default_negative_pressure_scale() -> Real {
+    defaults::NEGATIVE_PRESSURE_SCALE
+}
+fn default_xsph() -> Real {
+    defaults::XSPH
+}
+fn default_viscosity() -> Real {
+    defaults::VISCOSITY
+}
+fn default_viscosity_model() -> ViscosityModel {
+    defaults::VISCOSITY_MODEL
+}
+fn default_solver() -> SolverKind {
+    defaults::SOLVER
+}
+fn default_density_tolerance() -> Real {
+    defaults::DENSITY_TOLERANCE
+}
+fn default_divergence_tolerance() -> Real {
+    defaults::DIVERGENCE_TOLERANCE
+}
+fn default_max_solver_iterations() -> u32 {
+    defaults::MAX_SOLVER_ITERATIONS
+}
+fn default_walls() -> WallModel {
+    defaults::WALLS
+}
+fn default_density_kernel() -> KernelKind {
+    defaults::DENSITY_KERNEL
+}
+fn default_gradient_kernel() -> KernelKind {
+    defaults::GRADIENT_KERNEL
+}

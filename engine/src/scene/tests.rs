@@ -1,0 +1,316 @@
+//! The scene's parsing and validation: defaults, round trips, and every
+//! bad value rejected naming its field.
+
+use super::*;
+
+const SMALL: &str = r#"
+    name = "small"
+    [domain]
+    min = [0.0, 0.0, 0.0]
+    max = [1.0, 1.0, 1.0]
+    [time]
+    dt = 0.01
+    [[systems]]
+    kind = "fluid"
+    spacing = 0.1
+    stiffness = 1000.0
+    [[systems.blocks]]
+    region = { min = [0.0, 0.0, 0.0], max = [0.5, 0.5, 0.5] }
+"#;
+
+fn small() -> Scene {
+    Scene::from_toml_str(SMALL).expect("valid scene")
+}
+
+fn rejected_field(scene: &Scene) -> String {
+    match scene.validate(&BuildOptions::default()) {
+        Err(SceneError::Invalid { field, .. }) => field,
+        other => panic!("expected an invalid field, got {other:?}"),
+    }
+}
+
+fn fluid(scene: &mut Scene) -> &mut FluidSpec {
+    match &mut scene.systems[0] {
+        SystemSpec::Fluid(f) => f,
+        SystemSpec::RigidBody(_) | SystemSpec::Solid(_) => {
+            panic!("the first system is the fluid")
+        }
+    }
+}
+
+#[test]
+fn toml_defaults_are_applied() {
+    let scene = small();
+    assert_eq!(scene.gravity, defaults::GRAVITY);
+    assert_eq!(scene.time.max_substeps, defaults::MAX_SUBSTEPS);
+    let mut s = scene.clone();
+    let f = fluid(&mut s);
+    assert_eq!(f.support_radius(), 0.2);
+    assert_eq!(f.gamma, defaults::GAMMA);
+    assert_eq!(scene.particle_count(), 125.0);
+    assert_eq!(f.lattice(3).count(), 125);
+    assert_eq!(f.lattice(2).count(), 25);
+    assert!(f.lattice(2).all(|(x, _)| x[2] == 0.0));
+}
+
+#[test]
+fn toml_round_trips() {
+    let scene = small();
+    let again = Scene::from_toml_str(&scene.to_toml_string()).expect("round trip");
+    assert_eq!(scene, again);
+}
+
+/// Each kind of bad value is rejected with the path of its field.
+#[test]
+fn bad_values_name_their_field() {
+    let mut s = small();
+    fluid(&mut s).spacing = -1.0;
+    assert_eq!(rejected_field(&s), "systems[0].spacing");
+
+    let mut s = small();
+    fluid(&mut s).support_radius = Some(Real::NAN);
+    assert_eq!(rejected_field(&s), "systems[0].support_radius");
+
+    let mut s = small();
+    fluid(&mut s).support_radius = Some(0.0);
+    assert_eq!(rejected_field(&s), "systems[0].support_radius");
+
+    let mut s = small();
+    s.domain.max[1] = s.domain.min[1];
+    assert_eq!(rejected_field(&s), "domain");
+
+    let mut s = small();
+    s.gravity[2] = Real::INFINITY;
+    assert_eq!(rejected_field(&s), "gravity.z");
+
+    let mut s = small();
+    s.time.dt = 0.0;
+    assert_eq!(rejected_field(&s), "time.dt");
+
+    let mut s = small();
+    fluid(&mut s).blocks[0].region.max = [2.0, 0.5, 0.5];
+    assert_eq!(rejected_field(&s), "systems[0].blocks[0].region");
+
+    let mut s = small();
+    let block = fluid(&mut s).blocks[0].clone();
+    fluid(&mut s).blocks.push(block);
+    assert_eq!(rejected_field(&s), "systems[0].blocks[1].region");
+
+    let mut s = small();
+    fluid(&mut s).particles.push(ParticleSpec {
+        position: [0.5, 1.5, 0.5],
+        velocity: [0.0; 3],
+    });
+    assert_eq!(rejected_field(&s), "systems[0].particles[0].position");
+
+    let mut s = small();
+    fluid(&mut s).particles.push(ParticleSpec {
+        position: [0.5, 0.5, 0.5],
+        velocity: [0.0, Real::NAN, 0.0],
+    });
+    assert_eq!(rejected_field(&s), "systems[0].particles[0].velocity.y");
+
+    // Three support radii (0.6 m) fit in the 1 m box; 0.5 m does not.
+    let mut s = small();
+    s.periodic = [false, true, false];
+    assert!(s.validate(&BuildOptions::default()).is_ok());
+    s.domain.max[1] = 0.5;
+    fluid(&mut s).blocks[0].region.max[1] = 0.5;
+    assert_eq!(rejected_field(&s), "periodic.y");
+
+    let mut s = small();
+    s.systems.clear();
+    assert_eq!(rejected_field(&s), "systems");
+
+    let mut s = small();
+    s.domain.max = [1e6, 1e6, 1e6];
+    assert_eq!(rejected_field(&s), "domain");
+}
+
+/// The stiffness is the WCSPH solver's knob: required there, not for
+/// DFSPH, whose own knobs are range-checked instead.
+#[test]
+fn each_solver_checks_its_own_knobs() {
+    let mut s = small();
+    fluid(&mut s).stiffness = 0.0;
+    assert_eq!(rejected_field(&s), "systems[0].stiffness");
+    fluid(&mut s).solver = SolverKind::Dfsph;
+    s.validate(&BuildOptions::default())
+        .expect("DFSPH needs no stiffness");
+    fluid(&mut s).density_tolerance = 0.0;
+    assert_eq!(rejected_field(&s), "systems[0].density_tolerance");
+    fluid(&mut s).density_tolerance = 0.001;
+    fluid(&mut s).max_solver_iterations = 0;
+    assert_eq!(rejected_field(&s), "systems[0].max_solver_iterations");
+}
+
+#[test]
+fn particle_limit_is_enforced_before_allocation() {
+    let mut s = small();
+    fluid(&mut s).spacing = 0.001;
+    fluid(&mut s).support_radius = Some(0.004);
+    let err = s
+        .validate(&BuildOptions {
+            max_particles: 1000,
+        })
+        .expect_err("limit");
+    assert!(
+        matches!(err, SceneError::TooManyParticles { limit: 1000, .. }),
+        "{err}"
+    );
+}
+
+fn with_body(body: &str) -> Scene {
+    Scene::from_toml_str(&format!(
+        "{SMALL}\n[[systems]]\nkind = \"rigid_body\"\n{body}"
+    ))
+    .expect("parses")
+}
+
+/// A valid body builds; each bad body spec is rejected naming its
+/// field, with the scene path of the body (systems[1]).
+#[test]
+fn bad_bodies_name_their_field() {
+    let ball = "shape = { type = \"sphere\", radius = 0.1 }\nposition = [0.7, 0.7, 0.7]";
+    let s = with_body(&format!("{ball}\nmotion = \"dynamic\"\ndensity = 500.0"));
+    let world = s.build(&BuildOptions::default()).expect("valid body");
+    assert_eq!(world.frame().bodies.len(), 1);
+    assert_eq!(
+        Scene::from_toml_str(&s.to_toml_string()).expect("round trip"),
+        s
+    );
+    let mut periodic = s.clone();
+    periodic.periodic = [true, false, false];
+    assert_eq!(rejected_field(&periodic), "systems[1]");
+
+    let cases = [
+        (
+            "shape = { type = \"sphere\", radius = 0.0 }\nposition = [0.5, 0.5, 0.5]",
+            "systems[1].shape.radius",
+        ),
+        (
+            "shape = { type = \"box\", half_extents = [0.1, -0.1, 0.1] }\nposition = [0.5, 0.5, 0.5]",
+            "systems[1].shape.half_extents.y",
+        ),
+        (
+            "shape = { type = \"capsule\", half_length = -1.0, radius = 0.1 }\nposition = [0.5, 0.5, 0.5]",
+            "systems[1].shape.half_length",
+        ),
+        (
+            "shape = { type = \"plane\", normal = [0.0, 0.0, 0.0] }\nposition = [0.5, 0.1, 0.5]",
+            "systems[1].shape.normal",
+        ),
+        (
+            "shape = { type = \"plane\", normal = [0.0, 1.0, 0.0] }\nposition = [0.5, 2.0, 0.5]",
+            "systems[1]",
+        ),
+        (
+            "shape = { type = \"sphere\", radius = 0.1 }\nposition = [1.5, 0.5, 0.5]",
+            "systems[1].position",
+        ),
+        (
+            "shape = { type = \"sphere\", radius = 10.0 }\nposition = [0.5, 0.5, 0.5]",
+            "systems[1].shape",
+        ),
+        (
+            &format!("{ball}\nmotion = \"dynamic\""),
+            "systems[1].density",
+        ),
+        (
+            &format!("{ball}\nmotion = \"dynamic\"\ndensity = -1.0"),
+            "systems[1].density",
+        ),
+        (&format!("{ball}\ndensity = 500.0"), "systems[1].density"),
+        (
+            &format!("{ball}\nvelocity = [1.0, 0.0, 0.0]"),
+            "systems[1].motion",
+        ),
+        (
+            &format!("{ball}\nmotion = \"dynamic\"\ndensity = 500.0\nhollow = true"),
+            "systems[1].hollow",
+        ),
+        (
+            &format!(
+                "{ball}\nmotion = \"kinematic\"\noscillation = {{ amplitude = [0.1, 0.0, 0.0], frequency = 0.0 }}"
+            ),
+            "systems[1].oscillation.frequency",
+        ),
+        (&format!("{ball}\nslip = \"no\""), "systems[1].viscosity"),
+        (
+            &format!("{ball}\norientation = [0.0, 0.0, nan]"),
+            "systems[1].orientation.z",
+        ),
+        (
+            "shape = { type = \"plane\", normal = [0.0, 1.0, 0.0] }\nposition = [0.5, 0.1, 0.5]\nmotion = \"dynamic\"\ndensity = 1.0",
+            "systems[1].motion",
+        ),
+    ];
+    for (body, field) in cases {
+        assert_eq!(rejected_field(&with_body(body)), field, "{body}");
+    }
+
+    let mut planar = with_body(&format!("{ball}\norientation = [0.3, 0.0, 0.0]"));
+    planar.dimension = 2;
+    assert_eq!(rejected_field(&planar), "systems[1].orientation");
+
+    // A body without a fluid.
+    let mut lonely = with_body(ball);
+    lonely.systems.remove(0);
+    assert_eq!(rejected_field(&lonely), "systems[0]");
+    // An unknown shape key is a parse error naming it.
+    let err = Scene::from_toml_str(&format!(
+        "{SMALL}\n[[systems]]\nkind = \"rigid_body\"\nshape = {{ type = \"sphere\", radius = 0.1, radios = 1.0 }}\nposition = [0.5, 0.5, 0.5]"
+    ))
+    .expect_err("unknown key");
+    assert!(err.to_string().contains("radios"), "{err}");
+}
+
+/// A surface is optional, defaults its cell to half the spacing, and
+/// names its field when out of range, in 2D or too fine for the domain.
+#[test]
+fn surfaces_are_validated() {
+    let text = SMALL.replace("[time]", "[output]\nsurface = {}\n[time]");
+    let s = Scene::from_toml_str(&text).expect("surface with defaults");
+    let surface = s.output.surface.clone().expect("a surface");
+    assert_eq!((surface.cell(0.1), surface.iso), (0.05, 0.5));
+    s.validate(&BuildOptions::default()).expect("valid");
+    assert_eq!(
+        Scene::from_toml_str(&s.to_toml_string()).expect("round trip"),
+        s
+    );
+    assert_eq!(small().output.surface, None);
+
+    let with = |cell: Option<Real>, iso: Real| {
+        let mut s = s.clone();
+        s.output.surface = Some(SurfaceSpec { cell, iso });
+        s
+    };
+    assert_eq!(rejected_field(&with(Some(0.0), 0.5)), "output.surface.cell");
+    assert_eq!(
+        rejected_field(&with(Some(Real::NAN), 0.5)),
+        "output.surface.cell"
+    );
+    assert_eq!(rejected_field(&with(None, 1.0)), "output.surface.iso");
+    assert_eq!(rejected_field(&with(None, 0.0)), "output.surface.iso");
+    let err = with(Some(1e-4), 0.5)
+        .validate(&BuildOptions::default())
+        .expect_err("10^12 nodes");
+    assert!(err.to_string().starts_with("output.surface.cell:"), "{err}");
+    assert!(err.to_string().contains("limit"), "{err}");
+
+    let mut flat = s.clone();
+    flat.dimension = 2;
+    let err = flat.validate(&BuildOptions::default()).expect_err("2D");
+    assert!(err.to_string().contains("3D only"), "{err}");
+}
+
+#[test]
+fn unknown_systems_and_keys_are_parse_errors() {
+    let text = SMALL.replace("kind = \"fluid\"", "kind = \"plasma\"");
+    let err = Scene::from_toml_str(&text).expect_err("unknown system");
+    assert!(err.to_string().contains("plasma"), "{err}");
+
+    let text = SMALL.replace("stiffness = 1000.0", "stiffness = 1000.0\nstifness = 1.0");
+    let err = Scene::from_toml_str(&text).expect_err("unknown key");
+    assert!(err.to_string().contains("stifness"), "{err}");
+}

@@ -1,0 +1,318 @@
+//! Scene -> world: the runtime systems of a validated scene, and only
+//! those it names. The scene is data and never imports the world, so
+//! [`Scene::build`] lives here.
+
+use super::system::{FluidEntry, RemovalMask, SolidEntry, System};
+use super::{Clock, StepInfo, World};
+use crate::approx::Kernel;
+use crate::fluid::{
+    BoxWalls, Dfsph, DfsphParams, FluidParams, FluidState, FluidSystem, Pressure, Tait, Wcsph,
+};
+use crate::frame::FieldKind;
+use crate::geometry::Shape;
+use crate::math::{Vector, vector};
+use crate::neighbors::{Periodic, UniformGrid};
+use crate::rigid::{BodyState, Motion, Oscillation, RigidBodies, RigidBody, Slip};
+use crate::scene::{
+    BuildOptions, FluidSpec, MotionKind, RigidBodySpec, Scene, SceneError, SlipKind, SolidSpec,
+    SolverKind, SystemSpec, WallModel, body_pose,
+};
+use crate::solid::embedded::EmbeddedSurface;
+use crate::solid::{ElasticSolid, Obstacle, Obstacles, SolidState};
+use crate::stats::StageTimer;
+use crate::surface::SurfaceExtractor;
+
+impl Scene {
+    /// Validates the scene and builds its world: only the systems and
+    /// fields the scene names.
+    ///
+    /// # Errors
+    /// See [`Scene::validate`].
+    pub fn build(&self, options: &BuildOptions) -> Result<World, SceneError> {
+        let shapes = self.checked_shapes(options)?;
+        Ok(World::new(self.clone(), shapes))
+    }
+}
+
+impl World {
+    /// Builds the world of an already validated scene (see [`Scene::build`]).
+    /// `shapes` holds the engine shape of each rigid body by system index.
+    fn new(scene: Scene, mut shapes: Vec<Option<Shape>>) -> Self {
+        let solids = build_solids(&scene, &shapes);
+        // Bodies after the fluid: they take its spacing and kernels.
+        let fluid = scene
+            .systems
+            .iter()
+            .enumerate()
+            .find_map(|(index, system)| {
+                let SystemSpec::Fluid(spec) = system else {
+                    return None;
+                };
+                let bodies: Vec<(usize, &RigidBodySpec, Shape)> = scene
+                    .systems
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(s, system)| match system {
+                        SystemSpec::RigidBody(body) => Some((s, body, shapes.get_mut(s)?.take()?)),
+                        SystemSpec::Fluid(_) | SystemSpec::Solid(_) => None,
+                    })
+                    .collect();
+                Some(build_fluid(&scene, index, spec, bodies))
+            });
+        let mut frame_fields = vec![FieldKind::Position];
+        for &kind in &scene.output.fields {
+            if !frame_fields.contains(&kind) {
+                frame_fields.push(kind);
+            }
+        }
+        // Step order: the fluid first, then the solids in scene order.
+        let systems = fluid
+            .map(|fluid| System::Fluid(Box::new(fluid)))
+            .into_iter()
+            .chain(
+                solids
+                    .into_iter()
+                    .map(|solid| System::Solid(Box::new(solid))),
+            )
+            .collect();
+        Self {
+            scene,
+            clock: Clock::default(),
+            last_step: StepInfo::default(),
+            timer: StageTimer::default(),
+            frame_fields,
+            systems,
+        }
+    }
+}
+
+/// The solids of a validated scene, each colliding with the domain walls
+/// and the scene's static rigid bodies.
+fn build_solids(scene: &Scene, shapes: &[Option<Shape>]) -> Vec<SolidEntry> {
+    let dim = scene.dimension;
+    let obstacles: Vec<Obstacle> = scene
+        .systems
+        .iter()
+        .zip(shapes)
+        .filter_map(|(system, shape)| match (system, shape) {
+            (SystemSpec::RigidBody(body), Some(shape)) if body.motion == MotionKind::Static => {
+                let (position, orientation) = body_pose(body, shape, dim);
+                Some(Obstacle {
+                    shape: shape.clone(),
+                    position,
+                    orientation,
+                })
+            }
+            _ => None,
+        })
+        .collect();
+    let walls = (vector(scene.domain.min), vector(scene.domain.max));
+    scene
+        .systems
+        .iter()
+        .zip(shapes)
+        .enumerate()
+        .filter_map(|(system, (spec, shape))| match (spec, shape) {
+            (SystemSpec::Solid(spec), Some(shape)) => {
+                let (solid, surface) = build_solid(spec, shape, dim, walls, obstacles.clone());
+                Some(SolidEntry {
+                    index: system,
+                    solid,
+                    backup: SolidState::default(),
+                    surface,
+                })
+            }
+            _ => None,
+        })
+        .collect()
+}
+
+/// Builds the engine solid of a validated spec, colliding with the
+/// domain's walls and `obstacles`.
+fn build_solid(
+    spec: &SolidSpec,
+    shape: &Shape,
+    dim: usize,
+    walls: (Vector, Vector),
+    obstacles: Vec<Obstacle>,
+) -> (ElasticSolid, Option<EmbeddedSurface>) {
+    let (rest, velocities): (Vec<Vector>, Vec<Vector>) =
+        spec.particles(shape, dim).into_iter().unzip();
+    let fixed = rest.iter().map(|x| spec.anchored(x, dim)).collect();
+    let obstacles = Obstacles {
+        shapes: obstacles,
+        walls: Some(walls),
+    };
+    // Validated by Scene::validate: a surface that cannot be embedded was
+    // refused there.
+    let surface = spec
+        .embedded_surface(shape, dim, &rest)
+        .and_then(Result::ok);
+    let solid = ElasticSolid::new(spec.params(dim), rest, velocities, fixed, obstacles)
+        .expect("validated by Scene::validate");
+    (solid, surface)
+}
+
+/// The rigid body of system `system`, coupled to `fluid`.
+fn build_body(
+    system: usize,
+    spec: &RigidBodySpec,
+    shape: Shape,
+    fluid: &FluidSpec,
+    dim: usize,
+) -> RigidBody {
+    let motion = match spec.motion {
+        MotionKind::Static => Motion::Static,
+        MotionKind::Kinematic => Motion::Kinematic {
+            velocity: vector(spec.velocity),
+            angular_velocity: vector(spec.angular_velocity),
+            oscillation: spec.oscillation.map(|o| Oscillation {
+                amplitude: vector(o.amplitude),
+                frequency: o.frequency,
+            }),
+        },
+        MotionKind::Dynamic => {
+            // Validated: dynamic bodies are bounded and have a density.
+            let density = spec.density.unwrap_or(fluid.rest_density);
+            Motion::Dynamic {
+                mass: density * shape.volume(dim).unwrap_or(0.0),
+                inertia: shape.inertia(density, dim).unwrap_or_else(Vector::zeros),
+            }
+        }
+    };
+    let slip = match spec.slip {
+        SlipKind::Free => Slip::Free,
+        SlipKind::No => Slip::No {
+            viscosity: spec.viscosity.unwrap_or(fluid.viscosity),
+        },
+    };
+    let (position, orientation) = body_pose(spec, &shape, dim);
+    let velocity = if spec.motion == MotionKind::Dynamic {
+        vector(spec.velocity)
+    } else {
+        Vector::zeros()
+    };
+    let state = BodyState {
+        position,
+        orientation,
+        velocity,
+        angular_velocity: if spec.motion == MotionKind::Dynamic {
+            vector(spec.angular_velocity)
+        } else {
+            Vector::zeros()
+        },
+        time: 0.0,
+    };
+    RigidBody::new(shape, motion, slip, spec.hollow, system, dim, state)
+}
+
+/// The fluid of a validated scene (system `index`) with its rigid bodies.
+fn build_fluid(
+    scene: &Scene,
+    index: usize,
+    spec: &FluidSpec,
+    body_specs: Vec<(usize, &RigidBodySpec, Shape)>,
+) -> FluidEntry {
+    let h = spec.support_radius();
+    let dim = scene.dimension;
+    let density_kernel = Kernel::new(spec.density_kernel, dim, h);
+    let gradient_kernel = Kernel::new(spec.gradient_kernel, dim, h);
+    let params = FluidParams {
+        support_radius: h,
+        density_kernel,
+        gradient_kernel,
+        eos: Tait {
+            stiffness: spec.stiffness,
+            gamma: spec.gamma,
+            rest_density: spec.rest_density,
+            negative_scale: spec.negative_pressure_scale,
+        },
+        xsph: spec.xsph,
+        viscosity: spec.viscosity,
+        viscosity_model: spec.viscosity_model,
+        mass: FluidParams::lattice_mass(spec.spacing, &density_kernel, spec.rest_density),
+        spacing: spec.spacing,
+    };
+    let pressure = match spec.solver {
+        SolverKind::Wcsph => Pressure::Wcsph(Wcsph),
+        SolverKind::Dfsph => Pressure::Dfsph(Box::new(Dfsph::new(DfsphParams {
+            density_tolerance: spec.density_tolerance,
+            divergence_tolerance: spec.divergence_tolerance,
+            max_iterations: spec.max_solver_iterations,
+        }))),
+    };
+    let (min, max) = scene.simulation_box(h);
+    let periodic_axes = scene.periodic_axes();
+    let walls = match spec.walls {
+        WallModel::Solid => Some(
+            BoxWalls::new(
+                min,
+                max,
+                spec.spacing,
+                params.mass,
+                &density_kernel,
+                &gradient_kernel,
+            )
+            .without_axes(periodic_axes),
+        ),
+        WallModel::Reflect => None,
+    };
+    let bodies: Vec<RigidBody> = body_specs
+        .into_iter()
+        .map(|(s, body, shape)| build_body(s, body, shape, spec, dim))
+        .collect();
+    // Bodies carve the fluid blocks: no particle starts within half a
+    // spacing of a body's surface or inside it.
+    let clear = 0.5 * spec.spacing;
+    let (positions, velocities): (Vec<Vector>, Vec<Vector>) = spec
+        .lattice(dim)
+        .map(|(x, block)| (vector(x), vector(spec.blocks[block].velocity)))
+        .chain(spec.particles.iter().map(|p| {
+            let (mut x, mut v) = (vector(p.position), vector(p.velocity));
+            if dim == 2 {
+                (x.z, v.z) = (0.0, 0.0);
+            }
+            (x, v)
+        }))
+        .filter(|(x, _)| bodies.iter().all(|b| b.excluded_distance(x) >= clear))
+        .unzip();
+    let grid = UniformGrid::with_periodic(min, max, h, periodic_axes)
+        .expect("validated by Scene::validate");
+    let periodic = Periodic::new(min, max, periodic_axes);
+    let mut fluid = FluidSystem::new(
+        params,
+        pressure,
+        positions,
+        velocities,
+        walls,
+        grid.clone(),
+        periodic,
+    );
+    if !bodies.is_empty() {
+        fluid.attach_bodies(RigidBodies::new(
+            bodies,
+            &params.boundary(),
+            &min,
+            &max,
+            grid,
+        ));
+    }
+    let surface = scene.output.surface.as_ref().map(|wanted| {
+        SurfaceExtractor::new(
+            params.density_kernel,
+            wanted.cell(spec.spacing),
+            wanted.iso,
+            min,
+            max,
+        )
+        .expect("validated by Scene::validate")
+    });
+    FluidEntry {
+        index,
+        fluid,
+        backup: FluidState::default(),
+        bounds: (min, max),
+        surface,
+        removal: RemovalMask::default(),
+    }
+}

@@ -1,0 +1,387 @@
+//! The running world: the systems a scene built, the clock, and the step.
+//!
+//! `system.rs` holds the systems (the fluid, the elastic solids) behind
+//! one small trait, each addressed by its index in the scene, with the
+//! removal masks of systems whose particle counts change; `build.rs`
+//! turns a scene into a world. A step runs in named stages: between-step
+//! changes of the particle slots (removals, sorting), then each system in
+//! turn (the fluid first, then the solids in scene order), then the clock.
+
+mod build;
+mod system;
+#[cfg(test)]
+mod tests;
+
+pub use system::RemoveError;
+
+use crate::fluid::Fluid;
+use crate::frame::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
+use crate::math::{Real, vector};
+use crate::scene::{Scene, shape_axes};
+use crate::solid::ElasticSolid;
+use crate::solid::embedded::{DeformedSurface, EmbeddingMethod};
+use crate::stats::StageTimer;
+use system::{FluidEntry, StepEnv, System};
+
+/// Where a world is in time.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Clock {
+    /// Steps completed.
+    pub step: u64,
+    /// Simulated time, s.
+    pub time: Real,
+}
+
+/// How the last step was carried out.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StepInfo {
+    /// Sub-steps the step was split into.
+    pub substeps: u32,
+    /// Shortest sub-step, s.
+    pub min_substep: Real,
+    /// Whether `max_substeps` capped the split, so sub-steps exceeded the
+    /// stability limit.
+    pub capped: bool,
+    /// Pressure-solver iterations over all sub-steps (0 for WCSPH).
+    pub solver_iterations: u32,
+    /// Worst average density error after a sub-step's pressure solve
+    /// (fraction of rho_0; 0 for WCSPH).
+    pub density_error: Real,
+}
+
+impl StepInfo {
+    /// A step of `dt` before any system took part in it.
+    fn start(dt: Real) -> Self {
+        Self {
+            substeps: 0,
+            min_substep: dt,
+            capped: false,
+            solver_iterations: 0,
+            density_error: 0.0,
+        }
+    }
+
+    /// Adds one system's share: the most sub-steps and the shortest of
+    /// any system, the iterations of all.
+    fn merge(&mut self, system: &StepInfo) {
+        self.substeps = self.substeps.max(system.substeps);
+        self.min_substep = self.min_substep.min(system.min_substep);
+        self.capped |= system.capped;
+        self.solver_iterations += system.solver_iterations;
+        self.density_error = self.density_error.max(system.density_error);
+    }
+}
+
+/// A step failed; the world is left as it was before the step.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StepError {
+    /// The fluid blew up.
+    #[error(
+        "the {quantity} of particle {particle} left its valid range ({value:e}) in sub-step \
+         {substep} of step {step}; the simulation is unstable: lower time.dt, time.cfl or the \
+         stiffness, or raise time.max_substeps"
+    )]
+    Unstable {
+        /// What left its range ("position", "velocity", ...).
+        quantity: &'static str,
+        /// The particle's id (or a body's index among the fluid's bodies).
+        particle: usize,
+        /// The offending value (a norm for vectors).
+        value: f64,
+        /// The step that failed.
+        step: u64,
+        /// The sub-step of it that failed, from 1.
+        substep: u32,
+    },
+    /// An elastic solid blew up.
+    #[error(
+        "the {quantity} of particle {particle} (of the solid in systems[{system}]) left its \
+         valid range ({value:e}) in step {step}; the solid is unstable: lower time.dt or its \
+         cfl, raise time.max_substeps, or set integrator = \"implicit\""
+    )]
+    SolidUnstable {
+        /// Index of the solid's system in the scene.
+        system: usize,
+        /// What left its range ("position", "velocity", ...).
+        quantity: &'static str,
+        /// The particle, in the solid's order.
+        particle: usize,
+        /// The offending value (a norm for vectors).
+        value: f64,
+        /// The step that failed.
+        step: u64,
+    },
+}
+
+/// State of one scene: its systems and clock. Stepped by [`World::step`].
+#[derive(Debug, Clone)]
+pub struct World {
+    scene: Scene,
+    clock: Clock,
+    last_step: StepInfo,
+    timer: StageTimer,
+    frame_fields: Vec<FieldKind>,
+    /// The systems in step order, which is also the order frames list
+    /// their particles in: the fluid first, then each solid in scene
+    /// order.
+    systems: Vec<System>,
+}
+
+impl World {
+    /// The scene the world was built from.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// Steps completed and simulated time.
+    pub fn clock(&self) -> Clock {
+        self.clock
+    }
+
+    /// How the last step was carried out.
+    pub fn last_step(&self) -> StepInfo {
+        self.last_step
+    }
+
+    /// Runs and seconds of each pass so far.
+    pub fn stages(&self) -> &StageTimer {
+        &self.timer
+    }
+
+    /// The fluid, if the scene has one.
+    pub fn fluid(&self) -> Option<&Fluid> {
+        self.fluid_entry().map(|f| f.fluid.fluid())
+    }
+
+    /// The fluid, to set up an initial state a scene cannot describe (a
+    /// velocity field, say) before stepping.
+    pub fn fluid_mut(&mut self) -> Option<&mut Fluid> {
+        self.systems.iter_mut().find_map(|s| match s {
+            System::Fluid(f) => Some(f.fluid.fluid_mut()),
+            System::Solid(_) => None,
+        })
+    }
+
+    /// Particles of every system: the fluid's, then each solid's in scene
+    /// order, the order frames list them in.
+    pub fn particle_count(&self) -> usize {
+        self.systems
+            .iter()
+            .map(|s| s.simulated().particle_count())
+            .sum()
+    }
+
+    /// The elastic solids with their system indices, in scene order.
+    pub fn solids(&self) -> impl Iterator<Item = (usize, &ElasticSolid)> {
+        self.systems.iter().filter_map(|s| match s {
+            System::Solid(s) => Some((s.index, &s.solid)),
+            System::Fluid(_) => None,
+        })
+    }
+
+    /// The solid of system `system`, to set up a state a scene cannot
+    /// describe (a deformed start, say).
+    pub fn solid_mut(&mut self, system: usize) -> Option<&mut ElasticSolid> {
+        match self.system_mut(system)? {
+            System::Solid(s) => Some(&mut s.solid),
+            System::Fluid(_) => None,
+        }
+    }
+
+    /// Marks particles of system `system` (its index in the scene) for
+    /// removal, by particle id; they leave at the start of the next step,
+    /// never during one, and frames until then still carry them. Then the
+    /// survivors' ids are renumbered in order (frames stay dense), and
+    /// their densities and pressures are those of the new neighbourhoods.
+    /// A step that fails after removing them keeps the removal: the
+    /// removal is part of the state the step started from.
+    ///
+    /// # Errors
+    /// [`RemoveError`] when the scene has no particle system at `system`,
+    /// when that system cannot remove particles, or when an id is not one
+    /// of its particles; nothing is marked then.
+    pub fn remove_particles(&mut self, system: usize, ids: &[usize]) -> Result<(), RemoveError> {
+        self.system_mut(system)
+            .ok_or(RemoveError::NoSystem { system })?
+            .simulated_mut()
+            .mark_removed(ids)
+    }
+
+    /// Advances by `scene.time.dt`, split into sub-steps that respect the
+    /// stability limit (up to `time.max_substeps`).
+    ///
+    /// # Errors
+    /// [`StepError::Unstable`] when a sub-step produced NaN, infinity or a
+    /// runaway speed, [`StepError::SolidUnstable`] when a solid did; the
+    /// world is then restored to its state before this step.
+    pub fn step(&mut self) -> Result<StepInfo, StepError> {
+        let time = &self.scene.time;
+        let env = StepEnv {
+            dt: time.dt,
+            gravity: vector(self.scene.gravity),
+            cfl: time.cfl,
+            max_substeps: time.max_substeps,
+            step: self.clock.step + 1,
+        };
+        // Stage 1, between steps: removals and sorting change the particle
+        // slots, so they happen here, never during a solve.
+        for system in &mut self.systems {
+            system.simulated_mut().start_step();
+        }
+        // Stage 2: each system in turn, saved first, so that a blow-up in
+        // any of them puts back every system stepped so far.
+        let mut info = StepInfo::start(env.dt);
+        for k in 0..self.systems.len() {
+            let system = self.systems[k].simulated_mut();
+            system.save();
+            match system.step(&env, &mut self.timer) {
+                Ok(step) => info.merge(&step),
+                Err(error) => {
+                    for system in &mut self.systems[..=k] {
+                        system.simulated_mut().restore();
+                    }
+                    return Err(error);
+                }
+            }
+        }
+        // Stage 3: the clock.
+        self.clock.step += 1;
+        self.clock.time += env.dt;
+        self.last_step = info;
+        Ok(info)
+    }
+
+    /// Whether the current step is one the scene publishes a frame for.
+    pub fn is_frame_step(&self) -> bool {
+        self.clock
+            .step
+            .is_multiple_of(u64::from(self.scene.output.frame_every))
+    }
+
+    /// The fields each frame carries, positions first.
+    pub fn frame_fields(&self) -> &[FieldKind] {
+        &self.frame_fields
+    }
+
+    /// A snapshot of the fields the scene asked for.
+    pub fn frame(&self) -> Frame {
+        let fields = self
+            .frame_fields
+            .iter()
+            .map(|&kind| FieldData {
+                kind,
+                components: kind.components(),
+                values: self.field_values(kind),
+            })
+            .collect();
+        Frame {
+            step: self.clock.step,
+            time: self.clock.time,
+            substeps: self.last_step.substeps,
+            substep_dt: self.last_step.min_substep,
+            solver_iterations: self.last_step.solver_iterations,
+            density_error: self.last_step.density_error,
+            particle_count: self.particle_count(),
+            fields,
+            bodies: self.body_poses(),
+            surface: self.fluid_entry().and_then(FluidEntry::surface_mesh),
+            solids: self.solid_ranges(),
+            solid_surfaces: self.solid_surfaces(),
+        }
+    }
+
+    /// Pose and velocity of every rigid body, in scene order.
+    pub fn body_poses(&self) -> Vec<BodyPose> {
+        let Some(rigid) = self.fluid().and_then(Fluid::bodies) else {
+            return Vec::new();
+        };
+        rigid
+            .bodies()
+            .iter()
+            .map(|b| {
+                // The frame the scene gave the shape in, about the centre.
+                let q = (b.state.orientation * shape_axes(&b.shape).inverse()).into_inner();
+                BodyPose {
+                    system: b.system,
+                    position: b.state.position.into(),
+                    orientation: [q.i, q.j, q.k, q.w],
+                    velocity: b.state.velocity.into(),
+                    angular_velocity: b.state.angular_velocity.into(),
+                }
+            })
+            .collect()
+    }
+
+    /// The deformed surface of every solid that embeds one.
+    pub fn solid_surfaces(&self) -> Vec<SolidSurface> {
+        let mut gradients = Vec::new();
+        self.systems
+            .iter()
+            .filter_map(|s| match s {
+                System::Solid(s) => Some(s),
+                System::Fluid(_) => None,
+            })
+            .filter_map(|s| {
+                let surface = s.surface.as_ref()?;
+                if surface.method() == EmbeddingMethod::Gradients {
+                    s.solid.displacement_gradients(&mut gradients);
+                } else {
+                    gradients.clear();
+                }
+                let mut deformed = DeformedSurface::new();
+                // Lengths match by construction: the surface was built
+                // from this solid's particles.
+                surface
+                    .update(&s.solid.positions, &gradients, &mut deformed)
+                    .ok()?;
+                Some(SolidSurface {
+                    system: s.index,
+                    mesh: deformed.to_mesh(surface.triangles()),
+                    normals: deformed.normals,
+                })
+            })
+            .collect()
+    }
+
+    /// Where each solid's particles sit in the frame's fields.
+    pub fn solid_ranges(&self) -> Vec<SolidRange> {
+        let mut first = 0;
+        let mut ranges = Vec::new();
+        for system in &self.systems {
+            let count = system.simulated().particle_count();
+            if let System::Solid(s) = system {
+                ranges.push(SolidRange {
+                    system: s.index,
+                    first,
+                    count,
+                });
+            }
+            first += count;
+        }
+        ranges
+    }
+
+    /// The values of one field, each system's particles in turn.
+    fn field_values(&self, kind: FieldKind) -> Vec<f32> {
+        let mut values = Vec::new();
+        for system in &self.systems {
+            system.simulated().write_field(kind, &mut values);
+        }
+        values
+    }
+
+    fn fluid_entry(&self) -> Option<&FluidEntry> {
+        self.systems.iter().find_map(|s| match s {
+            System::Fluid(f) => Some(f.as_ref()),
+            System::Solid(_) => None,
+        })
+    }
+
+    /// The system at index `system` of the scene, if it is one the world
+    /// steps (rigid bodies belong to the fluid).
+    fn system_mut(&mut self, system: usize) -> Option<&mut System> {
+        self.systems
+            .iter_mut()
+            .find(|s| s.simulated().index() == system)
+    }
+}
