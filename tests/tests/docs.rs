@@ -230,7 +230,10 @@ fn every_path_the_documents_cite_exists() {
     let mut problems = Vec::new();
     for document in documents(&root) {
         let dir = document.parent().unwrap_or(Path::new("")).to_path_buf();
-        for path in missing(&root, &dir, &read(&root, &document)) {
+        let mut paths = missing(&root, &dir, &read(&root, &document));
+        paths.sort();
+        paths.dedup();
+        for path in paths {
             problems.push(format!("{}: {path}", document.display()));
         }
     }
