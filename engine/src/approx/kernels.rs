@@ -41,6 +41,7 @@ pub enum KernelKind {
 }
 
 impl KernelKind {
+    /// Every kind, in declaration order, for tests that sweep all kernels.
     pub const ALL: [KernelKind; 5] = [
         KernelKind::Poly6,
         KernelKind::Spiky,
@@ -149,10 +150,12 @@ impl Kernel {
         Self::new(kind, 3, h)
     }
 
+    /// Which profile this kernel evaluates.
     pub fn kind(&self) -> KernelKind {
         self.kind
     }
 
+    /// The dimension (2 or 3) the normalisation `sigma_d / h^d` is for.
     pub fn dim(&self) -> usize {
         self.dim
     }

@@ -55,7 +55,9 @@ const BROOKSHAW_ETA2: Real = 0.01;
 /// (one entry per particle), which give the volumes `V_j = m_j / rho_j`.
 #[derive(Debug, Clone, Copy)]
 pub struct Samples<'a> {
+    /// `x_j`, in the scene's length unit (m).
     pub positions: &'a [Vector],
+    /// `m_j` (kg); with [`Self::densities`] they give the volumes `V_j`.
     pub masses: &'a [Real],
     /// `rho_j`, usually the density sum `sum_k m_k W_jk`; must be positive.
     pub densities: &'a [Real],
@@ -67,6 +69,7 @@ impl Samples<'_> {
         self.positions.len()
     }
 
+    /// Whether there are no particles.
     pub fn is_empty(&self) -> bool {
         self.positions.is_empty()
     }
@@ -107,6 +110,7 @@ pub enum GradientForm {
 }
 
 impl GradientForm {
+    /// Every form, in declaration order, for tests that compare them.
     pub const ALL: [GradientForm; 4] = [
         GradientForm::Plain,
         GradientForm::Corrected,
@@ -125,6 +129,7 @@ pub enum DivergenceForm {
 }
 
 impl DivergenceForm {
+    /// Every form, in declaration order, for tests that compare them.
     pub const ALL: [DivergenceForm; 2] = [DivergenceForm::Plain, DivergenceForm::Corrected];
 }
 
@@ -145,6 +150,7 @@ pub enum LaplacianForm {
 }
 
 impl LaplacianForm {
+    /// Every form, in declaration order, for tests that compare them.
     pub const ALL: [LaplacianForm; 3] = [
         LaplacianForm::Plain,
         LaplacianForm::Corrected,

@@ -8,7 +8,9 @@ use crate::math::{Real, Vector};
 /// hand rule).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct TriMesh {
+    /// Vertex positions, in the length unit of the file or scene (m).
     pub vertices: Vec<Vector>,
+    /// Corner indices into `vertices`, counter-clockwise seen from outside.
     pub triangles: Vec<[u32; 3]>,
 }
 

@@ -26,17 +26,35 @@ use std::f64::consts::PI;
 #[derive(Debug, Clone, PartialEq)]
 pub enum Shape {
     /// The box `|x| <= half_extents` on every axis.
-    Box { half_extents: Vector },
+    Box {
+        /// Half the side length along each local axis (m); z is ignored
+        /// in 2D.
+        half_extents: Vector,
+    },
     /// The ball `|x| <= radius`.
-    Sphere { radius: Real },
+    Sphere {
+        /// Radius (m).
+        radius: Real,
+    },
     /// The points within `radius` of the segment from `(0, -half_length, 0)`
     /// to `(0, half_length, 0)`: a cylinder along local y with
     /// hemispherical caps.
-    Capsule { half_length: Real, radius: Real },
+    Capsule {
+        /// Half the length of the axis segment, caps excluded (m).
+        half_length: Real,
+        /// Radius of the cylinder and its caps (m).
+        radius: Real,
+    },
     /// The half-space `normal . x <= offset` (`normal` is a unit vector
     /// pointing out of the solid, into the fluid). Infinite: no volume, and
     /// only the part of its surface near the domain is sampled.
-    Plane { normal: Vector, offset: Real },
+    Plane {
+        /// Unit outward normal, in the body frame.
+        normal: Vector,
+        /// Signed distance of the plane from the body origin along
+        /// `normal` (m).
+        offset: Real,
+    },
     /// A closed triangle mesh in its principal frame (3D only; `dim` is
     /// not consulted).
     Mesh(MeshSolid),

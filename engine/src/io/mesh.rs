@@ -18,6 +18,8 @@ pub enum MeshFormat {
 }
 
 impl MeshFormat {
+    /// The file extension without the dot (`obj`, `ply`), used to name
+    /// written files.
     pub fn extension(self) -> &'static str {
         match self {
             Self::Obj => "obj",

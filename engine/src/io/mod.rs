@@ -23,6 +23,8 @@ pub enum ExportFormat {
 }
 
 impl ExportFormat {
+    /// The file extension without the dot (`vtk`, `ply`), used to name
+    /// frame files.
     pub fn extension(self) -> &'static str {
         match self {
             Self::Vtk => "vtk",

@@ -13,8 +13,12 @@ use rayon::prelude::*;
      shrink the domain or increase the support radius"
 )]
 pub struct GridError {
+    /// Cells the box would need (product of the per-axis counts; a float
+    /// so that a huge or NaN count is reported rather than overflowing).
     pub cells: f64,
+    /// The requested cell size (m), usually the support radius.
     pub cell_size: Real,
+    /// [`UniformGrid::MAX_CELLS`], the most cells a grid may have.
     pub limit: usize,
 }
 

@@ -131,6 +131,7 @@ impl NeighborList {
         self.offsets.len().saturating_sub(1)
     }
 
+    /// Whether the lists were built for no particles.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }

@@ -19,17 +19,26 @@ use crate::math::{Real, Vector};
 /// Why a surface extractor could not be made.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SurfaceError {
+    /// The grid cell (m) given is not positive and finite.
     #[error("the grid cell must be a positive finite length, got {0}")]
     Cell(Real),
+    /// The iso value given is not in (0, 1), where the colour field
+    /// crosses from fluid to empty space.
     #[error("the iso value must lie strictly between 0 and 1, got {0}")]
     Iso(Real),
+    /// The padded region holds more than [`SurfaceExtractor::MAX_NODES`]
+    /// grid nodes at this cell size.
     #[error(
         "a surface grid of cell {cell} m over the domain needs {nodes:.3e} nodes, above the \
          limit of {limit}; increase the cell"
     )]
     TooManyNodes {
+        /// Nodes the grid would need (a float, so a huge or NaN count is
+        /// reported rather than overflowing).
         nodes: f64,
+        /// The requested grid cell (m).
         cell: Real,
+        /// [`SurfaceExtractor::MAX_NODES`].
         limit: usize,
     },
 }
@@ -94,10 +103,12 @@ impl SurfaceExtractor {
         })
     }
 
+    /// Spacing of the grid nodes (m).
     pub fn cell(&self) -> Real {
         self.cell
     }
 
+    /// The colour-field value `phi` the surface is drawn at, in (0, 1).
     pub fn iso(&self) -> Real {
         self.iso
     }

@@ -27,6 +27,7 @@ pub enum Order {
 }
 
 impl Order {
+    /// Every order, lowest first, for tests that sweep them.
     pub const ALL: [Order; 3] = [Order::Constant, Order::Linear, Order::Quadratic];
 
     /// Polynomial degree, 0, 1 or 2.

@@ -34,6 +34,8 @@ pub struct GradientWeights {
 }
 
 impl GradientWeights {
+    /// Empty weights and scratch, to pass to [`Mls::gradient_weights`]
+    /// and reuse across estimates.
     pub fn new() -> Self {
         Self::default()
     }

@@ -150,6 +150,7 @@ impl LagrangianGradients {
         self.orders.len()
     }
 
+    /// Whether no particle was precomputed.
     pub fn is_empty(&self) -> bool {
         self.orders.is_empty()
     }

@@ -66,23 +66,33 @@ pub enum MlsError {
          increase h or add nodes near this point"
     )]
     NoSupport {
+        /// The evaluation point `x` (length unit of the nodes).
         at: [Real; 3],
+        /// How many nodes were offered; none had a positive weight at `at`.
         nodes: usize,
+        /// The support radius that missed them (length unit of the nodes).
         h: Real,
     },
     /// A parameter is out of range.
     #[error("MLS parameter `{field}`: {message}")]
     InvalidParameter {
+        /// The parameter at fault: `dim`, `h`, `rank_tolerance` or `weight`.
         field: &'static str,
+        /// Its value and what to use instead.
         message: String,
     },
     /// Inputs of different lengths.
     #[error("MLS precomputation: {what}")]
-    LengthMismatch { what: String },
+    LengthMismatch {
+        /// Which inputs disagree, with both lengths.
+        what: String,
+    },
     /// A fit failed during a precomputation.
     #[error("MLS precomputation at particle {particle}: {source}")]
     AtParticle {
+        /// Index of the particle whose fit failed.
         particle: usize,
+        /// Why it failed.
         #[source]
         source: Box<MlsError>,
     },
@@ -145,6 +155,8 @@ pub struct Mls {
 }
 
 impl Mls {
+    /// An MLS approximation in `dim` dimensions, its parameters checked.
+    ///
     /// # Errors
     /// [`MlsError::InvalidParameter`] when `dim` is not 1, 2 or 3, `h` is
     /// not positive and finite, `rank_tolerance` is not in (0, 1), or the
@@ -192,10 +204,13 @@ impl Mls {
         })
     }
 
+    /// The dimension (1, 2 or 3) of the basis and of the distances; node
+    /// coordinates past it are ignored.
     pub fn dim(&self) -> usize {
         self.dim
     }
 
+    /// The parameters, as validated by [`Mls::new`].
     pub fn params(&self) -> &MlsParams {
         &self.params
     }

@@ -29,6 +29,8 @@ pub struct ShapeFunctions {
 }
 
 impl ShapeFunctions {
+    /// Empty results and scratch, to pass to [`Mls::shape_functions`]
+    /// and reuse across fits.
     pub fn new() -> Self {
         Self::default()
     }

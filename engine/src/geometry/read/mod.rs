@@ -26,6 +26,7 @@ use std::path::Path;
 /// A mesh as read, with what the reader dropped.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LoadedMesh {
+    /// The triangulated mesh, coordinates as in the file.
     pub mesh: TriMesh,
     /// Collapsed triangles (a repeated vertex index) that were dropped.
     pub dropped: usize,
