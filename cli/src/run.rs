@@ -20,8 +20,8 @@ pub struct RunArgs {
     #[arg(long, value_enum, default_value = "vtk")]
     format: Format,
     /// Format of the surface files, written beside the frames as
-    /// surface_STEP.EXT when the scene asks for a fluid surface ([output]
-    /// surface) and as solidSYSTEM_STEP.EXT, with normals, for each solid
+    /// surface_STEP.EXT when the scene asks for a fluid surface (`[output]
+    /// surface`) and as solidSYSTEM_STEP.EXT, with normals, for each solid
     /// that embeds one (a solid's surface).
     #[arg(long, value_enum, default_value = "obj")]
     surface_format: SurfaceFormat,

@@ -8,16 +8,20 @@ use meshless_proto::v1;
 /// Which problem a design solved.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum DesignKind {
+    /// A deformed shape: one frame, at time 0.
     Shape,
+    /// A motion: displacements at a series of frame times.
     Motion,
 }
 
 /// A solved design (`DesignResult`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Design {
+    /// The session the design was solved in.
     pub session_id: String,
     /// The scene system designed.
     pub system: usize,
+    /// Shape or motion.
     pub kind: DesignKind,
     /// Iterations, energies per term, convergence, frames.
     pub info: v1::DesignInfo,
@@ -32,6 +36,8 @@ pub struct Design {
 /// One event of an optimisation stream.
 #[derive(Debug, Clone, PartialEq)]
 pub enum OptimizeEvent {
+    /// A report after one solver iteration: energies per term, gradient
+    /// norm, frames so far.
     Progress(v1::DesignProgress),
     /// The last event of a successful optimisation.
     Done(Design),

@@ -7,6 +7,7 @@ use prost::Message;
 /// One particle field.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FieldView {
+    /// The quantity the field holds.
     pub kind: v1::FieldKind,
     /// Scalars per particle (3 for vectors).
     pub components: usize,
@@ -18,7 +19,9 @@ pub struct FieldView {
 /// fluid or solid.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SurfaceView {
+    /// Vertex positions, m.
     pub vertices: Vec<[f32; 3]>,
+    /// Each triangle's three indices into `vertices`.
     pub triangles: Vec<[u32; 3]>,
     /// Unit normal per vertex; empty for the fluid's surface.
     pub normals: Vec<[f32; 3]>,
@@ -124,16 +127,25 @@ impl SolidSurfaceView {
 /// A decoded frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameView {
+    /// The session that published the frame.
     pub session_id: String,
+    /// Steps completed since the scene was built or reset.
     pub step: u64,
+    /// Simulated time, s.
     pub time: f64,
+    /// Particles in every field: the fluid's, then each solid's in scene
+    /// order.
     pub particle_count: usize,
+    /// Sub-steps the last step was split into: the most any system took.
     pub substeps: u32,
+    /// The shortest of those sub-steps, s.
     pub substep_dt: f64,
     /// Pressure-solver iterations of the last step (0 for WCSPH).
     pub solver_iterations: u32,
     /// Worst average density error of the last step's solves (fraction).
     pub density_error: f64,
+    /// The particle fields: position first, then the scene's
+    /// `output.fields`, each once.
     pub fields: Vec<FieldView>,
     /// Every rigid body's pose, in scene order (empty without bodies).
     pub bodies: Vec<v1::BodyPose>,

@@ -14,6 +14,7 @@ pub enum ZenohMode {
 }
 
 impl ZenohMode {
+    /// The mode's name as zenoh's `mode` setting spells it.
     pub fn as_str(self) -> &'static str {
         match self {
             Self::Peer => "peer",

@@ -6,6 +6,8 @@
 //! client library depends on the protocol alone; the command line
 //! (`cli -> {client, wire, validation}`) links the engine and a server
 //! only under its `embedded` feature; validation sits on the engine alone.
+//! Inside the engine, the sources show that imports point downward
+//! (LAYOUT.md: `frame <- scene <- world`, systems import neither).
 
 use std::collections::BTreeSet;
 
@@ -164,5 +166,56 @@ fn validation_sits_on_the_engine_alone() {
             !FORBIDDEN.contains(&name.as_str()),
             "meshless-validation depends on {name}; the experiments need no networking"
         );
+    }
+}
+
+/// Every `.rs` file under `engine/src/DIR`, with its text.
+fn engine_sources(dir: &str) -> Vec<(std::path::PathBuf, String)> {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../engine/src")
+        .join(dir);
+    let mut pending = vec![root.clone()];
+    let mut files = Vec::new();
+    while let Some(dir) = pending.pop() {
+        let entries = std::fs::read_dir(&dir)
+            .unwrap_or_else(|e| panic!("cannot list {}: {e}", dir.display()));
+        for entry in entries {
+            let path = entry.expect("directory entry").path();
+            if path.is_dir() {
+                pending.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                let text = std::fs::read_to_string(&path)
+                    .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+                files.push((path, text));
+            }
+        }
+    }
+    assert!(!files.is_empty(), "no sources under {}", root.display());
+    files
+}
+
+/// Inside the engine, `frame <- scene <- world`: the spec never reaches
+/// for the world it is built into, and the systems (fluid, rigid bodies,
+/// solids) never import the world or the spec, so that a new system or a
+/// new spec field cannot close an import loop.
+#[test]
+fn engine_modules_import_downward_only() {
+    let rules: &[(&str, &[&str])] = &[
+        ("scene", &["crate::world"]),
+        ("fluid", &["crate::world", "crate::scene"]),
+        ("rigid", &["crate::world", "crate::scene"]),
+        ("solid", &["crate::world", "crate::scene"]),
+        ("linalg", &["crate::world", "crate::scene"]),
+    ];
+    for (dir, forbidden) in rules {
+        for (path, text) in engine_sources(dir) {
+            for module in *forbidden {
+                assert!(
+                    !text.contains(module),
+                    "{} names {module}; engine/src/{dir} must not import it (LAYOUT.md)",
+                    path.display()
+                );
+            }
+        }
     }
 }

@@ -29,19 +29,27 @@ const BETA_1: Real = 1.875_104_068_711_961;
 /// A cantilever experiment: geometry, material and the knobs under study.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Cantilever {
+    /// 2 (unit depth) or 3 (square section).
     pub dim: usize,
-    /// m.
+    /// Length `L` from the wall to the free end, m.
     pub length: Real,
+    /// Thickness `H`, m.
     pub thickness: Real,
-    /// Pa and kg/m^3.
+    /// Young's modulus `E`, Pa.
     pub young: Real,
+    /// Density `rho`, kg/m^3.
     pub density: Real,
+    /// Gravity `g`, m/s^2, pulling down.
     pub gravity: Real,
+    /// Particle spacing, m.
     pub spacing: Real,
+    /// MLS basis order.
     pub order: Order,
     /// MLS support in spacings.
     pub support: Real,
+    /// Hourglass-control weight relative to Young's modulus.
     pub hourglass: Real,
+    /// Time integrator of [`Cantilever::period`] runs.
     pub integrator: IntegratorKind,
     /// Step of the world, s (explicit sub-steps below it as needed).
     pub dt: Real,
@@ -71,6 +79,7 @@ impl Default for Cantilever {
 /// What one run measured.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Measured {
+    /// Particles of the beam.
     pub particles: usize,
     /// Tip deflection (positive down), m.
     pub value: Real,
@@ -348,12 +357,16 @@ fn parabola_vertex([(_, y0), (t1, y1), (t2, y2)]: [(Real, Real); 3]) -> Real {
 /// Why a cantilever run did not produce a figure.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CantileverError {
+    /// The beam's scene is invalid.
     #[error(transparent)]
     Scene(#[from] SceneError),
+    /// A step failed.
     #[error(transparent)]
     Step(#[from] StepError),
+    /// The scene built no solid.
     #[error("the cantilever scene holds no solid")]
     NoSolid,
+    /// The released beam never swung back.
     #[error("the tip did not turn within two beam periods; lower the step or the damping")]
     NoPeak,
 }

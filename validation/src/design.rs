@@ -108,6 +108,7 @@ impl Default for Stretch {
 /// What a [`Stretch`] solve gave.
 #[derive(Debug, Clone)]
 pub struct StretchResult {
+    /// Design particles of the box.
     pub particles: usize,
     /// Volume enclosed by the deformed surface over the rest volume, - 1.
     pub volume_change: Real,
@@ -115,7 +116,9 @@ pub struct StretchResult {
     pub discrete_volume_change: Real,
     /// Largest distance of a handle point from its target, in spacings.
     pub handle_error: Real,
+    /// The solve itself.
     pub solution: ShapeSolution,
+    /// Wall time of the solve, without building the body or measuring.
     pub elapsed: Duration,
 }
 
@@ -261,6 +264,7 @@ pub const PASSAGE_KEYFRAMES: [(Real, [Real; 3]); 3] = [
 /// What a [`Passage`] solve gave.
 #[derive(Debug, Clone)]
 pub struct PassageResult {
+    /// Design particles of the cube.
     pub particles: usize,
     /// Deepest penetration of a particle sphere into the ball over 201
     /// evenly spaced times, in spacings (0 when clear).
@@ -268,7 +272,9 @@ pub struct PassageResult {
     /// Largest distance of a particle from its keyframe target, in
     /// spacings.
     pub keyframe_error: Real,
+    /// The solve itself.
     pub solution: MotionSolution,
+    /// Wall time of the solve, without building the body or measuring.
     pub elapsed: Duration,
 }
 

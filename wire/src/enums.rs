@@ -1,4 +1,4 @@
-//! One table per wire enum. [`wire_enum!`](crate::enums::wire_enum) turns
+//! One table per wire enum. The `wire_enum!` macro turns
 //! the rows `"name" => Variant` of an engine enum into a [`WireEnum`]
 //! impl: both conversions as exhaustive matches (a variant added to either
 //! side breaks the build here until its row exists), the names as the
@@ -52,7 +52,7 @@ pub trait WireEnum: Copy + Sized + 'static {
 
 /// Implements [`WireEnum`] for an engine enum from its rows:
 ///
-/// ```ignore
+/// ```text
 /// wire_enum! {
 ///     /// Doc of the table.
 ///     SolverKind <-> SolverKind, "solver" {

@@ -423,6 +423,11 @@ mod tests {
                 .build(&BuildOptions::default())
                 .expect("valid")
                 .frame();
+            assert!(
+                frame.surface.is_some() || !frame.solid_surfaces.is_empty(),
+                "{}: a frame with a surface",
+                scene.name
+            );
             let back = frame_from_proto(frame_to_proto("s", &frame)).expect("round trip");
             let mut expected = frame.clone();
             if let Some(mesh) = &mut expected.surface {

@@ -355,8 +355,7 @@ fn to_body(b: &RigidBodySpec) -> v1::RigidBodySpec {
     }
 }
 
-/// Engine MLS order of a proto enum value; unset gives the default.
-
+/// Implicit settings with each unset field at the engine's default.
 fn implicit_from_proto(
     settings: Option<v1::ImplicitSettings>,
     field: &str,

@@ -36,10 +36,12 @@ pub struct Embedding {
 }
 
 impl Embedding {
+    /// The number of points embedded.
     pub fn len(&self) -> usize {
         self.rest.len()
     }
 
+    /// Whether no point is embedded.
     pub fn is_empty(&self) -> bool {
         self.rest.is_empty()
     }
@@ -247,6 +249,7 @@ impl DesignBody {
         Ok(body)
     }
 
+    /// The spatial dimension, 2 or 3.
     pub fn dim(&self) -> usize {
         self.dim
     }
@@ -261,10 +264,12 @@ impl DesignBody {
         self.h
     }
 
+    /// The number of design particles.
     pub fn len(&self) -> usize {
         self.rest.len()
     }
 
+    /// Whether the body has no design particle.
     pub fn is_empty(&self) -> bool {
         self.rest.is_empty()
     }
@@ -291,6 +296,8 @@ impl DesignBody {
         (&self.quadrature, &self.quadrature_volumes)
     }
 
+    /// The shape's sampled signed distance, which decides which particles
+    /// a point sees.
     pub fn inside(&self) -> &Inside {
         &self.inside
     }

@@ -19,15 +19,20 @@ use std::collections::BTreeMap;
 pub struct Constraint {
     /// Unique within a set; edits address constraints by it.
     pub name: String,
+    /// What it constrains; its fields sit beside `name` when serialised.
     #[serde(flatten)]
     pub kind: ConstraintKind,
 }
 
+/// The kinds of constraint, told apart by a `type` field when serialised.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum ConstraintKind {
+    /// Material points pinned or dragged to targets (Eq. 74).
     Handle(Handle),
+    /// A velocity at a time of a motion (Eq. 82).
     Velocity(Velocity),
+    /// A solid to stay out of (Eq. 84).
     Obstacle(Obstacle),
 }
 
@@ -37,7 +42,9 @@ pub enum ConstraintKind {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Handle {
+    /// The material points it moves.
     pub points: Selection,
+    /// Where they should go.
     pub target: Target,
     /// Keyframe time, s; none for a shape problem.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -51,11 +58,21 @@ pub struct Handle {
 pub enum Selection {
     /// Particles of a solid system of the scene, by index: their rest
     /// positions are the material points.
-    Particles { system: usize, indices: Vec<u32> },
+    Particles {
+        /// Index of the solid system in the scene.
+        system: usize,
+        /// Indices of its particles.
+        indices: Vec<u32>,
+    },
     /// Material points given directly.
     Points(Vec<[Real; 3]>),
     /// Every design particle whose rest position lies in the box.
-    Region { min: [Real; 3], max: [Real; 3] },
+    Region {
+        /// The box's lower corner, m.
+        min: [Real; 3],
+        /// The box's upper corner, m.
+        max: [Real; 3],
+    },
 }
 
 /// Where the selected points should go.
@@ -68,10 +85,13 @@ pub enum Target {
     /// A rigid motion of the points' rest positions: the rotation vector
     /// `rotation` (axis times angle, rad) about `centre`, then `translation`.
     Transform {
+        /// Applied after the rotation, m.
         #[serde(default)]
         translation: [Real; 3],
+        /// Rotation vector, rad.
         #[serde(default)]
         rotation: [Real; 3],
+        /// The point the rotation turns about, m.
         #[serde(default)]
         centre: [Real; 3],
     },
@@ -83,9 +103,11 @@ pub enum Target {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Velocity {
+    /// When it applies, s: within the keyframes' span.
     pub time: Real,
     /// m/s.
     pub velocity: [Real; 3],
+    /// The points it applies to; none for every design particle.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub points: Option<Selection>,
 }
@@ -96,6 +118,8 @@ pub struct Velocity {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Obstacle {
+    /// The solid's shape in its own frame, centred on each waypoint's
+    /// position.
     pub shape: ShapeSpec,
     /// Rotation vector of the shape, rad.
     #[serde(default)]
@@ -104,9 +128,11 @@ pub struct Obstacle {
     pub path: Vec<Waypoint>,
 }
 
+/// One point of an obstacle's path.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Waypoint {
+    /// When the obstacle is there, s; 0 if not given.
     #[serde(default)]
     pub time: Real,
     /// Where the shape's centre is, m.
@@ -139,7 +165,9 @@ pub struct Context {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("constraint `{name}`: {message}")]
 pub struct ConstraintError {
+    /// The name of the constraint at fault.
     pub name: String,
+    /// What is wrong and what to change.
     pub message: String,
 }
 
@@ -150,6 +178,7 @@ pub struct ConstraintSet {
 }
 
 impl ConstraintSet {
+    /// An empty set.
     pub fn new() -> Self {
         Self::default()
     }
@@ -199,14 +228,17 @@ impl ConstraintSet {
         self.items.values()
     }
 
+    /// The constraint called `name`, if any.
     pub fn get(&self, name: &str) -> Option<&Constraint> {
         self.items.get(name)
     }
 
+    /// The number of constraints.
     pub fn len(&self) -> usize {
         self.items.len()
     }
 
+    /// Whether the set holds no constraint.
     pub fn is_empty(&self) -> bool {
         self.items.is_empty()
     }

@@ -49,34 +49,57 @@ fn on_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
 /// Why a design could not be solved. Nothing the caller owns is changed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DesignError {
+    /// A weight, solver setting or other design or motion parameter is
+    /// unusable.
     #[error("design parameter `{field}`: {message}")]
     Parameter {
+        /// Name of the parameter at fault.
         field: &'static str,
+        /// Its value and what to change.
         message: String,
     },
+    /// A named constraint is invalid, or unusable in this problem (it
+    /// selects nothing usable, or a velocity lies outside the keyframes).
     #[error(transparent)]
     Constraint(#[from] ConstraintError),
     /// The constraints do not pose a problem of the kind asked for.
     #[error("{0}")]
     Problem(String),
+    /// A material point has no design particle within the MLS support, so
+    /// the deformation field (Eq. 72-73) is undefined there.
     #[error(
         "material point {point} at {position:?} sees no design particle within the support; \
          raise the support or lower the spacing"
     )]
-    Unsupported { point: usize, position: [Real; 3] },
+    Unsupported {
+        /// Index of the point among those embedded.
+        point: usize,
+        /// Its rest position, m.
+        position: [Real; 3],
+    },
+    /// The high-resolution surface could not be embedded in the field: a
+    /// vertex sees no particle or the mesh is invalid.
     #[error("embedded surface: {0}")]
     Surface(String),
+    /// An energy term became NaN or infinite during the solve.
     #[error(
         "the {term} energy is not finite at iteration {iteration}; lower its weight or check \
          its constraints"
     )]
     Diverged {
+        /// Name of the first non-finite term, as in [`Energies::named`].
         term: &'static str,
+        /// Iterations so far over the run when it happened.
         iteration: u32,
+        /// Every term's weighted energy at that iteration.
         energies: Energies,
     },
+    /// The observer returned `Break`; the solve stopped.
     #[error("cancelled at iteration {iteration}")]
-    Cancelled { iteration: u32 },
+    Cancelled {
+        /// Iterations so far over the run when it stopped.
+        iteration: u32,
+    },
 }
 
 impl DesignError {

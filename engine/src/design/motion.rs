@@ -57,6 +57,7 @@ use nalgebra::{Matrix3, Rotation3};
 pub struct MotionSolution {
     basis: TemporalBasis,
     frames: Vec<Vec<Vector>>,
+    /// How the last solve ended, with the frame count and sampling error.
     pub info: SolveInfo,
 }
 
@@ -97,7 +98,9 @@ impl MotionSolution {
 /// Which of the blend's time derivatives [`blend`] returns.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Derivative {
+    /// The blended displacements, m.
     Value,
+    /// Their first time derivative, m/s.
     First,
 }
 

@@ -28,11 +28,15 @@ use serde::{Deserialize, Serialize};
 pub struct Weights {
     /// Handles and keyframes: high, so targets are met closely.
     pub handle: Real,
+    /// Rigidity, Eq. 76.
     pub rigidity: Real,
     /// 0 lets the volume drift (the tutorial's Figure 13, middle).
     pub volume: Real,
+    /// Velocities at keyframe times, Eq. 82 (motion only).
     pub velocity: Real,
+    /// Acceleration at frame times, Eq. 83 (motion only).
     pub acceleration: Real,
+    /// Obstacle penetration, Eq. 84 (motion only).
     pub obstacle: Real,
 }
 
@@ -70,9 +74,11 @@ pub struct SolverParams {
     /// Stops when the gradient's largest entry, relative to the energy's
     /// scale, or the step, relative to the spacing, falls below it.
     pub tolerance: Real,
+    /// Levenberg–Marquardt iterations at most in one solve.
     pub max_iterations: u32,
     /// Relative residual of the inner conjugate-gradient solve.
     pub linear_tolerance: Real,
+    /// Conjugate-gradient iterations at most in one inner solve.
     pub max_linear_iterations: u32,
 }
 
@@ -101,7 +107,9 @@ pub struct DesignParams {
     pub support: Real,
     /// Where rigidity and volume are measured.
     pub quadrature: Quadrature,
+    /// The energy terms' weights (Eq. 78, Eq. 85).
     pub weights: Weights,
+    /// Settings of the Levenberg–Marquardt solver.
     pub solver: SolverParams,
 }
 

@@ -59,7 +59,9 @@ impl Handles {
 /// A solved shape: one displacement per design particle.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ShapeSolution {
+    /// `u_i`, m, in the body's particle order.
     pub displacements: Vec<Vector>,
+    /// How the solve ended.
     pub info: SolveInfo,
 }
 

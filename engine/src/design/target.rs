@@ -97,10 +97,12 @@ impl DesignTarget {
         })
     }
 
+    /// The index of the designed solid's system in the scene.
     pub fn system(&self) -> usize {
         self.system
     }
 
+    /// The design particles sampled in the solid's shape and their field.
     pub fn body(&self) -> &DesignBody {
         &self.body
     }

@@ -48,6 +48,7 @@ pub struct TemporalBasis {
 /// One frame's shape function and its time derivatives at some time `t`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TemporalWeight {
+    /// Index `j` of the frame in the basis's times.
     pub frame: usize,
     /// `phi_j(t)`.
     pub value: Real,
@@ -60,32 +61,83 @@ pub struct TemporalWeight {
 /// Why a temporal basis could not be built or evaluated.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum TemporalError {
+    /// Fewer than 2 frame times were given.
     #[error("a motion needs at least 2 frames, got {count}: add keyframes")]
-    TooFewFrames { count: usize },
+    TooFewFrames {
+        /// Frames given.
+        count: usize,
+    },
+    /// A frame time is NaN or infinite.
     #[error("frame {frame} has a non-finite time ({time}): give every frame a finite time")]
-    NonFiniteTime { frame: usize, time: Real },
+    NonFiniteTime {
+        /// Index of the offending frame.
+        frame: usize,
+        /// Its time, s.
+        time: Real,
+    },
+    /// A frame time is not later than the one before it.
     #[error(
         "frame {frame} (t = {time}) does not come after frame {} (t = {previous}): \
          frame times must be strictly increasing", frame - 1
     )]
     NotIncreasing {
+        /// Index of the offending frame.
         frame: usize,
+        /// Its time, s.
         time: Real,
+        /// The time of the frame before it, s.
         previous: Real,
     },
+    /// The last time minus the first is not finite.
     #[error("the frame times span [{start}, {end}] overflows: use a smaller time range")]
-    SpanOverflow { start: Real, end: Real },
+    SpanOverflow {
+        /// First frame time, s.
+        start: Real,
+        /// Last frame time, s.
+        end: Real,
+    },
+    /// Shape functions were asked for at a time outside the frames' span,
+    /// or at NaN.
     #[error("t = {t} lies outside the frames' span [{start}, {end}]: evaluate only inside it")]
-    OutOfRange { t: Real, start: Real, end: Real },
+    OutOfRange {
+        /// The requested time, s.
+        t: Real,
+        /// First frame time, s.
+        start: Real,
+        /// Last frame time, s.
+        end: Real,
+    },
+    /// A frame was to be inserted at or beyond the first or last frame
+    /// time, or at NaN.
     #[error("cannot insert a frame at t = {t}: it must lie strictly inside ({start}, {end})")]
-    InsertOutside { t: Real, start: Real, end: Real },
+    InsertOutside {
+        /// The requested time, s.
+        t: Real,
+        /// First frame time, s.
+        start: Real,
+        /// Last frame time, s.
+        end: Real,
+    },
+    /// A frame was to be inserted at the time of an existing frame.
     #[error("cannot insert a frame at t = {t}: frame {frame} is already there")]
-    InsertAtExisting { t: Real, frame: usize },
+    InsertAtExisting {
+        /// The requested time, s.
+        t: Real,
+        /// Index of the frame already at `t`.
+        frame: usize,
+    },
+    /// The Jacobi-scaled moment matrix `M(t)` is singular or its condition
+    /// estimate exceeds `MAX_CONDITION` (1e12).
     #[error(
         "the temporal moment matrix at t = {t} is ill-conditioned (condition ~{condition:e}): \
          the frames near t are too unevenly spaced; insert frames to even out the spacing"
     )]
-    IllConditioned { t: Real, condition: Real },
+    IllConditioned {
+        /// The time evaluated, s.
+        t: Real,
+        /// Frobenius condition estimate of the scaled moment matrix.
+        condition: Real,
+    },
 }
 
 impl TemporalBasis {
@@ -140,10 +192,12 @@ impl TemporalBasis {
         })
     }
 
+    /// The frame times `t_j`, s, strictly increasing.
     pub fn times(&self) -> &[Real] {
         &self.times
     }
 
+    /// The support radius `h_j` of each frame's weight, s (see [`Self::new`]).
     pub fn supports(&self) -> &[Real] {
         &self.supports
     }

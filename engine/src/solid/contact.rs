@@ -15,14 +15,18 @@ use rayon::prelude::*;
 /// A static obstacle: a shape placed in the world.
 #[derive(Debug, Clone)]
 pub struct Obstacle {
+    /// The shape in its body frame.
     pub shape: Shape,
+    /// Where the body frame's origin lies in the world, m.
     pub position: Vector,
+    /// Rotation from the body frame to the world.
     pub orientation: UnitQuaternion<Real>,
 }
 
 /// Everything a solid collides with.
 #[derive(Debug, Clone, Default)]
 pub struct Obstacles {
+    /// The static obstacles, each tested against every free particle.
     pub shapes: Vec<Obstacle>,
     /// The domain box `(min, max)`, whose walls are on the first `dim`
     /// axes; `None` for an unbounded solid.

@@ -80,49 +80,78 @@ pub enum EmbeddingMethod {
 /// change.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum EmbedError {
+    /// The solid is not 3D: an embedded surface is a triangle mesh and
+    /// follows only a 3D solid; embed the mesh in a 3D solid.
     #[error(
         "embedded surfaces are triangle meshes in 3D, but the solid is {dim}D; \
          embed the mesh in a 3D solid"
     )]
-    Dimension { dim: usize },
+    Dimension {
+        /// The solid's dimension as given.
+        dim: usize,
+    },
 
     /// The support radius (checked as the MLS parameter it is).
     #[error("embedded surface: {0}")]
     Parameter(#[from] MlsError),
 
+    /// A particle's rest position has a NaN or infinite coordinate; give
+    /// every particle finite x, y, z.
     #[error(
         "particle {particle} has a non-finite rest position; every particle needs finite x, y, z"
     )]
-    NonFiniteParticle { particle: usize },
+    NonFiniteParticle {
+        /// Index of the first such particle.
+        particle: usize,
+    },
 
+    /// The surface mesh is invalid (a non-finite vertex, or a triangle
+    /// naming a missing vertex); fix the mesh.
     #[error("surface mesh: {0}")]
     Mesh(#[from] MeshError),
 
+    /// A surface vertex has no particle within the support radius `h` (or
+    /// none that the coupling test accepts), so nothing would move it;
+    /// enlarge `h` or move the mesh inside the particles.
     #[error(
         "surface vertex {vertex} at {position:?}: none of the {particles} particles lies \
          within h = {h}; enlarge h or move the mesh inside the particles"
     )]
     NoSupport {
+        /// Index of the first unsupported vertex in the mesh.
         vertex: usize,
+        /// Its rest position, m.
         position: [Real; 3],
+        /// The support radius searched, m.
         h: Real,
+        /// How many particles the solid has.
         particles: usize,
     },
 
+    /// Alternative 1's MLS fit at a vertex failed for a reason other than
+    /// missing support; the MLS error says what to change.
     #[error("surface vertex {vertex}: {source}")]
     Mls {
+        /// Index of the vertex whose fit failed.
         vertex: usize,
+        /// Why the fit failed.
         #[source]
         source: MlsError,
     },
 
+    /// [`EmbeddedSurface::update`] got `positions` or `grad_u` with a length
+    /// other than the particle count the surface was embedded among; pass
+    /// one entry per particle of that solid.
     #[error(
         "{what} has {got} entries but the surface was embedded among {expected} particles; \
          pass one entry per particle of that solid"
     )]
     LengthMismatch {
+        /// The argument at fault: `positions` or `grad_u`.
         what: &'static str,
+        /// Its length.
         got: usize,
+        /// The particle count the surface was embedded among.
         expected: usize,
     },
 }
@@ -220,6 +249,8 @@ pub struct DeformedSurface {
 }
 
 impl DeformedSurface {
+    /// An empty surface, for [`EmbeddedSurface::update`] to fill; the same
+    /// as `Default`.
     pub fn new() -> Self {
         Self::default()
     }
@@ -485,6 +516,7 @@ impl EmbeddedSurface {
         Ok(())
     }
 
+    /// The alternative the surface was embedded with.
     pub fn method(&self) -> EmbeddingMethod {
         self.method
     }
@@ -494,6 +526,8 @@ impl EmbeddedSurface {
         self.h
     }
 
+    /// Vertices of the mesh: the length of [`DeformedSurface::vertices`]
+    /// after an update.
     pub fn vertex_count(&self) -> usize {
         match &self.tables {
             Tables::Shape(tables) => tables.vertices.len(),

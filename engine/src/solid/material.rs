@@ -38,6 +38,7 @@ pub struct Material {
 /// Stress state at one particle, kept to linearise about it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StressState {
+    /// Deformation gradient `F = I + grad u`.
     pub f: Matrix3<Real>,
     /// Elastic strain: Green strain less any plastic strain.
     pub e: Matrix3<Real>,
@@ -45,6 +46,8 @@ pub struct StressState {
     pub s: Matrix3<Real>,
     /// `det F` and `cof F`, for the volume term.
     pub det: Real,
+    /// Cofactor `cof F` (`det F F^-T` where `F` is invertible), the
+    /// derivative of `det F` in Eq. 65's volume term.
     pub cof: Matrix3<Real>,
 }
 

@@ -11,7 +11,11 @@ use serde::{Deserialize, Serialize};
 pub enum Integrator {
     /// Symplectic Euler: cheap per step, stable only below the elastic
     /// wave limit `cfl * spacing / c_p`, which the step is split to obey.
-    Explicit { cfl: Real },
+    Explicit {
+        /// The Courant number: the sub-step as a fraction of the wave
+        /// limit `spacing / c_p`.
+        cfl: Real,
+    },
     /// Backward Euler, each step solved by Newton's method with a
     /// matrix-free conjugate-gradient solve on the tangent stiffness:
     /// stable at any step, at the cost of several force evaluations.
@@ -28,10 +32,14 @@ pub struct ImplicitParams {
     /// larger (a body settled under gravity starts each step with a
     /// residual near rounding noise, which it could not reduce further).
     pub newton_tolerance: Real,
+    /// Most Newton iterations per step (at least one runs); a step that
+    /// reaches it keeps its last iterate and reports the residual left.
     pub max_newton_iterations: u32,
     /// Conjugate gradients stop at this residual relative to the
     /// right-hand side.
     pub cg_tolerance: Real,
+    /// Most conjugate-gradient iterations per Newton step's linear solve
+    /// (when CG solves it, or when Cholesky falls back to it).
     pub max_cg_iterations: u32,
     /// How each Newton step's linear system is solved.
     #[serde(default)]
@@ -132,6 +140,8 @@ pub struct SolidParams {
     pub density: Real,
     /// Young's modulus, Pa (scales the hourglass term).
     pub young: Real,
+    /// The constitutive law: Lamé parameters and volume stiffness
+    /// (tutorial Section 7.1).
     pub material: Material,
     /// MLS basis order of the displacement gradient.
     pub order: Order,
@@ -144,7 +154,9 @@ pub struct SolidParams {
     pub damping: Real,
     /// Coulomb friction against obstacles and walls.
     pub friction: Real,
+    /// How the solid advances in time.
     pub integrator: Integrator,
+    /// Plastic flow (tutorial Eq. 69); `None` keeps the solid elastic.
     pub plasticity: Option<Plasticity>,
 }
 

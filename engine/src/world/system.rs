@@ -8,6 +8,11 @@
 //! implementing [`Simulated`]. Adding a frame field: its values in each
 //! adapter's [`Simulated::write_field`].
 
+// Dispatch over systems and frame fields must name every variant: a new
+// kind or field that some arm forgets is a compile-time warning, not a
+// silently empty field.
+#![warn(clippy::wildcard_enum_match_arm)]
+
 use super::{StepError, StepInfo};
 use crate::fluid::{FluidState, FluidSystem, Invalid};
 use crate::frame::FieldKind;
