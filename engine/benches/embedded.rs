@@ -18,6 +18,9 @@ use std::time::Instant;
 mod lattice;
 use lattice::lattice;
 
+#[path = "common/smoke.rs"]
+mod smoke;
+
 type Vector = Vector3<f64>;
 
 /// Quads along each edge of a face of the box surface.
@@ -100,7 +103,9 @@ fn main() {
         "best/s"
     );
     let mut seed = 7;
-    for count in [10, 22] {
+    // Smoke mode: 216 particles around a surface of 8 x 8 quads a face, each
+    // timing once.
+    for count in smoke::pick(vec![10, 22], vec![6]) {
         let rest = lattice(count, &mut seed);
         // A bend and a twist, so that every update does real arithmetic.
         let current: Vec<Vector> = rest
@@ -111,7 +116,7 @@ fn main() {
         let mesh = refined_box(
             Vector::repeat(inset),
             Vector::repeat(count as f64 - 1.0 - inset),
-            FACE_QUADS,
+            smoke::pick(FACE_QUADS, 8),
         );
         for h in [1.5, 2.0] {
             let grad_u = gradients(&rest, &current, h);
@@ -123,7 +128,7 @@ fn main() {
                         .expect("thread pool");
                     let (surface, pre_s, (update_s, best_s)) = pool.install(|| {
                         let mut surface = None;
-                        let (pre_s, _) = timings(3, || {
+                        let (pre_s, _) = timings(smoke::pick(3, 1), || {
                             surface = Some(
                                 EmbeddedSurface::new(&mesh, &rest, 3, h, Order::Linear, method)
                                     .expect("embedding"),
@@ -134,7 +139,7 @@ fn main() {
                         surface
                             .update(&current, &grad_u, &mut out)
                             .expect("warm-up");
-                        let update_s = timings(41, || {
+                        let update_s = timings(smoke::pick(41, 1), || {
                             surface.update(&current, &grad_u, &mut out).expect("update");
                         });
                         (surface, pre_s, update_s)

@@ -21,6 +21,8 @@ use meshless_engine::{BuildOptions, Scene};
 use std::time::Instant;
 
 mod common;
+#[path = "common/smoke.rs"]
+mod smoke;
 
 /// The dam break at a given spacing and solver.
 fn scene(spacing: f64, solver: SolverKind) -> Scene {
@@ -184,11 +186,15 @@ fn main() {
             |k: usize, default| args.get(k).and_then(|a| a.parse().ok()).unwrap_or(default);
         let spacings: Vec<f64> = args.iter().skip(3).filter_map(|a| a.parse().ok()).collect();
         let spacings = if spacings.is_empty() {
-            vec![0.05, 0.0237]
+            smoke::pick(vec![0.05, 0.0237], vec![0.2])
         } else {
             spacings
         };
-        peers(number(1, 24), number(2, 24), &spacings);
+        peers(
+            number(1, smoke::pick(24, 1)),
+            number(2, smoke::pick(24, 1)),
+            &spacings,
+        );
         return;
     }
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -196,7 +202,10 @@ fn main() {
         "solver  particles  threads  sub-steps  particle-sub-steps/s  per core   neighbour pairs/s  iterations/sub-step  density error"
     );
     let mut per_core_small = None;
-    for (spacing, steps) in [(0.05, 20), (0.0237, 6)] {
+    // Smoke mode: two tiny columns (250 and 468 particles), so that the
+    // line comparing the sizes runs too.
+    let sizes = smoke::pick(vec![(0.05, 20), (0.0237, 6)], vec![(0.2, 1), (0.15, 1)]);
+    for (spacing, steps) in sizes {
         for solver in [SolverKind::Wcsph, SolverKind::Dfsph] {
             let scene = scene(spacing, solver);
             for threads in [1, cores] {

@@ -11,6 +11,9 @@ use meshless_engine::math::Vector;
 use rayon::prelude::*;
 use std::time::Instant;
 
+#[path = "common/smoke.rs"]
+mod smoke;
+
 /// Deterministic numbers in [0, 1) (SplitMix64).
 fn uniform(seed: &mut u64) -> f64 {
     *seed = seed.wrapping_add(0x9E37_79B9_7F4A_7C15);
@@ -26,7 +29,9 @@ fn main() {
     // centre, every triangle is about equally near: the worst case of any
     // nearest-triangle search), and near the surface (|p| in [0.9, 1.1]:
     // boundary particles and collisions).
-    let anywhere: Vec<Vector> = (0..100_000)
+    // Smoke mode: 1,000 queries (the scan needs that many), spheres of 80
+    // and 320 triangles, coarse sampling.
+    let anywhere: Vec<Vector> = (0..smoke::pick(100_000, 1_000))
         .map(|_| Vector::from_fn(|_, _| 3.0 * uniform(&mut seed) - 1.5))
         .collect();
     let near: Vec<Vector> = anywhere
@@ -46,7 +51,7 @@ fn main() {
         "anywhere, 1 thr",
         "scan us/q"
     );
-    for level in [3, 5, 7] {
+    for level in smoke::pick(vec![3, 5, 7], vec![1, 2]) {
         let mesh = TriMesh::icosphere(Vector::zeros(), 1.0, level);
         let start = Instant::now();
         let sdf = MeshSdf::new(&mesh).expect("closed");
@@ -82,9 +87,9 @@ fn main() {
             mesh.triangles.len()
         );
     }
-    let sphere = TriMesh::icosphere(Vector::zeros(), 1.0, 5);
+    let sphere = TriMesh::icosphere(Vector::zeros(), 1.0, smoke::pick(5, 2));
     let sdf = MeshSdf::new(&sphere).expect("closed");
-    for spacing in [0.02, 0.01] {
+    for spacing in smoke::pick([0.02, 0.01], [0.2, 0.1]) {
         let start = Instant::now();
         let surface = sample_surface(&sphere, spacing).expect("surface");
         let surface_ms = start.elapsed().as_secs_f64() * 1e3;

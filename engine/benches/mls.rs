@@ -17,6 +17,9 @@ use std::time::Instant;
 mod lattice;
 use lattice::lattice;
 
+#[path = "common/smoke.rs"]
+mod smoke;
+
 type Vector = Vector3<f64>;
 
 /// Median seconds of `run` over `repeats` runs.
@@ -57,7 +60,8 @@ fn main() {
         "ns/pair"
     );
     let mut seed = 7;
-    for count in [10, 22, 46] {
+    // Smoke mode: the 1k lattice only, each timing once.
+    for count in smoke::pick(vec![10, 22, 46], vec![10]) {
         let positions = lattice(count, &mut seed);
         let n = positions.len();
         let pad = Vector::repeat(1.0);
@@ -79,14 +83,16 @@ fn main() {
                     .expect("thread pool");
                 let (pre_s, pass_s) = pool.install(|| {
                     let mut pre = None;
-                    let pre_s = median(3, || {
+                    let pre_s = median(smoke::pick(3, 1), || {
                         pre = Some(
                             LagrangianGradients::build(&mls, kind, &positions, &list)
                                 .expect("precompute"),
                         );
                     });
                     let pre = pre.expect("built");
-                    let pass_s = median(7, || pre.vector_gradients(&displacement, &mut gradients));
+                    let pass_s = median(smoke::pick(7, 1), || {
+                        pre.vector_gradients(&displacement, &mut gradients)
+                    });
                     (pre_s, pass_s)
                 });
                 println!(

@@ -13,10 +13,15 @@ use meshless_engine::neighbors::{
 use nalgebra::Vector3;
 use std::time::Instant;
 
+#[path = "common/smoke.rs"]
+mod smoke;
+
 type Vector = Vector3<f64>;
 
-/// Timed repetitions per case; the median is reported.
-const REPEATS: usize = 7;
+/// Timed repetitions per case (1 in smoke mode); the median is reported.
+fn repeats() -> usize {
+    smoke::pick(7, 1)
+}
 
 /// Deterministic numbers in [0, 1) (SplitMix64).
 fn uniform(seed: &mut u64) -> f64 {
@@ -61,14 +66,16 @@ struct Distribution {
 
 fn distributions() -> Vec<Distribution> {
     let mut seed = 42;
-    let uniform_lattice = lattice(Vector::zeros(), 46, 1.0, &mut seed, |_| false);
+    // Smoke mode: 8^3 points, and a 10^3 lattice with a 2^3 clump.
+    let (side, sparse, clump_lo, clump_hi) = smoke::pick((46, 40, 15.0, 25.0), (8, 10, 4.0, 6.0));
+    let uniform_lattice = lattice(Vector::zeros(), side, 1.0, &mut seed, |_| false);
     // Sparse lattice of spacing 1 over 40^3, with a 10^3 clump at spacing
     // 50^(-1/3) (50x the density) in place of its sparse points.
     let clump_spacing = 50f64.powf(-1.0 / 3.0);
-    let (lo, hi) = (Vector::repeat(15.0), Vector::repeat(25.0));
+    let (lo, hi) = (Vector::repeat(clump_lo), Vector::repeat(clump_hi));
     let inside = |p: &Vector| (0..3).all(|a| p[a] >= lo[a] && p[a] < hi[a]);
-    let mut clumped = lattice(Vector::zeros(), 40, 1.0, &mut seed, inside);
-    let per_side = (10.0 / clump_spacing).round() as usize;
+    let mut clumped = lattice(Vector::zeros(), sparse, 1.0, &mut seed, inside);
+    let per_side = ((clump_hi - clump_lo) / clump_spacing).round() as usize;
     clumped.extend(lattice(lo, per_side, clump_spacing, &mut seed, |_| false));
     vec![
         Distribution {
@@ -89,7 +96,8 @@ fn time<S: CandidateSearch>(search: &mut S, positions: &[Vector], radius: f64) -
     let mut list = NeighborList::default();
     search.rebuild(positions);
     list.build(search, positions, radius);
-    let mut seconds: Vec<f64> = (0..REPEATS)
+    let repeats = repeats();
+    let mut seconds: Vec<f64> = (0..repeats)
         .map(|_| {
             let start = Instant::now();
             search.rebuild(positions);
@@ -98,7 +106,7 @@ fn time<S: CandidateSearch>(search: &mut S, positions: &[Vector], radius: f64) -
         })
         .collect();
     seconds.sort_by(f64::total_cmp);
-    (seconds[REPEATS / 2], list.pair_count())
+    (seconds[repeats / 2], list.pair_count())
 }
 
 fn main() {

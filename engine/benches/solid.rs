@@ -20,6 +20,9 @@ use meshless_engine::solid::{
 };
 use std::time::Instant;
 
+#[path = "common/smoke.rs"]
+mod smoke;
+
 fn block(side: usize, integrator: Integrator) -> ElasticSolid {
     let spacing = 0.01;
     let young = 1e6;
@@ -74,7 +77,9 @@ fn main() {
         "particles", "method", "threads", "steps/s", "ms/step", "ns/particle", "Newton+CG its"
     );
     let gravity = Vector::zeros();
-    for side in [10, 22, 46] {
+    // Smoke mode: a block of some 200 particles (explicit, CG and Cholesky),
+    // one step of each.
+    for side in smoke::pick(vec![10, 22, 46], vec![6]) {
         for &t in &threads {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(t)
@@ -84,7 +89,7 @@ fn main() {
                 let mut solid = block(side, Integrator::Explicit { cfl: 0.5 });
                 let n = solid.len();
                 let dt = solid.params.stable_dt(0.5);
-                let substeps = (2_000_000 / n).clamp(5, 400);
+                let substeps = smoke::pick((2_000_000 / n).clamp(5, 400), 1);
                 solid.step(dt, &gravity, 1);
                 let start = Instant::now();
                 for _ in 0..substeps {
@@ -115,7 +120,7 @@ fn main() {
                         ..ImplicitParams::default()
                     };
                     let mut solid = block(side, Integrator::Implicit(settings));
-                    let steps = 3;
+                    let steps = smoke::pick(3, 1);
                     let start = Instant::now();
                     let mut iterations = 0;
                     for _ in 0..steps {

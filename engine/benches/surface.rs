@@ -10,6 +10,8 @@ use meshless_engine::{BuildOptions, World};
 use std::time::Instant;
 
 mod common;
+#[path = "common/smoke.rs"]
+mod smoke;
 
 fn world(spacing: f64, surface: bool) -> World {
     let mut scene = common::dam_break(spacing);
@@ -39,7 +41,9 @@ fn main() {
         "{:>9}  {:>7}  {:>9}  {:>13}  {:>16}  {:>15}",
         "particles", "threads", "triangles", "frame [ms]", "surface [ms]", "particles/s"
     );
-    for spacing in [0.05, 0.0238] {
+    let runs = smoke::pick(5, 1);
+    // Smoke mode: a column of 250 particles, one frame each.
+    for spacing in smoke::pick(vec![0.05, 0.0238], vec![0.2]) {
         let (plain, meshed) = (world(spacing, false), world(spacing, true));
         let triangles = meshed.frame().surface.map_or(0, |m| m.triangles.len());
         for threads in [1, cores] {
@@ -47,8 +51,12 @@ fn main() {
                 .num_threads(threads)
                 .build()
                 .expect("a pool");
-            let (without, with) =
-                pool.install(|| (seconds_per_frame(&plain, 5), seconds_per_frame(&meshed, 5)));
+            let (without, with) = pool.install(|| {
+                (
+                    seconds_per_frame(&plain, runs),
+                    seconds_per_frame(&meshed, runs),
+                )
+            });
             let surface = with - without;
             println!(
                 "{:>9}  {:>7}  {:>9}  {:>13.1}  {:>16.1}  {:>15.3e}",

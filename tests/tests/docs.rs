@@ -1,5 +1,6 @@
 //! The documentation points only at files that exist, the README stays
-//! short, and it links every page of `docs/`.
+//! short, it links every page of `docs/`, and every command it cites is
+//! smoke-run by `scripts/smoke-docs` (the rules are above that test).
 //!
 //! Read: `README.md`, `CONTRIBUTING.md` and every `docs/*.md`. A
 //! *reference* is either a word of an inline code span (the span split at
@@ -270,4 +271,297 @@ fn the_readme_links_every_document() {
             document.display()
         );
     }
+}
+
+// ---------------------------------------------------------------------------
+// Every command the documents cite is smoke-run by `scripts/smoke-docs`.
+//
+// A *command* is an inline code span (whitespace collapsed, so a span may
+// run over a line break) or a line of a fenced block whose words, after any
+// leading `NAME=value` assignments and before a `#` comment, start with one
+// of: `cargo bench`, `cargo run`, `scripts/…`, `python scripts/…`,
+// `meshless SUBCOMMAND` or `meshless-server` (also as
+// `target/{release,debug}/…`). Its *key* is the program and subcommand,
+// what `scripts/smoke-docs` names in a `# covers: KEY` line:
+//
+// - `cargo bench -p CRATE --bench NAME` (a placeholder NAME in capitals is
+//   no command);
+// - `cargo run -p meshless-cli -- SUB …` is the `meshless SUB` key, like
+//   `meshless SUB …` itself; `session` keeps its action
+//   (`meshless session create`);
+// - `scripts/NAME`, with or without `python` in front;
+// - `meshless-server`.
+//
+// `meshless` counts only before a real subcommand, so prose such as
+// `meshless runs at 1.16x` is no command, and `meshless import` is Python
+// (`from meshless import Client`), not a command either.
+// ---------------------------------------------------------------------------
+
+/// The script that smoke-runs every cited command, from the root.
+const SMOKE_SCRIPT: &str = "scripts/smoke-docs";
+
+/// What marks a command as covered in [`SMOKE_SCRIPT`].
+const COVERS: &str = "# covers:";
+
+/// The words that may follow `meshless` in a command (`import` is listed
+/// to be recognised and skipped: it is Python).
+const MESHLESS_SUBCOMMANDS: &[&str] = &[
+    "run", "demo", "study", "optimise", "session", "watch", "server", "import",
+];
+
+/// The actions of `meshless session`.
+const SESSION_ACTIONS: &[&str] = &[
+    "create", "list", "get", "step", "run", "pause", "resume", "reset", "delete",
+];
+
+/// Inline code spans (whitespace collapsed) and fenced lines of a Markdown
+/// text: where commands are written.
+fn command_texts(text: &str) -> Vec<String> {
+    let mut texts = Vec::new();
+    let mut fenced = false;
+    for line in text.lines() {
+        let start = line.trim_start();
+        if start.starts_with("```") || start.starts_with("~~~") {
+            fenced = !fenced;
+        } else if fenced {
+            texts.push(start.trim_end().to_owned());
+        }
+    }
+    for (k, part) in prose(text).split('`').enumerate() {
+        if k % 2 == 1 {
+            texts.push(part.split_whitespace().collect::<Vec<_>>().join(" "));
+        }
+    }
+    texts
+}
+
+/// A command line split into words at whitespace outside double or single
+/// quotes (`RUSTFLAGS="-C target-cpu=x86-64-v3"` is one word).
+fn shell_words(line: &str) -> Vec<String> {
+    let mut words = Vec::new();
+    let mut word = String::new();
+    let mut quote = None;
+    for c in line.chars() {
+        match (quote, c) {
+            (Some(q), c) if c == q => quote = None,
+            (None, '"' | '\'') => quote = Some(c),
+            (None, c) if c.is_whitespace() => {
+                if !word.is_empty() {
+                    words.push(std::mem::take(&mut word));
+                }
+            }
+            (_, c) => word.push(c),
+        }
+    }
+    if !word.is_empty() {
+        words.push(word);
+    }
+    words
+}
+
+/// Whether a word is an environment assignment, `NAME=value`.
+fn is_assignment(word: &str) -> bool {
+    word.split_once('=').is_some_and(|(name, _)| {
+        !name.is_empty()
+            && name
+                .chars()
+                .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_')
+    })
+}
+
+/// The value of `flag` in `words` (`-p X` or `-p=X`).
+fn flag_value<'a>(words: &[&'a str], flag: &str) -> Option<&'a str> {
+    words.iter().enumerate().find_map(|(i, word)| {
+        if *word == flag {
+            words.get(i + 1).copied()
+        } else {
+            word.strip_prefix(flag)?.strip_prefix('=')
+        }
+    })
+}
+
+/// The key of `meshless WORDS…`, if the first word is a subcommand.
+fn meshless_key(words: &[&str]) -> Option<String> {
+    let sub = *words.first()?;
+    if !MESHLESS_SUBCOMMANDS.contains(&sub) || sub == "import" {
+        return None;
+    }
+    match words.get(1) {
+        Some(action) if sub == "session" && SESSION_ACTIONS.contains(action) => {
+            Some(format!("meshless session {action}"))
+        }
+        _ => Some(format!("meshless {sub}")),
+    }
+}
+
+/// The key of a command (the rules above), or `None` when the text is no
+/// command.
+fn command_key(text: &str) -> Option<String> {
+    let words = shell_words(text);
+    let words: Vec<&str> = words
+        .iter()
+        .map(String::as_str)
+        .skip_while(|w| is_assignment(w))
+        .take_while(|w| !w.starts_with('#'))
+        .collect();
+    let (&program, rest) = words.split_first()?;
+    let program = ["target/release/", "target/debug/"]
+        .iter()
+        .find_map(|dir| program.strip_prefix(dir))
+        .unwrap_or(program);
+    let script = |path: &str| {
+        (path.starts_with("scripts/")
+            && !path.ends_with('/')
+            && !path.split('/').any(is_placeholder))
+        .then(|| path.to_owned())
+    };
+    match program {
+        "cargo" => match rest.first() {
+            Some(&"bench") => {
+                let mut key = String::from("cargo bench");
+                if let Some(package) = flag_value(rest, "-p") {
+                    key.push_str(&format!(" -p {package}"));
+                }
+                if let Some(bench) = flag_value(rest, "--bench") {
+                    if is_placeholder(bench) {
+                        return None;
+                    }
+                    key.push_str(&format!(" --bench {bench}"));
+                }
+                Some(key)
+            }
+            Some(&"run") => match flag_value(rest, "-p") {
+                Some("meshless-cli") => {
+                    let at = rest.iter().position(|w| *w == "--")?;
+                    meshless_key(&rest[at + 1..])
+                }
+                Some(package) => Some(format!("cargo run -p {package}")),
+                None => Some("cargo run".into()),
+            },
+            _ => None,
+        },
+        "python" | "python3" => script(rest.first()?),
+        "meshless" => meshless_key(rest),
+        "meshless-server" => Some(program.to_owned()),
+        _ => script(program),
+    }
+}
+
+/// Every `(key, document)` the documents cite, sorted, without repeats.
+fn cited_commands(root: &Path) -> Vec<(String, String)> {
+    let mut found: Vec<(String, String)> = documents(root)
+        .iter()
+        .flat_map(|document| {
+            command_texts(&read(root, document))
+                .iter()
+                .filter_map(|text| command_key(text))
+                .map(|key| (key, document.display().to_string()))
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    found.sort();
+    found.dedup();
+    found
+}
+
+/// The keys a smoke script names in its `# covers: KEY` lines.
+fn covered(script: &str) -> Vec<String> {
+    script
+        .lines()
+        .filter_map(|line| line.trim().strip_prefix(COVERS))
+        .map(|key| key.split_whitespace().collect::<Vec<_>>().join(" "))
+        .collect()
+}
+
+/// The cited `(key, document)` pairs the script does not cover.
+fn uncovered(cited: &[(String, String)], script: &str) -> Vec<String> {
+    let covered = covered(script);
+    cited
+        .iter()
+        .filter(|(key, _)| !covered.contains(key))
+        .map(|(key, document)| format!("{document}: {key}"))
+        .collect()
+}
+
+#[test]
+fn the_command_extractor_keeps_program_and_subcommand_and_skips_prose() {
+    let text = "\
+Run `cargo run --release -p meshless-cli --
+demo` or `meshless study --knob KNOB [--values v1,v2]`; `cargo bench -p
+meshless-engine --bench NAME` is a placeholder, `RUSTFLAGS=\"-C target-cpu=x86-64-v3\"
+cargo bench -p meshless-engine --bench embedded` is not. Not commands:
+`meshless runs at 1.16x`, `meshless import`, `meshless`, `meshless-cli`,
+`meshless/v1/sessions/{id}/frames`, `scripts/`, `cargo test -p meshless-tests`.
+
+```bash
+target/release/meshless-server --grpc-addr 127.0.0.1:50051
+target/release/meshless session run ID --until 2.0   # a comment
+python scripts/plot_frames.py out/ply -o a.png
+scripts/bench-peers --warmup 24
+```
+
+```python
+from meshless import Client, Frames
+```
+
+```
+meshless demo: dam break
+```
+";
+    let mut keys: Vec<String> = command_texts(text)
+        .iter()
+        .filter_map(|t| command_key(t))
+        .collect();
+    keys.sort();
+    assert_eq!(
+        keys,
+        [
+            "cargo bench -p meshless-engine --bench embedded",
+            "meshless demo",
+            "meshless session run",
+            "meshless study",
+            "meshless-server",
+            "scripts/bench-peers",
+            "scripts/plot_frames.py",
+        ]
+    );
+}
+
+#[test]
+fn an_uncovered_command_is_reported() {
+    let cited = [
+        ("meshless run".to_owned(), "README.md".to_owned()),
+        (
+            "scripts/bench-peers".to_owned(),
+            "docs/performance.md".to_owned(),
+        ),
+        ("meshless watch".to_owned(), "README.md".to_owned()),
+    ];
+    let script = "\
+# covers: meshless run
+step \"meshless run scenes/dam_break.toml --until 0.02\"
+  # covers:   scripts/bench-peers
+# meshless watch is mentioned, but not covered
+";
+    assert_eq!(uncovered(&cited, script), ["README.md: meshless watch"]);
+}
+
+#[test]
+fn every_command_the_documents_cite_is_smoke_run() {
+    let root = root();
+    let cited = cited_commands(&root);
+    assert!(
+        cited.iter().any(|(key, _)| key == "meshless demo"),
+        "the extractor found no `meshless demo` in the documents: {cited:?}"
+    );
+    let script = read(&root, Path::new(SMOKE_SCRIPT));
+    let missing = uncovered(&cited, &script);
+    assert!(
+        missing.is_empty(),
+        "the documents cite commands that {SMOKE_SCRIPT} does not smoke-run:\n  {}\n\
+         Add a smoke line for each to {SMOKE_SCRIPT}: the command at a tiny size under a \
+         `step` header, with a `{COVERS} KEY` comment naming it (the key rules are in \
+         tests/tests/docs.rs)",
+        missing.join("\n  ")
+    );
 }

@@ -29,12 +29,19 @@ use meshless_validation::design::{Passage, Stretch};
 use std::ops::ControlFlow;
 use std::time::{Duration, Instant};
 
-/// Frames of the drag.
-const FRAMES: usize = 60;
+#[path = "../../engine/benches/common/smoke.rs"]
+mod smoke;
+
+/// Frames of the drag (2 in smoke mode).
+fn frame_count() -> usize {
+    smoke::pick(60, 2)
+}
 /// Height of the Figure 13 box, m.
 const HEIGHT: f64 = 2.0;
-/// Subdivisions of the box surface: 98,306 vertices.
-const SUBDIVISIONS: u32 = 7;
+/// Subdivisions of the box surface: 98,306 vertices (386 in smoke mode).
+fn subdivisions() -> u32 {
+    smoke::pick(7, 3)
+}
 
 /// What one drag measured.
 struct Drag {
@@ -51,7 +58,7 @@ struct Drag {
     error: f64,
 }
 
-/// A cold solve of the stretch, then [`FRAMES`] frames dragging the top.
+/// A cold solve of the stretch, then [`frame_count`] frames dragging the top.
 fn drag(
     stretch: &Stretch,
     body: &DesignBody,
@@ -71,7 +78,7 @@ fn drag(
     let mut deformed = DeformedSurface::new();
     let mut positions: Vec<Vector> = Vec::with_capacity(body.len());
     let mut result = Drag {
-        frames: Vec::with_capacity(FRAMES),
+        frames: Vec::with_capacity(frame_count()),
         solve: 0.0,
         surface: 0.0,
         iterations: 0,
@@ -84,7 +91,7 @@ fn drag(
     reference.solver.tolerance = 1e-10;
     reference.solver.linear_tolerance = 1e-6;
     reference.solver.max_iterations = 1000;
-    for frame in 1..=FRAMES {
+    for frame in 1..=frame_count() {
         let pull = stretch.pull + 0.01 * HEIGHT * frame as f64;
         constraints
             .apply(&[Edit::Replace(Stretch::top(pull))], &context)
@@ -143,9 +150,10 @@ fn main() {
     if cores > 1 {
         threads.push(cores);
     }
-    let mesh = Stretch::surface_mesh(SUBDIVISIONS);
+    let mesh = Stretch::surface_mesh(subdivisions());
+    let frames = frame_count();
     println!(
-        "Drag: Figure 13 box, {} surface vertices, {FRAMES} frames of +1 % height each after a \
+        "Drag: Figure 13 box, {} surface vertices, {frames} frames of +1 % height each after a \
          cold solve",
         mesh.vertices.len()
     );
@@ -168,7 +176,8 @@ fn main() {
         "converged",
         "error"
     );
-    for particles in [60, 120, 200] {
+    // Smoke mode: the smallest box, about 30 particles.
+    for particles in smoke::pick(vec![60, 120, 200], vec![30]) {
         let stretch = Stretch {
             particles,
             ..Stretch::default()
@@ -210,20 +219,20 @@ fn main() {
                 let mut sorted = d.frames.clone();
                 sorted.sort_by(f64::total_cmp);
                 println!(
-                    "{:>5} {:>9} {:>10} {tolerance:>6.0e} {:>7} {:>8.0} {:>8.1} {:>8.1} {:>7.1} {:>7.1} {:>7.1} {:>9.1} {:>6.1} {:>6.0} {:>6}/{FRAMES} {:>7.4}",
+                    "{:>5} {:>9} {:>10} {tolerance:>6.0e} {:>7} {:>8.0} {:>8.1} {:>8.1} {:>7.1} {:>7.1} {:>7.1} {:>9.1} {:>6.1} {:>6.0} {:>6}/{frames} {:>7.4}",
                     particles,
                     body.len(),
                     format!("{quadrature:?}"),
                     pool.current_num_threads(),
                     embed.as_secs_f64() * 1e3,
                     d.cold.as_secs_f64() * 1e3,
-                    1.0 / sorted[FRAMES / 2],
-                    FRAMES as f64 / total,
+                    1.0 / sorted[frames / 2],
+                    frames as f64 / total,
                     1.0 / sorted[0],
                     100.0 * d.solve / total,
                     100.0 * d.surface / total,
-                    f64::from(d.iterations) / FRAMES as f64,
-                    d.linear_iterations as f64 / FRAMES as f64,
+                    f64::from(d.iterations) / frames as f64,
+                    d.linear_iterations as f64 / frames as f64,
                     d.converged,
                     d.error,
                 );
@@ -252,14 +261,21 @@ fn main() {
         "wall s",
         "best s"
     );
-    let passage = Passage::default();
+    let passage = smoke::pick(
+        Passage::default(),
+        Passage {
+            particles: 60,
+            ..Passage::default()
+        },
+    );
+    let repeats = smoke::pick(3, 1);
     let params = DesignParams::default();
     for adaptive in [true, false] {
         let motion = MotionParams {
             adaptive,
             ..MotionParams::default()
         };
-        let runs: Vec<_> = (0..3)
+        let runs: Vec<_> = (0..repeats)
             .map(|_| passage.solve(&params, &motion).expect("motion"))
             .collect();
         let mut seconds: Vec<f64> = runs.iter().map(|r| r.elapsed.as_secs_f64()).collect();
@@ -274,7 +290,7 @@ fn main() {
             r.penetration,
             r.keyframe_error,
             r.solution.info.iterations,
-            seconds[1],
+            seconds[repeats / 2],
             seconds[0]
         );
     }

@@ -10,13 +10,19 @@
 //! them it is skipped), `--volume-maps` (also SPlisHSPlasH with volume-map
 //! boundaries), `--spacings 0.05,0.0237`, `--warmup 12`, `--steps 12`,
 //! `--threads 1,N`, `--csv target/bench-peers.csv`,
-//! `--engines meshless,salva3d,splishsplash`.
+//! `--engines meshless,salva3d,splishsplash`. With `MESHLESS_BENCH_SMOKE=1`
+//! (`engine/benches/common/smoke.rs`) the defaults shrink to one column of
+//! 250 particles, one warm-up and one timed step, on one thread.
 
 mod meshless;
 mod report;
 mod salva;
 mod setup;
 mod splishsplash;
+
+// The smoke-mode switch all benchmarks share (engine/benches/common/).
+#[path = "../../../engine/benches/common/smoke.rs"]
+mod smoke;
 
 use setup::{DamBreak, Run};
 use std::path::PathBuf;
@@ -36,14 +42,16 @@ struct Options {
 
 fn parse() -> Result<Options, String> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    // Smoke mode (MESHLESS_BENCH_SMOKE=1): a 250-particle column, one
+    // warm-up and one timed step, one thread; flags still override.
     let mut o = Options {
         python: None,
         box_obj: None,
         volume_maps: false,
-        spacings: vec![0.05, 0.0237],
-        warmup: 12,
-        steps: 12,
-        threads: if cores > 1 { vec![1, cores] } else { vec![1] },
+        spacings: smoke::pick(vec![0.05, 0.0237], vec![0.2]),
+        warmup: smoke::pick(12, 1),
+        steps: smoke::pick(12, 1),
+        threads: smoke::pick(if cores > 1 { vec![1, cores] } else { vec![1] }, vec![1]),
         csv: PathBuf::from("target/bench-peers.csv"),
         engines: ["meshless", "salva3d", "splishsplash"]
             .map(String::from)
