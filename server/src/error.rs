@@ -15,7 +15,8 @@ pub enum ServiceError {
     InvalidArgument { field: String, message: String },
     #[error(transparent)]
     Scene(#[from] SceneError),
-    #[error("no session with id {0:?}; list the sessions to see which exist")]
+    /// The id, already [`quote`]d, names no session.
+    #[error("no session with id {0}; list the sessions to see which exist")]
     NotFound(String),
     #[error("session {0} has no design yet; run Optimize first")]
     NoDesign(String),
@@ -81,8 +82,46 @@ impl From<WireError> for ServiceError {
 }
 
 impl From<ServiceError> for Status {
+    /// The code and a message cut to [`MAX_MESSAGE_CHARS`]: a message
+    /// travels in an HTTP/2 header, and one that quotes a long input would
+    /// overflow it and reach the client as RESOURCE_EXHAUSTED instead of
+    /// the real code.
     fn from(error: ServiceError) -> Self {
-        Status::new(error.code(), error.to_string())
+        Status::new(
+            error.code(),
+            truncate(&error.to_string(), MAX_MESSAGE_CHARS),
+        )
+    }
+}
+
+/// Longest status message, in characters.
+pub const MAX_MESSAGE_CHARS: usize = 1024;
+
+/// Longest piece of client input a message quotes, in characters.
+const MAX_QUOTE_CHARS: usize = 64;
+
+/// `text` cut to at most `max` characters, marked when cut.
+fn truncate(text: &str, max: usize) -> String {
+    match text.char_indices().nth(max) {
+        None => text.to_owned(),
+        Some((end, _)) => format!("{}... ({} bytes in all)", &text[..end], text.len()),
+    }
+}
+
+/// Client input as an error message may quote it: debug-escaped (no
+/// control characters reach a log or a terminal) and cut to a short prefix.
+pub fn quote(input: &str) -> String {
+    truncate(&format!("{input:?}"), MAX_QUOTE_CHARS)
+}
+
+/// A number as a message prints it: plain in the everyday range, in
+/// exponent form outside it (`1e300`, not 301 digits).
+pub fn short_number(value: f64) -> String {
+    let magnitude = value.abs();
+    if value == 0.0 || !value.is_finite() || (1e-4..1e6).contains(&magnitude) {
+        format!("{value}")
+    } else {
+        format!("{value:e}")
     }
 }
 
@@ -96,5 +135,38 @@ pub fn state_name(state: SessionState) -> &'static str {
         SessionState::Finished => "finished",
         SessionState::Faulted => "faulted",
         SessionState::Closed => "closed",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn messages_quote_a_short_prefix_of_the_input() {
+        let long = "x".repeat(20_000);
+        let quoted = quote(&long);
+        assert!(quoted.chars().count() < 100, "{quoted}");
+        assert!(quoted.contains("20002 bytes in all"), "{quoted}");
+        assert_eq!(quote("ab\ncd"), "\"ab\\ncd\"");
+        // Multi-byte characters are cut at a character boundary.
+        let wide = "\u{e9}".repeat(1000);
+        assert!(quote(&wide).starts_with("\"\u{e9}"));
+    }
+
+    #[test]
+    fn status_messages_are_bounded() {
+        let error = ServiceError::invalid("name", "y".repeat(1 << 20));
+        let status = Status::from(error);
+        assert_eq!(status.code(), Code::InvalidArgument);
+        assert!(status.message().len() < MAX_MESSAGE_CHARS + 64);
+    }
+
+    #[test]
+    fn huge_and_tiny_numbers_print_short() {
+        assert_eq!(short_number(1e300), "1e300");
+        assert_eq!(short_number(1e-300), "1e-300");
+        assert_eq!(short_number(2.5), "2.5");
+        assert_eq!(short_number(f64::NAN), "NaN");
     }
 }

@@ -24,10 +24,26 @@ use registry::Registry;
 use service::SimulationService;
 use std::net::SocketAddr;
 use std::sync::Arc;
+use std::time::Duration;
 use tokio_util::sync::CancellationToken;
 
 /// Largest gRPC message accepted: scenes are small, but leave room.
 const MAX_MESSAGE_BYTES: usize = 64 * 1024 * 1024;
+
+/// How often an idle connection is pinged (HTTP/2 PING), so that a peer
+/// that vanished without closing is noticed.
+const KEEPALIVE_INTERVAL: Duration = Duration::from_secs(30);
+
+/// How long a ping may go unanswered before the connection is closed.
+const KEEPALIVE_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// An accepted connection set up for request-response traffic:
+/// `TCP_NODELAY`, since a small response held back by Nagle's algorithm
+/// until the client's delayed ACK costs about 40 ms per sequential call.
+fn tuned(stream: tokio::net::TcpStream) -> std::io::Result<tokio::net::TcpStream> {
+    stream.set_nodelay(true)?;
+    Ok(stream)
+}
 
 /// A server started by [`start`].
 #[derive(Debug)]
@@ -95,10 +111,15 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         .build_v1()
         .context("gRPC reflection")?;
 
-    let incoming = tokio_stream::wrappers::TcpListenerStream::new(listener);
+    let incoming = tokio_stream::StreamExt::map(
+        tokio_stream::wrappers::TcpListenerStream::new(listener),
+        |accepted| accepted.and_then(tuned),
+    );
     let stop = shutdown.clone();
     let task = tokio::spawn(async move {
         let served = tonic::transport::Server::builder()
+            .http2_keepalive_interval(Some(KEEPALIVE_INTERVAL))
+            .http2_keepalive_timeout(Some(KEEPALIVE_TIMEOUT))
             .add_service(health)
             .add_service(reflection)
             .add_service(simulation)
@@ -148,4 +169,30 @@ async fn shutdown_signal() -> Result<()> {
     #[cfg(not(unix))]
     tokio::signal::ctrl_c().await?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[tokio::test]
+    async fn accepted_connections_send_without_delay() {
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+            .await
+            .expect("bind");
+        let addr = listener.local_addr().expect("address");
+        let timeout = Duration::from_secs(10);
+        let (client, accepted) = tokio::join!(
+            tokio::time::timeout(timeout, tokio::net::TcpStream::connect(addr)),
+            tokio::time::timeout(timeout, listener.accept()),
+        );
+        let _client = client.expect("connects in time").expect("connects");
+        let (stream, _) = accepted.expect("accepts in time").expect("accepts");
+        assert!(
+            !stream.nodelay().expect("option"),
+            "the OS default is Nagle"
+        );
+        let stream = tuned(stream).expect("tuned");
+        assert!(stream.nodelay().expect("option"));
+    }
 }

@@ -1,6 +1,6 @@
 //! The sessions a server holds, by id, within its limits.
 
-use crate::error::ServiceError;
+use crate::error::{ServiceError, quote};
 use crate::session::Session;
 use meshless_engine::{BuildOptions, Scene};
 use std::collections::HashMap;
@@ -95,7 +95,7 @@ impl Registry {
         self.read()
             .get(id)
             .cloned()
-            .ok_or_else(|| ServiceError::NotFound(id.to_owned()))
+            .ok_or_else(|| ServiceError::NotFound(quote(id)))
     }
 
     /// All sessions, oldest first.
@@ -113,7 +113,7 @@ impl Registry {
         let session = self
             .write()
             .remove(id)
-            .ok_or_else(|| ServiceError::NotFound(id.to_owned()))?;
+            .ok_or_else(|| ServiceError::NotFound(quote(id)))?;
         join_blocking(session).await;
         Ok(())
     }

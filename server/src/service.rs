@@ -2,7 +2,7 @@
 //! validates a request, converts it, calls the registry or a session, and
 //! converts the answer back.
 
-use crate::error::ServiceError;
+use crate::error::{ServiceError, short_number};
 use crate::registry::Registry;
 use crate::session::{Command, OptimizeJob, Problem, RunTarget};
 use meshless_engine::Scene;
@@ -21,6 +21,11 @@ use tonic::{Request, Response, Status};
 
 /// Most steps one `Step` call may ask for.
 const MAX_STEPS_PER_CALL: u64 = 1_000_000;
+
+/// Real-time factors a paced run accepts. Outside, pacing means nothing a
+/// user can watch: a millionth of real time is 11 days per simulated
+/// second, and above a million times the run is unpaced in all but name.
+const REALTIME_FACTORS: std::ops::RangeInclusive<f64> = 1e-6..=1e6;
 /// Playback frames per second of design time when a motion names none.
 const DEFAULT_PLAYBACK_RATE: f64 = 30.0;
 /// Optimisation events queued per stream.
@@ -190,15 +195,21 @@ impl Simulation for SimulationService {
             }
         };
         let realtime_factor = match realtime_factor {
-            Some(f) if !f.is_finite() || f < 0.0 => {
+            Some(0.0) | None => None,
+            Some(f) if REALTIME_FACTORS.contains(&f) => Some(f),
+            Some(f) => {
                 return Err(ServiceError::invalid(
                     "realtime_factor",
-                    format!("must be a finite number >= 0 (0: as fast as possible), got {f}"),
+                    format!(
+                        "must be 0 (as fast as possible) or in [{:e}, {:e}] simulated seconds \
+                         per second, got {}",
+                        REALTIME_FACTORS.start(),
+                        REALTIME_FACTORS.end(),
+                        short_number(f)
+                    ),
                 )
                 .into());
             }
-            Some(f) if f > 0.0 => Some(f),
-            _ => None,
         };
         let target = RunTarget {
             until,

@@ -8,7 +8,10 @@ use tonic::Code;
 
 fn expect_code(result: Result<v1::Session, ClientError>, code: Code, mentions: &str) {
     match result {
-        Ok(session) => panic!("expected {code:?} mentioning {mentions:?}, got {session:?}"),
+        Ok(session) => panic!(
+            "expected {code:?} mentioning {mentions:?}, got session {:?}",
+            session.id
+        ),
         Err(err) => {
             assert_eq!(err.code(), Some(code), "{err}");
             assert!(
@@ -130,6 +133,24 @@ async fn bad_input_gets_the_right_code_and_loses_nothing() {
         Code::NotFound,
         "nope",
     );
+    // A 20 kB id: still NOT_FOUND (not a header overflow), quoting a prefix.
+    let long_id = "z".repeat(20_000);
+    match within("long id", client.get_session(&long_id)).await {
+        Ok(session) => panic!("a 20 kB id found session {:?}", session.id),
+        Err(err) => {
+            assert_eq!(err.code(), Some(Code::NotFound), "{err}");
+            let message = err.to_string();
+            assert!(message.len() < 300, "echoes {} bytes", message.len());
+            assert!(message.contains("20002 bytes in all"), "{message}");
+        }
+    }
+    let mut long_name = spec.clone();
+    long_name.name = "n".repeat(1 << 20);
+    expect_code(
+        within("1 MB name", client.create_session(long_name)).await,
+        Code::InvalidArgument,
+        "name",
+    );
     let err = within("delete", client.delete_session("nope"))
         .await
         .expect_err("unknown");
@@ -165,6 +186,19 @@ async fn bad_input_gets_the_right_code_and_loses_nothing() {
         Code::InvalidArgument,
         "realtime_factor",
     );
+    // A factor too small to pace by (it once panicked the compute thread)
+    // or too large to mean anything, printed short.
+    for (factor, printed) in [(1e-300, "1e-300"), (1e-7, "1e-7"), (1e300, "1e300")] {
+        expect_code(
+            within(
+                "extreme rate",
+                client.run_until(&other.id, 1.0, Some(factor)),
+            )
+            .await,
+            Code::InvalidArgument,
+            printed,
+        );
+    }
     expect_code(
         within("nothing to resume", client.resume(&other.id)).await,
         Code::FailedPrecondition,

@@ -208,11 +208,16 @@ pub enum SystemSpec {
     Solid(SolidSpec),
 }
 
+/// Longest scene name: names are listed back to every client, so one
+/// client's megabyte name must not swell every other client's answers.
+pub const MAX_NAME_CHARS: usize = 256;
+
 /// A complete scene.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Scene {
-    /// A name for people; the engine does not read it.
+    /// A name for people, at most [`MAX_NAME_CHARS`] characters; the
+    /// engine does not read it.
     #[serde(default)]
     pub name: String,
     /// 2 or 3. In 2D particles live in the plane z = 0 and the z extents
@@ -341,6 +346,13 @@ impl Scene {
         &self,
         options: &BuildOptions,
     ) -> Result<Vec<Option<Shape>>, SceneError> {
+        let name_chars = self.name.chars().count();
+        if name_chars > MAX_NAME_CHARS {
+            return Err(SceneError::invalid(
+                "name",
+                format!("is {name_chars} characters long; keep it to {MAX_NAME_CHARS}"),
+            ));
+        }
         if !(self.dimension == 2 || self.dimension == 3) {
             return Err(SceneError::invalid(
                 "dimension",

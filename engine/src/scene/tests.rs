@@ -68,6 +68,15 @@ fn bad_values_name_their_field() {
     assert_eq!(rejected_field(&s), "systems[0].spacing");
 
     let mut s = small();
+    s.name = "n".repeat(MAX_NAME_CHARS + 1);
+    assert_eq!(rejected_field(&s), "name");
+    s.name = "\u{e9}".repeat(MAX_NAME_CHARS);
+    assert!(
+        s.validate(&BuildOptions::default()).is_ok(),
+        "the limit counts characters"
+    );
+
+    let mut s = small();
     fluid(&mut s).support_radius = Some(Real::NAN);
     assert_eq!(rejected_field(&s), "systems[0].support_radius");
 

@@ -48,12 +48,21 @@ struct Pacing {
     factor: f64,
 }
 
+/// Longest single wait of a paced run: the loop wakes at least this often
+/// to notice cancellation, however slow the factor.
+const MAX_PACING_WAIT: Duration = Duration::from_millis(100);
+
 impl Pacing {
-    /// How long to wait before the next step to keep to the factor.
+    /// How long to wait before the next step to keep to the factor, at
+    /// most [`MAX_PACING_WAIT`]. Never panics: a wait too long for a
+    /// `Duration` (a tiny factor) is the cap.
     fn wait(&self, sim_time: f64) -> Option<Duration> {
         let due = (sim_time - self.sim_start) / self.factor;
         let elapsed = self.wall_start.elapsed().as_secs_f64();
-        (due > elapsed).then(|| Duration::from_secs_f64(due - elapsed))
+        (due > elapsed).then(|| {
+            Duration::try_from_secs_f64(due - elapsed)
+                .map_or(MAX_PACING_WAIT, |wait| wait.min(MAX_PACING_WAIT))
+        })
     }
 }
 
@@ -378,5 +387,26 @@ impl Worker {
             // No watcher is not an error.
             let _ = self.out.events.send(self.status());
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pacing_waits_are_capped_and_never_panic() {
+        let pacing = |factor| Pacing {
+            wall_start: Instant::now(),
+            sim_start: 0.0,
+            factor,
+        };
+        // 1e297 s due: far beyond what a Duration holds.
+        assert_eq!(pacing(1e-300).wait(1.0), Some(MAX_PACING_WAIT));
+        assert_eq!(pacing(f64::MIN_POSITIVE).wait(1.0), Some(MAX_PACING_WAIT));
+        // Already late: no wait.
+        assert_eq!(pacing(1.0).wait(-1.0), None);
+        let short = pacing(1e6).wait(1.0).expect("1 us ahead");
+        assert!(short <= Duration::from_micros(1), "{short:?}");
     }
 }
