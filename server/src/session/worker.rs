@@ -7,6 +7,7 @@ use super::{Command, LatestFrame, Reply, SharedDesign, lock};
 use crate::error::{ServiceError, state_name};
 use meshless_engine::{BuildOptions, Frame, World};
 use meshless_proto::v1::{SessionState, SessionStatus};
+use std::panic::AssertUnwindSafe;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::time::{Duration, Instant};
@@ -133,17 +134,21 @@ impl Worker {
             };
             match message {
                 Some(Message::Command(command, reply)) => {
-                    let result = self.handle(command);
+                    let result = self.guarded(|w| w.handle(command, &reply)).and_then(|r| r);
                     // The caller may have gone away; the command still applied.
                     let _ = reply.send(result);
                 }
-                Some(Message::Optimize(job, channels)) => self.optimize(&job, channels),
+                Some(Message::Optimize(job, channels)) => {
+                    // On a panic the result channel drops with the closure:
+                    // the caller hears that the optimisation ended.
+                    let _ = self.guarded(|w| w.optimize(&job, channels));
+                }
                 Some(Message::Shutdown) => break,
                 None if self.cancel.is_cancelled() => break,
                 None => {
                     let due = self.pacing.and_then(|p| p.wait(self.world.clock().time));
                     if due.is_none() {
-                        self.advance_run();
+                        let _ = self.guarded(Self::advance_run);
                     }
                 }
             }
@@ -154,9 +159,36 @@ impl Worker {
         self.set_state(SessionState::Closed, "deleted");
     }
 
-    fn handle(&mut self, command: Command) -> Result<SessionStatus, ServiceError> {
+    /// Runs `work` on the worker, containing a panic in it. A panic is a
+    /// bug, never a user's input, but it must not kill the compute thread
+    /// (the session would stay listed and answer nothing): the session
+    /// faults with the panic's message instead, keeps its last good frame,
+    /// refuses steps until reset (which rebuilds the world, whatever state
+    /// the panic left it in), and the caller gets INTERNAL.
+    fn guarded<T>(&mut self, work: impl FnOnce(&mut Self) -> T) -> Result<T, ServiceError> {
+        let payload = match std::panic::catch_unwind(AssertUnwindSafe(|| work(self))) {
+            Ok(value) => return Ok(value),
+            Err(payload) => payload,
+        };
+        let message = payload
+            .downcast_ref::<&str>()
+            .map(|s| (*s).to_owned())
+            .or_else(|| payload.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "a panic without a message".into());
+        tracing::error!(session = %self.id, "session faulted by a panic: {message}");
+        lock(&self.design).running = None;
+        self.run = None;
+        self.pacing = None;
+        let reason = format!("internal error ({message}); reset or delete the session");
+        self.set_state(SessionState::Faulted, &reason);
+        Err(ServiceError::Internal(reason))
+    }
+
+    /// Applies one command; `reply` is where its answer goes, and a closed
+    /// one (the caller gave up) ends a long `Step` at the next step.
+    fn handle(&mut self, command: Command, reply: &Reply) -> Result<SessionStatus, ServiceError> {
         match command {
-            Command::Step(steps) => self.step(steps),
+            Command::Step(steps) => self.step(steps, reply),
             Command::Run(target) => self.start_run(target),
             Command::Pause => {
                 if self.state == SessionState::Running {
@@ -232,12 +264,15 @@ impl Worker {
         }
     }
 
-    fn step(&mut self, steps: u64) -> Result<SessionStatus, ServiceError> {
+    /// Takes up to `steps` steps; stops early when the session is shut
+    /// down or the caller is gone (an abandoned `Step(1_000_000)` would
+    /// otherwise hold the session for as long as it takes).
+    fn step(&mut self, steps: u64, reply: &Reply) -> Result<SessionStatus, ServiceError> {
         if matches!(self.state, SessionState::Running | SessionState::Faulted) {
             return Err(self.refuse("step", "pause it first"));
         }
         for _ in 0..steps {
-            if self.cancel.is_cancelled() || !self.advance() {
+            if self.cancel.is_cancelled() || reply.is_closed() || !self.advance() {
                 break;
             }
         }
@@ -393,6 +428,94 @@ impl Worker {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use meshless_engine::Scene;
+
+    /// A worker over a 27-particle fluid, with its status receiver.
+    fn worker() -> (Worker, watch::Receiver<SessionStatus>) {
+        let scene = Scene::from_toml_str(
+            r#"
+            [domain]
+            min = [0.0, 0.0, 0.0]
+            max = [1.0, 1.0, 1.0]
+            [time]
+            dt = 0.001
+            [[systems]]
+            kind = "fluid"
+            spacing = 0.1
+            stiffness = 1e4
+            [[systems.blocks]]
+            region = { min = [0.0, 0.0, 0.0], max = [0.3, 0.3, 0.3] }
+            "#,
+        )
+        .expect("scene");
+        let options = BuildOptions::default();
+        let world = scene.build(&options).expect("world");
+        let (status, status_rx) = watch::channel(SessionStatus::default());
+        let (events, _) = broadcast::channel(4);
+        let (frames, _frames_rx) = mpsc::channel(4);
+        let out = Outputs {
+            status,
+            events,
+            frames,
+            latest: Arc::new(std::sync::Mutex::new(Arc::new(world.frame()))),
+        };
+        let worker = Worker::new(
+            "s".into(),
+            world,
+            options,
+            out,
+            SharedDesign::default(),
+            CancellationToken::new(),
+        );
+        (worker, status_rx)
+    }
+
+    /// Applies `command` with a caller that waits for the answer.
+    fn command(worker: &mut Worker, command: Command) -> Result<SessionStatus, ServiceError> {
+        let (reply, _answer) = tokio::sync::oneshot::channel();
+        worker.handle(command, &reply)
+    }
+
+    #[test]
+    fn an_abandoned_step_stops_at_the_next_step() {
+        let (mut worker, _status) = worker();
+        let (reply, answer) = tokio::sync::oneshot::channel();
+        drop(answer);
+        let status = worker
+            .handle(Command::Step(1_000_000), &reply)
+            .expect("answers");
+        assert_eq!(status.step, 0, "no step for a caller that is gone");
+        assert_eq!(
+            command(&mut worker, Command::Step(3)).expect("steps").step,
+            3
+        );
+    }
+
+    #[test]
+    fn a_panic_faults_the_session_and_reset_recovers() {
+        let (mut worker, status) = worker();
+        command(&mut worker, Command::Step(2)).expect("steps");
+        let err = worker
+            .guarded::<()>(|_| panic!("index out of bounds"))
+            .expect_err("contained");
+        assert!(matches!(err, ServiceError::Internal(_)), "{err:?}");
+        let seen = status.borrow().clone();
+        assert_eq!(seen.state, SessionState::Faulted as i32);
+        assert!(
+            seen.reason.contains("index out of bounds"),
+            "{}",
+            seen.reason
+        );
+        assert_eq!(seen.step, 2, "the last good state is kept");
+        let refused = command(&mut worker, Command::Step(1)).expect_err("faulted");
+        assert!(
+            matches!(refused, ServiceError::Faulted { .. }),
+            "{refused:?}"
+        );
+        let reset = command(&mut worker, Command::Reset).expect("reset");
+        assert_eq!(reset.state, SessionState::Idle as i32);
+        command(&mut worker, Command::Step(1)).expect("steps again");
+    }
 
     #[test]
     fn pacing_waits_are_capped_and_never_panic() {
