@@ -107,6 +107,28 @@ async fn bad_input_gets_the_right_code_and_loses_nothing() {
         "plasma",
     );
 
+    // Particles piled at one point (50,000 once took the server past 3 GB
+    // of neighbour lists; 500 stay under this server's particle limit):
+    // refused before any neighbour search, naming the pile.
+    let mut pile = spec.clone();
+    let at = v1::Vec3 {
+        x: 0.1,
+        y: 0.1,
+        z: 0.1,
+    };
+    fluid(&mut pile).particles = vec![
+        v1::Particle {
+            position: Some(at),
+            velocity: None,
+        };
+        500
+    ];
+    expect_code(
+        within("piled particles", client.create_session(pile)).await,
+        Code::InvalidArgument,
+        "within one spacing",
+    );
+
     // Limits: RESOURCE_EXHAUSTED.
     let mut big = spec.clone();
     fluid(&mut big).spacing = 0.01;

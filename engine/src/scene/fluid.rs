@@ -9,6 +9,7 @@ use crate::fluid::ViscosityModel;
 use crate::math::Real;
 use crate::neighbors::{GridError, UniformGrid};
 use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
 
 /// A box filled with fluid particles on a regular lattice.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -181,7 +182,42 @@ impl FluidSpec {
     }
 }
 
+/// Most hand-placed particles one cell of side `spacing` may hold. A
+/// lattice puts one there and a compressed measured state a few; more
+/// means coincident or piled-up input, whose neighbour lists (every
+/// particle near every other) would grow with the square of the pile.
+pub const MAX_PARTICLES_PER_CELL: usize = 8;
+
 impl Scene {
+    /// Refuses hand-placed particles piled into one spot: bins them into
+    /// cells of side `spacing` (one pass, memory linear in their number)
+    /// and names the first crowded cell's first particle. This bounds the
+    /// neighbours of every particle before any neighbour search runs.
+    fn check_crowding(&self, at: &str, fluid: &FluidSpec) -> Result<(), SceneError> {
+        let mut cells: HashMap<[i64; 3], (usize, usize)> =
+            HashMap::with_capacity(fluid.particles.len());
+        for (i, particle) in fluid.particles.iter().enumerate() {
+            // Saturating casts: positions are finite and inside the domain.
+            let cell = std::array::from_fn(|a| {
+                ((particle.position[a] - self.domain.min[a]) / fluid.spacing).floor() as i64
+            });
+            let (first, count) = cells.entry(cell).or_insert((i, 0));
+            *count += 1;
+            if *count > MAX_PARTICLES_PER_CELL {
+                return Err(SceneError::invalid(
+                    format!("{at}.particles[{first}].position"),
+                    format!(
+                        "more than {MAX_PARTICLES_PER_CELL} particles lie within one spacing \
+                         ({}) of each other here (particles[{first}] and particles[{i}] among \
+                         them); place hand-placed particles about a spacing apart",
+                        fluid.spacing
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     pub(super) fn validate_fluid(&self, at: &str, fluid: &FluidSpec) -> Result<(), SceneError> {
         check_positive(&format!("{at}.spacing"), fluid.spacing)?;
         let h = fluid.support_radius();
@@ -280,6 +316,7 @@ impl Scene {
                 ));
             }
         }
+        self.check_crowding(at, fluid)?;
         let domain = Aabb {
             min: self.domain.min,
             max: self.domain.max,

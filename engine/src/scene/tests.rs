@@ -119,6 +119,33 @@ fn bad_values_name_their_field() {
     });
     assert_eq!(rejected_field(&s), "systems[0].particles[0].velocity.y");
 
+    // Particles piled into one spot are refused before any neighbour
+    // search (50,000 at one point once took the server past 3 GB); a
+    // lattice of them at the spacing is fine.
+    let mut s = small();
+    let spacing = fluid(&mut s).spacing;
+    let pile = ParticleSpec {
+        position: [0.55, 0.55, 0.55],
+        velocity: [0.0; 3],
+    };
+    fluid(&mut s).particles = vec![pile; 50_000];
+    match s.validate(&BuildOptions::default()) {
+        Err(SceneError::Invalid { field, message }) => {
+            assert_eq!(field, "systems[0].particles[0].position");
+            assert!(message.contains("particles[8]"), "{message}");
+        }
+        other => panic!("a pile of particles was accepted: {other:?}"),
+    }
+    let mut s = small();
+    fluid(&mut s).particles = (0..4)
+        .flat_map(|i| (0..4).map(move |j| (i, j)))
+        .map(|(i, j)| ParticleSpec {
+            position: [0.6 + spacing * i as Real, 0.6 + spacing * j as Real, 0.6],
+            velocity: [0.0; 3],
+        })
+        .collect();
+    assert!(s.validate(&BuildOptions::default()).is_ok());
+
     // Three support radii (0.6 m) fit in the 1 m box; 0.5 m does not.
     let mut s = small();
     s.periodic = [false, true, false];
