@@ -60,9 +60,34 @@ pub struct ServerConfig {
     /// Largest number of sessions held at once.
     #[arg(long, env = "MESHLESS_MAX_SESSIONS", default_value_t = DEFAULT_MAX_SESSIONS)]
     pub max_sessions: u32,
+
+    /// Memory all sessions together may hold, in MB, by each scene's
+    /// estimate (`Scene::footprint`) before it is built. Unset: half of
+    /// this host's physical memory.
+    #[arg(long, env = "MESHLESS_MEMORY_BUDGET_MB")]
+    pub memory_budget_mb: Option<u64>,
 }
 
+/// The budget when physical memory cannot be read (not Linux).
+const FALLBACK_BUDGET_BYTES: u64 = 4 << 30;
+
 impl ServerConfig {
+    /// The memory budget in bytes: the configured one, or half of the
+    /// host's physical memory (`MemTotal` of `/proc/meminfo`).
+    pub fn memory_budget_bytes(&self) -> u64 {
+        if let Some(mb) = self.memory_budget_mb {
+            return mb.saturating_mul(1 << 20);
+        }
+        std::fs::read_to_string("/proc/meminfo")
+            .ok()
+            .and_then(|info| {
+                let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
+                let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+                Some(kib.saturating_mul(1024) / 2)
+            })
+            .unwrap_or(FALLBACK_BUDGET_BYTES)
+    }
+
     /// A server on loopback with free ports for gRPC and zenoh: what the
     /// embedded `meshless demo` and tests use.
     pub fn ephemeral() -> Self {
@@ -73,6 +98,7 @@ impl ServerConfig {
             zenoh_connect: Vec::new(),
             max_particles: DEFAULT_MAX_PARTICLES,
             max_sessions: DEFAULT_MAX_SESSIONS,
+            memory_budget_mb: None,
         }
     }
 
@@ -89,6 +115,9 @@ impl ServerConfig {
         }
         if self.max_sessions == 0 {
             return Err("--max-sessions must be at least 1".into());
+        }
+        if self.memory_budget_mb == Some(0) {
+            return Err("--memory-budget-mb must be at least 1".into());
         }
         Ok(())
     }

@@ -33,6 +33,20 @@ pub enum ServiceError {
     Faulted { session_id: String, reason: String },
     #[error("this server already holds {limit} sessions, its limit; delete one first")]
     TooManySessions { limit: u32 },
+    /// The scene's memory estimate does not fit what the budget has left.
+    #[error(
+        "this scene needs about {needed_mb} MB and the server has {free_mb} MB of its \
+         {budget_mb} MB memory budget left; use fewer particles (a coarser spacing) or \
+         delete a session"
+    )]
+    MemoryBudget {
+        /// The scene's estimate, MB.
+        needed_mb: u64,
+        /// What the budget has left, MB.
+        free_mb: u64,
+        /// The whole budget, MB.
+        budget_mb: u64,
+    },
     #[error("session {0} stopped and no longer takes commands; delete it")]
     SessionGone(String),
     #[error("internal error: {0}")]
@@ -66,7 +80,7 @@ impl ServiceError {
                 DesignError::Cancelled { .. } => Code::Cancelled,
             },
             Self::WrongState { .. } | Self::Faulted { .. } => Code::FailedPrecondition,
-            Self::TooManySessions { .. } => Code::ResourceExhausted,
+            Self::TooManySessions { .. } | Self::MemoryBudget { .. } => Code::ResourceExhausted,
             Self::SessionGone(_) => Code::Unavailable,
             Self::Internal(_) => Code::Internal,
         }

@@ -86,6 +86,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
             max_particles: config.max_particles,
         },
         config.max_sessions,
+        config.memory_budget_bytes(),
         shutdown.child_token(),
     ));
     let info = v1::ServerInfo {

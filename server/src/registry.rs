@@ -6,7 +6,7 @@ use meshless_engine::{BuildOptions, Scene};
 use std::collections::HashMap;
 use std::hash::{BuildHasher, RandomState};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, RwLock};
+use std::sync::{Arc, Mutex, RwLock};
 use tokio_util::sync::CancellationToken;
 
 #[derive(Debug)]
@@ -15,6 +15,7 @@ pub struct Registry {
     zenoh: zenoh::Session,
     options: BuildOptions,
     max_sessions: u32,
+    memory: Mutex<Memory>,
     serial: AtomicU64,
     ids: RandomState,
     cancel: CancellationToken,
@@ -25,6 +26,7 @@ impl Registry {
         zenoh: zenoh::Session,
         options: BuildOptions,
         max_sessions: u32,
+        memory_budget: u64,
         cancel: CancellationToken,
     ) -> Self {
         Self {
@@ -32,10 +34,21 @@ impl Registry {
             zenoh,
             options,
             max_sessions,
+            memory: Mutex::new(Memory {
+                budget: memory_budget,
+                reserved: 0,
+                by_session: HashMap::new(),
+            }),
             serial: AtomicU64::new(0),
             ids: RandomState::new(),
             cancel,
         }
+    }
+
+    fn memory(&self) -> std::sync::MutexGuard<'_, Memory> {
+        self.memory
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 
     fn read(&self) -> std::sync::RwLockReadGuard<'_, HashMap<String, Arc<Session>>> {
@@ -61,30 +74,58 @@ impl Registry {
             return Err(ServiceError::TooManySessions { limit });
         }
         let options = self.options;
-        let world = tokio::task::spawn_blocking(move || scene.build(&options))
-            .await
-            .map_err(|e| ServiceError::Internal(format!("scene build task failed: {e}")))??;
+        // Validation and the estimate first (a mesh may be read), then the
+        // reservation, and only then the allocation.
+        let (scene, footprint) = tokio::task::spawn_blocking(move || {
+            let footprint = scene.footprint(&options);
+            footprint.map(|f| (scene, f))
+        })
+        .await
+        .map_err(|e| ServiceError::Internal(format!("scene check task failed: {e}")))??;
+        let needed = footprint.bytes.ceil().min(u64::MAX as f64) as u64;
+        self.memory().reserve(needed)?;
         let serial = self.serial.fetch_add(1, Ordering::Relaxed);
         let id = format!(
             "{:016x}",
             self.ids.hash_one((serial, std::time::SystemTime::now()))
         );
-        let session = Session::start(
+        let built = tokio::task::spawn_blocking(move || scene.build(&options))
+            .await
+            .map_err(|e| ServiceError::Internal(format!("scene build task failed: {e}")))
+            .and_then(|built| built.map_err(ServiceError::from));
+        let world = match built {
+            Ok(world) => world,
+            Err(e) => {
+                self.memory().release_unassigned(needed);
+                return Err(e);
+            }
+        };
+        let started = Session::start(
             id.clone(),
             serial,
             world,
             options,
             &self.zenoh,
             self.cancel.child_token(),
-        )
-        .map_err(|e| ServiceError::Internal(format!("cannot start a compute thread: {e}")))?;
+        );
+        let session = match started {
+            Ok(session) => session,
+            Err(e) => {
+                self.memory().release_unassigned(needed);
+                return Err(ServiceError::Internal(format!(
+                    "cannot start a compute thread: {e}"
+                )));
+            }
+        };
         let mut sessions = self.write();
         if sessions.len() >= limit as usize {
             drop(sessions);
+            self.memory().release_unassigned(needed);
             let late = session.clone();
             tokio::task::spawn_blocking(move || late.shut_down());
             return Err(ServiceError::TooManySessions { limit });
         }
+        self.memory().assign(&id, needed);
         sessions.insert(id, session.clone());
         Ok(session)
     }
@@ -114,6 +155,7 @@ impl Registry {
             .write()
             .remove(id)
             .ok_or_else(|| ServiceError::NotFound(quote(id)))?;
+        self.memory().release(id);
         join_blocking(session).await;
         Ok(())
     }
@@ -122,7 +164,52 @@ impl Registry {
     pub async fn shut_down_all(&self) {
         let sessions: Vec<_> = self.write().drain().map(|(_, s)| s).collect();
         for session in sessions {
+            self.memory().release(&session.id);
             join_blocking(session).await;
+        }
+    }
+}
+
+/// The memory budget and what the sessions hold of it, by their
+/// estimates: a scene is admitted only when its estimate fits what is
+/// left, reserved before its world is allocated.
+#[derive(Debug)]
+struct Memory {
+    budget: u64,
+    reserved: u64,
+    by_session: HashMap<String, u64>,
+}
+
+impl Memory {
+    /// Reserves `bytes`, or says how much the budget has left.
+    fn reserve(&mut self, bytes: u64) -> Result<(), ServiceError> {
+        let free = self.budget.saturating_sub(self.reserved);
+        if bytes > free {
+            let mb = |b: u64| b.div_ceil(1 << 20);
+            return Err(ServiceError::MemoryBudget {
+                needed_mb: mb(bytes),
+                free_mb: free >> 20,
+                budget_mb: self.budget >> 20,
+            });
+        }
+        self.reserved += bytes;
+        Ok(())
+    }
+
+    /// Gives back a reservation no session took.
+    fn release_unassigned(&mut self, bytes: u64) {
+        self.reserved = self.reserved.saturating_sub(bytes);
+    }
+
+    /// Records that session `id` holds a reservation of `bytes`.
+    fn assign(&mut self, id: &str, bytes: u64) {
+        self.by_session.insert(id.to_owned(), bytes);
+    }
+
+    /// Gives back what session `id` held.
+    fn release(&mut self, id: &str) {
+        if let Some(bytes) = self.by_session.remove(id) {
+            self.reserved = self.reserved.saturating_sub(bytes);
         }
     }
 }
@@ -131,5 +218,30 @@ async fn join_blocking(session: Arc<Session>) {
     let id = session.id.clone();
     if let Err(e) = tokio::task::spawn_blocking(move || session.shut_down()).await {
         tracing::error!(session = %id, "shutting the session down failed: {e}");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reservations_fit_the_budget_and_come_back() {
+        let mut memory = Memory {
+            budget: 10 << 20,
+            reserved: 0,
+            by_session: HashMap::new(),
+        };
+        memory.reserve(6 << 20).expect("fits");
+        memory.assign("a", 6 << 20);
+        let err = memory.reserve(5 << 20).expect_err("over");
+        assert!(err.to_string().contains("needs about 5 MB"), "{err}");
+        assert!(err.to_string().contains("4 MB of its 10 MB"), "{err}");
+        memory.reserve(4 << 20).expect("the rest fits");
+        memory.release_unassigned(4 << 20);
+        memory.release("a");
+        memory.release("a");
+        assert_eq!(memory.reserved, 0);
+        memory.reserve(10 << 20).expect("all of it again");
     }
 }

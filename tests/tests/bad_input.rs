@@ -532,3 +532,57 @@ anchors = [{ min = [0.285, 0.285, 0.285], max = [0.295, 0.295, 0.295] }]
     assert_eq!(state(&stepped), v1::SessionState::Paused);
     assert_eq!(stepped.status.as_ref().expect("status").step, 2);
 }
+
+/// Sessions are admitted by their memory estimate against the server's
+/// budget, before anything is allocated: a scene that does not fit is
+/// RESOURCE_EXHAUSTED naming the budget, the others run on, and deleting a
+/// session gives its share back.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn scenes_beyond_the_memory_budget_are_refused() {
+    let server = ServerProcess::spawn(&["--memory-budget-mb", "4"])
+        .await
+        .expect("server starts");
+    let client = server.client().await.expect("client");
+    let spec = small_spec(&client).await;
+    let small = within("create", client.create_session(spec.clone()))
+        .await
+        .expect("a small scene fits");
+
+    // 8,000 particles: about 8 MB by the estimate, over the 4 MB budget.
+    let mut big = spec.clone();
+    fluid(&mut big).spacing = 0.01;
+    fluid(&mut big).support_radius = Some(0.02);
+    expect_code(
+        within("over budget", client.create_session(big.clone())).await,
+        Code::ResourceExhausted,
+        "memory budget",
+    );
+    let listed = within("list", client.list_sessions()).await.expect("ok");
+    assert_eq!(listed.len(), 1, "the refused scene left nothing behind");
+    within("step", client.step(&small.id, 1))
+        .await
+        .expect("the admitted session runs on");
+
+    // A scene that fits only once the first session's share is back.
+    let mut half = spec.clone();
+    fluid(&mut half).spacing = 0.015;
+    fluid(&mut half).support_radius = Some(0.03);
+    let mut sessions = Vec::new();
+    loop {
+        match within("fill", client.create_session(half.clone())).await {
+            Ok(session) => sessions.push(session.id),
+            Err(err) => {
+                assert_eq!(err.code(), Some(Code::ResourceExhausted), "{err}");
+                break;
+            }
+        }
+        assert!(sessions.len() < 100, "the budget never filled");
+    }
+    let freed = sessions.pop().expect("at least one fitted");
+    within("delete", client.delete_session(&freed))
+        .await
+        .expect("deleted");
+    within("refill", client.create_session(half))
+        .await
+        .expect("a deleted session's share is given back");
+}

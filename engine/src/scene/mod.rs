@@ -13,6 +13,7 @@
 mod body;
 mod error;
 mod fluid;
+mod footprint;
 mod solid;
 #[cfg(test)]
 mod tests;
@@ -22,6 +23,7 @@ pub use body::{MotionKind, OscillationSpec, RigidBodySpec, ShapeSpec, SlipKind};
 pub(crate) use body::{body_pose, body_shape, checked_shape, shape_axes, shape_pose};
 pub use error::SceneError;
 pub use fluid::{FluidBlock, FluidSpec, ParticleSpec, SolverKind, WallModel};
+pub use footprint::Footprint;
 pub use solid::{
     AnchorSpec, IntegratorKind, SolidSpec, SolidSurfaceSpec, defaults as solid_defaults,
 };
@@ -339,13 +341,23 @@ impl Scene {
         self.checked_shapes(options).map(|_| ())
     }
 
+    /// Validates like [`Self::validate`] and estimates the memory the
+    /// built world will hold, so that a host can refuse a scene it has no
+    /// room for before allocating anything.
+    ///
+    /// # Errors
+    /// As [`Self::validate`].
+    pub fn footprint(&self, options: &BuildOptions) -> Result<Footprint, SceneError> {
+        self.checked_shapes(options).map(|(_, footprint)| footprint)
+    }
+
     /// [`Self::validate`], keeping the engine shape of each rigid body
     /// (by system index; `None` for other systems), so that a mesh file is
     /// read once per build.
     pub(crate) fn checked_shapes(
         &self,
         options: &BuildOptions,
-    ) -> Result<Vec<Option<Shape>>, SceneError> {
+    ) -> Result<(Vec<Option<Shape>>, Footprint), SceneError> {
         let name_chars = self.name.chars().count();
         if name_chars > MAX_NAME_CHARS {
             return Err(SceneError::invalid(
@@ -384,6 +396,7 @@ impl Scene {
         }
         let mut fluids = 0;
         let mut solid_particles = 0.0;
+        let mut footprint = Footprint::default();
         let mut shapes = Vec::with_capacity(self.systems.len());
         for (s, system) in self.systems.iter().enumerate() {
             shapes.push(None);
@@ -396,7 +409,12 @@ impl Scene {
                             "a scene holds at most one fluid; put all its blocks into the first",
                         ));
                     }
-                    self.validate_fluid(&format!("systems[{s}]"), fluid)?
+                    self.validate_fluid(&format!("systems[{s}]"), fluid)?;
+                    footprint.add_fluid(
+                        fluid.particle_count(self.dimension),
+                        fluid.support_radius() / fluid.spacing,
+                        self.dimension,
+                    );
                 }
                 SystemSpec::RigidBody(body) => {
                     if self.periodic_axes().contains(&true) {
@@ -421,6 +439,12 @@ impl Scene {
                 SystemSpec::Solid(solid) => {
                     let (shape, count) = self.validate_solid(&format!("systems[{s}]"), solid)?;
                     solid_particles += count as f64;
+                    footprint.add_solid(
+                        count as f64,
+                        solid.support,
+                        self.dimension,
+                        matches!(solid.integrator, IntegratorKind::Implicit),
+                    );
                     shapes[s] = Some(shape);
                 }
             }
@@ -438,7 +462,7 @@ impl Scene {
                 limit: options.max_particles,
             });
         }
-        Ok(shapes)
+        Ok((shapes, footprint))
     }
 
     /// The scene's fluid, if it has one.

@@ -29,7 +29,7 @@ impl Scene {
     /// # Errors
     /// See [`Scene::validate`].
     pub fn build(&self, options: &BuildOptions) -> Result<World, SceneError> {
-        let shapes = self.checked_shapes(options)?;
+        let (shapes, _) = self.checked_shapes(options)?;
         Ok(World::new(self.clone(), shapes))
     }
 }
