@@ -27,6 +27,9 @@ impl ZenohMode {
 pub const DEFAULT_MAX_PARTICLES: u64 = 2_000_000;
 /// Default of `--max-sessions`.
 pub const DEFAULT_MAX_SESSIONS: u32 = 64;
+/// Default cap on open gRPC connections: well under the usual limit of
+/// 1,024 file descriptors, which zenoh and the sessions share.
+pub const DEFAULT_MAX_CONNECTIONS: u32 = 512;
 
 /// Everything the server needs to start.
 #[derive(Debug, Clone, clap::Args)]
@@ -60,6 +63,11 @@ pub struct ServerConfig {
     /// Largest number of sessions held at once.
     #[arg(long, env = "MESHLESS_MAX_SESSIONS", default_value_t = DEFAULT_MAX_SESSIONS)]
     pub max_sessions: u32,
+
+    /// Most gRPC connections open at once; more wait in the kernel's
+    /// backlog until one closes.
+    #[arg(long, env = "MESHLESS_MAX_CONNECTIONS", default_value_t = DEFAULT_MAX_CONNECTIONS)]
+    pub max_connections: u32,
 
     /// Memory all sessions together may hold, in MB, by each scene's
     /// estimate (`Scene::footprint`) before it is built. Unset: half of
@@ -98,6 +106,7 @@ impl ServerConfig {
             zenoh_connect: Vec::new(),
             max_particles: DEFAULT_MAX_PARTICLES,
             max_sessions: DEFAULT_MAX_SESSIONS,
+            max_connections: DEFAULT_MAX_CONNECTIONS,
             memory_budget_mb: None,
         }
     }
@@ -115,6 +124,9 @@ impl ServerConfig {
         }
         if self.max_sessions == 0 {
             return Err("--max-sessions must be at least 1".into());
+        }
+        if self.max_connections == 0 {
+            return Err("--max-connections must be at least 1".into());
         }
         if self.memory_budget_mb == Some(0) {
             return Err("--memory-budget-mb must be at least 1".into());

@@ -10,6 +10,7 @@
 
 pub mod config;
 mod error;
+mod listener;
 mod pubsub;
 mod registry;
 mod service;
@@ -36,14 +37,6 @@ const KEEPALIVE_INTERVAL: Duration = Duration::from_secs(30);
 
 /// How long a ping may go unanswered before the connection is closed.
 const KEEPALIVE_TIMEOUT: Duration = Duration::from_secs(10);
-
-/// An accepted connection set up for request-response traffic:
-/// `TCP_NODELAY`, since a small response held back by Nagle's algorithm
-/// until the client's delayed ACK costs about 40 ms per sequential call.
-fn tuned(stream: tokio::net::TcpStream) -> std::io::Result<tokio::net::TcpStream> {
-    stream.set_nodelay(true)?;
-    Ok(stream)
-}
 
 /// A server started by [`start`].
 #[derive(Debug)]
@@ -112,9 +105,10 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         .build_v1()
         .context("gRPC reflection")?;
 
-    let incoming = tokio_stream::StreamExt::map(
-        tokio_stream::wrappers::TcpListenerStream::new(listener),
-        |accepted| accepted.and_then(tuned),
+    let incoming = listener::incoming(
+        listener,
+        config.max_connections as usize,
+        shutdown.child_token(),
     );
     let stop = shutdown.clone();
     let task = tokio::spawn(async move {
@@ -170,30 +164,4 @@ async fn shutdown_signal() -> Result<()> {
     #[cfg(not(unix))]
     tokio::signal::ctrl_c().await?;
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[tokio::test]
-    async fn accepted_connections_send_without_delay() {
-        let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
-            .await
-            .expect("bind");
-        let addr = listener.local_addr().expect("address");
-        let timeout = Duration::from_secs(10);
-        let (client, accepted) = tokio::join!(
-            tokio::time::timeout(timeout, tokio::net::TcpStream::connect(addr)),
-            tokio::time::timeout(timeout, listener.accept()),
-        );
-        let _client = client.expect("connects in time").expect("connects");
-        let (stream, _) = accepted.expect("accepts in time").expect("accepts");
-        assert!(
-            !stream.nodelay().expect("option"),
-            "the OS default is Nagle"
-        );
-        let stream = tuned(stream).expect("tuned");
-        assert!(stream.nodelay().expect("option"));
-    }
 }
