@@ -30,6 +30,9 @@ pub const DEFAULT_MAX_SESSIONS: u32 = 64;
 /// Default cap on open gRPC connections: well under the usual limit of
 /// 1,024 file descriptors, which zenoh and the sessions share.
 pub const DEFAULT_MAX_CONNECTIONS: u32 = 512;
+/// Default of `--max-request-mb`: room for a scene with a million
+/// hand-placed particles.
+pub const DEFAULT_MAX_REQUEST_MB: u32 = 64;
 
 /// Everything the server needs to start.
 #[derive(Debug, Clone, clap::Args)]
@@ -69,6 +72,11 @@ pub struct ServerConfig {
     #[arg(long, env = "MESHLESS_MAX_CONNECTIONS", default_value_t = DEFAULT_MAX_CONNECTIONS)]
     pub max_connections: u32,
 
+    /// Largest request, in MB; larger ones are RESOURCE_EXHAUSTED before
+    /// they are decoded.
+    #[arg(long, env = "MESHLESS_MAX_REQUEST_MB", default_value_t = DEFAULT_MAX_REQUEST_MB)]
+    pub max_request_mb: u32,
+
     /// Memory all sessions together may hold, in MB, by each scene's
     /// estimate (`Scene::footprint`) before it is built. Unset: half of
     /// this host's physical memory.
@@ -80,6 +88,11 @@ pub struct ServerConfig {
 const FALLBACK_BUDGET_BYTES: u64 = 4 << 30;
 
 impl ServerConfig {
+    /// The largest request in bytes.
+    pub fn max_request_bytes(&self) -> usize {
+        (self.max_request_mb as usize).saturating_mul(1 << 20)
+    }
+
     /// The memory budget in bytes: the configured one, or half of the
     /// host's physical memory (`MemTotal` of `/proc/meminfo`).
     pub fn memory_budget_bytes(&self) -> u64 {
@@ -107,6 +120,7 @@ impl ServerConfig {
             max_particles: DEFAULT_MAX_PARTICLES,
             max_sessions: DEFAULT_MAX_SESSIONS,
             max_connections: DEFAULT_MAX_CONNECTIONS,
+            max_request_mb: DEFAULT_MAX_REQUEST_MB,
             memory_budget_mb: None,
         }
     }
@@ -124,6 +138,9 @@ impl ServerConfig {
         }
         if self.max_sessions == 0 {
             return Err("--max-sessions must be at least 1".into());
+        }
+        if self.max_request_mb == 0 {
+            return Err("--max-request-mb must be at least 1".into());
         }
         if self.max_connections == 0 {
             return Err("--max-connections must be at least 1".into());

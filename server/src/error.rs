@@ -114,6 +114,11 @@ pub const MAX_MESSAGE_CHARS: usize = 1024;
 /// Longest piece of client input a message quotes, in characters.
 const MAX_QUOTE_CHARS: usize = 64;
 
+/// `message` cut to the length a status message may have.
+pub fn truncate_message(message: &str) -> String {
+    truncate(message, MAX_MESSAGE_CHARS)
+}
+
 /// `text` cut to at most `max` characters, marked when cut.
 fn truncate(text: &str, max: usize) -> String {
     match text.char_indices().nth(max) {

@@ -8,6 +8,7 @@
 //! command and the tests do); the `meshless-server` binary wraps it with
 //! signal handling.
 
+mod codes;
 pub mod config;
 mod error;
 mod listener;
@@ -28,8 +29,8 @@ use std::sync::Arc;
 use std::time::Duration;
 use tokio_util::sync::CancellationToken;
 
-/// Largest gRPC message accepted: scenes are small, but leave room.
-const MAX_MESSAGE_BYTES: usize = 64 * 1024 * 1024;
+/// Largest gRPC response: a frame of a few million particles.
+const MAX_RESPONSE_BYTES: usize = 64 * 1024 * 1024;
 
 /// How often an idle connection is pinged (HTTP/2 PING), so that a peer
 /// that vanished without closing is noticed.
@@ -94,8 +95,8 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         info,
         shutdown.clone(),
     ))
-    .max_decoding_message_size(MAX_MESSAGE_BYTES)
-    .max_encoding_message_size(MAX_MESSAGE_BYTES);
+    .max_decoding_message_size(config.max_request_bytes())
+    .max_encoding_message_size(MAX_RESPONSE_BYTES);
     let (health_reporter, health) = tonic_health::server::health_reporter();
     health_reporter
         .set_serving::<SimulationServer<SimulationService>>()
@@ -115,6 +116,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         let served = tonic::transport::Server::builder()
             .http2_keepalive_interval(Some(KEEPALIVE_INTERVAL))
             .http2_keepalive_timeout(Some(KEEPALIVE_TIMEOUT))
+            .layer(tower::util::MapResponseLayer::new(codes::recode))
             .add_service(health)
             .add_service(reflection)
             .add_service(simulation)

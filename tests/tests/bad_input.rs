@@ -586,3 +586,25 @@ async fn scenes_beyond_the_memory_budget_are_refused() {
         .await
         .expect("a deleted session's share is given back");
 }
+
+/// A request over the server's size limit is RESOURCE_EXHAUSTED naming
+/// the limit (tonic's codec alone would say OUT_OF_RANGE), and the server
+/// serves the next request.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn oversize_requests_are_resource_exhausted() {
+    let server = ServerProcess::spawn(&["--max-request-mb", "1"])
+        .await
+        .expect("server starts");
+    let client = server.client().await.expect("client");
+    let spec = small_spec(&client).await;
+    let mut huge = spec.clone();
+    huge.name = "n".repeat(2 << 20);
+    let err = within("2 MB request", client.create_session(huge))
+        .await
+        .expect_err("over the limit");
+    assert_eq!(err.code(), Some(Code::ResourceExhausted), "{err}");
+    assert!(err.to_string().contains("--max-request-mb"), "{err}");
+    within("next request", client.create_session(spec))
+        .await
+        .expect("still serving");
+}

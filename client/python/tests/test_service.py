@@ -92,6 +92,28 @@ def test_a_bad_scene_is_invalid_argument_naming_the_field(server):
     assert error.value.code() == grpc.StatusCode.NOT_FOUND
 
 
+def test_an_undecodable_request_is_invalid_argument(server):
+    # Raw bytes that are no protobuf message: a field tag of 0 (tonic's
+    # codec alone would answer INTERNAL, as if the server had broken).
+    channel = grpc.insecure_channel(server.grpc_target)
+    grpc.channel_ready_future(channel).result(timeout=TIMEOUT)
+    raw = channel.unary_unary(
+        "/meshless.v1.Simulation/GetSession",
+        request_serializer=None,
+        response_deserializer=None,
+    )
+    with pytest.raises(grpc.RpcError) as error:
+        raw(b"\x00\x00\x00", timeout=TIMEOUT)
+    assert error.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+    assert "not a valid protobuf message" in error.value.details()
+    # The server serves the next request.
+    from meshless.v1 import simulation_pb2 as pb
+
+    with pytest.raises(grpc.RpcError) as error:
+        stub(server).GetSession(pb.SessionRef(session_id="missing"), timeout=TIMEOUT)
+    assert error.value.code() == grpc.StatusCode.NOT_FOUND
+
+
 def test_the_client_wrapper_drives_a_session(server):
     from meshless import Client, Frames
 
