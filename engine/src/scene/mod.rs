@@ -210,6 +210,37 @@ pub enum SystemSpec {
     Solid(SolidSpec),
 }
 
+/// Longest piece of a TOML parser's message a scene error repeats.
+const MAX_PARSE_MESSAGE_CHARS: usize = 300;
+
+/// A TOML error as a scene error says it: where (line and column) and
+/// what, without the offending line itself (a 60 MB line would make a
+/// 180 MB message), and with what to change when the file nests too deep.
+fn toml_error(text: &str, error: &toml::de::Error) -> String {
+    let mut message: String = error
+        .message()
+        .chars()
+        .take(MAX_PARSE_MESSAGE_CHARS)
+        .collect();
+    if message.chars().count() == MAX_PARSE_MESSAGE_CHARS {
+        message.push_str("...");
+    }
+    if message.contains("recursion") || message.contains("recurse") {
+        message.push_str(
+            " (arrays or inline tables nested too deeply; a scene needs a few levels at most)",
+        );
+    }
+    match error.span() {
+        Some(span) => {
+            let before = text.get(..span.start).unwrap_or(text);
+            let line = before.matches('\n').count() + 1;
+            let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+            format!("TOML parse error at line {line}, column {column}: {message}")
+        }
+        None => format!("TOML parse error: {message}"),
+    }
+}
+
 /// Longest scene name: names are listed back to every client, so one
 /// client's megabyte name must not swell every other client's answers.
 pub const MAX_NAME_CHARS: usize = 256;
@@ -273,7 +304,7 @@ impl Scene {
     /// # Errors
     /// [`SceneError::Parse`] with the line and key of the problem.
     pub fn from_toml_str(text: &str) -> Result<Self, SceneError> {
-        toml::from_str(text).map_err(|e| SceneError::Parse(e.to_string()))
+        toml::from_str(text).map_err(|e| SceneError::Parse(toml_error(text, &e)))
     }
 
     /// Reads and parses a scene file.

@@ -53,6 +53,26 @@ fn toml_defaults_are_applied() {
     assert!(f.lattice(2).all(|(x, _)| x[2] == 0.0));
 }
 
+/// Parse errors say where and what, never repeat the input at length,
+/// and say what to change for a file nested too deep.
+#[test]
+fn parse_errors_are_short_and_located() {
+    let long_key = format!("{} = 1\n", "k".repeat(1 << 20));
+    let err = Scene::from_toml_str(&format!("{SMALL}{long_key}")).expect_err("unknown key");
+    let message = err.to_string();
+    assert!(message.len() < 600, "{} bytes", message.len());
+    // toml places an unknown field at the table that holds it: the
+    // `[[systems]]` header on line 8.
+    assert!(message.contains("at line 8, column 5"), "{message}");
+
+    let deep = format!("a = {}1{}", "[".repeat(100_000), "]".repeat(100_000));
+    let message = Scene::from_toml_str(&deep)
+        .expect_err("too deep")
+        .to_string();
+    assert!(message.contains("nested too deeply"), "{message}");
+    assert!(message.len() < 600, "{} bytes", message.len());
+}
+
 #[test]
 fn toml_round_trips() {
     let scene = small();
