@@ -67,7 +67,9 @@ impl ServiceError {
             Self::InvalidArgument { .. } => Code::InvalidArgument,
             Self::Scene(scene) => match scene {
                 SceneError::Invalid { .. } | SceneError::Parse(_) => Code::InvalidArgument,
-                SceneError::TooManyParticles { .. } => Code::ResourceExhausted,
+                SceneError::TooManyParticles { .. } | SceneError::TooFine { .. } => {
+                    Code::ResourceExhausted
+                }
             },
             Self::NotFound(_) | Self::NoDesign(_) => Code::NotFound,
             Self::Design(design) => match design {

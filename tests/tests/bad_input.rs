@@ -454,6 +454,14 @@ async fn bad_solids_are_invalid_arguments_naming_the_field() {
             field,
         );
     }
+    // Too many particles is a resource limit for a solid as for a fluid.
+    let mut fine = spec.clone();
+    solid(&mut fine).spacing = 1e-5;
+    expect_code(
+        within("too fine", client.create_session(fine)).await,
+        Code::ResourceExhausted,
+        "systems[1].spacing",
+    );
     // Embedded surfaces are 3D only.
     let flat = r#"
 dimension = 2

@@ -27,6 +27,20 @@ pub enum SceneError {
         /// The host's limit ([`super::BuildOptions::max_particles`]).
         limit: u64,
     },
+    /// A solid's lattice would hold more points than the engine samples:
+    /// a resource limit, like [`Self::TooManyParticles`], not a bad value.
+    #[error(
+        "{field}: fills the shape's bounding cube with about {points} lattice points, more \
+         than the limit of {limit}; raise the spacing"
+    )]
+    TooFine {
+        /// The spacing at fault.
+        field: String,
+        /// Lattice points the spacing asks for.
+        points: u64,
+        /// Most lattice points the engine samples.
+        limit: u64,
+    },
     /// The scene file could not be read or parsed.
     #[error("{0}")]
     Parse(String),

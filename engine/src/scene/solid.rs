@@ -370,14 +370,11 @@ impl Scene {
         let reach = shape.bounding_radius(dim);
         let cells = (2.0 * reach / solid.spacing).ceil().powi(dim as i32);
         if cells > crate::geometry::MAX_SAMPLES as Real {
-            return Err(SceneError::invalid(
-                format!("{at}.spacing"),
-                format!(
-                    "fills the shape's bounding cube with about {cells:.0} lattice points, \
-                     more than the limit of {}; raise the spacing",
-                    crate::geometry::MAX_SAMPLES
-                ),
-            ));
+            return Err(SceneError::TooFine {
+                field: format!("{at}.spacing"),
+                points: cells.min(u64::MAX as Real) as u64,
+                limit: crate::geometry::MAX_SAMPLES as u64,
+            });
         }
         let particles = solid.particles(&shape, dim);
         if particles.is_empty() {

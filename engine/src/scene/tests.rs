@@ -216,6 +216,38 @@ fn particle_limit_is_enforced_before_allocation() {
     );
 }
 
+/// A solid too fine to sample is a resource limit like the fluid's
+/// particle limit (the host answers both RESOURCE_EXHAUSTED), naming the
+/// spacing.
+#[test]
+fn a_solid_too_fine_to_sample_is_a_resource_limit() {
+    let scene = Scene::from_toml_str(
+        r#"
+        gravity = [0.0, 0.0, 0.0]
+        [domain]
+        min = [-2.0, -2.0, -2.0]
+        max = [2.0, 2.0, 2.0]
+        [time]
+        dt = 0.001
+        [[systems]]
+        kind = "solid"
+        shape = { type = "box", half_extents = [0.5, 0.5, 0.5] }
+        position = [0.0, 0.0, 0.0]
+        spacing = 1e-4
+        young = 1e6
+        density = 1000.0
+        "#,
+    )
+    .expect("parses");
+    match scene.validate(&BuildOptions::default()) {
+        Err(SceneError::TooFine { field, points, .. }) => {
+            assert_eq!(field, "systems[0].spacing");
+            assert!(points >= 1_000_000_000_000, "{points}");
+        }
+        other => panic!("expected TooFine, got {other:?}"),
+    }
+}
+
 fn with_body(body: &str) -> Scene {
     Scene::from_toml_str(&format!(
         "{SMALL}\n[[systems]]\nkind = \"rigid_body\"\n{body}"
