@@ -78,7 +78,7 @@ pub struct ServerConfig {
     pub max_request_mb: u32,
 
     /// Memory all sessions together may hold, in MB, by each scene's
-    /// estimate (`Scene::footprint`) before it is built. Unset: half of
+    /// estimate (`Scene::check`) before it is built. Unset: half of
     /// this host's physical memory.
     #[arg(long, env = "MESHLESS_MEMORY_BUDGET_MB")]
     pub memory_budget_mb: Option<u64>,

@@ -76,23 +76,19 @@ impl Registry {
         let options = self.options;
         // Validation and the estimate first (a mesh may be read), then the
         // reservation, and only then the allocation.
-        let (scene, footprint) = tokio::task::spawn_blocking(move || {
-            let footprint = scene.footprint(&options);
-            footprint.map(|f| (scene, f))
-        })
-        .await
-        .map_err(|e| ServiceError::Internal(format!("scene check task failed: {e}")))??;
-        let needed = footprint.bytes.ceil().min(u64::MAX as f64) as u64;
+        let checked = tokio::task::spawn_blocking(move || scene.check(&options))
+            .await
+            .map_err(|e| ServiceError::Internal(format!("scene check task failed: {e}")))??;
+        let needed = checked.footprint().bytes.ceil().min(u64::MAX as f64) as u64;
         self.memory().reserve(needed)?;
         let serial = self.serial.fetch_add(1, Ordering::Relaxed);
         let id = format!(
             "{:016x}",
             self.ids.hash_one((serial, std::time::SystemTime::now()))
         );
-        let built = tokio::task::spawn_blocking(move || scene.build(&options))
+        let built = tokio::task::spawn_blocking(move || checked.build())
             .await
-            .map_err(|e| ServiceError::Internal(format!("scene build task failed: {e}")))
-            .and_then(|built| built.map_err(ServiceError::from));
+            .map_err(|e| ServiceError::Internal(format!("scene build task failed: {e}")));
         let world = match built {
             Ok(world) => world,
             Err(e) => {

@@ -210,6 +210,22 @@ pub enum SystemSpec {
     Solid(SolidSpec),
 }
 
+/// A validated scene with what validation found (the engine shape of
+/// each body, the memory estimate), ready to build.
+#[derive(Debug, Clone)]
+pub struct Checked {
+    pub(crate) scene: Scene,
+    pub(crate) shapes: Vec<Option<Shape>>,
+    footprint: Footprint,
+}
+
+impl Checked {
+    /// The memory the built world will hold, by estimate.
+    pub fn footprint(&self) -> Footprint {
+        self.footprint
+    }
+}
+
 /// Longest piece of a TOML parser's message a scene error repeats.
 const MAX_PARSE_MESSAGE_CHARS: usize = 300;
 
@@ -374,12 +390,18 @@ impl Scene {
 
     /// Validates like [`Self::validate`] and estimates the memory the
     /// built world will hold, so that a host can refuse a scene it has no
-    /// room for before allocating anything.
+    /// room for before allocating anything; [`Checked::build`] then builds
+    /// it without validating (or reading its meshes) again.
     ///
     /// # Errors
     /// As [`Self::validate`].
-    pub fn footprint(&self, options: &BuildOptions) -> Result<Footprint, SceneError> {
-        self.checked_shapes(options).map(|(_, footprint)| footprint)
+    pub fn check(self, options: &BuildOptions) -> Result<Checked, SceneError> {
+        let (shapes, footprint) = self.checked_shapes(options)?;
+        Ok(Checked {
+            scene: self,
+            shapes,
+            footprint,
+        })
     }
 
     /// [`Self::validate`], keeping the engine shape of each rigid body

@@ -14,8 +14,8 @@ use crate::math::{Vector, vector};
 use crate::neighbors::{Periodic, UniformGrid};
 use crate::rigid::{BodyState, Motion, Oscillation, RigidBodies, RigidBody, Slip};
 use crate::scene::{
-    BuildOptions, FluidSpec, MotionKind, RigidBodySpec, Scene, SceneError, SlipKind, SolidSpec,
-    SolverKind, SystemSpec, WallModel, body_pose,
+    BuildOptions, Checked, FluidSpec, MotionKind, RigidBodySpec, Scene, SceneError, SlipKind,
+    SolidSpec, SolverKind, SystemSpec, WallModel, body_pose,
 };
 use crate::solid::embedded::EmbeddedSurface;
 use crate::solid::{ElasticSolid, Obstacle, Obstacles, SolidState};
@@ -29,8 +29,14 @@ impl Scene {
     /// # Errors
     /// See [`Scene::validate`].
     pub fn build(&self, options: &BuildOptions) -> Result<World, SceneError> {
-        let (shapes, _) = self.checked_shapes(options)?;
-        Ok(World::new(self.clone(), shapes))
+        self.clone().check(options).map(Checked::build)
+    }
+}
+
+impl Checked {
+    /// Builds the world of the checked scene.
+    pub fn build(self) -> World {
+        World::new(self.scene, self.shapes)
     }
 }
 
