@@ -82,7 +82,8 @@ impl Connected for Admitted {
 /// The connections of `listener`, at most `max_connections` open at
 /// once, until `stop` or until the stream is dropped. Each gets
 /// `TCP_NODELAY`: a small response held back by Nagle's algorithm until
-/// the client's delayed ACK costs about 40 ms per sequential call.
+/// the client's delayed ACK cost about 44 ms per sequential call in the
+/// loopback test of issue 13 (no benchmark here measures it yet).
 pub fn incoming(
     listener: TcpListener,
     max_connections: usize,
