@@ -28,13 +28,12 @@ pub struct SurfaceView {
 }
 
 impl SurfaceView {
-    /// Unpacks a surface message.
+    /// Checks a surface message without unpacking it: the same checks as
+    /// [`SurfaceView::from_proto`].
     ///
     /// # Errors
-    /// [`ClientError::Decode`] when a byte count is not whole vertices,
-    /// normals or triangles, there are normals but not one per vertex, or
-    /// a triangle names a vertex that does not exist.
-    pub fn from_proto(surface: v1::SurfaceMesh) -> Result<Self, ClientError> {
+    /// As [`SurfaceView::from_proto`].
+    pub fn check(surface: &v1::SurfaceMesh) -> Result<(), ClientError> {
         let v1::SurfaceMesh {
             vertices,
             triangles,
@@ -56,6 +55,33 @@ impl SurfaceView {
                 vertices.len() / 12
             )));
         }
+        let vertex_count = vertices.len() / 12;
+        let bad = triangles
+            .chunks_exact(12)
+            .map(|c| [0, 4, 8].map(|o| u32::from_le_bytes([c[o], c[o + 1], c[o + 2], c[o + 3]])))
+            .enumerate()
+            .find(|(_, t)| t.iter().any(|&i| i as usize >= vertex_count));
+        if let Some((t, triangle)) = bad {
+            return Err(ClientError::Decode(format!(
+                "surface triangle {t} is {triangle:?}, but there are {vertex_count} vertices"
+            )));
+        }
+        Ok(())
+    }
+
+    /// Unpacks a surface message.
+    ///
+    /// # Errors
+    /// [`ClientError::Decode`] when a byte count is not whole vertices,
+    /// normals or triangles, there are normals but not one per vertex, or
+    /// a triangle names a vertex that does not exist.
+    pub fn from_proto(surface: v1::SurfaceMesh) -> Result<Self, ClientError> {
+        Self::check(&surface)?;
+        Ok(Self::unpack(&surface))
+    }
+
+    /// The arrays of a surface [`SurfaceView::check`] passed.
+    fn unpack(surface: &v1::SurfaceMesh) -> Self {
         let triples = |bytes: &[u8]| -> Vec<[[u8; 4]; 3]> {
             bytes
                 .chunks_exact(12)
@@ -68,27 +94,14 @@ impl SurfaceView {
                 .map(|v| v.map(f32::from_le_bytes))
                 .collect()
         };
-        let vertices = floats(&vertices);
-        let normals = floats(&normals);
-        let triangles: Vec<[u32; 3]> = triples(&triangles)
-            .into_iter()
-            .map(|t| t.map(u32::from_le_bytes))
-            .collect();
-        if let Some(t) = triangles
-            .iter()
-            .position(|t| t.iter().any(|&i| i as usize >= vertices.len()))
-        {
-            return Err(ClientError::Decode(format!(
-                "surface triangle {t} is {:?}, but there are {} vertices",
-                triangles[t],
-                vertices.len()
-            )));
+        Self {
+            vertices: floats(&surface.vertices),
+            triangles: triples(&surface.triangles)
+                .into_iter()
+                .map(|t| t.map(u32::from_le_bytes))
+                .collect(),
+            normals: floats(&surface.normals),
         }
-        Ok(Self {
-            vertices,
-            triangles,
-            normals,
-        })
     }
 }
 
@@ -102,26 +115,41 @@ pub struct SolidSurfaceView {
 }
 
 impl SolidSurfaceView {
+    /// Checks a solid surface message without unpacking it: the same
+    /// checks as [`SolidSurfaceView::from_proto`].
+    ///
+    /// # Errors
+    /// As [`SolidSurfaceView::from_proto`].
+    pub fn check(surface: &v1::SolidSurface) -> Result<(), ClientError> {
+        let system = surface.system;
+        let mesh = surface.mesh.as_ref().ok_or_else(|| no_mesh(system))?;
+        SurfaceView::check(mesh)
+            .map_err(|e| ClientError::Decode(format!("solid {system}: {e}")))?;
+        if mesh.normals.len() != mesh.vertices.len() {
+            return Err(ClientError::Decode(format!(
+                "solid {system}'s surface has {} normals for {} vertices; it needs one per vertex",
+                mesh.normals.len() / 12,
+                mesh.vertices.len() / 12
+            )));
+        }
+        Ok(())
+    }
+
     /// Unpacks a solid surface message.
     ///
     /// # Errors
     /// [`ClientError::Decode`] when the mesh is missing or inconsistent,
     /// or lacks its normals.
     pub fn from_proto(surface: v1::SolidSurface) -> Result<Self, ClientError> {
+        Self::check(&surface)?;
         let v1::SolidSurface { system, mesh } = surface;
-        let mesh = mesh
-            .ok_or_else(|| ClientError::Decode(format!("solid {system}'s surface has no mesh")))
-            .and_then(SurfaceView::from_proto)
-            .map_err(|e| ClientError::Decode(format!("solid {system}: {e}")))?;
-        if mesh.normals.len() != mesh.vertices.len() {
-            return Err(ClientError::Decode(format!(
-                "solid {system}'s surface has {} normals for {} vertices; it needs one per vertex",
-                mesh.normals.len(),
-                mesh.vertices.len()
-            )));
-        }
+        let mesh = SurfaceView::unpack(&mesh.ok_or_else(|| no_mesh(system))?);
         Ok(Self { system, mesh })
     }
+}
+
+fn no_mesh(system: u32) -> ClientError {
+    ClientError::Decode(format!("solid {system}'s surface has no mesh"))
 }
 
 /// A decoded frame.
@@ -169,13 +197,35 @@ impl FrameView {
         Self::from_proto(frame)
     }
 
+    /// Checks a frame message without unpacking it: the same checks as
+    /// [`FrameView::from_proto`], for programs that keep the message
+    /// (`meshless demo` hands it to `meshless-wire`).
+    ///
+    /// # Errors
+    /// As [`FrameView::from_proto`].
+    pub fn check(frame: &v1::Frame) -> Result<(), ClientError> {
+        let header = frame.header.as_ref().ok_or_else(no_header)?;
+        let particle_count = header_particles(header)?;
+        for field in &frame.fields {
+            field_kind(field, particle_count)?;
+        }
+        check_solids(&frame.solids, particle_count)?;
+        if let Some(surface) = &frame.surface {
+            SurfaceView::check(surface)?;
+        }
+        frame
+            .solid_surfaces
+            .iter()
+            .try_for_each(SolidSurfaceView::check)
+    }
+
     /// Checks and unpacks a frame message.
     ///
     /// # Errors
-    /// [`ClientError::Decode`] for a missing header, an unknown scalar
-    /// type, a field whose size does not match the particle count, a
-    /// solid's range past the last particle, or an inconsistent surface
-    /// (the fluid's or a solid's).
+    /// [`ClientError::Decode`] for a missing header or one that names no
+    /// session, an unknown field kind or scalar type, a field whose size
+    /// does not match the particle count, a solid's range past the last
+    /// particle, or an inconsistent surface (the fluid's or a solid's).
     pub fn from_proto(frame: v1::Frame) -> Result<Self, ClientError> {
         let v1::Frame {
             header,
@@ -185,64 +235,36 @@ impl FrameView {
             solids,
             solid_surfaces,
         } = frame;
+        let header = header.ok_or_else(no_header)?;
+        let particle_count = header_particles(&header)?;
         let v1::FrameHeader {
             session_id,
             step,
             time,
-            particle_count,
+            particle_count: _,
             substeps,
             substep_dt,
             fields: _,
             solver_iterations,
             density_error,
-        } = header.ok_or_else(|| ClientError::Decode("no header".into()))?;
-        let particle_count = usize::try_from(particle_count)
-            .map_err(|_| ClientError::Decode(format!("particle count {particle_count}")))?;
+        } = header;
         let fields = fields
             .into_iter()
             .map(|field| {
-                let v1::FieldData {
-                    kind,
-                    components,
-                    scalar,
-                    data,
-                } = field;
-                let kind = v1::FieldKind::try_from(kind)
-                    .map_err(|_| ClientError::Decode(format!("unknown field kind {kind}")))?;
-                if scalar != v1::ScalarType::F32 as i32 {
-                    return Err(ClientError::Decode(format!(
-                        "field {kind:?} has scalar type {scalar}, expected f32"
-                    )));
-                }
-                let components = components as usize;
-                if data.len() != 4 * components * particle_count {
-                    return Err(ClientError::Decode(format!(
-                        "field {kind:?} has {} bytes, expected {} for {particle_count} particles x {components}",
-                        data.len(),
-                        4 * components * particle_count
-                    )));
-                }
-                let values = data
+                let kind = field_kind(&field, particle_count)?;
+                let values = field
+                    .data
                     .chunks_exact(4)
                     .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
                     .collect();
                 Ok(FieldView {
                     kind,
-                    components,
+                    components: field.components as usize,
                     values,
                 })
             })
-            .collect::<Result<_, _>>()?;
-        if let Some(range) = solids.iter().find(|r| {
-            r.first
-                .checked_add(r.count)
-                .is_none_or(|end| end > particle_count as u64)
-        }) {
-            return Err(ClientError::Decode(format!(
-                "solid of system {} holds particles {}..+{}, past the frame's {particle_count}",
-                range.system, range.first, range.count
-            )));
-        }
+            .collect::<Result<_, ClientError>>()?;
+        check_solids(&solids, particle_count)?;
         Ok(Self {
             session_id,
             step,
@@ -266,6 +288,65 @@ impl FrameView {
     /// The field of a kind, if the frame carries it.
     pub fn field(&self, kind: v1::FieldKind) -> Option<&FieldView> {
         self.fields.iter().find(|f| f.kind == kind)
+    }
+}
+
+fn no_header() -> ClientError {
+    ClientError::Decode("no header".into())
+}
+
+/// The particle count of a frame's header, after checking that it names
+/// its session and that the count fits this machine's `usize`.
+fn header_particles(header: &v1::FrameHeader) -> Result<usize, ClientError> {
+    if header.session_id.is_empty() {
+        return Err(ClientError::Decode("the header names no session".into()));
+    }
+    let count = header.particle_count;
+    usize::try_from(count).map_err(|_| ClientError::Decode(format!("particle count {count}")))
+}
+
+/// A field's kind, after checking its scalar type and that its bytes are
+/// exactly `particle_count` x `components` f32s (the product checked for
+/// overflow: both counts come from the sender).
+fn field_kind(field: &v1::FieldData, particle_count: usize) -> Result<v1::FieldKind, ClientError> {
+    let v1::FieldData {
+        kind,
+        components,
+        scalar,
+        data,
+    } = field;
+    let kind = v1::FieldKind::try_from(*kind)
+        .map_err(|_| ClientError::Decode(format!("unknown field kind {kind}")))?;
+    if *scalar != v1::ScalarType::F32 as i32 {
+        return Err(ClientError::Decode(format!(
+            "field {kind:?} has scalar type {scalar}, expected f32"
+        )));
+    }
+    let expected = (*components as usize)
+        .checked_mul(particle_count)
+        .and_then(|n| n.checked_mul(4));
+    if expected != Some(data.len()) {
+        let expected = expected.map_or_else(|| "more than memory holds".into(), |n| n.to_string());
+        return Err(ClientError::Decode(format!(
+            "field {kind:?} has {} bytes, expected {expected} for {particle_count} particles x {components}",
+            data.len()
+        )));
+    }
+    Ok(kind)
+}
+
+/// Checks that every solid's range lies within the frame's particles.
+fn check_solids(solids: &[v1::SolidRange], particle_count: usize) -> Result<(), ClientError> {
+    match solids.iter().find(|r| {
+        r.first
+            .checked_add(r.count)
+            .is_none_or(|end| end > particle_count as u64)
+    }) {
+        Some(range) => Err(ClientError::Decode(format!(
+            "solid of system {} holds particles {}..+{}, past the frame's {particle_count}",
+            range.system, range.first, range.count
+        ))),
+        None => Ok(()),
     }
 }
 
@@ -418,5 +499,66 @@ mod tests {
         let mut bad = frame;
         bad.solid_surfaces[0].mesh = None;
         assert!(FrameView::from_proto(bad).is_err(), "no mesh");
+    }
+    /// Every malformed frame `check` refuses, `from_proto` refuses, and
+    /// the other way round: the subscribers' `recv_message` (which checks)
+    /// and `recv` (which unpacks) drop the same frames.
+    #[test]
+    fn check_agrees_with_from_proto() {
+        let mut cases = vec![("valid", wire(2, 8)), ("short field", wire(3, 8))];
+        let mut no_header = wire(2, 8);
+        no_header.header = None;
+        cases.push(("no header", no_header));
+        let mut nameless = wire(2, 8);
+        nameless.header.as_mut().expect("header").session_id.clear();
+        cases.push(("no session", nameless));
+        let mut kind = wire(2, 8);
+        kind.fields[0].kind = 999;
+        cases.push(("unknown kind", kind));
+        let mut scalar = wire(2, 8);
+        scalar.fields[0].scalar = 999;
+        cases.push(("unknown scalar", scalar));
+        let mut range = wire(2, 8);
+        range.solids = vec![v1::SolidRange {
+            system: 1,
+            first: 2,
+            count: 1,
+        }];
+        cases.push(("range past the end", range));
+        let mut surface = wire(2, 8);
+        surface.surface = Some(v1::SurfaceMesh {
+            vertices: vec![0; 12],
+            triangles: le(&[0u32, 0, 1], u32::to_le_bytes),
+            normals: Vec::new(),
+        });
+        cases.push(("triangle past the vertices", surface));
+        let mut solid = wire(2, 8);
+        solid.solid_surfaces = vec![v1::SolidSurface {
+            system: 1,
+            mesh: None,
+        }];
+        cases.push(("solid without a mesh", solid));
+        for (what, frame) in cases {
+            let checked = FrameView::check(&frame).map_err(|e| e.to_string());
+            let unpacked = FrameView::from_proto(frame)
+                .map(drop)
+                .map_err(|e| e.to_string());
+            assert_eq!(checked, unpacked, "{what}");
+            assert_eq!(checked.is_ok(), what == "valid", "{what}: {checked:?}");
+        }
+    }
+
+    /// The particle count and components come from the sender; their
+    /// product overflowing is a refused frame, never a panic or a
+    /// wrapped length that happens to match the data.
+    #[test]
+    fn a_field_size_that_overflows_is_refused() {
+        let mut frame = wire(2, 8);
+        frame.header.as_mut().expect("header").particle_count = 1 << 62;
+        frame.fields[0].components = 4;
+        frame.fields[0].data.clear();
+        let err = FrameView::check(&frame).expect_err("4 x 4 x 2^62 bytes overflow");
+        assert!(err.to_string().contains("more than memory holds"), "{err}");
+        assert!(FrameView::from_proto(frame).is_err());
     }
 }
