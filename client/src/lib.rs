@@ -34,5 +34,5 @@ pub use client::Client;
 pub use design::{Design, DesignKind, OptimizeEvent};
 pub use error::ClientError;
 pub use frame::{FieldView, FrameView, SolidSurfaceView, SurfaceView};
-pub use link::{Frames, Statuses, ZenohLink};
+pub use link::{DropReason, Dropped, Frames, Statuses, ZenohLink};
 pub use meshless_proto::v1;

@@ -3,8 +3,10 @@
 use crate::{ClientError, FrameView};
 use meshless_proto::{keys, v1};
 use prost::Message;
+use std::sync::{Mutex, PoisonError};
 use zenoh::handlers::FifoChannelHandler;
 use zenoh::pubsub::Subscriber;
+use zenoh::query::{ConsolidationMode, QueryTarget};
 use zenoh::sample::Sample;
 
 type Result<T> = std::result::Result<T, ClientError>;
@@ -63,13 +65,17 @@ impl ZenohLink {
     /// # Errors
     /// [`ClientError::Zenoh`] when the subscription cannot be declared.
     pub async fn frames(&self, session_id: &str) -> Result<Frames> {
+        let key = keys::frames(session_id);
         let subscriber = self
             .session
-            .declare_subscriber(keys::frames(session_id))
+            .declare_subscriber(key.clone())
             .await
             .map_err(zenoh_error("declare frame subscriber"))?;
-        self.latest_frame(session_id).await?;
-        Ok(Frames { subscriber })
+        self.latest_message(session_id).await?;
+        Ok(Frames {
+            subscriber,
+            gate: Gate::new(key, session_id),
+        })
     }
 
     /// Subscribes to a session's status changes, with the same guarantee
@@ -78,49 +84,74 @@ impl ZenohLink {
     /// # Errors
     /// [`ClientError::Zenoh`] when the subscription cannot be declared.
     pub async fn statuses(&self, session_id: &str) -> Result<Statuses> {
+        let key = keys::status(session_id);
         let subscriber = self
             .session
-            .declare_subscriber(keys::status(session_id))
+            .declare_subscriber(key.clone())
             .await
             .map_err(zenoh_error("declare status subscriber"))?;
-        self.latest_frame(session_id).await?;
-        Ok(Statuses { subscriber })
+        self.latest_message(session_id).await?;
+        Ok(Statuses {
+            subscriber,
+            gate: Gate::new(key, session_id),
+        })
     }
 
     /// Asks the session's `latest` queryable for its most recent frame;
-    /// `None` when no server answers for that session.
+    /// `None` when no server answers for that session with a frame that
+    /// passes the subscribers' checks (see [`Frames`]).
     ///
     /// # Errors
-    /// [`ClientError::Zenoh`] or [`ClientError::Decode`].
+    /// [`ClientError::Zenoh`] when the query cannot be sent.
     pub async fn latest_frame(&self, session_id: &str) -> Result<Option<FrameView>> {
-        self.latest_message(session_id)
-            .await?
-            .map(FrameView::from_proto)
-            .transpose()
+        self.latest(session_id, FrameView::from_proto).await
     }
 
-    /// [`ZenohLink::latest_frame`] as the protocol's message, decoded but
-    /// not checked: for programs that convert frames themselves (`meshless
-    /// demo` hands them to `meshless-wire`).
+    /// [`ZenohLink::latest_frame`] as the protocol's message, checked
+    /// ([`FrameView::check`]) but not unpacked: for programs that convert
+    /// frames themselves (`meshless demo` hands them to `meshless-wire`).
     ///
     /// # Errors
-    /// [`ClientError::Zenoh`], or [`ClientError::Decode`] when the bytes
-    /// are no `Frame` message.
+    /// [`ClientError::Zenoh`] when the query cannot be sent.
     pub async fn latest_message(&self, session_id: &str) -> Result<Option<v1::Frame>> {
+        self.latest(session_id, |frame| FrameView::check(&frame).map(|()| frame))
+            .await
+    }
+
+    /// Queries `…/latest` and keeps the last reply that passes the
+    /// subscribers' checks and `accept`. Every queryable is asked and
+    /// every reply kept (`QueryTarget::All`, no consolidation): by
+    /// default zenoh asks only a queryable declared complete when there
+    /// is one, and keeps one reply per key, so another peer could answer
+    /// in the server's place. Error replies and rejected ones are logged
+    /// and skipped: the server never sends them.
+    async fn latest<T>(
+        &self,
+        session_id: &str,
+        accept: impl Fn(v1::Frame) -> Result<T>,
+    ) -> Result<Option<T>> {
+        let gate = Gate::new(keys::latest(session_id), session_id);
         let replies = self
             .session
-            .get(keys::latest(session_id))
+            .get(&gate.key)
+            .target(QueryTarget::All)
+            .consolidation(ConsolidationMode::None)
             .await
             .map_err(zenoh_error("query latest frame"))?;
         let mut latest = None;
         while let Ok(reply) = replies.recv_async().await {
-            match reply.result() {
-                Ok(sample) => latest = Some(decode_frame(&sample.payload().to_bytes())?),
+            let sample = match reply.result() {
+                Ok(sample) => sample,
                 Err(e) => {
-                    return Err(ClientError::Zenoh(format!(
-                        "latest frame: {}",
-                        String::from_utf8_lossy(&e.payload().to_bytes())
-                    )));
+                    let why = quote(&e.payload().to_bytes());
+                    tracing::warn!("latest frame: error reply {why} skipped");
+                    continue;
+                }
+            };
+            match gate.admit_frame(sample, &accept) {
+                Ok(frame) => latest = Some(frame),
+                Err((reason, why)) => {
+                    tracing::warn!("latest frame: reply skipped ({reason:?}): {why}");
                 }
             }
         }
@@ -135,63 +166,393 @@ impl ZenohLink {
     }
 }
 
+/// Why a subscriber dropped a sample rather than hand it on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DropReason {
+    /// Put on a key expression other than the one subscribed to: a put on
+    /// a wildcard such as `meshless/v1/sessions/*/frames` reaches every
+    /// session's subscribers, and the server never makes one.
+    WrongKey,
+    /// The payload is no protobuf message of the expected type.
+    Undecodable,
+    /// A message that decodes but fails a check: a frame without a header
+    /// or whose lengths disagree ([`FrameView::check`]).
+    Malformed,
+    /// A message naming another session than the one subscribed to.
+    WrongSession,
+}
+
+/// The samples a subscriber has dropped so far, by reason. Any zenoh peer
+/// can put on a session's keys; these counts say whether one does.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Dropped {
+    /// Samples put on another key expression ([`DropReason::WrongKey`]).
+    pub wrong_key: u64,
+    /// Payloads that did not decode ([`DropReason::Undecodable`]).
+    pub undecodable: u64,
+    /// Messages that failed a check ([`DropReason::Malformed`]).
+    pub malformed: u64,
+    /// Messages naming another session ([`DropReason::WrongSession`]).
+    pub wrong_session: u64,
+    /// The last drop: its reason and what was wrong, with any text the
+    /// sender chose (a session id, a key) cut to 64 characters.
+    pub last: Option<(DropReason, String)>,
+}
+
+impl Dropped {
+    /// Samples dropped for any reason.
+    pub fn total(&self) -> u64 {
+        self.wrong_key + self.undecodable + self.malformed + self.wrong_session
+    }
+
+    fn count(&mut self, reason: DropReason, why: String) {
+        let counter = match reason {
+            DropReason::WrongKey => &mut self.wrong_key,
+            DropReason::Undecodable => &mut self.undecodable,
+            DropReason::Malformed => &mut self.malformed,
+            DropReason::WrongSession => &mut self.wrong_session,
+        };
+        *counter += 1;
+        self.last = Some((reason, why));
+    }
+}
+
+/// Why a sample was refused, and what was wrong with it.
+type Rejection = (DropReason, String);
+
+/// At most 64 characters of text a peer chose, quoted, so a hostile
+/// sample cannot flood a log line or a [`Dropped`] message.
+fn quote(bytes: &[u8]) -> String {
+    let text = String::from_utf8_lossy(bytes);
+    let mut cut: String = text.chars().take(64).collect();
+    if cut.len() < text.len() {
+        cut.push('…');
+    }
+    format!("{cut:?}")
+}
+
+/// The session a frame names; `None` without a header.
+fn frame_session(frame: &v1::Frame) -> Option<&str> {
+    frame.header.as_ref().map(|h| h.session_id.as_str())
+}
+
+/// The session a status change names.
+fn status_session(status: &v1::SessionStatus) -> Option<&str> {
+    Some(status.session_id.as_str())
+}
+
+/// What one subscription (or query) accepts: samples on exactly its key
+/// whose message decodes and names its session. Counts what it drops.
+#[derive(Debug)]
+struct Gate {
+    key: String,
+    session_id: String,
+    dropped: Mutex<Dropped>,
+}
+
+impl Gate {
+    fn new(key: String, session_id: &str) -> Self {
+        Self {
+            key,
+            session_id: session_id.to_owned(),
+            dropped: Mutex::default(),
+        }
+    }
+
+    /// The message of a sample that passes, or why it does not.
+    /// `session_of` reads the session a message names (`None`: it lacks
+    /// the part that names it). Decoding is bounded by the payload:
+    /// protobuf allocates only for bytes it holds.
+    fn admit<M: Message + Default>(
+        &self,
+        sample: &Sample,
+        session_of: impl Fn(&M) -> Option<&str>,
+    ) -> std::result::Result<M, Rejection> {
+        self.check(
+            sample.key_expr().as_str(),
+            &sample.payload().to_bytes(),
+            session_of,
+        )
+    }
+
+    /// [`Gate::admit`] for a frame, then `accept` (a check or an unpack):
+    /// a frame it refuses is [`DropReason::Malformed`].
+    fn admit_frame<T>(
+        &self,
+        sample: &Sample,
+        accept: impl Fn(v1::Frame) -> Result<T>,
+    ) -> std::result::Result<T, Rejection> {
+        self.admit(sample, frame_session)
+            .and_then(|frame| accept(frame).map_err(|e| (DropReason::Malformed, e.to_string())))
+    }
+
+    /// [`Gate::admit`] of a key and payload.
+    fn check<M: Message + Default>(
+        &self,
+        key: &str,
+        payload: &[u8],
+        session_of: impl Fn(&M) -> Option<&str>,
+    ) -> std::result::Result<M, Rejection> {
+        if key != self.key {
+            return Err((
+                DropReason::WrongKey,
+                format!("put on {}, not {}", quote(key.as_bytes()), self.key),
+            ));
+        }
+        let message = M::decode(payload).map_err(|e| {
+            (
+                DropReason::Undecodable,
+                format!("{} bytes: {e}", payload.len()),
+            )
+        })?;
+        match session_of(&message) {
+            None => Err((DropReason::Malformed, "no header".into())),
+            Some(session) if session != self.session_id => Err((
+                DropReason::WrongSession,
+                format!(
+                    "names session {}, not {:?}",
+                    quote(session.as_bytes()),
+                    self.session_id
+                ),
+            )),
+            Some(_) => Ok(message),
+        }
+    }
+
+    fn reject(&self, (reason, why): Rejection) {
+        tracing::debug!(key = %self.key, "sample dropped ({reason:?}): {why}");
+        self.dropped
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .count(reason, why);
+    }
+
+    fn dropped(&self) -> Dropped {
+        self.dropped
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
+    }
+}
+
 /// Frames of one session, in publication order (some may be dropped under
 /// congestion; step numbers tell).
+///
+/// Any zenoh peer can put on a session's key, so each sample is checked
+/// before it is handed on: it must be put on exactly the session's frame
+/// key, decode as a `Frame`, carry a header naming this session, and pass
+/// [`FrameView::check`]. Anything else is dropped and counted
+/// ([`Frames::dropped`]); `recv` goes on to the next sample. A peer that
+/// puts a well-formed frame naming this session is not caught here: only
+/// access control on the zenoh plane can refuse it.
 #[derive(Debug)]
 pub struct Frames {
     subscriber: Subscriber<FifoChannelHandler<Sample>>,
+    gate: Gate,
 }
 
 impl Frames {
-    /// The next frame.
+    /// The next frame that passes the checks.
     ///
     /// # Errors
-    /// [`ClientError::Closed`] when the zenoh session closed;
-    /// [`ClientError::Decode`] for a malformed frame.
+    /// [`ClientError::Closed`] when the zenoh session closed.
     pub async fn recv(&self) -> Result<FrameView> {
-        FrameView::from_proto(self.recv_message().await?)
+        self.next(FrameView::from_proto).await
     }
 
-    /// The next frame as the protocol's message, decoded but not checked:
-    /// for programs that convert frames themselves (`meshless demo` hands
-    /// them to `meshless-wire`).
+    /// The next frame that passes the checks, as the protocol's message,
+    /// not unpacked: for programs that convert frames themselves (`meshless
+    /// demo` hands them to `meshless-wire`).
     ///
     /// # Errors
-    /// [`ClientError::Closed`] when the zenoh session closed;
-    /// [`ClientError::Decode`] when the bytes are no `Frame` message.
+    /// [`ClientError::Closed`] when the zenoh session closed.
     pub async fn recv_message(&self) -> Result<v1::Frame> {
-        let sample = self
-            .subscriber
-            .recv_async()
+        self.next(|frame| FrameView::check(&frame).map(|()| frame))
             .await
-            .map_err(|_| ClientError::Closed)?;
-        decode_frame(&sample.payload().to_bytes())
+    }
+
+    /// The samples dropped so far, counted as `recv` meets them.
+    pub fn dropped(&self) -> Dropped {
+        self.gate.dropped()
+    }
+
+    /// The next sample the gate admits and `accept` takes; the rest are
+    /// dropped and counted.
+    async fn next<T>(&self, accept: impl Fn(v1::Frame) -> Result<T>) -> Result<T> {
+        loop {
+            let sample = self
+                .subscriber
+                .recv_async()
+                .await
+                .map_err(|_| ClientError::Closed)?;
+            match self.gate.admit_frame(&sample, &accept) {
+                Ok(frame) => return Ok(frame),
+                Err(rejection) => self.gate.reject(rejection),
+            }
+        }
     }
 }
 
-/// A `Frame` message of its encoded bytes.
-fn decode_frame(bytes: &[u8]) -> Result<v1::Frame> {
-    v1::Frame::decode(bytes).map_err(|e| ClientError::Decode(e.to_string()))
-}
-
-/// Status changes of one session.
+/// Status changes of one session, checked as [`Frames`] are: put on
+/// exactly the session's status key, decoding as a `SessionStatus` that
+/// names this session; anything else is dropped and counted.
 #[derive(Debug)]
 pub struct Statuses {
     subscriber: Subscriber<FifoChannelHandler<Sample>>,
+    gate: Gate,
 }
 
 impl Statuses {
-    /// The next status change.
+    /// The next status change that passes the checks.
     ///
     /// # Errors
-    /// [`ClientError::Closed`] or [`ClientError::Decode`].
+    /// [`ClientError::Closed`] when the zenoh session closed.
     pub async fn recv(&self) -> Result<v1::SessionStatus> {
-        let sample = self
-            .subscriber
-            .recv_async()
-            .await
-            .map_err(|_| ClientError::Closed)?;
-        v1::SessionStatus::decode(&*sample.payload().to_bytes())
-            .map_err(|e| ClientError::Decode(e.to_string()))
+        loop {
+            let sample = self
+                .subscriber
+                .recv_async()
+                .await
+                .map_err(|_| ClientError::Closed)?;
+            match self.gate.admit(&sample, status_session) {
+                Ok(status) => return Ok(status),
+                Err(rejection) => self.gate.reject(rejection),
+            }
+        }
+    }
+
+    /// The samples dropped so far, counted as `recv` meets them.
+    pub fn dropped(&self) -> Dropped {
+        self.gate.dropped()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(session_id: &str, step: u64) -> v1::Frame {
+        v1::Frame {
+            header: Some(v1::FrameHeader {
+                session_id: session_id.into(),
+                step,
+                particle_count: 1,
+                fields: vec![v1::FieldKind::Position as i32],
+                ..Default::default()
+            }),
+            fields: vec![v1::FieldData {
+                kind: v1::FieldKind::Position as i32,
+                components: 3,
+                scalar: v1::ScalarType::F32 as i32,
+                data: vec![0; 12],
+            }],
+            ..Default::default()
+        }
+    }
+
+    fn frame_gate() -> Gate {
+        Gate::new(keys::frames("abc"), "abc")
+    }
+
+    /// The reason a frame sample on `key` is refused, `None` if it passes.
+    fn refusal(key: &str, payload: &[u8]) -> Option<DropReason> {
+        frame_gate()
+            .check::<v1::Frame>(key, payload, frame_session)
+            .and_then(|f| FrameView::check(&f).map_err(|e| (DropReason::Malformed, e.to_string())))
+            .err()
+            .map(|(reason, _)| reason)
+    }
+
+    #[test]
+    fn only_frames_on_the_exact_key_naming_the_session_pass() {
+        let key = keys::frames("abc");
+        let good = frame("abc", 3).encode_to_vec();
+        assert_eq!(refusal(&key, &good), None);
+        assert_eq!(
+            refusal("meshless/v1/sessions/*/frames", &good),
+            Some(DropReason::WrongKey),
+            "a wildcard put reaches every session's subscribers"
+        );
+        assert_eq!(
+            refusal(&key, &frame("FAKE", 999_999).encode_to_vec()),
+            Some(DropReason::WrongSession)
+        );
+        assert_eq!(
+            refusal(&key, &frame("", 1).encode_to_vec()),
+            Some(DropReason::WrongSession)
+        );
+        assert_eq!(
+            refusal(&key, b"\xff\xff\xff"),
+            Some(DropReason::Undecodable)
+        );
+        assert_eq!(
+            refusal(&key, b"\x08\x01"),
+            Some(DropReason::Undecodable),
+            "field 1 is the header, not a varint"
+        );
+        // An unknown field decodes to a frame without a header.
+        assert_eq!(refusal(&key, b"\x78\x01"), Some(DropReason::Malformed));
+        assert_eq!(refusal(&key, b""), Some(DropReason::Malformed));
+        let mut short = frame("abc", 3);
+        short.fields[0].data.pop();
+        assert_eq!(
+            refusal(&key, &short.encode_to_vec()),
+            Some(DropReason::Malformed)
+        );
+    }
+
+    #[test]
+    fn statuses_must_name_the_session() {
+        let gate = Gate::new(keys::status("abc"), "abc");
+        let status = |id: &str| {
+            v1::SessionStatus {
+                session_id: id.into(),
+                step: 5,
+                ..Default::default()
+            }
+            .encode_to_vec()
+        };
+        let passed = gate.check::<v1::SessionStatus>(&gate.key, &status("abc"), status_session);
+        assert_eq!(passed.map(|s| s.step), Ok(5));
+        let refused = |key: &str, payload: &[u8]| {
+            gate.check::<v1::SessionStatus>(key, payload, status_session)
+                .map(drop)
+                .map_err(|(reason, _)| reason)
+        };
+        assert_eq!(
+            refused(&gate.key, &status("FAKE")),
+            Err(DropReason::WrongSession)
+        );
+        assert_eq!(
+            refused(&keys::status("other"), &status("abc")),
+            Err(DropReason::WrongKey)
+        );
+        assert_eq!(refused(&gate.key, b"\xff"), Err(DropReason::Undecodable));
+    }
+
+    #[test]
+    fn drops_are_counted_by_reason_with_the_last_one_cut_short() {
+        let gate = frame_gate();
+        let long = "x".repeat(10_000);
+        for payload in [
+            frame(&long, 1).encode_to_vec(),
+            frame("FAKE", 2).encode_to_vec(),
+            b"\xff".to_vec(),
+        ] {
+            let rejection = gate
+                .check::<v1::Frame>(&gate.key, &payload, frame_session)
+                .expect_err("refused");
+            gate.reject(rejection);
+        }
+        let dropped = gate.dropped();
+        assert_eq!((dropped.wrong_session, dropped.undecodable), (2, 1));
+        assert_eq!(dropped.total(), 3);
+        assert_eq!(dropped.last.map(|(r, _)| r), Some(DropReason::Undecodable));
+
+        let (_, why) = gate
+            .check::<v1::Frame>(&gate.key, &frame(&long, 1).encode_to_vec(), frame_session)
+            .expect_err("refused");
+        assert!(why.len() < 200, "a sender's text is cut: {why}");
+        assert!(why.contains(&"x".repeat(64)) && why.contains('…'), "{why}");
     }
 }
