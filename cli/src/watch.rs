@@ -1,4 +1,6 @@
-//! `meshless watch`: frame rate and particle counts of a session's stream.
+//! `meshless watch`: frame rate and particle counts of a session's stream,
+//! and how many samples on its key were dropped (undecodable, malformed or
+//! naming another session: see `meshless_client::Frames`).
 
 use crate::command::ServerArg;
 use anyhow::Result;
@@ -59,12 +61,13 @@ pub async fn watch(args: WatchArgs) -> Result<()> {
             }
             _ = ticker.tick() => {
                 let rate = window as f64 / window_start.elapsed().as_secs_f64();
+                let dropped = frames.dropped().total();
                 match &last {
                     Some((step, time, particles, solids)) => println!(
-                        "{rate:6.1} frames/s  step {step:>8}  t = {time:9.4} s  particles {}",
+                        "{rate:6.1} frames/s  step {step:>8}  t = {time:9.4} s  particles {}  dropped {dropped}",
                         crate::command::particle_summary(*particles as u64, solids)
                     ),
-                    None => println!("{rate:6.1} frames/s  (no frame yet)"),
+                    None => println!("{rate:6.1} frames/s  (no frame yet)  dropped {dropped}"),
                 }
                 window = 0;
                 window_start = Instant::now();
@@ -74,9 +77,16 @@ pub async fn watch(args: WatchArgs) -> Result<()> {
         }
     }
     let elapsed = start.elapsed().as_secs_f64();
+    let dropped = frames.dropped();
+    let last_dropped = dropped
+        .last
+        .as_ref()
+        .map(|(reason, why)| format!(" (last {reason:?}: {why})"))
+        .unwrap_or_default();
     println!(
-        "{total} frames in {elapsed:.1} s ({:.1} frames/s)",
-        total as f64 / elapsed.max(1e-9)
+        "{total} frames in {elapsed:.1} s ({:.1} frames/s), {} dropped{last_dropped}",
+        total as f64 / elapsed.max(1e-9),
+        dropped.total()
     );
     link.close().await;
     Ok(())
