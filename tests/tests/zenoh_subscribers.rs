@@ -1,0 +1,385 @@
+//! A hostile zenoh peer against the subscribers, end to end: a second
+//! zenoh session connected to the real server puts garbage, forged and
+//! replayed messages on a session's keys and answers its latest-frame
+//! queries, while the session is stepped. The subscribers (`Frames`,
+//! `Statuses`, `latest_frame`, `meshless watch`) hand on only the
+//! server's messages and count what they drop.
+//!
+//! The peer's puts reach the subscriber through the server, so a query
+//! the peer sends after them and sees answered means the server has
+//! forwarded them; the steps that follow publish behind them.
+
+use meshless_client::{Frames, ZenohLink, v1};
+use meshless_tests::{ServerProcess, binary, small_scene, within};
+use prost::Message;
+use std::future::IntoFuture;
+use std::process::Stdio;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use tokio::io::{AsyncBufReadExt, BufReader};
+use tokio::process::Command;
+
+/// A zenoh session in client mode connected to `endpoints`, as any
+/// program on the network can open one.
+async fn hostile_peer(endpoints: &[String]) -> zenoh::Session {
+    let endpoints = format!(
+        "[{}]",
+        endpoints
+            .iter()
+            .map(|e| format!("{e:?}"))
+            .collect::<Vec<_>>()
+            .join(",")
+    );
+    let mut config = zenoh::Config::default();
+    for (key, value) in [
+        ("mode", "\"client\""),
+        ("connect/endpoints", endpoints.as_str()),
+        ("scouting/multicast/enabled", "false"),
+    ] {
+        config.insert_json5(key, value).expect("a valid setting");
+    }
+    within("hostile peer connects", zenoh::open(config).into_future())
+        .await
+        .expect("zenoh opens")
+}
+
+/// Puts each payload on its key from the peer, then waits for the server
+/// to answer a query from the peer: the puts went before it.
+async fn put_all(peer: &zenoh::Session, prefix: &str, puts: Vec<(String, Vec<u8>)>) {
+    for (key, payload) in puts {
+        within("hostile put", peer.put(&key, payload).into_future())
+            .await
+            .expect("zenoh lets any peer put");
+    }
+    let replies = within(
+        "fence query",
+        peer.get(format!("{prefix}/latest")).into_future(),
+    )
+    .await
+    .expect("query");
+    let mut answered = false;
+    while let Ok(reply) = within("fence reply", replies.recv_async()).await {
+        answered |= reply.result().is_ok();
+    }
+    assert!(answered, "the server answers the peer's query");
+}
+
+/// A consistent frame of one particle naming `session_id`.
+fn forged_frame(session_id: &str, step: u64) -> v1::Frame {
+    v1::Frame {
+        header: Some(v1::FrameHeader {
+            session_id: session_id.into(),
+            step,
+            time: 999.0,
+            particle_count: 1,
+            fields: vec![v1::FieldKind::Position as i32],
+            ..Default::default()
+        }),
+        fields: vec![v1::FieldData {
+            kind: v1::FieldKind::Position as i32,
+            components: 3,
+            scalar: v1::ScalarType::F32 as i32,
+            data: vec![0; 12],
+        }],
+        ..Default::default()
+    }
+}
+
+/// Garbage that is no protobuf message: a varint that never ends.
+const GARBAGE: &[u8] = &[0xff; 8];
+/// Two bytes that Python's protobuf once read as an empty frame.
+const TWO_BYTES: &[u8] = b"\x08\x01";
+
+/// Receives the next frame and checks it is the session's, at `step`.
+async fn real_frame(frames: &Frames, id: &str, step: u64, particles: usize) {
+    let frame = within(&format!("frame of step {step}"), frames.recv())
+        .await
+        .expect("bad samples never end the stream");
+    assert_eq!(
+        (frame.session_id.as_str(), frame.step, frame.particle_count),
+        (id, step, particles),
+        "only the server's frames come through"
+    );
+}
+
+/// Garbage, a two-byte payload, a forged frame of session "FAKE" at step
+/// 999999, another session's real frame replayed, an inconsistent frame
+/// naming the session, and a frame naming it put on a wildcard key: the
+/// subscriber hands on only the stepped session's frames and counts the
+/// six it dropped, by reason.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn forged_frames_are_dropped_and_counted() {
+    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let client = server.client().await.expect("client");
+    let info = within("info", client.server_info()).await.expect("info");
+    let session = within("create", client.create_session_toml(&small_scene()))
+        .await
+        .expect("session");
+    let other = within("create other", client.create_session_toml(&small_scene()))
+        .await
+        .expect("other session");
+    let (id, particles) = (session.id.as_str(), session.particle_count as usize);
+    let link = within("zenoh connect", ZenohLink::connect(&info.zenoh_locators))
+        .await
+        .expect("zenoh link");
+    let frames = within("subscribe", link.frames(id)).await.expect("frames");
+    let replayed = within("other's frame", link.latest_message(&other.id))
+        .await
+        .expect("query")
+        .expect("the other session's frame 0");
+
+    let peer = hostile_peer(&info.zenoh_locators).await;
+    let prefix = &session.zenoh_key_prefix;
+    let key = format!("{prefix}/frames");
+    let mut inconsistent = forged_frame(id, 999_999);
+    inconsistent.fields[0].data.truncate(8);
+    put_all(
+        &peer,
+        prefix,
+        vec![
+            (key.clone(), GARBAGE.to_vec()),
+            (key.clone(), TWO_BYTES.to_vec()),
+            (key.clone(), forged_frame("FAKE", 999_999).encode_to_vec()),
+            (key.clone(), replayed.encode_to_vec()),
+            (key.clone(), inconsistent.encode_to_vec()),
+            (
+                "meshless/v1/sessions/*/frames".into(),
+                forged_frame(id, 999_999).encode_to_vec(),
+            ),
+        ],
+    )
+    .await;
+
+    within("step", client.step(id, 3)).await.expect("steps");
+    for step in 1..=3 {
+        real_frame(&frames, id, step, particles).await;
+    }
+    // Drops are counted as `recv` meets them: step on until it has met
+    // all six (they went out before the first step, so none should be
+    // needed).
+    let mut step = 3;
+    while frames.dropped().total() < 6 {
+        step += 1;
+        within("step", client.step(id, 1)).await.expect("steps");
+        real_frame(&frames, id, step, particles).await;
+    }
+    let dropped = frames.dropped();
+    assert_eq!(
+        (
+            dropped.undecodable,
+            dropped.wrong_session,
+            dropped.malformed,
+            dropped.wrong_key
+        ),
+        (2, 2, 1, 1),
+        "{dropped:?}"
+    );
+    link.close().await;
+}
+
+/// Garbage, a forged FAULTED status of session "FAKE", another session's
+/// status on this session's key and a status naming this session on a
+/// wildcard key: the subscriber hands on only the server's status changes.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn forged_statuses_are_dropped_and_counted() {
+    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let client = server.client().await.expect("client");
+    let info = within("info", client.server_info()).await.expect("info");
+    let session = within("create", client.create_session_toml(&small_scene()))
+        .await
+        .expect("session");
+    let id = session.id.as_str();
+    let link = within("zenoh connect", ZenohLink::connect(&info.zenoh_locators))
+        .await
+        .expect("zenoh link");
+    let statuses = within("subscribe", link.statuses(id))
+        .await
+        .expect("statuses");
+
+    let forged = |session_id: &str| {
+        v1::SessionStatus {
+            session_id: session_id.into(),
+            state: v1::SessionState::Faulted as i32,
+            step: 999_999,
+            reason: "forged".into(),
+            ..Default::default()
+        }
+        .encode_to_vec()
+    };
+    let peer = hostile_peer(&info.zenoh_locators).await;
+    let prefix = &session.zenoh_key_prefix;
+    let key = format!("{prefix}/status");
+    put_all(
+        &peer,
+        prefix,
+        vec![
+            (key.clone(), GARBAGE.to_vec()),
+            (key.clone(), forged("FAKE")),
+            (key.clone(), forged("another-session")),
+            ("meshless/v1/sessions/*/status".into(), forged(id)),
+        ],
+    )
+    .await;
+
+    within("step", client.step(id, 3)).await.expect("steps");
+    let status = within("status", statuses.recv())
+        .await
+        .expect("bad samples never end the stream");
+    assert_eq!(
+        (
+            status.session_id.as_str(),
+            v1::SessionState::try_from(status.state),
+            status.step
+        ),
+        (id, Ok(v1::SessionState::Paused), 3)
+    );
+    // As for frames: reset and step for more status changes until all
+    // four drops have been met.
+    while statuses.dropped().total() < 4 {
+        within("reset", client.reset(id)).await.expect("resets");
+        let idle = within("status", statuses.recv()).await.expect("status");
+        assert_eq!((idle.session_id.as_str(), idle.step), (id, 0));
+        within("step", client.step(id, 1)).await.expect("steps");
+        let paused = within("status", statuses.recv()).await.expect("status");
+        assert_eq!((paused.session_id.as_str(), paused.step), (id, 1));
+    }
+    let dropped = statuses.dropped();
+    assert_eq!(
+        (
+            dropped.undecodable,
+            dropped.wrong_session,
+            dropped.wrong_key
+        ),
+        (1, 2, 1),
+        "{dropped:?}"
+    );
+    link.close().await;
+}
+
+/// A peer's queryable on the session's `latest` key, declared complete
+/// (so that by default only it is asked), answering garbage, a forged
+/// frame and an error: the latest-frame query still asks the server and
+/// takes its frame.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn latest_frame_ignores_forged_replies() {
+    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let client = server.client().await.expect("client");
+    let info = within("info", client.server_info()).await.expect("info");
+    let session = within("create", client.create_session_toml(&small_scene()))
+        .await
+        .expect("session");
+    let id = session.id.as_str();
+    within("step", client.step(id, 2)).await.expect("steps");
+
+    let peer = hostile_peer(&info.zenoh_locators).await;
+    let key = format!("{}/latest", session.zenoh_key_prefix);
+    let queryable = within(
+        "hostile queryable",
+        peer.declare_queryable(&key).complete(true).into_future(),
+    )
+    .await
+    .expect("declared");
+    let asked = Arc::new(AtomicUsize::new(0));
+    let answering = {
+        let (asked, key) = (Arc::clone(&asked), key.clone());
+        tokio::spawn(async move {
+            while let Ok(query) = queryable.recv_async().await {
+                for payload in [
+                    GARBAGE.to_vec(),
+                    forged_frame("FAKE", 999_999).encode_to_vec(),
+                ] {
+                    query.reply(&key, payload).await.expect("reply");
+                }
+                query.reply_err("forged error").await.expect("error reply");
+                asked.fetch_add(1, Ordering::SeqCst);
+            }
+        })
+    };
+
+    let link = within("zenoh connect", ZenohLink::connect(&info.zenoh_locators))
+        .await
+        .expect("zenoh link");
+    // The peer's queryable reaches the server some time after it is
+    // declared; query until it has been asked too.
+    within("a query the peer answers", async {
+        loop {
+            let known = asked.load(Ordering::SeqCst) > 0;
+            let latest = link
+                .latest_frame(id)
+                .await
+                .expect("forged replies are skipped");
+            let frame = latest.expect("the server's frame");
+            assert_eq!((frame.session_id.as_str(), frame.step), (id, 2));
+            let message = link
+                .latest_message(id)
+                .await
+                .expect("forged replies are skipped")
+                .expect("the server's frame");
+            assert_eq!(message.header.map(|h| h.step), Some(2));
+            // Once the peer has been asked, the server knows its
+            // queryable: both queries above were put to it too.
+            if known {
+                break;
+            }
+        }
+    })
+    .await;
+    answering.abort();
+    link.close().await;
+}
+
+/// `meshless watch` goes on through garbage and forged frames and reports
+/// how many it dropped.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn watch_counts_dropped_frames_and_goes_on() {
+    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let client = server.client().await.expect("client");
+    let info = within("info", client.server_info()).await.expect("info");
+    let session = within("create", client.create_session_toml(&small_scene()))
+        .await
+        .expect("session");
+    let id = session.id.as_str();
+    let mut watch = Command::new(binary("meshless").expect("built"))
+        .args(["watch", id, "--frames", "3", "--server", &server.grpc_url])
+        .env("MESHLESS_LOG", "error")
+        .stdout(Stdio::piped())
+        .kill_on_drop(true)
+        .spawn()
+        .expect("watch starts");
+    let mut lines = BufReader::new(watch.stdout.take().expect("stdout")).lines();
+    let first = within("watch subscribes", lines.next_line())
+        .await
+        .expect("reads")
+        .expect("a line");
+    assert!(first.starts_with("watching"), "{first}");
+
+    let peer = hostile_peer(&info.zenoh_locators).await;
+    let prefix = &session.zenoh_key_prefix;
+    let key = format!("{prefix}/frames");
+    put_all(
+        &peer,
+        prefix,
+        vec![
+            (key.clone(), GARBAGE.to_vec()),
+            (key.clone(), forged_frame("FAKE", 999_999).encode_to_vec()),
+        ],
+    )
+    .await;
+    within("step", client.step(id, 3)).await.expect("steps");
+    let mut rest = Vec::new();
+    while let Some(line) = within("watch output", lines.next_line())
+        .await
+        .expect("reads")
+    {
+        rest.push(line);
+    }
+    let status = within("watch exits", watch.wait())
+        .await
+        .expect("exit status");
+    assert!(status.success(), "{rest:?}");
+    let summary = rest.last().expect("a summary line");
+    assert!(
+        summary.starts_with("3 frames in") && summary.contains(", 2 dropped (last "),
+        "{rest:?}"
+    );
+}
