@@ -4,8 +4,10 @@ The gRPC messages and stubs of package ``meshless.v1`` are generated from
 ``proto/meshless/v1/*.proto`` into ``meshless/v1`` (``scripts/test`` does it
 with ``grpc_tools.protoc -I proto``). Frames arrive over zenoh;
 :func:`decode_frame` turns one into numpy arrays without per-particle
-parsing. :class:`Client` drives a server over gRPC and :class:`Frames`
-subscribes to a session's frames.
+parsing, and raises ``ValueError`` for any malformed payload.
+:class:`Client` drives a server over gRPC and :class:`Frames` subscribes
+to a session's frames, dropping and counting samples that are malformed or
+name another session.
 """
 
 from .frames import Body, Frame, SolidRange, SolidSurface, Surface, decode_frame, frames_key, latest_key, status_key

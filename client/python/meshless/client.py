@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import queue
+import threading
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterable
@@ -12,7 +14,7 @@ import grpc
 import numpy as np
 import zenoh
 
-from .frames import Frame, decode_frame, frames_key, latest_key
+from .frames import Frame, decode_frame, frames_key, latest_key, parse_frame, unpack_frame
 
 DEFAULT_TIMEOUT = 30.0
 
@@ -170,13 +172,40 @@ class Client:
         return Design.from_proto(self._stub.GetDesign(self._ref(session_id), timeout=self._timeout))
 
 
+class _Dropped(Exception):
+    """Why :class:`Frames` refuses a sample: a reason of
+    ``Frames.drop_reasons`` and what was wrong."""
+
+    def __init__(self, reason: str, why: str):
+        super().__init__(why)
+        self.reason = reason
+        self.why = why
+
+
+def _quote(text: str) -> str:
+    """At most 64 characters of text a peer chose, quoted, so that a hostile
+    sample cannot flood ``last_drop``."""
+    return repr(text if len(text) <= 64 else text[:64] + "…")
+
+
 class Frames:
     """A session's frames from zenoh, decoded into numpy arrays.
 
     Opens zenoh in client mode against the given endpoints (the server's
     ``zenoh_locators`` or a router's). Once constructed, the server knows
     of the subscription: a latest-frame query has made the round trip, so
-    no frame published afterwards is missed.
+    no frame published afterwards is missed. ``latest`` is the frame that
+    query returned (``None`` when no server answered with a valid one).
+
+    Any zenoh peer can put on a session's key, so each sample is checked in
+    zenoh's callback before it is queued: it must be put on exactly the
+    session's frame key, decode as a ``Frame`` whose header names this
+    session, and pass :func:`decode_frame`'s checks. Anything else is
+    dropped and counted: ``dropped`` (the total), ``drop_reasons`` (by
+    reason: ``wrong_key``, ``undecodable``, ``malformed``,
+    ``wrong_session``) and ``last_drop`` (the last reason and what was
+    wrong). A peer that puts a well-formed frame naming this session is not
+    caught here: only access control on the zenoh plane can refuse it.
     """
 
     def __init__(self, endpoints: list[str], session_id: str):
@@ -184,19 +213,98 @@ class Frames:
         config.insert_json5("mode", '"client"')
         config.insert_json5("connect/endpoints", json.dumps(list(endpoints)))
         config.insert_json5("scouting/multicast/enabled", "false")
+        self._session_id = session_id
+        self._key = frames_key(session_id)
+        self._lock = threading.Lock()
+        self._drop_reasons: Counter[str] = Counter()
+        self._last_drop: tuple[str, str] | None = None
         self._session = zenoh.open(config)
-        self._queue: queue.Queue[bytes] = queue.Queue()
-        self._subscriber = self._session.declare_subscriber(
-            frames_key(session_id), lambda sample: self._queue.put(sample.payload.to_bytes())
-        )
-        self.latest = next(
-            (decode_frame(r.ok.payload.to_bytes()) for r in self._session.get(latest_key(session_id)) if r.ok),
-            None,
-        )
+        self._queue: queue.Queue[Frame] = queue.Queue()
+        self._subscriber = self._session.declare_subscriber(self._key, self._on_sample)
+        self.latest = self._latest()
+
+    # zenoh's thread counts while the caller's reads: copies under a lock.
+    @property
+    def dropped(self) -> int:
+        """Samples dropped so far, for any reason."""
+        with self._lock:
+            return sum(self._drop_reasons.values())
+
+    @property
+    def drop_reasons(self) -> Counter[str]:
+        """Samples dropped so far, by reason."""
+        with self._lock:
+            return Counter(self._drop_reasons)
+
+    @property
+    def last_drop(self) -> tuple[str, str] | None:
+        """The last drop's reason and what was wrong, if any."""
+        with self._lock:
+            return self._last_drop
+
+    def _admit(self, key: str, data: bytes, expected_key: str) -> Frame:
+        """The frame of a sample on ``key``, or ``_Dropped`` saying why not."""
+        if key != expected_key:
+            raise _Dropped("wrong_key", f"put on {_quote(key)}, not {expected_key}")
+        try:
+            message = parse_frame(data)
+        except ValueError as e:
+            raise _Dropped("undecodable", str(e)) from e
+        if not message.HasField("header"):
+            raise _Dropped("malformed", "frame without a header")
+        session_id = message.header.session_id
+        if session_id != self._session_id:
+            raise _Dropped(
+                "wrong_session", f"names session {_quote(session_id)}, not {self._session_id!r}"
+            )
+        try:
+            return unpack_frame(message)
+        except ValueError as e:
+            raise _Dropped("malformed", str(e)) from e
+
+    def _on_sample(self, sample) -> None:
+        # Runs on zenoh's thread, where an exception would be logged and the
+        # sample lost uncounted: every failure is a counted drop instead.
+        try:
+            frame = self._admit(str(sample.key_expr), sample.payload.to_bytes(), self._key)
+        except _Dropped as e:
+            self._drop(e.reason, e.why)
+        except Exception as e:
+            # A check that fails in a way decode_frame does not foresee.
+            self._drop("malformed", f"{type(e).__name__}: {e}")
+        else:
+            self._queue.put(frame)
+
+    def _drop(self, reason: str, why: str) -> None:
+        with self._lock:
+            self._drop_reasons[reason] += 1
+            self._last_drop = (reason, why)
+
+    def _latest(self) -> Frame | None:
+        """The session's latest frame from its ``latest`` queryable: the last
+        reply that passes the checks, the others skipped. Every queryable is
+        asked and every reply kept (by default zenoh asks only a queryable
+        declared complete when there is one, and keeps one reply per key,
+        so another peer could answer in the server's place)."""
+        key = latest_key(self._session_id)
+        latest = None
+        for reply in self._session.get(
+            key, target=zenoh.QueryTarget.ALL, consolidation=zenoh.ConsolidationMode.NONE
+        ):
+            if reply.ok is None:
+                continue
+            try:
+                latest = self._admit(str(reply.ok.key_expr), reply.ok.payload.to_bytes(), key)
+            except Exception:
+                # Skipped as the subscriber drops it, but not counted: the
+                # counts are of the subscription.
+                continue
+        return latest
 
     def next(self, timeout: float = DEFAULT_TIMEOUT) -> Frame:
-        """The next frame; raises ``queue.Empty`` after ``timeout`` seconds."""
-        return decode_frame(self._queue.get(timeout=timeout))
+        """The next frame that passed the checks; raises ``queue.Empty``
+        after ``timeout`` seconds."""
+        return self._queue.get(timeout=timeout)
 
     def close(self) -> None:
         self._subscriber.undeclare()

@@ -110,8 +110,10 @@ def decode_surface(message) -> Surface:
 
 def decode_solid_surface(message) -> SolidSurface:
     """Unpacks a ``meshless.v1.SolidSurface``; ``ValueError`` when its mesh
-    is inconsistent (as :func:`decode_surface`) or has not one normal per
-    vertex."""
+    is missing or inconsistent (as :func:`decode_surface`) or has not one
+    normal per vertex."""
+    if not message.HasField("mesh"):
+        raise ValueError(f"solid {message.system} surface: no mesh")
     mesh = decode_surface(message.mesh)
     normals = message.mesh.normals
     if len(normals) != 12 * len(mesh.vertices):
@@ -143,17 +145,32 @@ def decode_body(pose) -> Body:
     )
 
 
-def decode_frame(data: bytes) -> Frame:
-    """Decodes an encoded ``meshless.v1.Frame``.
+def parse_frame(data: bytes):
+    """The ``meshless.v1.Frame`` message of encoded bytes, not yet checked;
+    ``ValueError`` when they are no such message (protobuf's
+    ``DecodeError``, wrapped)."""
+    from google.protobuf.message import DecodeError
 
-    Raises ``ValueError`` when a field's size does not match the particle
-    count, its scalar type is not f32, a solid's rows run past the last
-    particle, or a surface is inconsistent.
-    """
+    from .v1 import frame_pb2
+
+    try:
+        return frame_pb2.Frame.FromString(data)
+    except DecodeError as e:
+        raise ValueError(f"not a Frame message ({len(data)} bytes): {e}") from e
+
+
+def unpack_frame(message) -> Frame:
+    """Checks and unpacks a parsed ``meshless.v1.Frame`` (see
+    :func:`decode_frame` for the checks)."""
     from .v1 import frame_pb2, scene_pb2
 
-    message = frame_pb2.Frame.FromString(data)
+    # Protobuf skips fields it does not know and reads a missing message as
+    # empty, so bytes that are no frame can parse as one without a header.
+    if not message.HasField("header"):
+        raise ValueError("frame without a header")
     header = message.header
+    if not header.session_id:
+        raise ValueError("frame header names no session")
     n = header.particle_count
     fields = {}
     for f in message.fields:
@@ -183,3 +200,15 @@ def decode_frame(data: bytes) -> Frame:
         solids=solids,
         solid_surfaces=[decode_solid_surface(s) for s in message.solid_surfaces],
     )
+
+
+def decode_frame(data: bytes) -> Frame:
+    """Decodes an encoded ``meshless.v1.Frame``.
+
+    Raises ``ValueError`` for every malformed payload: bytes that are no
+    ``Frame`` message, a frame without a header or whose header names no
+    session, an unknown field kind, a field whose size does not match the
+    particle count or whose scalar type is not f32, a solid's rows past
+    the last particle, or an inconsistent surface.
+    """
+    return unpack_frame(parse_frame(data))

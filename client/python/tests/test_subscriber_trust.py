@@ -1,0 +1,135 @@
+"""What the Python subscriber accepts: any zenoh peer can put on a
+session's keys, so ``decode_frame`` raises ``ValueError`` for every
+malformed payload and ``Frames`` keeps only the server's frames of its
+session, counting the rest."""
+
+from __future__ import annotations
+
+import json
+import random
+import threading
+import time
+
+import pytest
+import zenoh
+
+from conftest import TIMEOUT, fixture
+from meshless import Client, Frames, decode_frame, frames_key, latest_key
+
+SCENE = fixture("python_tank")
+
+
+def forged_frame(session_id: str, step: int = 999_999, data: bytes = bytes(12)) -> bytes:
+    """A frame of one particle naming ``session_id``; consistent with the
+    default ``data``."""
+    from meshless.v1 import frame_pb2, scene_pb2
+
+    message = frame_pb2.Frame()
+    message.header.session_id = session_id
+    message.header.step = step
+    message.header.particle_count = 1
+    field = message.fields.add()
+    field.kind = scene_pb2.FIELD_KIND_POSITION
+    field.components = 3
+    field.scalar = frame_pb2.SCALAR_TYPE_F32
+    field.data = data
+    return message.SerializeToString()
+
+
+def test_decode_frame_raises_value_error_for_every_malformed_payload():
+    # Protobuf reads b"\x08\x01" as an unknown varint and "\x78\x01" as an
+    # unknown field: both parse as a frame without a header.
+    for payload in [b"\x08\x01", b"\x78\x01", b"", b"\xff" * 8, forged_frame("")]:
+        with pytest.raises(ValueError):
+            decode_frame(payload)
+    with pytest.raises(ValueError, match="12 bytes|expected 12"):
+        decode_frame(forged_frame("s", data=bytes(8)))
+    assert decode_frame(forged_frame("s")).step == 999_999
+
+    rng = random.Random(13)
+    for _ in range(500):
+        garbage = rng.randbytes(rng.randrange(1, 64))
+        with pytest.raises(ValueError):
+            decode_frame(garbage)
+
+
+def hostile_peer(endpoints: list[str]) -> zenoh.Session:
+    """A zenoh session in client mode, as any program on the network can
+    open one."""
+    config = zenoh.Config()
+    config.insert_json5("mode", '"client"')
+    config.insert_json5("connect/endpoints", json.dumps(endpoints))
+    config.insert_json5("scouting/multicast/enabled", "false")
+    return zenoh.open(config)
+
+
+def until(condition, what: str) -> None:
+    """Polls ``condition`` until it holds, failing after ``TIMEOUT``."""
+    deadline = time.monotonic() + TIMEOUT
+    while not condition():
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        time.sleep(0.01)
+
+
+def test_frames_keep_only_the_sessions_frames_and_count_the_rest(server):
+    with Client(server.grpc_target) as client:
+        session = client.create_session(SCENE)
+        other = client.create_session(SCENE)
+        with Frames(server.zenoh_endpoints, session.id) as frames, hostile_peer(
+            server.zenoh_endpoints
+        ) as peer:
+            replayed = [r.ok.payload.to_bytes() for r in peer.get(latest_key(other.id)) if r.ok]
+            assert len(replayed) == 1, "the other session's frame 0"
+            key = frames_key(session.id)
+            for put_key, payload in [
+                (key, b"\xff" * 8),
+                (key, b"\x08\x01"),
+                (key, forged_frame("FAKE")),
+                (key, replayed[0]),
+                (key, forged_frame(session.id, data=bytes(8))),
+                ("meshless/v1/sessions/*/frames", forged_frame(session.id)),
+            ]:
+                peer.put(put_key, payload)
+            # The server answers the peer's query after forwarding its puts.
+            assert [r for r in peer.get(latest_key(session.id)) if r.ok]
+
+            client.step(session.id, 3)
+            got = [frames.next() for _ in range(3)]
+            assert [(f.session_id, f.step) for f in got] == [(session.id, s) for s in (1, 2, 3)]
+            until(lambda: frames.dropped == 6, "six drops")
+            assert dict(frames.drop_reasons) == {
+                "undecodable": 1,
+                "malformed": 2,
+                "wrong_session": 2,
+                "wrong_key": 1,
+            }
+            assert frames.last_drop is not None and frames.last_drop[0] == "wrong_key"
+
+
+def test_frames_latest_skips_forged_replies(server):
+    with Client(server.grpc_target) as client:
+        session = client.create_session(SCENE)
+        client.step(session.id, 2)
+        key = latest_key(session.id)
+        asked = threading.Event()
+
+        def answer(query) -> None:
+            query.reply(key, b"\xff" * 8)
+            query.reply(key, forged_frame("FAKE"))
+            query.reply_err("forged error")
+            asked.set()
+
+        with hostile_peer(server.zenoh_endpoints) as peer:
+            # Declared complete, so that by default only it would be asked.
+            peer.declare_queryable(key, answer, complete=True)
+            # The queryable reaches the server some time after it is
+            # declared; open subscribers until one has asked it too.
+            deadline = time.monotonic() + TIMEOUT
+            while True:
+                known = asked.is_set()
+                with Frames(server.zenoh_endpoints, session.id) as frames:
+                    assert frames.latest is not None
+                    assert (frames.latest.session_id, frames.latest.step) == (session.id, 2)
+                if known:
+                    break
+                assert time.monotonic() < deadline, "the peer's queryable was never asked"
