@@ -71,6 +71,35 @@ pub struct ServerArg {
         default_value = "http://127.0.0.1:50051"
     )]
     pub server: String,
+    /// Bearer token for a server with tokens (prefer the environment
+    /// variable: a flag shows in the process list).
+    #[arg(long, global = true, env = "MESHLESS_TOKEN", hide_env_values = true)]
+    pub token: Option<String>,
+    /// Names this client instance; one instance drives a session at a
+    /// time (unset: the token's principal as a whole).
+    #[arg(long, global = true, env = "MESHLESS_CLIENT_ID")]
+    pub client_id: Option<String>,
+    /// Take control of a session another client instance drives.
+    #[arg(long, global = true)]
+    pub take_over: bool,
+}
+
+impl ServerArg {
+    /// Connects to `--server` with the token and client id given.
+    ///
+    /// # Errors
+    /// As [`Client::connect_as`].
+    pub async fn connect(&self) -> Result<meshless_client::Client, meshless_client::ClientError> {
+        meshless_client::Client::connect_as(
+            &self.server,
+            &meshless_client::Identity {
+                token: self.token.clone(),
+                client_id: self.client_id.clone(),
+                take_over: self.take_over,
+            },
+        )
+        .await
+    }
 }
 
 /// A particle count for the summaries of `run`, `demo` and `watch`,

@@ -40,8 +40,7 @@ pub struct DemoArgs {
 
 pub async fn demo(args: DemoArgs) -> Result<()> {
     let scene = match &args.scene {
-        Some(path) => std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read {}", path.display()))?,
+        Some(path) => meshless_client::read_scene_file(path)?,
         None => DAM_BREAK.to_owned(),
     };
     let server = meshless_server::start(ServerConfig::ephemeral()).await?;

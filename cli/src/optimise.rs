@@ -18,6 +18,7 @@ use meshless_engine::design::{
 };
 use meshless_engine::io::{MeshFormat, write_mesh_ply, write_obj, write_vtk};
 use meshless_engine::math::Vector;
+use meshless_engine::scene::{DEFAULT_MAX_MESH_BYTES, MeshFiles};
 use meshless_engine::{BuildOptions, FieldData, FieldKind, Frame, Scene};
 use meshless_server::ServerConfig;
 use meshless_wire::design::{
@@ -78,15 +79,23 @@ impl ProblemFile {
     fn read(path: &Path) -> Result<(Self, String)> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read {}", path.display()))?;
-        let problem: Self = toml::from_str(&text).with_context(|| format!("{}", path.display()))?;
+        let mut problem: Self =
+            toml::from_str(&text).with_context(|| format!("{}", path.display()))?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        // Meshes travel inline: a server reads none of the client's files.
         let scene = match &problem.scene {
-            SceneSource::File(scene) => {
-                let scene = path.parent().unwrap_or(Path::new(".")).join(scene);
-                std::fs::read_to_string(&scene)
-                    .with_context(|| format!("cannot read the scene {}", scene.display()))?
+            SceneSource::File(scene) => meshless_client::read_scene_file(&base.join(scene))?,
+            SceneSource::Inline(table) => {
+                let text = toml::to_string(table).context("the inline [scene]")?;
+                meshless_client::inline_meshes(&text, base)
+                    .map_err(|e| anyhow::anyhow!("the inline [scene]: {e}"))?
             }
-            SceneSource::Inline(table) => toml::to_string(table).context("the inline [scene]")?,
         };
+        for constraint in &mut problem.constraints {
+            constraint
+                .load_mesh(&MeshFiles::Host, DEFAULT_MAX_MESH_BYTES)
+                .with_context(|| format!("{}", path.display()))?;
+        }
         Ok((problem, scene))
     }
 

@@ -1,9 +1,9 @@
 //! `meshless session …`: one subcommand per gRPC call.
 
 use crate::command::ServerArg;
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Subcommand;
-use meshless_client::{Client, v1};
+use meshless_client::v1;
 use std::path::PathBuf;
 
 #[derive(Debug, clap::Args)]
@@ -17,7 +17,13 @@ pub struct SessionArgs {
 #[derive(Debug, Subcommand)]
 enum Action {
     /// Create a session from a TOML scene file.
-    Create { scene: PathBuf },
+    Create {
+        scene: PathBuf,
+        /// A principal that may see the session read-only (repeat it;
+        /// "*" for every caller).
+        #[arg(long = "observer")]
+        observers: Vec<String>,
+    },
     /// List the server's sessions.
     List,
     /// Show one session.
@@ -82,12 +88,15 @@ fn print_session(session: &v1::Session) {
 }
 
 pub async fn session(args: SessionArgs) -> Result<()> {
-    let client = Client::connect(&args.server.server).await?;
+    let client = args.server.connect().await?;
     match args.action {
-        Action::Create { scene } => {
-            let text = std::fs::read_to_string(&scene)
-                .with_context(|| format!("cannot read {}", scene.display()))?;
-            let session = client.create_session_toml(&text).await?;
+        Action::Create { scene, observers } => {
+            // Mesh files the scene names travel inline: the server reads
+            // none of the client's.
+            let text = meshless_client::read_scene_file(&scene)?;
+            let session = client
+                .create_session_toml_with_observers(&text, observers)
+                .await?;
             print_session(&session);
             println!("frames on zenoh: {}/frames", session.zenoh_key_prefix);
         }

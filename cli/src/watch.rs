@@ -4,7 +4,7 @@
 
 use crate::command::ServerArg;
 use anyhow::Result;
-use meshless_client::{Client, ZenohLink};
+use meshless_client::ZenohLink;
 use std::time::{Duration, Instant};
 
 #[derive(Debug, clap::Args)]
@@ -26,7 +26,8 @@ pub struct WatchArgs {
 
 pub async fn watch(args: WatchArgs) -> Result<()> {
     let endpoints = if args.zenoh.is_empty() {
-        Client::connect(&args.server.server)
+        args.server
+            .connect()
             .await?
             .server_info()
             .await?

@@ -3,13 +3,96 @@
 use crate::{ClientError, Design, OptimizeEvent};
 use meshless_proto::v1::{self, simulation_client::SimulationClient};
 use tokio_stream::{Stream, StreamExt};
+use tonic::metadata::{AsciiMetadataValue, MetadataKey};
+use tonic::service::interceptor::InterceptedService;
 use tonic::transport::{Channel, Endpoint};
+
+/// Who a client is to the server, sent with every call.
+#[derive(Clone, Default, PartialEq, Eq)]
+pub struct Identity {
+    /// The bearer token of a server with tokens (`--tokens-file`).
+    pub token: Option<String>,
+    /// Names this client instance (1 to 64 letters, digits, `.`, `_`,
+    /// `-`): one instance drives a session at a time. Unset: the token's
+    /// principal as a whole drives (as each `meshless session` command
+    /// does).
+    pub client_id: Option<String>,
+    /// Takes control of sessions another instance of the same principal
+    /// drives, instead of being refused with ABORTED.
+    pub take_over: bool,
+}
+
+/// The token is a secret: debug output shows only whether there is one.
+impl std::fmt::Debug for Identity {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Identity")
+            .field("token", &self.token.as_ref().map(|_| "<set>"))
+            .field("client_id", &self.client_id)
+            .field("take_over", &self.take_over)
+            .finish()
+    }
+}
+
+/// The metadata an [`Identity`] puts on every call, checked once.
+#[derive(Clone)]
+struct Stamp {
+    headers: Vec<(MetadataKey<tonic::metadata::Ascii>, AsciiMetadataValue)>,
+}
+
+impl std::fmt::Debug for Stamp {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let keys: Vec<&str> = self.headers.iter().map(|(k, _)| k.as_str()).collect();
+        f.debug_struct("Stamp").field("keys", &keys).finish()
+    }
+}
+
+impl Stamp {
+    fn new(identity: &Identity) -> std::result::Result<Self, String> {
+        let value = |what: &str, text: &str| {
+            AsciiMetadataValue::try_from(text)
+                .map_err(|_| format!("the {what} must be visible ASCII text"))
+        };
+        let mut headers = Vec::new();
+        if let Some(token) = &identity.token {
+            let mut bearer = value("token", &format!("Bearer {token}"))?;
+            bearer.set_sensitive(true);
+            headers.push((MetadataKey::from_static("authorization"), bearer));
+        }
+        if let Some(id) = &identity.client_id {
+            headers.push((
+                MetadataKey::from_static("meshless-client"),
+                value("client id", id)?,
+            ));
+        }
+        if identity.take_over {
+            headers.push((
+                MetadataKey::from_static("meshless-take-over"),
+                AsciiMetadataValue::from_static("true"),
+            ));
+        }
+        Ok(Self { headers })
+    }
+}
+
+impl tonic::service::Interceptor for Stamp {
+    fn call(
+        &mut self,
+        mut request: tonic::Request<()>,
+    ) -> std::result::Result<tonic::Request<()>, tonic::Status> {
+        for (key, value) in &self.headers {
+            request.metadata_mut().insert(key.clone(), value.clone());
+        }
+        Ok(request)
+    }
+}
+
+type Grpc = SimulationClient<InterceptedService<Channel, Stamp>>;
 
 /// A connection to a meshless server. Cheap to clone; calls may run
 /// concurrently.
 #[derive(Debug, Clone)]
 pub struct Client {
-    grpc: SimulationClient<Channel>,
+    grpc: Grpc,
 }
 
 type Result<T> = std::result::Result<T, ClientError>;
@@ -26,6 +109,20 @@ impl Client {
     /// # Errors
     /// [`ClientError::Connect`] when the URL is malformed or unreachable.
     pub async fn connect(url: &str) -> Result<Self> {
+        Self::connect_as(url, &Identity::default()).await
+    }
+
+    /// Connects to a server at `url` as `identity` (a token, a client
+    /// instance).
+    ///
+    /// # Errors
+    /// [`ClientError::Connect`] when the URL is malformed or unreachable,
+    /// or the token or client id is not visible ASCII.
+    pub async fn connect_as(url: &str, identity: &Identity) -> Result<Self> {
+        let stamp = Stamp::new(identity).map_err(|message| ClientError::Connect {
+            url: url.to_owned(),
+            message,
+        })?;
         let connect_error = |e: tonic::transport::Error| {
             // The useful part ("Connection refused") sits deep in the chain.
             let mut message = e.to_string();
@@ -47,13 +144,13 @@ impl Client {
             .connect()
             .await
             .map_err(connect_error)?;
-        let grpc = SimulationClient::new(channel)
+        let grpc = SimulationClient::with_interceptor(channel, stamp)
             .max_decoding_message_size(usize::MAX)
             .max_encoding_message_size(64 * 1024 * 1024);
         Ok(Self { grpc })
     }
 
-    fn grpc(&self) -> SimulationClient<Channel> {
+    fn grpc(&self) -> Grpc {
         self.grpc.clone()
     }
 
@@ -74,7 +171,7 @@ impl Client {
     /// # Errors
     /// `INVALID_ARGUMENT` naming the bad field, `RESOURCE_EXHAUSTED` at a limit.
     pub async fn create_session(&self, scene: v1::SceneSpec) -> Result<v1::Session> {
-        self.create(v1::create_session_request::Source::Scene(scene))
+        self.create(v1::create_session_request::Source::Scene(scene), Vec::new())
             .await
     }
 
@@ -83,15 +180,36 @@ impl Client {
     /// # Errors
     /// As [`Client::create_session`]; parse errors give the line.
     pub async fn create_session_toml(&self, toml: &str) -> Result<v1::Session> {
-        self.create(v1::create_session_request::Source::SceneToml(
-            toml.to_owned(),
-        ))
+        self.create_session_toml_with_observers(toml, Vec::new())
+            .await
+    }
+
+    /// Creates a session from the text of a TOML scene file that the
+    /// principals in `observers` (or `"*"`, everyone) may see read-only.
+    ///
+    /// # Errors
+    /// As [`Client::create_session_toml`]; `INVALID_ARGUMENT` naming a bad
+    /// observer.
+    pub async fn create_session_toml_with_observers(
+        &self,
+        toml: &str,
+        observers: Vec<String>,
+    ) -> Result<v1::Session> {
+        self.create(
+            v1::create_session_request::Source::SceneToml(toml.to_owned()),
+            observers,
+        )
         .await
     }
 
-    async fn create(&self, source: v1::create_session_request::Source) -> Result<v1::Session> {
+    async fn create(
+        &self,
+        source: v1::create_session_request::Source,
+        observers: Vec<String>,
+    ) -> Result<v1::Session> {
         let request = v1::CreateSessionRequest {
             source: Some(source),
+            observers,
         };
         Ok(self.grpc().create_session(request).await?.into_inner())
     }

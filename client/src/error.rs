@@ -28,6 +28,10 @@ pub enum ClientError {
     /// protocol version.
     #[error("malformed frame: {0}")]
     Decode(String),
+    /// A scene file, or a mesh file it names, could not be read or
+    /// parsed; the message names the file.
+    #[error("{0}")]
+    Scene(String),
     /// A stream ended before its result: the zenoh session closed, or an
     /// optimisation stream ended without a design.
     #[error("the server closed the stream")]

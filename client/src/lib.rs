@@ -29,10 +29,12 @@ mod design;
 mod error;
 mod frame;
 mod link;
+mod scene_file;
 
-pub use client::Client;
+pub use client::{Client, Identity};
 pub use design::{Design, DesignKind, OptimizeEvent};
 pub use error::ClientError;
 pub use frame::{FieldView, FrameView, SolidSurfaceView, SurfaceView};
 pub use link::{DropReason, Dropped, Frames, Statuses, ZenohLink};
 pub use meshless_proto::v1;
+pub use scene_file::{inline_meshes, read_scene_file};

@@ -1,6 +1,9 @@
 //! Server configuration: built-in defaults, then environment variables,
 //! then command-line flags (clap resolves the layers), checked at start.
 
+use crate::auth::Tokens;
+use meshless_engine::BuildOptions;
+use meshless_engine::scene::MeshFiles;
 use std::net::SocketAddr;
 
 /// How the server's zenoh session joins the network.
@@ -33,6 +36,9 @@ pub const DEFAULT_MAX_CONNECTIONS: u32 = 512;
 /// Default of `--max-request-mb`: room for a scene with a million
 /// hand-placed particles.
 pub const DEFAULT_MAX_REQUEST_MB: u32 = 64;
+/// Default of `--max-mesh-mb`: a mesh of a few hundred thousand
+/// triangles, far more than a body's sampling uses.
+pub const DEFAULT_MAX_MESH_MB: u32 = 16;
 
 /// Everything the server needs to start.
 #[derive(Debug, Clone, clap::Args)]
@@ -77,6 +83,23 @@ pub struct ServerConfig {
     #[arg(long, env = "MESHLESS_MAX_REQUEST_MB", default_value_t = DEFAULT_MAX_REQUEST_MB)]
     pub max_request_mb: u32,
 
+    /// A file of `NAME TOKEN` lines: the principals that may call and
+    /// their bearer tokens. Unset: no authentication, which is allowed
+    /// only on a loopback `--grpc-addr` (everyone is `anonymous`).
+    #[arg(long, env = "MESHLESS_TOKENS_FILE")]
+    pub tokens_file: Option<std::path::PathBuf>,
+
+    /// A directory of mesh files that scenes may name by a relative path
+    /// (`shape = { type = "mesh", path = "..." }`); nothing outside it is
+    /// read, links out of it included. Unset: the server reads no mesh
+    /// file, and clients send meshes' bytes in the scene.
+    #[arg(long, env = "MESHLESS_MESH_DIR")]
+    pub mesh_dir: Option<std::path::PathBuf>,
+
+    /// Largest mesh, sent or read from the mesh directory, in MB.
+    #[arg(long, env = "MESHLESS_MAX_MESH_MB", default_value_t = DEFAULT_MAX_MESH_MB)]
+    pub max_mesh_mb: u32,
+
     /// Memory all sessions together may hold, in MB, by each scene's
     /// estimate (`Scene::check`) before it is built. Unset: half of
     /// this host's physical memory.
@@ -91,6 +114,36 @@ impl ServerConfig {
     /// The largest request in bytes.
     pub fn max_request_bytes(&self) -> usize {
         (self.max_request_mb as usize).saturating_mul(1 << 20)
+    }
+
+    /// What scenes may build: the particle limit, the mesh directory (or
+    /// none) and the mesh size limit.
+    pub fn build_options(&self) -> BuildOptions {
+        BuildOptions {
+            max_particles: self.max_particles,
+            mesh_files: match &self.mesh_dir {
+                Some(dir) => MeshFiles::Directory(dir.clone()),
+                None => MeshFiles::None,
+            },
+            max_mesh_bytes: u64::from(self.max_mesh_mb) << 20,
+        }
+    }
+
+    /// The tokens the server accepts; `None` without a tokens file.
+    ///
+    /// # Errors
+    /// An unreadable or malformed file, or no file on an address other
+    /// than loopback: a server reachable from elsewhere never runs open.
+    pub fn tokens(&self) -> Result<Option<Tokens>, String> {
+        match &self.tokens_file {
+            Some(path) => Tokens::from_file(path).map(Some),
+            None if self.grpc_addr.ip().is_loopback() => Ok(None),
+            None => Err(format!(
+                "--grpc-addr {} is reachable from other hosts, so the server needs tokens: \
+                 give --tokens-file (MESHLESS_TOKENS_FILE), or bind to 127.0.0.1",
+                self.grpc_addr
+            )),
+        }
     }
 
     /// The memory budget in bytes: the configured one, or half of the
@@ -121,6 +174,9 @@ impl ServerConfig {
             max_sessions: DEFAULT_MAX_SESSIONS,
             max_connections: DEFAULT_MAX_CONNECTIONS,
             max_request_mb: DEFAULT_MAX_REQUEST_MB,
+            tokens_file: None,
+            mesh_dir: None,
+            max_mesh_mb: DEFAULT_MAX_MESH_MB,
             memory_budget_mb: None,
         }
     }
@@ -144,6 +200,17 @@ impl ServerConfig {
         }
         if self.max_connections == 0 {
             return Err("--max-connections must be at least 1".into());
+        }
+        if self.max_mesh_mb == 0 {
+            return Err("--max-mesh-mb must be at least 1".into());
+        }
+        if let Some(dir) = &self.mesh_dir
+            && !dir.is_dir()
+        {
+            return Err(format!(
+                "--mesh-dir {} is not a directory this server can read",
+                dir.display()
+            ));
         }
         if self.memory_budget_mb == Some(0) {
             return Err("--memory-budget-mb must be at least 1".into());

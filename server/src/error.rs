@@ -47,6 +47,29 @@ pub enum ServiceError {
         /// The whole budget, MB.
         budget_mb: u64,
     },
+    /// The caller may not `action` a session it neither owns nor
+    /// observes (or, to drive it, does not own).
+    #[error(
+        "session {session_id} belongs to another principal; you may not {action} it \
+         (its owner can name you among its `observers` to let you see it)"
+    )]
+    PermissionDenied {
+        /// The session, [`quote`]d.
+        session_id: String,
+        /// What was refused.
+        action: &'static str,
+    },
+    /// Another client instance of the owner drives the session.
+    #[error(
+        "session {session_id} is driven by client {controller}; take control with \
+         `meshless-take-over: true` (meshless --take-over) or leave it to that client"
+    )]
+    ControlledElsewhere {
+        /// The session.
+        session_id: String,
+        /// Who drives it: `principal/client`, or the principal alone.
+        controller: String,
+    },
     #[error("session {0} stopped and no longer takes commands; delete it")]
     SessionGone(String),
     #[error("internal error: {0}")]
@@ -83,6 +106,8 @@ impl ServiceError {
             },
             Self::WrongState { .. } | Self::Faulted { .. } => Code::FailedPrecondition,
             Self::TooManySessions { .. } | Self::MemoryBudget { .. } => Code::ResourceExhausted,
+            Self::PermissionDenied { .. } => Code::PermissionDenied,
+            Self::ControlledElsewhere { .. } => Code::Aborted,
             Self::SessionGone(_) => Code::Unavailable,
             Self::Internal(_) => Code::Internal,
         }

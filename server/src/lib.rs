@@ -8,6 +8,7 @@
 //! command and the tests do); the `meshless-server` binary wraps it with
 //! signal handling.
 
+mod auth;
 mod codes;
 pub mod config;
 mod error;
@@ -20,7 +21,6 @@ mod session;
 pub use config::{ServerConfig, ZenohMode};
 
 use anyhow::{Context, Result};
-use meshless_engine::BuildOptions;
 use meshless_proto::v1::{self, simulation_server::SimulationServer};
 use registry::Registry;
 use service::SimulationService;
@@ -67,6 +67,17 @@ impl RunningServer {
 /// An invalid configuration or a port that cannot be bound.
 pub async fn start(config: ServerConfig) -> Result<RunningServer> {
     config.validate().map_err(anyhow::Error::msg)?;
+    let tokens = config.tokens().map_err(anyhow::Error::msg)?;
+    match &tokens {
+        Some(tokens) => tracing::info!(
+            principals = ?tokens.principals().collect::<Vec<_>>(),
+            "callers need a token"
+        ),
+        None => tracing::warn!(
+            "no --tokens-file: every caller on this loopback address is `anonymous` \
+             and may drive every session"
+        ),
+    }
     let (zenoh, zenoh_locators) = pubsub::open(&config).await?;
     let listener = tokio::net::TcpListener::bind(config.grpc_addr)
         .await
@@ -76,9 +87,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
     let shutdown = CancellationToken::new();
     let registry = Arc::new(Registry::new(
         zenoh.clone(),
-        BuildOptions {
-            max_particles: config.max_particles,
-        },
+        config.build_options(),
         config.max_sessions,
         config.memory_budget_bytes(),
         shutdown.child_token(),
@@ -97,6 +106,12 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
     ))
     .max_decoding_message_size(config.max_request_bytes())
     .max_encoding_message_size(MAX_RESPONSE_BYTES);
+    // Health and reflection stay open (probes, tools); every simulation
+    // call passes the token check first.
+    let simulation = tonic::service::interceptor::InterceptedService::new(
+        simulation,
+        auth::Authenticator::new(tokens),
+    );
     let (health_reporter, health) = tonic_health::server::health_reporter();
     health_reporter
         .set_serving::<SimulationServer<SimulationService>>()
@@ -109,6 +124,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
     let incoming = listener::incoming(
         listener,
         config.max_connections as usize,
+        listener::FIRST_BYTE_TIMEOUT,
         shutdown.child_token(),
     );
     let stop = shutdown.clone();

@@ -6,7 +6,9 @@
 //! kernel's backlog instead of holding one of this process's file
 //! descriptors (1,100 silent connections once exhausted them). An accept
 //! error (out of descriptors, a reset before accept) backs off briefly
-//! rather than retrying in a tight loop.
+//! rather than retrying in a tight loop. A connection that sends nothing
+//! within [`FIRST_BYTE_TIMEOUT`] of being accepted is closed, so silent
+//! sockets cannot hold every place under the cap.
 
 use std::io;
 use std::pin::Pin;
@@ -22,6 +24,11 @@ use tonic::transport::server::{Connected, TcpConnectInfo};
 
 /// Pause after a failed accept.
 const ACCEPT_BACKOFF: Duration = Duration::from_millis(50);
+
+/// How long an accepted connection may stay silent before it is closed:
+/// a gRPC client sends the HTTP/2 preface at once, so ten seconds covers
+/// any real client on a slow link.
+pub const FIRST_BYTE_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// An accepted connection holding its place under the cap until it
 /// closes.
@@ -87,6 +94,7 @@ impl Connected for Admitted {
 pub fn incoming(
     listener: TcpListener,
     max_connections: usize,
+    first_byte_timeout: Duration,
     stop: CancellationToken,
 ) -> ReceiverStream<io::Result<Admitted>> {
     let (admitted, stream) = mpsc::channel(1);
@@ -114,9 +122,25 @@ pub fn incoming(
                         stream,
                         _place: place,
                     };
-                    if admitted.send(Ok(connection)).await.is_err() {
-                        break;
-                    }
+                    // Waiting for the first byte must not hold up accept.
+                    let admitted = admitted.clone();
+                    tokio::spawn(async move {
+                        let mut byte = [0u8; 1];
+                        let first = tokio::time::timeout(
+                            first_byte_timeout,
+                            connection.stream.peek(&mut byte),
+                        )
+                        .await;
+                        match first {
+                            Ok(Ok(n)) if n > 0 => {
+                                // The server may be shutting down.
+                                let _ = admitted.send(Ok(connection)).await;
+                            }
+                            // Silent, closed or failed: dropping it closes
+                            // the socket and frees its place.
+                            Ok(_) | Err(_) => tracing::debug!("closed a silent connection"),
+                        }
+                    });
                 }
                 Err(e) => {
                     tracing::warn!("accepting a gRPC connection: {e}");
@@ -131,6 +155,7 @@ pub fn incoming(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
     use tokio::time::timeout;
     use tokio_stream::StreamExt;
 
@@ -140,11 +165,12 @@ mod tests {
     async fn connections_beyond_the_cap_wait_and_all_send_without_delay() {
         let listener = TcpListener::bind("127.0.0.1:0").await.expect("bind");
         let addr = listener.local_addr().expect("address");
-        let mut connections = incoming(listener, 1, CancellationToken::new());
-        let _first_client = timeout(WAIT, TcpStream::connect(addr))
+        let mut connections = incoming(listener, 1, WAIT, CancellationToken::new());
+        let mut first_client = timeout(WAIT, TcpStream::connect(addr))
             .await
             .expect("connects in time")
             .expect("connects");
+        first_client.write_all(b"P").await.expect("speaks");
         let first = timeout(WAIT, connections.next())
             .await
             .expect("admitted in time")
@@ -152,10 +178,11 @@ mod tests {
             .expect("accepted");
         assert!(first.stream.nodelay().expect("option"));
 
-        let _second_client = timeout(WAIT, TcpStream::connect(addr))
+        let mut second_client = timeout(WAIT, TcpStream::connect(addr))
             .await
             .expect("connects in time (the kernel's backlog)")
             .expect("connects");
+        second_client.write_all(b"P").await.expect("speaks");
         // At the cap: the second waits for a place...
         assert!(
             timeout(Duration::from_millis(300), connections.next())
@@ -171,5 +198,37 @@ mod tests {
             .expect("a connection")
             .expect("accepted");
         assert!(second.stream.nodelay().expect("option"));
+    }
+
+    #[tokio::test]
+    async fn a_silent_connection_is_closed_and_frees_its_place() {
+        let listener = TcpListener::bind("127.0.0.1:0").await.expect("bind");
+        let addr = listener.local_addr().expect("address");
+        let silence = Duration::from_millis(200);
+        let mut connections = incoming(listener, 1, silence, CancellationToken::new());
+        let mut silent = timeout(WAIT, TcpStream::connect(addr))
+            .await
+            .expect("connects in time")
+            .expect("connects");
+        let mut speaking = timeout(WAIT, TcpStream::connect(addr))
+            .await
+            .expect("connects in time")
+            .expect("connects");
+        speaking.write_all(b"P").await.expect("speaks");
+        // The silent one is closed by the server (end of stream)...
+        let mut buf = [0u8; 1];
+        let read = timeout(WAIT, silent.read(&mut buf))
+            .await
+            .expect("closed in time");
+        assert!(matches!(read, Ok(0) | Err(_)), "{read:?}");
+        // ...and its place goes to the one that speaks.
+        let admitted = timeout(WAIT, connections.next())
+            .await
+            .expect("admitted once the silent one is gone")
+            .expect("a connection")
+            .expect("accepted");
+        let mut peeked = [0u8; 1];
+        assert_eq!(admitted.stream.peek(&mut peeked).await.expect("peek"), 1);
+        assert_eq!(&peeked, b"P");
     }
 }

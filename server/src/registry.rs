@@ -1,7 +1,7 @@
 //! The sessions a server holds, by id, within its limits.
 
 use crate::error::{ServiceError, quote};
-use crate::session::Session;
+use crate::session::{Access, Session};
 use meshless_engine::{BuildOptions, Scene};
 use std::collections::HashMap;
 use std::hash::{BuildHasher, RandomState};
@@ -63,17 +63,22 @@ impl Registry {
             .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 
+    /// The limits and the mesh-file policy sessions are built with.
+    pub fn options(&self) -> &BuildOptions {
+        &self.options
+    }
+
     /// Validates and builds the scene off the async runtime, then starts
     /// its session.
     ///
     /// # Errors
     /// Invalid scenes and exhausted limits; nothing is kept on error.
-    pub async fn create(&self, scene: Scene) -> Result<Arc<Session>, ServiceError> {
+    pub async fn create(&self, scene: Scene, access: Access) -> Result<Arc<Session>, ServiceError> {
         let limit = self.max_sessions;
         if self.read().len() >= limit as usize {
             return Err(ServiceError::TooManySessions { limit });
         }
-        let options = self.options;
+        let options = self.options.clone();
         // Validation and the estimate first (a mesh may be read), then the
         // reservation, and only then the allocation.
         let checked = tokio::task::spawn_blocking(move || scene.check(&options))
@@ -100,9 +105,10 @@ impl Registry {
             id.clone(),
             serial,
             world,
-            options,
+            self.options.clone(),
             &self.zenoh,
             self.cancel.child_token(),
+            access,
         );
         let session = match started {
             Ok(session) => session,

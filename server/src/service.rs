@@ -2,11 +2,12 @@
 //! validates a request, converts it, calls the registry or a session, and
 //! converts the answer back.
 
+use crate::auth::{Caller, caller};
 use crate::error::{ServiceError, short_number};
 use crate::registry::Registry;
-use crate::session::{Command, OptimizeJob, Problem, RunTarget};
+use crate::session::{Access, Command, OptimizeJob, Problem, RunTarget, Session, check_observers};
 use meshless_engine::Scene;
-use meshless_engine::design::Constraint;
+use meshless_engine::design::{Constraint, Edit};
 use meshless_proto::v1::{self, simulation_server::Simulation};
 use meshless_wire::design::{
     constraint_to_proto, design_params_from_proto, edit_from_proto, motion_params_from_proto,
@@ -55,8 +56,34 @@ impl SimulationService {
         }
     }
 
-    async fn command(&self, id: &str, command: Command) -> Result<v1::Session, ServiceError> {
+    /// The session `id` names, if `caller` may see it.
+    fn read(&self, id: &str, caller: &Caller) -> Result<Arc<Session>, ServiceError> {
         let session = self.registry.get(Self::session_id(id)?)?;
+        session.access.check_read(&session.id, caller)?;
+        Ok(session)
+    }
+
+    /// The session `id` names, if `caller` may `action` it (and now
+    /// drives it).
+    fn drive(
+        &self,
+        id: &str,
+        caller: &Caller,
+        action: &'static str,
+    ) -> Result<Arc<Session>, ServiceError> {
+        let session = self.registry.get(Self::session_id(id)?)?;
+        session.access.check_drive(&session.id, caller, action)?;
+        Ok(session)
+    }
+
+    async fn command(
+        &self,
+        id: &str,
+        caller: &Caller,
+        action: &'static str,
+        command: Command,
+    ) -> Result<v1::Session, ServiceError> {
+        let session = self.drive(id, caller, action)?;
         session.command(command).await?;
         Ok(session.to_proto())
     }
@@ -117,7 +144,9 @@ impl Simulation for SimulationService {
         &self,
         request: Request<v1::CreateSessionRequest>,
     ) -> Reply<v1::Session> {
-        let v1::CreateSessionRequest { source } = request.into_inner();
+        let caller = caller(&request)?;
+        let v1::CreateSessionRequest { source, observers } = request.into_inner();
+        check_observers(&observers)?;
         let scene = match source {
             Some(v1::create_session_request::Source::Scene(spec)) => {
                 scene_from_proto(spec).map_err(ServiceError::from)?
@@ -127,22 +156,37 @@ impl Simulation for SimulationService {
             }
             None => return Err(ServiceError::invalid("source", "set scene or scene_toml").into()),
         };
-        let session = self.registry.create(scene).await?;
-        tracing::info!(session = %session.id, particles = session.particle_count, "session created");
+        let session = self
+            .registry
+            .create(scene, Access::new(&caller, observers))
+            .await?;
+        tracing::info!(
+            session = %session.id,
+            owner = %caller.principal,
+            particles = session.particle_count,
+            "session created"
+        );
         Ok(Response::new(session.to_proto()))
     }
 
     async fn get_session(&self, request: Request<v1::SessionRef>) -> Reply<v1::Session> {
+        let caller = caller(&request)?;
         let id = request.into_inner().session_id;
-        let session = self.registry.get(Self::session_id(&id)?)?;
-        Ok(Response::new(session.to_proto()))
+        Ok(Response::new(self.read(&id, &caller)?.to_proto()))
     }
 
     async fn list_sessions(
         &self,
-        _: Request<v1::ListSessionsRequest>,
+        request: Request<v1::ListSessionsRequest>,
     ) -> Reply<v1::ListSessionsResponse> {
-        let sessions = self.registry.list().iter().map(|s| s.to_proto()).collect();
+        let caller = caller(&request)?;
+        let sessions = self
+            .registry
+            .list()
+            .iter()
+            .filter(|s| s.access.may_read(&caller))
+            .map(|s| s.to_proto())
+            .collect();
         Ok(Response::new(v1::ListSessionsResponse { sessions }))
     }
 
@@ -150,13 +194,16 @@ impl Simulation for SimulationService {
         &self,
         request: Request<v1::SessionRef>,
     ) -> Reply<v1::DeleteSessionResponse> {
+        let caller = caller(&request)?;
         let id = request.into_inner().session_id;
-        self.registry.delete(Self::session_id(&id)?).await?;
+        self.drive(&id, &caller, "delete")?;
+        self.registry.delete(&id).await?;
         tracing::info!(session = %id, "session deleted");
         Ok(Response::new(v1::DeleteSessionResponse {}))
     }
 
     async fn step(&self, request: Request<v1::StepRequest>) -> Reply<v1::Session> {
+        let caller = caller(&request)?;
         let v1::StepRequest { session_id, steps } = request.into_inner();
         if steps == 0 || steps > MAX_STEPS_PER_CALL {
             return Err(ServiceError::invalid(
@@ -166,11 +213,13 @@ impl Simulation for SimulationService {
             .into());
         }
         Ok(Response::new(
-            self.command(&session_id, Command::Step(steps)).await?,
+            self.command(&session_id, &caller, "step", Command::Step(steps))
+                .await?,
         ))
     }
 
     async fn run(&self, request: Request<v1::RunRequest>) -> Reply<v1::Session> {
+        let caller = caller(&request)?;
         let v1::RunRequest {
             session_id,
             until,
@@ -216,23 +265,34 @@ impl Simulation for SimulationService {
             realtime_factor,
         };
         Ok(Response::new(
-            self.command(&session_id, Command::Run(target)).await?,
+            self.command(&session_id, &caller, "run", Command::Run(target))
+                .await?,
         ))
     }
 
     async fn pause(&self, request: Request<v1::SessionRef>) -> Reply<v1::Session> {
+        let caller = caller(&request)?;
         let id = request.into_inner().session_id;
-        Ok(Response::new(self.command(&id, Command::Pause).await?))
+        Ok(Response::new(
+            self.command(&id, &caller, "pause", Command::Pause).await?,
+        ))
     }
 
     async fn resume(&self, request: Request<v1::SessionRef>) -> Reply<v1::Session> {
+        let caller = caller(&request)?;
         let id = request.into_inner().session_id;
-        Ok(Response::new(self.command(&id, Command::Resume).await?))
+        Ok(Response::new(
+            self.command(&id, &caller, "resume", Command::Resume)
+                .await?,
+        ))
     }
 
     async fn reset(&self, request: Request<v1::SessionRef>) -> Reply<v1::Session> {
+        let caller = caller(&request)?;
         let id = request.into_inner().session_id;
-        Ok(Response::new(self.command(&id, Command::Reset).await?))
+        Ok(Response::new(
+            self.command(&id, &caller, "reset", Command::Reset).await?,
+        ))
     }
 
     type WatchStatusStream = ReceiverStream<Result<v1::SessionStatus, Status>>;
@@ -241,8 +301,9 @@ impl Simulation for SimulationService {
         &self,
         request: Request<v1::SessionRef>,
     ) -> Reply<Self::WatchStatusStream> {
+        let caller = caller(&request)?;
         let id = request.into_inner().session_id;
-        let session = self.registry.get(Self::session_id(&id)?)?;
+        let session = self.read(&id, &caller)?;
         let mut events = session.subscribe();
         let (tx, rx) = mpsc::channel(16);
         let shutdown = self.shutdown.clone();
@@ -270,8 +331,9 @@ impl Simulation for SimulationService {
     }
 
     async fn get_latest_frame(&self, request: Request<v1::SessionRef>) -> Reply<v1::Frame> {
+        let caller = caller(&request)?;
         let id = request.into_inner().session_id;
-        let session = self.registry.get(Self::session_id(&id)?)?;
+        let session = self.read(&id, &caller)?;
         let frame = session.latest_frame();
         let id = session.id.clone();
         // Encoding a large frame is CPU work: keep it off the I/O threads.
@@ -285,14 +347,25 @@ impl Simulation for SimulationService {
         &self,
         request: Request<v1::EditConstraintsRequest>,
     ) -> Reply<v1::ConstraintList> {
+        let caller = caller(&request)?;
         let v1::EditConstraintsRequest { session_id, edits } = request.into_inner();
-        let session = self.registry.get(Self::session_id(&session_id)?)?;
-        let edits = edits
+        let session = self.drive(&session_id, &caller, "edit the constraints of")?;
+        let mut edits = edits
             .into_iter()
             .enumerate()
             .map(|(k, e)| edit_from_proto(e, &format!("edits[{k}]")))
             .collect::<Result<Vec<_>, _>>()
             .map_err(ServiceError::from)?;
+        // An obstacle's mesh file is read under the same policy as a
+        // scene's, before anything changes.
+        let options = self.registry.options();
+        for edit in &mut edits {
+            if let Edit::Add(constraint) | Edit::Replace(constraint) = edit {
+                constraint
+                    .load_mesh(&options.mesh_files, options.max_mesh_bytes)
+                    .map_err(|e| ServiceError::Design(e.into()))?;
+            }
+        }
         let constraints = session.edit_constraints(&edits)?;
         Ok(Response::new(constraint_list(&constraints)))
     }
@@ -301,14 +374,16 @@ impl Simulation for SimulationService {
         &self,
         request: Request<v1::SessionRef>,
     ) -> Reply<v1::ConstraintList> {
+        let caller = caller(&request)?;
         let id = request.into_inner().session_id;
-        let session = self.registry.get(Self::session_id(&id)?)?;
+        let session = self.read(&id, &caller)?;
         Ok(Response::new(constraint_list(&session.constraints())))
     }
 
     type OptimizeStream = ReceiverStream<Result<v1::OptimizeEvent, Status>>;
 
     async fn optimize(&self, request: Request<v1::OptimizeRequest>) -> Reply<Self::OptimizeStream> {
+        let caller = caller(&request)?;
         let v1::OptimizeRequest {
             session_id,
             system,
@@ -316,7 +391,7 @@ impl Simulation for SimulationService {
             problem,
             playback,
         } = request.into_inner();
-        let session = self.registry.get(Self::session_id(&session_id)?)?;
+        let session = self.drive(&session_id, &caller, "optimise")?;
         let job = optimize_job(system, design, problem, playback)?;
         let mut run = session.optimize(job)?;
         let (tx, rx) = mpsc::channel(OPTIMIZE_EVENTS);
@@ -357,16 +432,18 @@ impl Simulation for SimulationService {
         &self,
         request: Request<v1::SessionRef>,
     ) -> Reply<v1::CancelOptimizeResponse> {
+        let caller = caller(&request)?;
         let id = request.into_inner().session_id;
-        let session = self.registry.get(Self::session_id(&id)?)?;
+        let session = self.drive(&id, &caller, "cancel the optimisation of")?;
         Ok(Response::new(v1::CancelOptimizeResponse {
             cancelled: session.cancel_optimize(),
         }))
     }
 
     async fn get_design(&self, request: Request<v1::SessionRef>) -> Reply<v1::DesignResult> {
+        let caller = caller(&request)?;
         let id = request.into_inner().session_id;
-        let session = self.registry.get(Self::session_id(&id)?)?;
+        let session = self.read(&id, &caller)?;
         Ok(Response::new((*session.last_design()?).clone()))
     }
 }

@@ -139,6 +139,19 @@ impl ServerProcess {
         Ok(within("gRPC connect", Client::connect(&self.grpc_url)).await?)
     }
 
+    /// The server's process id, while it runs.
+    pub fn pid(&self) -> Option<u32> {
+        self.child.id()
+    }
+
+    /// A gRPC client of this server that calls as `identity`.
+    ///
+    /// # Errors
+    /// When the connection fails.
+    pub async fn client_as(&self, identity: &meshless_client::Identity) -> Result<Client> {
+        Ok(within("gRPC connect", Client::connect_as(&self.grpc_url, identity)).await?)
+    }
+
     /// Sends SIGTERM and waits for the process to exit.
     ///
     /// # Errors

@@ -10,6 +10,8 @@ use crate::error::{Result, required};
 use meshless_engine::approx::KernelKind;
 use meshless_engine::approx::mls::Order;
 use meshless_engine::fluid::ViscosityModel;
+use meshless_engine::geometry::read::MeshFormat;
+use meshless_engine::scene::MeshData;
 use meshless_engine::scene::{
     Aabb, FluidBlock, FluidSpec, IntegratorKind, MotionKind, OscillationSpec, OutputSpec,
     ParticleSpec, RigidBodySpec, ShapeSpec, SlipKind, SolidSpec, SolidSurfaceSpec, SolverKind,
@@ -54,6 +56,14 @@ wire_enum! {
     ViscosityModel <-> ViscosityModel, "viscosity model" {
         "morris" => Morris,
         "kernel_laplacian" => KernelLaplacian,
+    }
+}
+
+wire_enum! {
+    /// The format of a mesh file.
+    MeshFormat <-> MeshFormat, "mesh format" {
+        "obj" => Obj,
+        "ply" => Ply,
     }
 }
 
@@ -254,8 +264,26 @@ pub(crate) fn shape_from_proto(shape: Option<v1::Shape>, field: &str) -> Result<
             normal: vec3(required(normal, &format!("{field}.normal"))?),
             offset,
         }),
-        Some(v1::shape::Kind::Mesh(v1::MeshShape { path, scale })) => {
-            Ok(ShapeSpec::Mesh { path, scale })
+        Some(v1::shape::Kind::Mesh(v1::MeshShape { path, scale, data })) => {
+            let data = data
+                .map(
+                    |v1::MeshData {
+                         format,
+                         content,
+                         length: _,
+                     }| {
+                        Ok::<_, WireError>(MeshData {
+                            format: required_enum(format, &format!("{field}.data.format"))?,
+                            content,
+                        })
+                    },
+                )
+                .transpose()?;
+            Ok(ShapeSpec::Mesh {
+                path: (!path.is_empty()).then_some(path),
+                data,
+                scale,
+            })
         }
         None => Err(WireError::new(
             format!("{field}.kind"),
@@ -284,9 +312,14 @@ pub(crate) fn to_shape(shape: &ShapeSpec) -> v1::Shape {
             normal: Some(to_vec3(*normal)),
             offset: *offset,
         }),
-        ShapeSpec::Mesh { path, scale } => v1::shape::Kind::Mesh(v1::MeshShape {
-            path: path.clone(),
+        ShapeSpec::Mesh { path, data, scale } => v1::shape::Kind::Mesh(v1::MeshShape {
+            path: path.clone().unwrap_or_default(),
             scale: *scale,
+            data: data.as_ref().map(|d| v1::MeshData {
+                format: d.format.to_i32(),
+                content: d.content.clone(),
+                length: 0,
+            }),
         }),
     };
     v1::Shape { kind: Some(kind) }
@@ -718,6 +751,31 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
     }
 }
 
+/// The scene as a server echoes it (`Session.scene`): [`scene_to_proto`]
+/// with every mesh's bytes left out and their length given instead, so
+/// that getting or listing sessions never sends their meshes back.
+pub fn scene_echo_to_proto(scene: &Scene) -> v1::SceneSpec {
+    let mut spec = scene_to_proto(scene);
+    for system in &mut spec.systems {
+        let shape = match &mut system.kind {
+            Some(v1::system_spec::Kind::RigidBody(body)) => body.shape.as_mut(),
+            Some(v1::system_spec::Kind::Solid(solid)) => solid.shape.as_mut(),
+            Some(v1::system_spec::Kind::Fluid(_)) | None => None,
+        };
+        if let Some(v1::Shape {
+            kind:
+                Some(v1::shape::Kind::Mesh(v1::MeshShape {
+                    data: Some(data), ..
+                })),
+        }) = shape
+        {
+            data.length = data.content.len() as u64;
+            data.content = Vec::new();
+        }
+    }
+    spec
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -798,6 +856,42 @@ mod tests {
         assert_eq!(back.systems[1..], scene.systems[1..]);
         let world = back.build(&BuildOptions::default()).expect("valid");
         assert_eq!(frame_to_proto("s", &world.frame()).bodies.len(), 2);
+
+        // Loaded, the bytes cross too, and a host that reads no file
+        // builds the same world from them.
+        let mut loaded = scene.clone();
+        loaded
+            .load_meshes(&BuildOptions::default())
+            .expect("the shipped meshes load");
+        let back = scene_from_proto(scene_to_proto(&loaded)).expect("round trip");
+        assert!(
+            back.systems[1..] == loaded.systems[1..],
+            "the meshes changed"
+        );
+        let no_files = BuildOptions {
+            mesh_files: meshless_engine::scene::MeshFiles::None,
+            ..BuildOptions::default()
+        };
+        let world = back.build(&no_files).expect("built from the bytes");
+        assert_eq!(frame_to_proto("s", &world.frame()).bodies.len(), 2);
+        let err = scene.build(&no_files).expect_err("paths need files");
+        assert!(err.to_string().contains("`data`"), "{err}");
+
+        // The echo leaves the bytes out and says how many there were.
+        let echo = scene_echo_to_proto(&loaded);
+        let Some(v1::system_spec::Kind::RigidBody(body)) = &echo.systems[1].kind else {
+            panic!("a body");
+        };
+        let Some(v1::Shape {
+            kind: Some(v1::shape::Kind::Mesh(mesh)),
+        }) = &body.shape
+        else {
+            panic!("a mesh");
+        };
+        let data = mesh.data.as_ref().expect("data");
+        assert!(data.content.is_empty());
+        assert!(data.length > 100, "{}", data.length);
+        assert!(mesh.path.ends_with("icosphere.obj"), "{}", mesh.path);
     }
 
     fn shipped(name: &str) -> Scene {

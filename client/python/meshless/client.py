@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 import json
 import queue
 import threading
@@ -61,14 +62,57 @@ class Design:
         return self.rest_positions + self.displacements[frame]
 
 
+class _CallDetails(
+    collections.namedtuple(
+        "_CallDetails",
+        ("method", "timeout", "metadata", "credentials", "wait_for_ready", "compression"),
+    ),
+    grpc.ClientCallDetails,
+):
+    """A call's details with metadata added."""
+
+
+class _Identity(grpc.UnaryUnaryClientInterceptor, grpc.UnaryStreamClientInterceptor):
+    """Puts the token, client id and take-over flag on every call."""
+
+    def __init__(self, metadata: list[tuple[str, str]]):
+        self._metadata = metadata
+
+    def _details(self, details):
+        return _CallDetails(
+            details.method,
+            details.timeout,
+            list(details.metadata or []) + self._metadata,
+            details.credentials,
+            details.wait_for_ready,
+            details.compression,
+        )
+
+    def intercept_unary_unary(self, continuation, details, request):
+        return continuation(self._details(details), request)
+
+    def intercept_unary_stream(self, continuation, details, request):
+        return continuation(self._details(details), request)
+
+
 class Client:
     """Drives a meshless server over gRPC.
 
+    ``token`` is the bearer token of a server with tokens; ``client_id``
+    names this client instance (one instance drives a session at a time);
+    ``take_over`` takes control of sessions another instance drives.
     Errors surface as ``grpc.RpcError`` with the server's status code and a
     message that names what to change.
     """
 
-    def __init__(self, target: str = "127.0.0.1:50051", timeout: float = DEFAULT_TIMEOUT):
+    def __init__(
+        self,
+        target: str = "127.0.0.1:50051",
+        timeout: float = DEFAULT_TIMEOUT,
+        token: str | None = None,
+        client_id: str | None = None,
+        take_over: bool = False,
+    ):
         from .v1 import simulation_pb2 as pb
         from .v1 import simulation_pb2_grpc
 
@@ -76,7 +120,15 @@ class Client:
         self._timeout = timeout
         self._channel = grpc.insecure_channel(target)
         grpc.channel_ready_future(self._channel).result(timeout=timeout)
-        self._stub = simulation_pb2_grpc.SimulationStub(self._channel)
+        metadata = []
+        if token is not None:
+            metadata.append(("authorization", f"Bearer {token}"))
+        if client_id is not None:
+            metadata.append(("meshless-client", client_id))
+        if take_over:
+            metadata.append(("meshless-take-over", "true"))
+        channel = grpc.intercept_channel(self._channel, _Identity(metadata)) if metadata else self._channel
+        self._stub = simulation_pb2_grpc.SimulationStub(channel)
 
     def close(self) -> None:
         self._channel.close()
@@ -90,10 +142,13 @@ class Client:
     def server_info(self):
         return self._stub.GetServerInfo(self._pb.GetServerInfoRequest(), timeout=self._timeout)
 
-    def create_session(self, scene: str | Path):
-        """Creates a session from a TOML scene: a path or the text itself."""
+    def create_session(self, scene: str | Path, observers: Iterable[str] = ()):
+        """Creates a session from a TOML scene: a path or the text itself.
+        ``observers`` names principals that may see it read-only (``"*"``:
+        everyone). Mesh files must come from the server's mesh directory or
+        travel in the scene (``data = { format, base64 }``)."""
         text = Path(scene).read_text() if isinstance(scene, Path) else scene
-        request = self._pb.CreateSessionRequest(scene_toml=text)
+        request = self._pb.CreateSessionRequest(scene_toml=text, observers=list(observers))
         return self._stub.CreateSession(request, timeout=self._timeout)
 
     def _ref(self, session_id: str):

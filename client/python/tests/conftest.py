@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import queue
 import subprocess
@@ -34,15 +35,16 @@ def _server_binary() -> str:
     return str(ROOT / "target" / "debug" / "meshless-server")
 
 
-@pytest.fixture()
-def server():
+@contextlib.contextmanager
+def running_server(*extra_args: str):
+    """The real server with ``extra_args``, stopped (SIGTERM) on exit."""
     binary = _server_binary()
     if not Path(binary).exists():
         raise FileNotFoundError(
             f"{binary} is missing: run `cargo build -p meshless-server` or set MESHLESS_SERVER_BIN"
         )
     process = subprocess.Popen(
-        [binary, "--grpc-addr", "127.0.0.1:0", "--zenoh-listen", "tcp/127.0.0.1:0"],
+        [binary, "--grpc-addr", "127.0.0.1:0", "--zenoh-listen", "tcp/127.0.0.1:0", *extra_args],
         stdout=subprocess.PIPE,
         text=True,
         env={**os.environ, "MESHLESS_LOG": "warn"},
@@ -65,3 +67,9 @@ def server():
     finally:
         process.terminate()
         assert process.wait(timeout=TIMEOUT) == 0, "the server exits cleanly on SIGTERM"
+
+
+@pytest.fixture()
+def server():
+    with running_server() as running:
+        yield running

@@ -10,7 +10,7 @@
 
 use crate::geometry::Shape;
 use crate::math::{Real, Vector, vector};
-use crate::scene::ShapeSpec;
+use crate::scene::{MeshFiles, ShapeSpec};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -249,6 +249,25 @@ impl Constraint {
         ConstraintError {
             name: self.name.clone(),
             message: message.into(),
+        }
+    }
+
+    /// Loads the mesh file an obstacle's shape names into the shape,
+    /// under the host's policy (see [`ShapeSpec::load_mesh`]); other
+    /// constraints are left as they are.
+    ///
+    /// # Errors
+    /// [`ConstraintError`] naming the shape's `path` or `data`.
+    pub fn load_mesh(&mut self, files: &MeshFiles, max_bytes: u64) -> Result<(), ConstraintError> {
+        match &mut self.kind {
+            ConstraintKind::Obstacle(obstacle) => obstacle
+                .shape
+                .load_mesh(files, max_bytes, "shape")
+                .map_err(|e| ConstraintError {
+                    name: self.name.clone(),
+                    message: e.to_string(),
+                }),
+            ConstraintKind::Handle(_) | ConstraintKind::Velocity(_) => Ok(()),
         }
     }
 

@@ -3,8 +3,9 @@
 //! (spec -> shape), which the world's builder and the optimiser use.
 
 use super::error::{check_positive, check_range, check_vector};
+use super::mesh::{MeshData, MeshFiles};
 use super::{FluidSpec, Scene, SceneError, defaults, solid_defaults};
-use crate::geometry::{MeshError, MeshSolid, Shape, TriMesh};
+use crate::geometry::{MeshError, MeshSolid, Shape, read};
 use crate::math::{Real, Vector, vector};
 use crate::rigid::Rotation;
 use serde::{Deserialize, Serialize};
@@ -43,22 +44,52 @@ pub enum ShapeSpec {
         #[serde(default)]
         offset: Real,
     },
-    /// A closed triangle mesh read from an OBJ or PLY file (3D only), its
+    /// A closed triangle mesh from an OBJ or PLY file (3D only), its
     /// coordinates multiplied by `scale` (default 1). The body's
     /// `position` is where the mesh's centroid (its centre of mass) goes
     /// and `orientation` turns the mesh about it from the axes of the file.
     ///
-    /// A relative `path` is taken from the directory of the scene file when
-    /// the scene is read with [`Scene::from_toml_file`] (which rewrites it
-    /// so), otherwise from the working directory of the process that builds
-    /// the world; a server reads it on its own machine.
+    /// The file travels in `data`, or is named by `path` and loaded into
+    /// `data` by [`Scene::check`] under the host's
+    /// [`MeshFiles`](super::MeshFiles) policy (with both, `path` only names
+    /// the mesh). A relative `path` is taken from the directory of the
+    /// scene file when the scene is read with [`Scene::from_toml_file`]
+    /// (which rewrites it so), otherwise as the policy says.
     Mesh {
         /// The OBJ or PLY file.
-        path: String,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        path: Option<String>,
+        /// The file's bytes.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        data: Option<MeshData>,
         /// Multiplies the file's coordinates (default 1).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         scale: Option<Real>,
     },
+}
+
+impl ShapeSpec {
+    /// Loads the file a mesh shape names into its `data` under `files`
+    /// (see [`super::mesh`]); other shapes, and meshes that carry their
+    /// data, are left as they are. `at` names the shape's field in errors.
+    ///
+    /// # Errors
+    /// [`SceneError::Invalid`] naming `{at}.path` or `{at}.data`.
+    pub fn load_mesh(
+        &mut self,
+        files: &MeshFiles,
+        max_bytes: u64,
+        at: &str,
+    ) -> Result<(), SceneError> {
+        match self {
+            Self::Mesh { path, data, .. } => {
+                super::mesh::load(path.as_deref(), data, files, max_bytes, at)
+            }
+            Self::Box { .. } | Self::Sphere { .. } | Self::Capsule { .. } | Self::Plane { .. } => {
+                Ok(())
+            }
+        }
+    }
 }
 
 /// How a rigid body moves.
@@ -140,7 +171,7 @@ pub struct RigidBodySpec {
 }
 
 impl Scene {
-    /// Checks a shape's parameters and makes its engine shape (reading
+    /// Checks a shape's parameters and makes its engine shape (parsing
     /// its mesh).
     pub(super) fn checked_shape(
         &self,
@@ -150,7 +181,7 @@ impl Scene {
         checked_shape(shape_at, spec, self.dimension)
     }
 
-    /// Checks a rigid body and makes its engine shape (reading its mesh).
+    /// Checks a rigid body and makes its engine shape (parsing its mesh).
     /// Without a fluid the body is a static obstacle for solids.
     pub(super) fn validate_body(
         &self,
@@ -324,7 +355,7 @@ impl Scene {
     }
 }
 
-/// Checks a shape's parameters and makes its engine shape (reading
+/// Checks a shape's parameters and makes its engine shape (parsing
 /// its mesh).
 pub(crate) fn checked_shape(
     shape_at: &str,
@@ -385,19 +416,29 @@ pub(crate) fn checked_shape(
     body_shape(spec, dim, shape_at)
 }
 
-/// Reads the mesh of a `shape = { type = "mesh" }` at field `at`, scales
-/// it and puts it in its principal frame. Every failure names
-/// `{at}.path` (or `{at}` for a bad mesh) and the file it tried.
-fn mesh_shape(path: &str, scale: Option<Real>, at: &str) -> Result<Shape, SceneError> {
-    let field = format!("{at}.path");
-    let file = Path::new(path);
-    let mut mesh = TriMesh::from_path(file).map_err(|e| {
-        let tried = std::path::absolute(file).unwrap_or_else(|_| file.to_path_buf());
-        SceneError::invalid(
-            &field,
-            format!("cannot load the mesh (tried {}): {e}", tried.display()),
-        )
-    })?;
+/// Parses the loaded mesh of a `shape = { type = "mesh" }` at field `at`,
+/// scales it and puts it in its principal frame. Every failure names
+/// `{at}.data` or `{at}.path` and the mesh (its path, when it has one).
+fn mesh_shape(
+    path: Option<&str>,
+    data: Option<&MeshData>,
+    scale: Option<Real>,
+    at: &str,
+) -> Result<Shape, SceneError> {
+    let (field, label) = match path {
+        Some(path) if !path.is_empty() => (format!("{at}.path"), path.to_owned()),
+        _ => (format!("{at}.data"), format!("the mesh data of {at}")),
+    };
+    let Some(data) = data else {
+        return Err(SceneError::invalid(
+            field,
+            "the mesh was not loaded; load it first (`Scene::check` and \
+             `ShapeSpec::load_mesh` do)",
+        ));
+    };
+    let mut mesh = read::parse(Path::new(&label), data.format, &data.content)
+        .map_err(|e| SceneError::invalid(&field, format!("cannot load the mesh: {e}")))?
+        .mesh;
     let scale = scale.unwrap_or(1.0);
     for v in &mut mesh.vertices {
         *v *= scale;
@@ -409,12 +450,12 @@ fn mesh_shape(path: &str, scale: Option<Real>, at: &str) -> Result<Shape, SceneE
                 non_manifold,
                 misoriented,
             } => format!(
-                "{path}: the mesh must be closed to bound a solid, but {} edges are open \
+                "{label}: the mesh must be closed to bound a solid, but {} edges are open \
                  ({boundary} boundary, {non_manifold} non-manifold, {misoriented} misoriented); \
                  close the holes, weld duplicated vertices and orient the faces outward",
                 boundary + non_manifold + misoriented
             ),
-            other => format!("{path}: {other}"),
+            other => format!("{label}: {other}"),
         };
         SceneError::invalid(&field, what)
     })?;
@@ -422,7 +463,7 @@ fn mesh_shape(path: &str, scale: Option<Real>, at: &str) -> Result<Shape, SceneE
 }
 
 /// The engine shape of a scene's shape (the shape at field `at`); in 2D a
-/// box's z extent is unused. Reads mesh files.
+/// box's z extent is unused. Parses loaded meshes; reads no file.
 ///
 /// # Errors
 /// A mesh that cannot be read or does not bound a solid (see
@@ -452,7 +493,9 @@ pub(crate) fn body_shape(spec: &ShapeSpec, dim: usize, at: &str) -> Result<Shape
                 offset: offset / length,
             }
         }
-        ShapeSpec::Mesh { path, scale } => mesh_shape(path, *scale, at)?,
+        ShapeSpec::Mesh { path, data, scale } => {
+            mesh_shape(path.as_deref(), data.as_ref(), *scale, at)?
+        }
     })
 }
 

@@ -30,6 +30,14 @@ const SOLID_BYTES_PER_NEIGHBOUR: Real = 80.0;
 /// blocks and the CG vectors over them).
 const IMPLICIT_BYTES_PER_NEIGHBOUR: Real = 20.0;
 
+/// Bytes held per byte of a mesh file: the file itself in the session's
+/// and the world's scene, and the parsed mesh (three f64 coordinates per
+/// vertex, a triangle's indices, the distance field's tree), which a
+/// binary PLY of f32 coordinates about doubles. An upper estimate by
+/// counting, not a measurement: mesh bodies are few and bounded by the
+/// host's mesh size limit.
+const BYTES_PER_MESH_BYTE: Real = 6.0;
+
 /// The particles and bytes a scene's world will hold.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Footprint {
@@ -45,6 +53,11 @@ impl Footprint {
         self.particles += particles;
         self.bytes += particles
             * (FLUID_BYTES_PER_PARTICLE + neighbours(support, dim) * FLUID_BYTES_PER_NEIGHBOUR);
+    }
+
+    /// Adds a mesh shape whose file has `bytes` bytes.
+    pub(super) fn add_mesh(&mut self, bytes: usize) {
+        self.bytes += bytes as Real * BYTES_PER_MESH_BYTE;
     }
 
     /// Adds a solid of `particles` with support `support` spacings.

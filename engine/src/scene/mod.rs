@@ -14,6 +14,7 @@ mod body;
 mod error;
 mod fluid;
 mod footprint;
+mod mesh;
 mod solid;
 #[cfg(test)]
 mod tests;
@@ -24,6 +25,7 @@ pub(crate) use body::{body_pose, body_shape, checked_shape, shape_axes, shape_po
 pub use error::SceneError;
 pub use fluid::{FluidBlock, FluidSpec, ParticleSpec, SolverKind, WallModel};
 pub use footprint::Footprint;
+pub use mesh::{DEFAULT_MAX_MESH_BYTES, MeshData, MeshFiles};
 pub use solid::{
     AnchorSpec, IntegratorKind, SolidSpec, SolidSurfaceSpec, defaults as solid_defaults,
 };
@@ -96,17 +98,24 @@ pub mod defaults {
     pub const GRADIENT_KERNEL: super::KernelKind = super::KernelKind::CubicSpline;
 }
 
-/// Limits a host puts on the worlds it builds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// Limits a host puts on the worlds it builds, and the files it lets
+/// scenes read.
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct BuildOptions {
     /// Largest particle count a scene may create.
     pub max_particles: u64,
+    /// Which mesh files a scene may name by path.
+    pub mesh_files: MeshFiles,
+    /// Largest mesh, file or inline, in bytes.
+    pub max_mesh_bytes: u64,
 }
 
 impl Default for BuildOptions {
     fn default() -> Self {
         Self {
             max_particles: 5_000_000,
+            mesh_files: MeshFiles::Host,
+            max_mesh_bytes: DEFAULT_MAX_MESH_BYTES,
         }
     }
 }
@@ -343,7 +352,9 @@ impl Scene {
                 SystemSpec::Solid(solid) => &mut solid.shape,
                 SystemSpec::Fluid(_) => continue,
             };
-            if let ShapeSpec::Mesh { path: mesh, .. } = shape
+            if let ShapeSpec::Mesh {
+                path: Some(mesh), ..
+            } = shape
                 && Path::new(mesh.as_str()).is_relative()
             {
                 *mesh = base.join(mesh.as_str()).to_string_lossy().into_owned();
@@ -385,17 +396,41 @@ impl Scene {
     /// # Errors
     /// The first problem found, naming its field.
     pub fn validate(&self, options: &BuildOptions) -> Result<(), SceneError> {
-        self.checked_shapes(options).map(|_| ())
+        self.clone().check(options).map(|_| ())
     }
 
-    /// Validates like [`Self::validate`] and estimates the memory the
-    /// built world will hold, so that a host can refuse a scene it has no
-    /// room for before allocating anything; [`Checked::build`] then builds
-    /// it without validating (or reading its meshes) again.
+    /// Loads every mesh file the scene names into the shape's `data`,
+    /// under `options`' [`MeshFiles`] policy and size limit, so that
+    /// nothing after this reads a file.
+    ///
+    /// # Errors
+    /// [`SceneError::Invalid`] naming the shape's `path` or `data`.
+    pub fn load_meshes(&mut self, options: &BuildOptions) -> Result<(), SceneError> {
+        for (s, system) in self.systems.iter_mut().enumerate() {
+            let shape = match system {
+                SystemSpec::RigidBody(body) => &mut body.shape,
+                SystemSpec::Solid(solid) => &mut solid.shape,
+                SystemSpec::Fluid(_) => continue,
+            };
+            shape.load_mesh(
+                &options.mesh_files,
+                options.max_mesh_bytes,
+                &format!("systems[{s}].shape"),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Loads the scene's mesh files ([`Self::load_meshes`]), validates
+    /// every parameter and estimates the memory the built world will
+    /// hold, so that a host can refuse a scene it has no room for before
+    /// allocating anything; [`Checked::build`] then builds it without
+    /// validating (or reading its meshes) again.
     ///
     /// # Errors
     /// As [`Self::validate`].
-    pub fn check(self, options: &BuildOptions) -> Result<Checked, SceneError> {
+    pub fn check(mut self, options: &BuildOptions) -> Result<Checked, SceneError> {
+        self.load_meshes(options)?;
         let (shapes, footprint) = self.checked_shapes(options)?;
         Ok(Checked {
             scene: self,
@@ -453,6 +488,14 @@ impl Scene {
         let mut shapes = Vec::with_capacity(self.systems.len());
         for (s, system) in self.systems.iter().enumerate() {
             shapes.push(None);
+            if let SystemSpec::RigidBody(RigidBodySpec { shape, .. })
+            | SystemSpec::Solid(SolidSpec { shape, .. }) = system
+                && let ShapeSpec::Mesh {
+                    data: Some(data), ..
+                } = shape
+            {
+                footprint.add_mesh(data.content.len());
+            }
             match system {
                 SystemSpec::Fluid(fluid) => {
                     fluids += 1;

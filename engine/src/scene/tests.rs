@@ -208,6 +208,7 @@ fn particle_limit_is_enforced_before_allocation() {
     let err = s
         .validate(&BuildOptions {
             max_particles: 1000,
+            ..BuildOptions::default()
         })
         .expect_err("limit");
     assert!(

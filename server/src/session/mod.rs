@@ -1,6 +1,7 @@
 //! A session: one world stepping on its own compute thread, driven by
 //! commands from gRPC handlers and publishing frames and status on zenoh.
 
+mod access;
 mod optimize;
 mod publish;
 mod worker;
@@ -9,12 +10,13 @@ use crate::error::ServiceError;
 use meshless_engine::design::{self, Constraint, ConstraintSet, Context, Edit};
 use meshless_engine::{BuildOptions, Frame, Scene, World};
 use meshless_proto::{keys, v1};
-use meshless_wire::scene::scene_to_proto;
+use meshless_wire::scene::scene_echo_to_proto;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use tokio_util::sync::CancellationToken;
 
+pub use access::{Access, check_observers};
 pub use optimize::{OptimizeJob, Problem};
 use worker::Message;
 pub use worker::RunTarget;
@@ -82,9 +84,14 @@ impl Drop for Optimization {
 pub struct Session {
     pub id: String,
     pub scene: Scene,
+    /// The scene as `Session` messages carry it, made once (it can be
+    /// large), meshes' bytes left out.
+    scene_echo: v1::SceneSpec,
     pub particle_count: usize,
     /// Creation order, for listings.
     pub serial: u64,
+    /// Who may see and drive it.
+    pub access: Access,
     commands: std::sync::mpsc::Sender<Message>,
     status: watch::Receiver<v1::SessionStatus>,
     events: broadcast::Sender<v1::SessionStatus>,
@@ -106,8 +113,10 @@ impl Session {
         options: BuildOptions,
         zenoh: &zenoh::Session,
         cancel: CancellationToken,
+        access: Access,
     ) -> std::io::Result<Arc<Self>> {
         let scene = world.scene().clone();
+        let scene_echo = scene_echo_to_proto(&scene);
         let particle_count = world.particle_count();
         let context = design::context(&world);
         let design = SharedDesign::default();
@@ -148,8 +157,10 @@ impl Session {
         Ok(Arc::new(Self {
             id,
             scene,
+            scene_echo,
             particle_count,
             serial,
+            access,
             commands,
             status,
             events,
@@ -284,7 +295,9 @@ impl Session {
             status: Some(self.status()),
             zenoh_key_prefix: keys::session_prefix(&self.id),
             particle_count: self.particle_count as u64,
-            scene: Some(scene_to_proto(&self.scene)),
+            scene: Some(self.scene_echo.clone()),
+            owner: self.access.owner().to_owned(),
+            observers: self.access.observers().to_vec(),
         }
     }
 

@@ -21,6 +21,8 @@ mod ply;
 
 use super::{MeshError, TriMesh};
 use crate::math::Vector;
+use serde::{Deserialize, Serialize};
+use std::io::Read;
 use std::path::Path;
 
 /// A mesh as read, with what the reader dropped.
@@ -32,37 +34,115 @@ pub struct LoadedMesh {
     pub dropped: usize,
 }
 
-/// Reads a mesh, choosing the format by the extension (`.obj` or `.ply`,
-/// any case).
+/// The file formats the readers know.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MeshFormat {
+    /// Wavefront OBJ (text).
+    Obj,
+    /// Stanford PLY (ASCII or binary).
+    Ply,
+}
+
+impl MeshFormat {
+    /// The format a file's extension names (`.obj` or `.ply`, any case).
+    ///
+    /// # Errors
+    /// [`MeshError::UnknownExtension`] for any other extension.
+    pub fn of_path(path: &Path) -> Result<Self, MeshError> {
+        let extension = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .unwrap_or_default();
+        match extension.as_str() {
+            "obj" => Ok(Self::Obj),
+            "ply" => Ok(Self::Ply),
+            _ => Err(MeshError::UnknownExtension {
+                path: path.to_path_buf(),
+                // A file's name is the caller's; still, no unbounded echo.
+                extension: extension.chars().take(16).collect(),
+            }),
+        }
+    }
+}
+
+/// Largest mesh file [`load`] reads: far above any mesh a scene samples
+/// (the bodies' sampling limit is reached long before), and a bound on
+/// what a path to `/dev/zero` or a runaway file can cost.
+pub const MAX_FILE_BYTES: u64 = 1 << 30;
+
+/// Reads a mesh file, choosing the format by the extension (`.obj` or
+/// `.ply`, any case).
 ///
 /// # Errors
-/// See [`MeshError`]: unreadable file, unknown extension, parse errors,
-/// indices out of range, non-finite coordinates, no triangles.
+/// See [`MeshError`]: unreadable file, not a regular file, larger than
+/// [`MAX_FILE_BYTES`], unknown extension, parse errors, indices out of
+/// range, non-finite coordinates, no triangles.
 pub fn load(path: &Path) -> Result<LoadedMesh, MeshError> {
-    let extension = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .unwrap_or_default();
-    let unreadable = |e: std::io::Error| MeshError::Unreadable {
+    let format = MeshFormat::of_path(path)?;
+    let bytes = read_regular_file(path, MAX_FILE_BYTES).map_err(|e| MeshError::Unreadable {
         path: path.to_path_buf(),
         message: e.to_string(),
-    };
-    match extension.as_str() {
-        "obj" => {
-            // Lossy: a stray Latin-1 byte in a comment or name is no reason
-            // to refuse the geometry.
-            let bytes = std::fs::read(path).map_err(unreadable)?;
-            obj::parse(path, &String::from_utf8_lossy(&bytes))
-        }
-        "ply" => {
-            let file = std::fs::File::open(path).map_err(unreadable)?;
-            ply::parse(path, &mut std::io::BufReader::new(file))
-        }
-        _ => Err(MeshError::UnknownExtension {
-            path: path.to_path_buf(),
-            extension,
-        }),
+    })?;
+    parse(path, format, &bytes)
+}
+
+/// Parses a mesh file's bytes; `label` names it in errors (a file's path,
+/// or where an inline mesh sits in a scene).
+///
+/// # Errors
+/// As [`load`], less the file's own failures.
+pub fn parse(label: &Path, format: MeshFormat, bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
+    match format {
+        // Lossy: a stray Latin-1 byte in a comment or name is no reason to
+        // refuse the geometry.
+        MeshFormat::Obj => obj::parse(label, &String::from_utf8_lossy(bytes)),
+        MeshFormat::Ply => ply::parse(label, bytes),
+    }
+}
+
+/// The whole of a regular file of at most `max_bytes`. A FIFO, a device
+/// or a directory is refused before it is opened (reading a FIFO blocks
+/// until a writer comes, a device may never end), and a file that grows
+/// past the limit while read is refused rather than read on.
+///
+/// # Errors
+/// The I/O error, or one of kind `InvalidInput` saying which limit.
+pub fn read_regular_file(path: &Path, max_bytes: u64) -> std::io::Result<Vec<u8>> {
+    let invalid = |message: String| std::io::Error::new(std::io::ErrorKind::InvalidInput, message);
+    let metadata = std::fs::metadata(path)?;
+    if !metadata.is_file() {
+        return Err(invalid("not a regular file".into()));
+    }
+    if metadata.len() > max_bytes {
+        return Err(invalid(format!(
+            "{} bytes, over the limit of {max_bytes}",
+            metadata.len()
+        )));
+    }
+    let file = std::fs::File::open(path)?;
+    // The file may have been swapped between the check and the open.
+    if !file.metadata()?.is_file() {
+        return Err(invalid("not a regular file".into()));
+    }
+    let mut bytes = Vec::with_capacity(metadata.len() as usize);
+    file.take(max_bytes + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(invalid(format!("over the limit of {max_bytes} bytes")));
+    }
+    Ok(bytes)
+}
+
+/// Longest piece of a file's content an error quotes, in characters.
+const MAX_QUOTE_CHARS: usize = 32;
+
+/// `text` debug-quoted, cut to [`MAX_QUOTE_CHARS`] characters: an error
+/// names the offending token without echoing a file's content.
+fn quote(text: &str) -> String {
+    match text.char_indices().nth(MAX_QUOTE_CHARS) {
+        None => format!("{text:?}"),
+        Some((end, _)) => format!("{:?}... ({} bytes)", &text[..end], text.len()),
     }
 }
 
@@ -137,6 +217,45 @@ mod tests {
             err.to_string().contains("/nonexistent/dir/shape.OBJ"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn only_regular_files_within_the_limit_are_read() {
+        // A device (and, the same way, a FIFO) is refused before it is
+        // opened: reading /dev/zero would never end.
+        let err = read_regular_file(Path::new("/dev/zero"), 1 << 20).expect_err("a device");
+        assert_eq!(err.kind(), std::io::ErrorKind::InvalidInput, "{err}");
+        assert!(err.to_string().contains("regular file"), "{err}");
+        let err = load(Path::new("/dev/null.obj")).expect_err("missing");
+        assert!(matches!(err, MeshError::Unreadable { .. }), "{err}");
+        let dir = std::env::temp_dir().join(format!("meshless-read-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let file = dir.join("big.obj");
+        std::fs::write(&file, vec![b'#'; 4096]).expect("write");
+        let err = read_regular_file(&file, 1000).expect_err("over the limit");
+        assert!(err.to_string().contains("limit of 1000"), "{err}");
+        assert_eq!(
+            read_regular_file(&file, 4096).expect("at the limit").len(),
+            4096
+        );
+        let err = read_regular_file(&dir, 1 << 20).expect_err("a directory");
+        assert!(err.to_string().contains("regular file"), "{err}");
+        std::fs::remove_dir_all(&dir).expect("clean up");
+    }
+
+    #[test]
+    fn errors_quote_at_most_a_short_prefix_of_the_content() {
+        let long = "x".repeat(100_000);
+        let text = format!("v 0 0 {long}\n");
+        let err =
+            parse(Path::new("inline"), MeshFormat::Obj, text.as_bytes()).expect_err("not a number");
+        let message = err.to_string();
+        assert!(
+            message.len() < 200,
+            "{} bytes: {message:.300}",
+            message.len()
+        );
+        assert!(message.contains("100000 bytes"), "{message}");
     }
 
     #[test]

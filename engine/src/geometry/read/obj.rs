@@ -8,7 +8,7 @@
 //! line number, and it re-indexes each `o`/`g` group on its own, which
 //! splits the vertices groups share and would make a closed mesh look open.
 
-use super::{LoadedMesh, Triangulator, non_finite};
+use super::{LoadedMesh, Triangulator, non_finite, quote};
 use crate::geometry::MeshError;
 use crate::math::{Real, Vector};
 use std::path::Path;
@@ -40,7 +40,10 @@ pub(super) fn parse(path: &Path, text: &str) -> Result<LoadedMesh, MeshError> {
                         parse_error(line, "a vertex needs three coordinates `v x y z`".into())
                     })?;
                     *value = token.parse::<Real>().map_err(|_| {
-                        parse_error(line, format!("coordinate {a} {token:?} is not a number"))
+                        parse_error(
+                            line,
+                            format!("coordinate {a} {} is not a number", quote(token)),
+                        )
                     })?;
                 }
                 let v = Vector::from(xyz);
@@ -60,7 +63,10 @@ pub(super) fn parse(path: &Path, text: &str) -> Result<LoadedMesh, MeshError> {
                     let index: i64 = index.parse().map_err(|_| {
                         parse_error(
                             line,
-                            format!("face corner {token:?} is not `i`, `i/t`, `i//n` or `i/t/n`"),
+                            format!(
+                                "face corner {} is not `i`, `i/t`, `i//n` or `i/t/n`",
+                                quote(token)
+                            ),
                         )
                     })?;
                     // 1-based; negative is relative to the vertices so far.

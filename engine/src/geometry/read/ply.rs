@@ -9,8 +9,18 @@ use crate::geometry::MeshError;
 use crate::math::{Real, Vector};
 use ply_rs_bw::parser::Parser;
 use ply_rs_bw::ply::{ElementDef, Property, PropertyAccess, PropertyType, ScalarType};
-use std::io::BufRead;
 use std::path::Path;
+
+/// Longest parser message an error carries, in characters.
+const MAX_MESSAGE_CHARS: usize = 200;
+
+/// `message` cut to [`MAX_MESSAGE_CHARS`].
+fn bounded(message: &str) -> String {
+    match message.char_indices().nth(MAX_MESSAGE_CHARS) {
+        None => message.to_owned(),
+        Some((end, _)) => format!("{}...", &message[..end]),
+    }
+}
 
 const FACE_LISTS: [&str; 2] = ["vertex_indices", "vertex_index"];
 
@@ -78,15 +88,33 @@ impl PropertyAccess for Skipped {
     }
 }
 
-pub(super) fn parse(path: &Path, reader: &mut impl BufRead) -> Result<LoadedMesh, MeshError> {
+/// Parses a whole PLY file held in memory.
+pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
     let parse_error = |location: &str, message: String| MeshError::Parse {
         path: path.to_path_buf(),
         location: location.to_string(),
-        message,
+        // The parser's messages may quote the offending line.
+        message: bounded(&message),
     };
+    let reader = &mut std::io::BufReader::new(bytes);
     let header = Parser::<Skipped>::new()
         .read_header(reader)
         .map_err(|e| parse_error("header", e.to_string()))?;
+    // Every element takes at least one byte of the file, so a header that
+    // announces more elements than the file has bytes is refused before
+    // the parser reserves room for them (a 100-byte file could otherwise
+    // ask for billions).
+    let announced: u128 = header.elements.values().map(|e| e.count as u128).sum();
+    if announced > bytes.len() as u128 {
+        return Err(parse_error(
+            "header",
+            format!(
+                "the header announces {announced} elements but the file has only {} bytes; \
+                 fix the element counts",
+                bytes.len()
+            ),
+        ));
+    }
     let mut vertices = Vec::new();
     let mut faces = Vec::new();
     for element in header.elements.values() {
@@ -198,7 +226,7 @@ mod tests {
     use super::*;
 
     fn read(bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
-        parse(Path::new("test.ply"), &mut &bytes[..])
+        parse(Path::new("test.ply"), bytes)
     }
 
     const SQUARE: &str = "ply\nformat ascii 1.0\ncomment unit square\nelement vertex 4\n\
@@ -212,6 +240,14 @@ mod tests {
         let loaded = read(SQUARE.as_bytes()).expect("valid ply");
         assert_eq!(loaded.mesh.triangles, vec![[0, 1, 2], [0, 2, 3]]);
         assert_eq!(loaded.mesh.vertices[2], Vector::new(1.0, 1.0, 0.0));
+    }
+
+    #[test]
+    fn a_header_announcing_more_elements_than_bytes_is_refused_before_reading() {
+        let header = "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\n\
+            property float x\nproperty float y\nproperty float z\nend_header\n";
+        let err = read(header.as_bytes()).expect_err("a hostile count");
+        assert!(err.to_string().contains("4000000000 elements"), "{err}");
     }
 
     #[test]
