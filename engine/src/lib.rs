@@ -9,6 +9,7 @@
 //! the fields a subscriber asked for).
 
 pub mod approx;
+pub mod cancel;
 pub mod design;
 pub mod fluid;
 pub mod frame;
@@ -26,6 +27,7 @@ pub mod surface;
 mod testing;
 pub mod world;
 
+pub use cancel::{Cancel, Cancelled};
 pub use frame::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
 pub use scene::{BuildOptions, Scene, SceneError};
 pub use world::{Clock, StepError, StepInfo, World};
