@@ -6,7 +6,9 @@
 //!
 //! The data flow is `Scene` (validated description) -> [`Scene::build`] ->
 //! [`World`] (state, stepped by [`World::step`]) -> [`Frame`] (snapshot of
-//! the fields a subscriber asked for).
+//! the fields a subscriber asked for). A long step or design solve stops
+//! early when another thread raises its [`Cancel`]
+//! ([`World::step_cancellable`]).
 
 pub mod approx;
 pub mod cancel;

@@ -115,9 +115,11 @@ impl FluidSystem {
         self.fluid.first_invalid(limit)
     }
 
-    /// Copies the evolving state into `backup`, reusing its buffers.
+    /// Copies the evolving state, the solver's warm start included, into
+    /// `backup`, reusing its buffers.
     pub fn save(&self, backup: &mut FluidState) {
         self.fluid.save(backup);
+        self.pressure.solver().save(&mut backup.warm_start);
     }
 
     /// Puts back a state saved by [`Self::save`], with the neighbour
@@ -125,7 +127,9 @@ impl FluidSystem {
     /// that the next step starts from the saved state alone.
     pub fn restore(&mut self, backup: &FluidState) {
         self.fluid.restore(backup);
-        self.pressure.solver_mut().rebuild(&self.fluid);
+        let solver = self.pressure.solver_mut();
+        solver.restore(&backup.warm_start);
+        solver.rebuild(&self.fluid);
     }
 
     /// Removes the particles whose id `removed` marks (one flag per

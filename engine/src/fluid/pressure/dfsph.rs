@@ -235,6 +235,16 @@ impl PressureSolver for Dfsph {
         gather(&mut self.density_kappa, order, slots);
     }
 
+    /// The warm-start pressures of the next constant-density solve.
+    fn save(&self, out: &mut Vec<Real>) {
+        out.clone_from(&self.density_kappa);
+    }
+
+    fn restore(&mut self, saved: &[Real]) {
+        self.density_kappa.clear();
+        self.density_kappa.extend_from_slice(saved);
+    }
+
     /// The factors and pair gradients belong to the neighbour lists.
     fn rebuild(&mut self, fluid: &Fluid) {
         self.compute_factors(fluid);

@@ -49,7 +49,8 @@ impl Pressure {
 
 /// What a pressure solver does for its fluid. The fluid calls it with its
 /// particles; the solver keeps nothing of theirs but scratch it can
-/// rebuild (a solver's state is the fluid's state).
+/// rebuild and a warm start carried from one sub-step to the next, which
+/// a failed or cancelled step puts back with the fluid's state.
 pub(in crate::fluid) trait PressureSolver {
     /// Sizes the scratch for the fluid's particles and computes what the
     /// solver derives from their densities (pressures, factors): after the
@@ -86,6 +87,14 @@ pub(in crate::fluid) trait PressureSolver {
     /// Rebuilds what the solver derives from the neighbour lists, after
     /// they were rebuilt between sub-steps (a sort, a restored state).
     fn rebuild(&mut self, fluid: &Fluid);
+
+    /// Copies what the next sub-step starts from (a warm start) into
+    /// `out`, reusing its buffer.
+    fn save(&self, out: &mut Vec<Real>);
+
+    /// Puts back what [`Self::save`] kept, so that a step taken again
+    /// computes what the first attempt would have.
+    fn restore(&mut self, saved: &[Real]);
 }
 
 /// What the solves of the last sub-step achieved.

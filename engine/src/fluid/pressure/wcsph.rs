@@ -100,6 +100,13 @@ impl PressureSolver for Wcsph {
 
     /// Nothing to rebuild: pressures come from the next density pass.
     fn rebuild(&mut self, _fluid: &Fluid) {}
+
+    /// No warm start: each sub-step starts from the state alone.
+    fn save(&self, out: &mut Vec<Real>) {
+        out.clear();
+    }
+
+    fn restore(&mut self, _saved: &[Real]) {}
 }
 
 /// `p_i` from `rho_i` by the fluid's equation of state (tutorial Eq. 47).
