@@ -20,6 +20,7 @@ pub use pressure::{Dfsph, DfsphParams, Pressure, SolveInfo, Wcsph};
 pub use viscosity::ViscosityModel;
 pub use walls::BoxWalls;
 
+use crate::cancel::{Cancel, Cancelled};
 use crate::math::{Real, Vector};
 use crate::neighbors::{Periodic, UniformGrid};
 use crate::rigid::RigidBodies;
@@ -91,6 +92,10 @@ impl FluidSystem {
 
     /// One sub-step of length `dt` with the scene's solver, reflecting
     /// particles off the walls of `[min, max]`.
+    ///
+    /// # Errors
+    /// [`Cancelled`] when `cancel` stopped an iterating solver part-way:
+    /// put back a state [`Self::save`]d before the step.
     pub fn substep(
         &mut self,
         dt: Real,
@@ -98,11 +103,12 @@ impl FluidSystem {
         min: &Vector,
         max: &Vector,
         timer: &mut StageTimer,
-    ) {
+        cancel: &Cancel,
+    ) -> Result<(), Cancelled> {
         self.fluid.substeps_since_reorder += 1;
         self.pressure
             .solver_mut()
-            .substep(&mut self.fluid, dt, gravity, min, max, timer);
+            .substep(&mut self.fluid, dt, gravity, min, max, timer, cancel)
     }
 
     /// The first particle whose state cannot go on: a position, velocity,

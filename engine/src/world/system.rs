@@ -44,13 +44,14 @@ pub(crate) struct StepEnv<'a> {
 }
 
 impl StepEnv<'_> {
+    /// The error of this step cancelled.
+    fn cancelled(&self) -> StepError {
+        StepError::Cancelled { step: self.step }
+    }
+
     /// [`StepError::Cancelled`] once the step's flag is raised.
     fn check(&self) -> Result<(), StepError> {
-        if self.cancel.is_cancelled() {
-            Err(StepError::Cancelled { step: self.step })
-        } else {
-            Ok(())
-        }
+        self.cancel.check().map_err(|_| self.cancelled())
     }
 }
 
@@ -271,7 +272,9 @@ impl Simulated for FluidEntry {
                 info.capped = true;
             }
             let sub = remaining / wanted.min(budget as Real);
-            self.fluid.substep(sub, &env.gravity, &min, &max, timer);
+            self.fluid
+                .substep(sub, &env.gravity, &min, &max, timer, env.cancel)
+                .map_err(|_| env.cancelled())?;
             let solve = self.fluid.fluid().last_solve();
             info.solver_iterations += solve.density_iterations + solve.divergence_iterations;
             info.density_error = info.density_error.max(solve.density_error);
@@ -355,7 +358,7 @@ impl Simulated for SolidEntry {
         let step = self
             .solid
             .step_cancellable(env.dt, &env.gravity, env.max_substeps, env.cancel)
-            .map_err(|_| StepError::Cancelled { step: env.step })?;
+            .map_err(|_| env.cancelled())?;
         let info = StepInfo {
             substeps: step.substeps,
             min_substep: step.min_substep,

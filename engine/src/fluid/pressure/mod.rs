@@ -16,6 +16,7 @@ pub use dfsph::{Dfsph, DfsphParams};
 pub use wcsph::Wcsph;
 
 use super::{Fluid, FluidParams};
+use crate::cancel::{Cancel, Cancelled};
 use crate::math::{Real, Vector};
 use crate::stats::StageTimer;
 
@@ -68,7 +69,10 @@ pub(in crate::fluid) trait PressureSolver {
     fn speed_limit(&self, params: &FluidParams) -> Real;
 
     /// One sub-step of length `dt`, reflecting particles off the walls of
-    /// `[min, max]`, each pass timed under its stage.
+    /// `[min, max]`, each pass timed under its stage. A solver that
+    /// iterates reads `cancel` every iteration and stops with
+    /// [`Cancelled`], the fluid part-way through the sub-step.
+    #[allow(clippy::too_many_arguments)]
     fn substep(
         &mut self,
         fluid: &mut Fluid,
@@ -77,7 +81,8 @@ pub(in crate::fluid) trait PressureSolver {
         min: &Vector,
         max: &Vector,
         timer: &mut StageTimer,
-    );
+        cancel: &Cancel,
+    ) -> Result<(), Cancelled>;
 
     /// The particles moved slots (a sort or a removal): slot `k` now holds
     /// what slot `order[k]` of `slots` held. Scratch carried from one
