@@ -6,9 +6,12 @@
 //!
 //! The data flow is `Scene` (validated description) -> [`Scene::build`] ->
 //! [`World`] (state, stepped by [`World::step`]) -> [`Frame`] (snapshot of
-//! the fields a subscriber asked for).
+//! the fields a subscriber asked for). A long step or design solve stops
+//! early when another thread raises its [`Cancel`]
+//! ([`World::step_cancellable`]).
 
 pub mod approx;
+pub mod cancel;
 pub mod design;
 pub mod fluid;
 pub mod frame;
@@ -26,6 +29,7 @@ pub mod surface;
 mod testing;
 pub mod world;
 
+pub use cancel::{Cancel, Cancelled};
 pub use frame::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
 pub use scene::{BuildOptions, Scene, SceneError};
 pub use world::{Clock, StepError, StepInfo, World};

@@ -225,6 +225,8 @@ impl Simulation for SimulationService {
             until,
             realtime_factor,
         } = request.into_inner();
+        // No cap on how far ahead: however long a run is, Pause, Delete
+        // and shutdown stop it within a sub-step (`session/interrupt.rs`).
         let until = match until {
             Some(v1::run_request::Until::UntilTime(t)) if t.is_finite() && t > 0.0 => Some(t),
             Some(v1::run_request::Until::UntilTime(t)) => {

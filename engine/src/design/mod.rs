@@ -28,10 +28,10 @@ pub use constraints::{
     Constraint, ConstraintError, ConstraintKind, ConstraintSet, Context, Edit, Handle, Obstacle,
     Selection, Target, Velocity, Waypoint,
 };
-pub use motion::{Derivative, MotionSolution, blend, solve_motion};
+pub use motion::{Derivative, MotionSolution, blend, solve_motion, solve_motion_cancellable};
 pub use params::{DesignParams, MotionParams, Quadrature, SolverParams, Weights};
 pub use progress::{Energies, Observer, Progress, SolveInfo};
-pub use shape::{ShapeSolution, solve_shape};
+pub use shape::{ShapeSolution, solve_shape, solve_shape_cancellable};
 pub use target::{DesignTarget, context};
 pub use temporal::{TemporalBasis, TemporalError, TemporalWeight};
 
@@ -94,7 +94,8 @@ pub enum DesignError {
         /// Every term's weighted energy at that iteration.
         energies: Energies,
     },
-    /// The observer returned `Break`; the solve stopped.
+    /// The observer returned `Break`, or the solve's
+    /// [`Cancel`](crate::Cancel) was raised; the solve stopped.
     #[error("cancelled at iteration {iteration}")]
     Cancelled {
         /// Iterations so far over the run when it stopped.

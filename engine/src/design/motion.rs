@@ -44,6 +44,7 @@ use super::progress::{Observer, SolveInfo};
 use super::shape::{Handles, Start, push_point, scale_into, solve_handles, unscale};
 use super::temporal::{TemporalBasis, TemporalWeight};
 use super::{DesignError, DesignParams, MotionParams, SolverParams, Weights};
+use crate::cancel::Cancel;
 
 /// Relative energy decrease that ends the solves between insertions.
 const ROUGH_TOLERANCE: Real = 1e-2;
@@ -212,7 +213,26 @@ pub fn solve_motion(
     motion: &MotionParams,
     observer: &mut Observer<'_>,
 ) -> Result<MotionSolution, DesignError> {
-    super::on_pool(|| motion_on_pool(body, constraints, params, motion, observer))
+    // A flag no one else holds is never raised.
+    solve_motion_cancellable(body, constraints, params, motion, observer, &Cancel::new())
+}
+
+/// [`solve_motion`], stopped by another thread raising `cancel`: read at
+/// every solver iteration and CG iteration of every solve the motion
+/// takes, where the observer sees only whole iterations.
+///
+/// # Errors
+/// As [`solve_motion`]; [`DesignError::Cancelled`] once `cancel` is
+/// raised.
+pub fn solve_motion_cancellable(
+    body: &DesignBody,
+    constraints: &ConstraintSet,
+    params: &DesignParams,
+    motion: &MotionParams,
+    observer: &mut Observer<'_>,
+    cancel: &Cancel,
+) -> Result<MotionSolution, DesignError> {
+    super::on_pool(|| motion_on_pool(body, constraints, params, motion, observer, cancel))
 }
 
 fn motion_on_pool(
@@ -221,6 +241,7 @@ fn motion_on_pool(
     params: &DesignParams,
     motion: &MotionParams,
     observer: &mut Observer<'_>,
+    cancel: &Cancel,
 ) -> Result<MotionSolution, DesignError> {
     super::check_params(params)?;
     check_motion(motion)?;
@@ -245,6 +266,7 @@ fn motion_on_pool(
             Start::Rigid(frames.last().map(Vec::as_slice)),
             &mut run,
             observer,
+            cancel,
         )?;
         frames.push(u);
     }
@@ -284,7 +306,7 @@ fn motion_on_pool(
         };
         let polish = !motion.adaptive || polishing;
         let solver = if polish { &params.solver } else { &rough };
-        let mut info = lsq::minimise(&problem, &mut x, solver, &mut run, observer)?;
+        let mut info = lsq::minimise(&problem, &mut x, solver, &mut run, observer, cancel)?;
         frames = x
             .chunks(n * dim)
             .map(|frame| unscale(frame, dim, s))

@@ -1,6 +1,8 @@
 //! What a solve reports while it runs and when it ends, and how it is
 //! cancelled: the caller's observer sees every iteration and returns
-//! [`ControlFlow::Break`] to stop.
+//! [`ControlFlow::Break`] to stop, or another thread raises the
+//! [`Cancel`](crate::Cancel) of a `solve_*_cancellable`, which the solver
+//! also reads within iterations.
 
 use crate::math::Real;
 use std::ops::ControlFlow;

@@ -13,6 +13,7 @@ use super::energy::{deformation_gradient, push_shape_terms};
 use super::lsq::{self, LeastSquares, Rows, RunState, Term};
 use super::progress::{Observer, SolveInfo};
 use super::{DesignError, DesignParams, Weights};
+use crate::cancel::Cancel;
 use crate::math::{Real, Vector};
 use nalgebra::Matrix3;
 
@@ -82,7 +83,26 @@ pub fn solve_shape(
     warm: Option<&[Vector]>,
     observer: &mut Observer<'_>,
 ) -> Result<ShapeSolution, DesignError> {
-    super::on_pool(|| shape_on_pool(body, constraints, params, warm, observer))
+    // A flag no one else holds is never raised.
+    solve_shape_cancellable(body, constraints, params, warm, observer, &Cancel::new())
+}
+
+/// [`solve_shape`], stopped by another thread raising `cancel`: read at
+/// every solver iteration and CG iteration, where the observer sees only
+/// whole iterations, each of which can run long on a large body.
+///
+/// # Errors
+/// As [`solve_shape`]; [`DesignError::Cancelled`] once `cancel` is
+/// raised.
+pub fn solve_shape_cancellable(
+    body: &DesignBody,
+    constraints: &ConstraintSet,
+    params: &DesignParams,
+    warm: Option<&[Vector]>,
+    observer: &mut Observer<'_>,
+    cancel: &Cancel,
+) -> Result<ShapeSolution, DesignError> {
+    super::on_pool(|| shape_on_pool(body, constraints, params, warm, observer, cancel))
 }
 
 fn shape_on_pool(
@@ -91,6 +111,7 @@ fn shape_on_pool(
     params: &DesignParams,
     warm: Option<&[Vector]>,
     observer: &mut Observer<'_>,
+    cancel: &Cancel,
 ) -> Result<ShapeSolution, DesignError> {
     super::check_params(params)?;
     let (points, targets) = Handles::resolve(body, constraints, |t| t.is_none())?;
@@ -119,8 +140,9 @@ fn shape_on_pool(
         Some(warm) => Start::Warm(warm),
         None => Start::Rigid(None),
     };
-    let (displacements, info) =
-        solve_handles(body, &points, targets, params, start, &mut run, observer)?;
+    let (displacements, info) = solve_handles(
+        body, &points, targets, params, start, &mut run, observer, cancel,
+    )?;
     Ok(ShapeSolution {
         displacements,
         info,
@@ -143,6 +165,7 @@ pub(crate) enum Start<'a> {
 }
 
 /// Minimises Eq. 78 for handle `points` at rest and their `targets`.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn solve_handles(
     body: &DesignBody,
     points: &[Vector],
@@ -151,6 +174,7 @@ pub(crate) fn solve_handles(
     start: Start<'_>,
     run: &mut RunState,
     observer: &mut Observer<'_>,
+    cancel: &Cancel,
 ) -> Result<(Vec<Vector>, SolveInfo), DesignError> {
     let handles = Handles {
         points: body.embed(points)?,
@@ -171,7 +195,7 @@ pub(crate) fn solve_handles(
             scale_into(&carried, dim, s, &mut x);
         }
     }
-    let info = lsq::minimise(&problem, &mut x, &params.solver, run, observer)?;
+    let info = lsq::minimise(&problem, &mut x, &params.solver, run, observer, cancel)?;
     Ok((unscale(&x, dim, s), info))
 }
 

@@ -20,6 +20,7 @@ pub use pressure::{Dfsph, DfsphParams, Pressure, SolveInfo, Wcsph};
 pub use viscosity::ViscosityModel;
 pub use walls::BoxWalls;
 
+use crate::cancel::{Cancel, Cancelled};
 use crate::math::{Real, Vector};
 use crate::neighbors::{Periodic, UniformGrid};
 use crate::rigid::RigidBodies;
@@ -91,6 +92,10 @@ impl FluidSystem {
 
     /// One sub-step of length `dt` with the scene's solver, reflecting
     /// particles off the walls of `[min, max]`.
+    ///
+    /// # Errors
+    /// [`Cancelled`] when `cancel` stopped an iterating solver part-way:
+    /// put back a state [`Self::save`]d before the step.
     pub fn substep(
         &mut self,
         dt: Real,
@@ -98,11 +103,12 @@ impl FluidSystem {
         min: &Vector,
         max: &Vector,
         timer: &mut StageTimer,
-    ) {
+        cancel: &Cancel,
+    ) -> Result<(), Cancelled> {
         self.fluid.substeps_since_reorder += 1;
         self.pressure
             .solver_mut()
-            .substep(&mut self.fluid, dt, gravity, min, max, timer);
+            .substep(&mut self.fluid, dt, gravity, min, max, timer, cancel)
     }
 
     /// The first particle whose state cannot go on: a position, velocity,
@@ -115,9 +121,11 @@ impl FluidSystem {
         self.fluid.first_invalid(limit)
     }
 
-    /// Copies the evolving state into `backup`, reusing its buffers.
+    /// Copies the evolving state, the solver's warm start included, into
+    /// `backup`, reusing its buffers.
     pub fn save(&self, backup: &mut FluidState) {
         self.fluid.save(backup);
+        self.pressure.solver().save(&mut backup.warm_start);
     }
 
     /// Puts back a state saved by [`Self::save`], with the neighbour
@@ -125,7 +133,9 @@ impl FluidSystem {
     /// that the next step starts from the saved state alone.
     pub fn restore(&mut self, backup: &FluidState) {
         self.fluid.restore(backup);
-        self.pressure.solver_mut().rebuild(&self.fluid);
+        let solver = self.pressure.solver_mut();
+        solver.restore(&backup.warm_start);
+        solver.rebuild(&self.fluid);
     }
 
     /// Removes the particles whose id `removed` marks (one flag per

@@ -383,6 +383,7 @@ impl Fluid {
         backup.densities.clone_from(&self.densities);
         backup.pressures.clone_from(&self.pressures);
         backup.max_acceleration = self.max_acceleration;
+        backup.substeps_since_reorder = self.substeps_since_reorder;
         if let Some(rigid) = &self.rigid {
             rigid.save(&mut backup.bodies);
         }
@@ -397,6 +398,7 @@ impl Fluid {
         self.densities.clone_from(&backup.densities);
         self.pressures.clone_from(&backup.pressures);
         self.max_acceleration = backup.max_acceleration;
+        self.substeps_since_reorder = backup.substeps_since_reorder;
         if let Some(rigid) = &mut self.rigid {
             rigid.restore(&backup.bodies);
         }
@@ -412,7 +414,12 @@ pub struct FluidState {
     densities: Vec<Real>,
     pressures: Vec<Real>,
     max_acceleration: Real,
+    /// So that a step taken again after a cancelled one sorts the
+    /// particles when the first attempt would have.
+    substeps_since_reorder: u32,
     bodies: Vec<BodyState>,
+    /// The pressure solver's (see `PressureSolver::save`).
+    pub(in crate::fluid) warm_start: Vec<Real>,
 }
 
 /// A particle quantity that left its valid range.

@@ -10,9 +10,12 @@
 //! may not end the solve, and a breakdown at the first iteration may
 //! return the preconditioned right-hand side (a descent direction for the
 //! minimisation `A x = b` poses) instead of zero. The caller owns the
-//! [`Workspace`], so a solve allocates nothing once it is sized.
+//! [`Workspace`], so a solve allocates nothing once it is sized, and
+//! passes the [`Cancel`] of the work it is part of, read before every
+//! operator application.
 
 use super::linop::{Element, LinOp, Precond, Space};
+use crate::cancel::Cancel;
 use crate::math::Real;
 use std::marker::PhantomData;
 
@@ -69,6 +72,9 @@ pub enum Termination {
         /// `p . A p` of that direction.
         curvature: Real,
     },
+    /// The caller's [`Cancel`] was raised; `x` holds the progress made
+    /// before it, which the caller discards.
+    Cancelled,
 }
 
 /// How a solve went.
@@ -114,7 +120,8 @@ impl<E: Element, S> Workspace<E, S> {
 }
 
 /// Solves `A x = b` from `x = 0` by conjugate gradients preconditioned
-/// with `M`, the reductions and updates run as `S` says.
+/// with `M`, the reductions and updates run as `S` says; stops before the
+/// next operator application once `cancel` is raised.
 ///
 /// # Panics
 /// When `x` and `b` differ in length.
@@ -125,6 +132,7 @@ pub fn solve<E, S, A, M>(
     x: &mut [E],
     params: &Params,
     work: &mut Workspace<E, S>,
+    cancel: &Cancel,
 ) -> Info
 where
     E: Element,
@@ -151,6 +159,12 @@ where
     };
     let mut iterations = 0;
     while iterations < params.max_iterations {
+        if cancel.is_cancelled() {
+            return Info {
+                iterations,
+                termination: Termination::Cancelled,
+            };
+        }
         iterations += 1;
         op.apply(p, q);
         let curvature = S::dot(p, q);
@@ -284,7 +298,15 @@ mod tests {
                 };
                 let mut x = vec![0.0; n];
                 let mut work = Workspace::<Real, Sequential>::default();
-                let info = solve(&mut a, &jacobi, &b, &mut x, &params, &mut work);
+                let info = solve(
+                    &mut a,
+                    &jacobi,
+                    &b,
+                    &mut x,
+                    &params,
+                    &mut work,
+                    &Cancel::new(),
+                );
                 let mut ax = vec![0.0; n];
                 a.apply(&x, &mut ax);
                 let residual: Vec<Real> = ax.iter().zip(&b).map(|(ax, b)| ax - b).collect();
@@ -304,7 +326,15 @@ mod tests {
                 .collect();
             let mut xv = vec![Vector::zeros(); n];
             let mut work = Workspace::<Vector, Parallel>::default();
-            let info = solve(&mut a, &jacobi, &bv, &mut xv, &tight(n), &mut work);
+            let info = solve(
+                &mut a,
+                &jacobi,
+                &bv,
+                &mut xv,
+                &tight(n),
+                &mut work,
+                &Cancel::new(),
+            );
             let mut axv = vec![Vector::zeros(); n];
             a.apply(&xv, &mut axv);
             let error = axv
@@ -336,7 +366,15 @@ mod tests {
                 ..Params::default()
             };
             let mut x = vec![1.0; n];
-            let info = solve(&mut a, &Identity, &b, &mut x, &params, &mut work);
+            let info = solve(
+                &mut a,
+                &Identity,
+                &b,
+                &mut x,
+                &params,
+                &mut work,
+                &Cancel::new(),
+            );
             assert_eq!(
                 info,
                 Info {
@@ -381,7 +419,15 @@ mod tests {
                 ..Params::default()
             };
             let mut x = [9.0; 3];
-            let info = solve(&mut Negative, &jacobi, &b, &mut x, &params, &mut work);
+            let info = solve(
+                &mut Negative,
+                &jacobi,
+                &b,
+                &mut x,
+                &params,
+                &mut work,
+                &Cancel::new(),
+            );
             assert_eq!(info.iterations, 1);
             assert!(
                 matches!(info.termination, Termination::Breakdown { curvature } if curvature < 0.0),
@@ -407,6 +453,7 @@ mod tests {
             &mut [0.0; 2],
             &params,
             &mut work,
+            &Cancel::new(),
         );
         assert_eq!(info.iterations, 1);
         assert!(
@@ -424,6 +471,7 @@ mod tests {
             &mut [0.0; 2],
             &params,
             &mut work,
+            &Cancel::new(),
         );
         assert_eq!(
             info,
@@ -432,5 +480,55 @@ mod tests {
                 termination: Termination::IterationLimit
             }
         );
+    }
+
+    /// `A = diag(1, 2, ...)`, raising `cancel` on its `after`-th
+    /// application, as another thread would mid-solve.
+    struct Interrupting {
+        cancel: Cancel,
+        after: u32,
+        applied: u32,
+    }
+
+    impl LinOp<Real> for Interrupting {
+        fn apply(&mut self, x: &[Real], y: &mut [Real]) {
+            for (k, (y, x)) in y.iter_mut().zip(x).enumerate() {
+                *y = (k + 1) as Real * x;
+            }
+            self.applied += 1;
+            if self.applied == self.after {
+                self.cancel.cancel();
+            }
+        }
+    }
+
+    #[test]
+    fn a_raised_cancel_stops_before_the_next_product() {
+        let cancel = Cancel::new();
+        let mut op = Interrupting {
+            cancel: cancel.clone(),
+            after: 3,
+            applied: 0,
+        };
+        // Ten distinct eigenvalues: ten iterations to converge.
+        let params = Params {
+            tolerance: 0.0,
+            max_iterations: 100,
+            ..Params::default()
+        };
+        let mut work = Workspace::<Real, Sequential>::default();
+        let b = [1.0; 10];
+        let mut x = [0.0; 10];
+        let info = solve(&mut op, &Identity, &b, &mut x, &params, &mut work, &cancel);
+        assert_eq!(
+            info,
+            Info {
+                iterations: 3,
+                termination: Termination::Cancelled
+            }
+        );
+        assert_eq!(op.applied, 3, "no product after the flag was raised");
+        let info = solve(&mut op, &Identity, &b, &mut x, &params, &mut work, &cancel);
+        assert_eq!(info.iterations, 0, "raised before the solve: {info:?}");
     }
 }

@@ -5,6 +5,7 @@ use super::body::{Body, SolidError};
 use super::contact::Obstacles;
 use super::integrate::{Integrator, SolidStep};
 use super::params::SolidParams;
+use crate::cancel::{Cancel, Cancelled};
 use crate::math::{Real, Vector};
 use nalgebra::Matrix3;
 use std::ops::{Deref, DerefMut};
@@ -46,8 +47,26 @@ impl ElasticSolid {
     /// Advances by `dt` under `gravity`, in at most `max_substeps`
     /// explicit sub-steps.
     pub fn step(&mut self, dt: Real, gravity: &Vector, max_substeps: u32) -> SolidStep {
+        // A flag no one else holds is never raised.
+        self.step_cancellable(dt, gravity, max_substeps, &Cancel::new())
+            .unwrap_or_default()
+    }
+
+    /// [`Self::step`], stopping at the next sub-step, Newton or CG
+    /// iteration once `cancel` is raised.
+    ///
+    /// # Errors
+    /// [`Cancelled`]; the state may then be part-way through the step:
+    /// put back one [`Body::save`] kept before it.
+    pub fn step_cancellable(
+        &mut self,
+        dt: Real,
+        gravity: &Vector,
+        max_substeps: u32,
+        cancel: &Cancel,
+    ) -> Result<SolidStep, Cancelled> {
         self.integrator
-            .step(&mut self.body, dt, gravity, max_substeps)
+            .step(&mut self.body, dt, gravity, max_substeps, cancel)
     }
 
     /// Bytes held by the implicit integrator's last sparse Cholesky factor

@@ -14,6 +14,7 @@ mod tests;
 
 pub use system::RemoveError;
 
+use crate::cancel::Cancel;
 use crate::fluid::Fluid;
 use crate::frame::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
 use crate::math::{Real, vector};
@@ -109,6 +110,14 @@ pub enum StepError {
         /// The offending value (a norm for vectors).
         value: f64,
         /// The step that failed.
+        step: u64,
+    },
+    /// The step's [`Cancel`] was raised before it finished (see
+    /// [`World::step_cancellable`]): not a fault, the step can be taken
+    /// again.
+    #[error("step {step} was cancelled before it finished; the world is as it was before the step")]
+    Cancelled {
+        /// The step that was cancelled (steps completed plus one).
         step: u64,
     },
 }
@@ -215,6 +224,23 @@ impl World {
     /// runaway speed, [`StepError::SolidUnstable`] when a solid did; the
     /// world is then restored to its state before this step.
     pub fn step(&mut self) -> Result<StepInfo, StepError> {
+        // A flag no one else holds is never raised.
+        self.step_cancellable(&Cancel::new())
+    }
+
+    /// [`Self::step`], stopped by another thread raising `cancel`: the
+    /// flag is read before every sub-step, implicit solid's Newton
+    /// iteration and CG iteration, so the step ends within one of them
+    /// (one step can run for seconds: a large `time.dt` in up to
+    /// `time.max_substeps` sub-steps, a stiff implicit solid). An
+    /// uncancelled step computes exactly what [`Self::step`] does.
+    ///
+    /// # Errors
+    /// As [`Self::step`], and [`StepError::Cancelled`] when `cancel` was
+    /// raised before the step finished (or before it began). The world is
+    /// then as it was before the step, its clock included, and the same
+    /// step can be taken again.
+    pub fn step_cancellable(&mut self, cancel: &Cancel) -> Result<StepInfo, StepError> {
         let time = &self.scene.time;
         let env = StepEnv {
             dt: time.dt,
@@ -222,7 +248,12 @@ impl World {
             cfl: time.cfl,
             max_substeps: time.max_substeps,
             step: self.clock.step + 1,
+            cancel,
         };
+        // Before stage 1, whose removals a cancelled step would not undo.
+        if cancel.is_cancelled() {
+            return Err(StepError::Cancelled { step: env.step });
+        }
         // Stage 1, between steps: removals and sorting change the particle
         // slots, so they happen here, never during a solve.
         for system in &mut self.systems {

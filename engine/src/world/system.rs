@@ -14,6 +14,7 @@
 #![warn(clippy::wildcard_enum_match_arm)]
 
 use super::{StepError, StepInfo};
+use crate::cancel::Cancel;
 use crate::fluid::{FluidState, FluidSystem, Invalid};
 use crate::frame::FieldKind;
 use crate::geometry::TriMesh;
@@ -24,9 +25,9 @@ use crate::stats::StageTimer;
 use crate::surface::SurfaceExtractor;
 
 /// What every system of a step shares: the step's length, gravity and
-/// limits, and its number (for errors).
+/// limits, its number (for errors), and the flag that stops it.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct StepEnv {
+pub(crate) struct StepEnv<'a> {
     /// Time advanced, s.
     pub dt: Real,
     /// m/s^2.
@@ -37,6 +38,21 @@ pub(crate) struct StepEnv {
     pub max_substeps: u32,
     /// The step being taken (steps completed plus one).
     pub step: u64,
+    /// Read before every sub-step (and by the solids' solvers); once
+    /// raised the system returns [`StepError::Cancelled`].
+    pub cancel: &'a Cancel,
+}
+
+impl StepEnv<'_> {
+    /// The error of this step cancelled.
+    fn cancelled(&self) -> StepError {
+        StepError::Cancelled { step: self.step }
+    }
+
+    /// [`StepError::Cancelled`] once the step's flag is raised.
+    fn check(&self) -> Result<(), StepError> {
+        self.cancel.check().map_err(|_| self.cancelled())
+    }
 }
 
 /// Why particles cannot be removed; nothing was marked.
@@ -137,8 +153,10 @@ pub(crate) trait Simulated {
     fn restore(&mut self);
 
     /// Advances by `env.dt` in sub-steps within the system's stability
-    /// limit, checking its state at its chokepoints. A failed step is
-    /// reported, not undone: the world restores every system.
+    /// limit, checking its state at its chokepoints and `env.cancel`
+    /// before each sub-step (and iteration of a solve). A failed or
+    /// cancelled step is reported, not undone: the world restores every
+    /// system.
     fn step(&mut self, env: &StepEnv, timer: &mut StageTimer) -> Result<StepInfo, StepError>;
 
     /// The first particle value that left its valid range, if any.
@@ -237,13 +255,15 @@ impl Simulated for FluidEntry {
     }
 
     /// Sub-steps of at most the fluid's stable step (up to
-    /// `env.max_substeps` of them), checked after each.
+    /// `env.max_substeps` of them), checked after each; the flag is read
+    /// before each.
     fn step(&mut self, env: &StepEnv, timer: &mut StageTimer) -> Result<StepInfo, StepError> {
         let dt = env.dt;
         let mut info = StepInfo::start(dt);
         let (min, max) = self.bounds;
         let mut elapsed = 0.0;
         while dt - elapsed > dt * 1e-9 {
+            env.check()?;
             let remaining = dt - elapsed;
             let limit = self.fluid.stable_dt(env.cfl);
             let budget = env.max_substeps - info.substeps;
@@ -252,7 +272,9 @@ impl Simulated for FluidEntry {
                 info.capped = true;
             }
             let sub = remaining / wanted.min(budget as Real);
-            self.fluid.substep(sub, &env.gravity, &min, &max, timer);
+            self.fluid
+                .substep(sub, &env.gravity, &min, &max, timer, env.cancel)
+                .map_err(|_| env.cancelled())?;
             let solve = self.fluid.fluid().last_solve();
             info.solver_iterations += solve.density_iterations + solve.divergence_iterations;
             info.density_error = info.density_error.max(solve.density_error);
@@ -330,9 +352,13 @@ impl Simulated for SolidEntry {
         self.solid.restore(&self.backup);
     }
 
-    /// The solid sub-steps itself; its state is checked after the step.
+    /// The solid sub-steps itself, reading the flag at each sub-step or
+    /// Newton and CG iteration; its state is checked after the step.
     fn step(&mut self, env: &StepEnv, _timer: &mut StageTimer) -> Result<StepInfo, StepError> {
-        let step = self.solid.step(env.dt, &env.gravity, env.max_substeps);
+        let step = self
+            .solid
+            .step_cancellable(env.dt, &env.gravity, env.max_substeps, env.cancel)
+            .map_err(|_| env.cancelled())?;
         let info = StepInfo {
             substeps: step.substeps,
             min_substep: step.min_substep,

@@ -2,26 +2,30 @@
 //! commands from gRPC handlers and publishing frames and status on zenoh.
 
 mod access;
+mod interrupt;
 mod optimize;
 mod publish;
 mod worker;
 
 use crate::error::ServiceError;
+use interrupt::Interrupts;
+use meshless_engine::Cancel;
 use meshless_engine::design::{self, Constraint, ConstraintSet, Context, Edit};
 use meshless_engine::{BuildOptions, Frame, Scene, World};
 use meshless_proto::{keys, v1};
 use meshless_wire::scene::scene_echo_to_proto;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use tokio_util::sync::CancellationToken;
 
 pub use access::{Access, check_observers};
 pub use optimize::{OptimizeJob, Problem};
-use worker::Message;
 pub use worker::RunTarget;
+use worker::{Message, Queued};
 
-/// A request to the compute thread; applied between steps.
+/// A request to the compute thread; applied between steps, except that
+/// a Pause (and a deletion, and a `Step` caller giving up) interrupts the
+/// step in progress (see `interrupt.rs`).
 #[derive(Debug)]
 pub enum Command {
     Step(u64),
@@ -52,7 +56,7 @@ pub struct DesignState {
     /// The last successful optimisation.
     pub last: Option<Arc<v1::DesignResult>>,
     /// The cancel flag of the optimisation queued or running, if any.
-    pub running: Option<Arc<AtomicBool>>,
+    pub running: Option<Cancel>,
 }
 
 type SharedDesign = Arc<Mutex<DesignState>>;
@@ -69,12 +73,81 @@ fn lock(design: &SharedDesign) -> std::sync::MutexGuard<'_, DesignState> {
 pub struct Optimization {
     pub progress: mpsc::Receiver<v1::DesignProgress>,
     pub result: oneshot::Receiver<Result<Arc<v1::DesignResult>, ServiceError>>,
-    cancel: Arc<AtomicBool>,
+    cancel: Cancel,
 }
 
 impl Drop for Optimization {
     fn drop(&mut self) {
-        self.cancel.store(true, Ordering::Relaxed);
+        self.cancel.cancel();
+    }
+}
+
+/// The sending end of the compute thread's channel: it numbers each
+/// message (see `interrupt.rs`) and interrupts the work in progress for
+/// the messages that cannot wait their turn.
+#[derive(Debug)]
+struct Mailbox {
+    commands: std::sync::mpsc::Sender<Queued>,
+    interrupts: Arc<Interrupts>,
+}
+
+/// The compute thread has exited.
+#[derive(Debug)]
+struct Gone;
+
+impl Mailbox {
+    /// Queues `message`; an `interrupting` one first interrupts the work
+    /// of the messages before it.
+    fn send(&self, message: Message, interrupting: bool) -> Result<u64, Gone> {
+        self.interrupts.send(interrupting, |number| {
+            self.commands.send((number, message)).map_err(|_| Gone)
+        })
+    }
+
+    /// Sends a command and waits for its answer. A Pause interrupts the
+    /// step in progress (and any queued before it), which keeps the last
+    /// completed step; dropping the future of a `Step` interrupts that
+    /// step.
+    async fn command(
+        &self,
+        command: Command,
+    ) -> Result<Result<v1::SessionStatus, ServiceError>, Gone> {
+        let interrupting = matches!(command, Command::Pause);
+        let abandons = matches!(command, Command::Step(_));
+        let (reply, answer) = oneshot::channel();
+        let number = self.send(Message::Command(command, reply), interrupting)?;
+        let mut pending = Pending {
+            answer,
+            interrupts: &self.interrupts,
+            number,
+            abandons,
+        };
+        let answer = (&mut pending.answer).await;
+        pending.abandons = false;
+        answer.map_err(|_| Gone)
+    }
+}
+
+/// A command's answer as its caller waits for it. A `Step` caller that
+/// gives up (its call cancelled or past its deadline drops this) stops
+/// the step in progress instead of leaving it to run out.
+struct Pending<'a> {
+    answer: oneshot::Receiver<Result<v1::SessionStatus, ServiceError>>,
+    interrupts: &'a Interrupts,
+    number: u64,
+    /// Whether dropping it unanswered interrupts the command's work:
+    /// only a `Step`'s, since a run outlives its `Run` call.
+    abandons: bool,
+}
+
+impl Drop for Pending<'_> {
+    fn drop(&mut self) {
+        if self.abandons {
+            // Closed first: work the compute thread begins after this
+            // sees the closed reply instead of the flag.
+            self.answer.close();
+            self.interrupts.abandon(self.number);
+        }
     }
 }
 
@@ -92,7 +165,7 @@ pub struct Session {
     pub serial: u64,
     /// Who may see and drive it.
     pub access: Access,
-    commands: std::sync::mpsc::Sender<Message>,
+    mailbox: Mailbox,
     status: watch::Receiver<v1::SessionStatus>,
     events: broadcast::Sender<v1::SessionStatus>,
     latest: LatestFrame,
@@ -133,10 +206,21 @@ impl Session {
         let latest: LatestFrame = Arc::new(Mutex::new(Arc::new(world.frame())));
         let (frames_tx, frames_rx) = mpsc::channel(FRAME_QUEUE);
         let (commands, commands_rx) = std::sync::mpsc::channel();
+        let interrupts = Arc::new(Interrupts::default());
 
         publish::spawn_frames(zenoh.clone(), id.clone(), frames_rx);
         publish::spawn_status(zenoh.clone(), id.clone(), events.subscribe());
         publish::spawn_latest(zenoh.clone(), id.clone(), latest.clone(), cancel.clone());
+        // Server shutdown cancels the token before it stops the sessions,
+        // and waits for the calls in flight first: a step or optimisation
+        // in progress stops now, so that those calls end.
+        {
+            let (cancel, interrupts, design) = (cancel.clone(), interrupts.clone(), design.clone());
+            tokio::spawn(async move {
+                cancel.cancelled().await;
+                interrupt_all(&interrupts, &design);
+            });
+        }
 
         let worker = worker::Worker::new(
             id.clone(),
@@ -150,6 +234,7 @@ impl Session {
             },
             design.clone(),
             cancel.clone(),
+            interrupts.clone(),
         );
         let thread = std::thread::Builder::new()
             .name(format!("session-{id}"))
@@ -161,7 +246,10 @@ impl Session {
             particle_count,
             serial,
             access,
-            commands,
+            mailbox: Mailbox {
+                commands,
+                interrupts,
+            },
             status,
             events,
             latest,
@@ -172,18 +260,22 @@ impl Session {
         }))
     }
 
-    /// Sends a command to the compute thread and waits for its answer.
+    fn gone(&self) -> ServiceError {
+        ServiceError::SessionGone(self.id.clone())
+    }
+
+    /// Sends a command to the compute thread and waits for its answer. A
+    /// Pause interrupts the step in progress (and any queued before it),
+    /// which keeps the last completed step; dropping the future of a
+    /// `Step` interrupts that step.
     ///
     /// # Errors
     /// What the worker refused, or [`ServiceError::SessionGone`].
     pub async fn command(&self, command: Command) -> Result<v1::SessionStatus, ServiceError> {
-        let (reply, answer) = oneshot::channel();
-        self.commands
-            .send(Message::Command(command, reply))
-            .map_err(|_| ServiceError::SessionGone(self.id.clone()))?;
-        answer
+        self.mailbox
+            .command(command)
             .await
-            .map_err(|_| ServiceError::SessionGone(self.id.clone()))?
+            .map_err(|Gone| self.gone())?
     }
 
     /// Applies constraint edits all or nothing; returns the constraints.
@@ -223,7 +315,7 @@ impl Session {
     /// [`ServiceError::WrongState`] while another optimisation is queued
     /// or running; [`ServiceError::SessionGone`].
     pub fn optimize(&self, job: OptimizeJob) -> Result<Optimization, ServiceError> {
-        let cancel = Arc::new(AtomicBool::new(false));
+        let cancel = Cancel::new();
         {
             let mut design = lock(&self.design);
             if design.running.is_some() {
@@ -243,13 +335,12 @@ impl Session {
             result: result_tx,
             cancel: cancel.clone(),
         };
-        if self
-            .commands
-            .send(Message::Optimize(Box::new(job), channels))
-            .is_err()
+        if let Err(Gone) = self
+            .mailbox
+            .send(Message::Optimize(Box::new(job), channels), false)
         {
             lock(&self.design).running = None;
-            return Err(ServiceError::SessionGone(self.id.clone()));
+            return Err(self.gone());
         }
         Ok(Optimization {
             progress,
@@ -263,7 +354,7 @@ impl Session {
     pub fn cancel_optimize(&self) -> bool {
         match &lock(&self.design).running {
             Some(cancel) => {
-                cancel.store(true, Ordering::Relaxed);
+                cancel.cancel();
                 true
             }
             None => false,
@@ -301,12 +392,10 @@ impl Session {
         }
     }
 
-    /// Stops the compute thread (it finishes the step in hand) and waits
-    /// for it. Blocking: call from a blocking context.
+    /// Stops the compute thread (interrupting the step or optimisation
+    /// in hand) and waits for it. Blocking: call from a blocking context.
     pub fn shut_down(&self) {
-        self.cancel.cancel();
-        // Wakes a worker blocked waiting for commands; it may be gone already.
-        let _ = self.commands.send(Message::Shutdown);
+        stop(&self.cancel, &self.mailbox, &self.design);
         let thread = self
             .thread
             .lock()
@@ -317,5 +406,22 @@ impl Session {
         {
             tracing::error!(session = %self.id, "compute thread panicked");
         }
+    }
+}
+
+/// Tells the compute thread to exit: the token, then every flag of its
+/// work in hand, then the message that wakes it if it waits for one.
+fn stop(cancel: &CancellationToken, mailbox: &Mailbox, design: &SharedDesign) {
+    cancel.cancel();
+    interrupt_all(&mailbox.interrupts, design);
+    // The thread may be gone already.
+    let _ = mailbox.send(Message::Shutdown, false);
+}
+
+/// Interrupts every step and the optimisation of a session shutting down.
+fn interrupt_all(interrupts: &Interrupts, design: &SharedDesign) {
+    interrupts.interrupt_all();
+    if let Some(cancel) = &lock(design).running {
+        cancel.cancel();
     }
 }

@@ -4,15 +4,15 @@
 
 use crate::error::ServiceError;
 use meshless_engine::design::{
-    ConstraintSet, DesignParams, DesignTarget, MotionParams, Progress, solve_motion, solve_shape,
+    ConstraintSet, DesignParams, DesignTarget, MotionParams, Progress, solve_motion_cancellable,
+    solve_shape_cancellable,
 };
 use meshless_engine::math::Vector;
-use meshless_engine::{Frame, World};
+use meshless_engine::{Cancel, Frame, World};
 use meshless_proto::v1;
 use meshless_wire::design::{info_to_proto, progress_to_proto};
 use std::ops::ControlFlow;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use tokio::sync::{mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 
@@ -46,8 +46,10 @@ pub struct Channels {
     /// Progress, dropped when the reader is behind.
     pub progress: mpsc::Sender<v1::DesignProgress>,
     pub result: oneshot::Sender<Result<Arc<v1::DesignResult>, ServiceError>>,
-    /// Set by `CancelOptimize` or when the client drops the stream.
-    pub cancel: Arc<AtomicBool>,
+    /// Raised by `CancelOptimize`, when the client drops the stream, and
+    /// when the session shuts down; the solver reads it within its
+    /// iterations.
+    pub cancel: Cancel,
 }
 
 /// The last shape solve, to start the next one of the same system and
@@ -71,7 +73,8 @@ pub struct Solved {
 
 /// Solves `job` on `world`'s solid against `constraints`. Stops with
 /// [`meshless_engine::design::DesignError::Cancelled`] once `cancel` or
-/// `shutdown` is set, or the progress reader is gone.
+/// `shutdown` is set (within an iteration: whoever sets either raises
+/// `cancel`), or the progress reader is gone.
 ///
 /// # Errors
 /// The engine's design errors; nothing is changed.
@@ -85,10 +88,8 @@ pub fn solve(
     shutdown: &CancellationToken,
 ) -> Result<Solved, ServiceError> {
     let mut observer = |p: &Progress| {
-        if channels.cancel.load(Ordering::Relaxed)
-            || shutdown.is_cancelled()
-            || channels.progress.is_closed()
-        {
+        // `channels.cancel` the solver reads itself.
+        if shutdown.is_cancelled() || channels.progress.is_closed() {
             return ControlFlow::Break(());
         }
         // A full queue drops this report: the reader sees later ones.
@@ -104,7 +105,14 @@ pub fn solve(
             let warm = warm
                 .filter(|w| w.system == job.system && w.params == job.params)
                 .map(|w| w.displacements.as_slice());
-            let solution = solve_shape(body, constraints, &job.params, warm, &mut observer)?;
+            let solution = solve_shape_cancellable(
+                body,
+                constraints,
+                &job.params,
+                warm,
+                &mut observer,
+                &channels.cancel,
+            )?;
             let playback = if job.playback {
                 vec![target.frame(world, &solution.displacements, now)]
             } else {
@@ -129,7 +137,14 @@ pub fn solve(
             params,
             playback_rate,
         } => {
-            let solution = solve_motion(body, constraints, &job.params, &params, &mut observer)?;
+            let solution = solve_motion_cancellable(
+                body,
+                constraints,
+                &job.params,
+                &params,
+                &mut observer,
+                &channels.cancel,
+            )?;
             let mut playback = Vec::new();
             if job.playback {
                 let (start, end) = solution.span();

@@ -1,11 +1,15 @@
 //! The compute thread of a session. It owns the world, applies commands
 //! between steps, and hands frames and status to the publishing tasks
-//! without ever waiting on them.
+//! without ever waiting on them. Each step reads the flag of the work it
+//! belongs to (`interrupt.rs`), so a Pause or a deletion stops it within
+//! a sub-step; the step is undone and the session keeps its last
+//! completed step.
 
+use super::interrupt::Interrupts;
 use super::optimize::{self, Channels, OptimizeJob, WarmStart};
 use super::{Command, LatestFrame, Reply, SharedDesign, lock};
 use crate::error::{ServiceError, state_name};
-use meshless_engine::{BuildOptions, Frame, World};
+use meshless_engine::{BuildOptions, Cancel, Frame, StepError, World};
 use meshless_proto::v1::{SessionState, SessionStatus};
 use std::panic::AssertUnwindSafe;
 use std::sync::Arc;
@@ -31,6 +35,9 @@ pub enum Message {
     /// Stop and exit; sent on delete and server shutdown.
     Shutdown,
 }
+
+/// A message with its number in the channel's order (see `interrupt.rs`).
+pub type Queued = (u64, Message);
 
 /// Where the worker's results go.
 #[derive(Debug)]
@@ -82,6 +89,20 @@ pub struct Worker {
     dropped_frames: u64,
     design: SharedDesign,
     warm: Option<WarmStart>,
+    interrupts: Arc<Interrupts>,
+    /// The flag of the stepping work in hand (a `Step`, a run), which
+    /// every step reads.
+    work: Cancel,
+}
+
+/// How one step went.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Advance {
+    Stepped,
+    /// Interrupted and undone: the world is at the last completed step.
+    Interrupted,
+    /// The step failed; the session faulted.
+    Faulted,
 }
 
 impl Worker {
@@ -92,6 +113,7 @@ impl Worker {
         out: Outputs,
         design: SharedDesign,
         cancel: CancellationToken,
+        interrupts: Arc<Interrupts>,
     ) -> Self {
         let mut worker = Self {
             id,
@@ -107,16 +129,20 @@ impl Worker {
             dropped_frames: 0,
             design,
             warm: None,
+            interrupts,
+            work: Cancel::new(),
         };
         worker.publish_frame();
         worker
     }
 
     /// The thread's main loop: block for commands while idle, step while
-    /// running, exit on shutdown.
-    pub fn run(mut self, messages: Receiver<Message>) {
+    /// running, exit on shutdown. A run whose flag is up waits for the
+    /// message that raised it (a Pause, a shutdown) instead of stepping.
+    pub fn run(mut self, messages: Receiver<Queued>) {
         loop {
-            let message = if self.state == SessionState::Running {
+            let stepping = self.state == SessionState::Running && !self.work.is_cancelled();
+            let message = if stepping {
                 match self.pacing.and_then(|p| p.wait(self.world.clock().time)) {
                     Some(wait) => match messages.recv_timeout(wait) {
                         Ok(m) => Some(m),
@@ -130,20 +156,22 @@ impl Worker {
                     },
                 }
             } else {
-                messages.recv().ok().or(Some(Message::Shutdown))
+                messages.recv().ok().or(Some((0, Message::Shutdown)))
             };
             match message {
-                Some(Message::Command(command, reply)) => {
-                    let result = self.guarded(|w| w.handle(command, &reply)).and_then(|r| r);
+                Some((number, Message::Command(command, reply))) => {
+                    let result = self
+                        .guarded(|w| w.handle(command, number, &reply))
+                        .and_then(|r| r);
                     // The caller may have gone away; the command still applied.
                     let _ = reply.send(result);
                 }
-                Some(Message::Optimize(job, channels)) => {
+                Some((_, Message::Optimize(job, channels))) => {
                     // On a panic the result channel drops with the closure:
                     // the caller hears that the optimisation ended.
                     let _ = self.guarded(|w| w.optimize(&job, channels));
                 }
-                Some(Message::Shutdown) => break,
+                Some((_, Message::Shutdown)) => break,
                 None if self.cancel.is_cancelled() => break,
                 None => {
                     let due = self.pacing.and_then(|p| p.wait(self.world.clock().time));
@@ -184,12 +212,17 @@ impl Worker {
         Err(ServiceError::Internal(reason))
     }
 
-    /// Applies one command; `reply` is where its answer goes, and a closed
-    /// one (the caller gave up) ends a long `Step` at the next step.
-    fn handle(&mut self, command: Command, reply: &Reply) -> Result<SessionStatus, ServiceError> {
+    /// Applies command `number`; `reply` is where its answer goes, and a
+    /// closed one (the caller gave up) ends a long `Step` at the next step.
+    fn handle(
+        &mut self,
+        command: Command,
+        number: u64,
+        reply: &Reply,
+    ) -> Result<SessionStatus, ServiceError> {
         match command {
-            Command::Step(steps) => self.step(steps, reply),
-            Command::Run(target) => self.start_run(target),
+            Command::Step(steps) => self.step(steps, number, reply),
+            Command::Run(target) => self.start_run(target, number),
             Command::Pause => {
                 if self.state == SessionState::Running {
                     self.publish_if_stale();
@@ -197,7 +230,7 @@ impl Worker {
                 }
                 Ok(self.status())
             }
-            Command::Resume => self.resume(),
+            Command::Resume => self.resume(number),
             Command::Reset => self.reset(),
         }
     }
@@ -264,27 +297,45 @@ impl Worker {
         }
     }
 
-    /// Takes up to `steps` steps; stops early when the session is shut
-    /// down or the caller is gone (an abandoned `Step(1_000_000)` would
-    /// otherwise hold the session for as long as it takes).
-    fn step(&mut self, steps: u64, reply: &Reply) -> Result<SessionStatus, ServiceError> {
+    /// Takes up to `steps` steps for command `number`; stops early when
+    /// the session is shut down, the caller is gone (an abandoned
+    /// `Step(1_000_000)` would otherwise hold the session for as long as
+    /// it takes) or a Pause interrupts it, the step in progress undone.
+    fn step(
+        &mut self,
+        steps: u64,
+        number: u64,
+        reply: &Reply,
+    ) -> Result<SessionStatus, ServiceError> {
         if matches!(self.state, SessionState::Running | SessionState::Faulted) {
             return Err(self.refuse("step", "pause it first"));
         }
-        for _ in 0..steps {
-            if self.cancel.is_cancelled() || reply.is_closed() || !self.advance() {
+        self.work = self.interrupts.begin(number);
+        let mut taken = 0;
+        let mut outcome = Advance::Stepped;
+        while taken < steps && !self.cancel.is_cancelled() && !reply.is_closed() {
+            outcome = self.advance();
+            if outcome != Advance::Stepped {
                 break;
             }
+            taken += 1;
         }
         if self.state != SessionState::Faulted {
             self.publish_if_stale();
             self.run = None;
-            self.set_state(SessionState::Paused, "stepped");
+            let reason = if outcome == Advance::Interrupted {
+                format!(
+                    "interrupted after {taken} of {steps} steps; the step in progress was undone"
+                )
+            } else {
+                "stepped".into()
+            };
+            self.set_state(SessionState::Paused, &reason);
         }
         Ok(self.status())
     }
 
-    fn start_run(&mut self, target: RunTarget) -> Result<SessionStatus, ServiceError> {
+    fn start_run(&mut self, target: RunTarget, number: u64) -> Result<SessionStatus, ServiceError> {
         if matches!(self.state, SessionState::Running | SessionState::Faulted) {
             return Err(self.refuse("run", "pause it first"));
         }
@@ -298,22 +349,24 @@ impl Worker {
             ));
         }
         self.run = Some(target);
-        self.begin_running();
+        self.begin_running(number);
         Ok(self.status())
     }
 
-    fn resume(&mut self) -> Result<SessionStatus, ServiceError> {
+    fn resume(&mut self, number: u64) -> Result<SessionStatus, ServiceError> {
         match self.state {
             SessionState::Running => Ok(self.status()),
             SessionState::Paused if self.run.is_some() => {
-                self.begin_running();
+                self.begin_running(number);
                 Ok(self.status())
             }
             _ => Err(self.refuse("resume", "only a paused run can be resumed; start a run")),
         }
     }
 
-    fn begin_running(&mut self) {
+    /// Starts or resumes the run as the work of command `number`.
+    fn begin_running(&mut self, number: u64) {
+        self.work = self.interrupts.begin(number);
         let target = self.run.unwrap_or(RunTarget {
             until: None,
             realtime_factor: None,
@@ -342,7 +395,7 @@ impl Worker {
 
     /// One step of a run; finishes the run at its target time.
     fn advance_run(&mut self) {
-        if !self.advance() {
+        if self.advance() != Advance::Stepped {
             return;
         }
         let until = self.run.and_then(|r| r.until);
@@ -355,10 +408,11 @@ impl Worker {
         }
     }
 
-    /// Steps the world once. On failure the session faults, keeping the
-    /// last good frame. Returns whether the step succeeded.
-    fn advance(&mut self) -> bool {
-        match self.world.step() {
+    /// Steps the world once, as the work whose flag is `self.work`. On
+    /// failure the session faults, keeping the last good frame; an
+    /// interrupted step is undone and changes nothing.
+    fn advance(&mut self) -> Advance {
+        match self.world.step_cancellable(&self.work) {
             Ok(_) => {
                 let clock = self.world.clock();
                 self.out.status.send_modify(|s| {
@@ -368,13 +422,14 @@ impl Worker {
                 if self.world.is_frame_step() {
                     self.publish_frame();
                 }
-                true
+                Advance::Stepped
             }
+            Err(StepError::Cancelled { .. }) => Advance::Interrupted,
             Err(e) => {
                 tracing::warn!(session = %self.id, "session faulted: {e}");
                 self.run = None;
                 self.set_state(SessionState::Faulted, &e.to_string());
-                false
+                Advance::Faulted
             }
         }
     }
@@ -427,6 +482,7 @@ impl Worker {
 
 #[cfg(test)]
 mod tests {
+    use super::super::{Mailbox, stop};
     use super::*;
     use meshless_engine::Scene;
 
@@ -450,6 +506,13 @@ mod tests {
         .expect("scene");
         let options = BuildOptions::default();
         let world = scene.build(&options).expect("world");
+        let (worker, status, _) = worker_over(world);
+        (worker, status)
+    }
+
+    /// A worker over `world`, with its status receiver and token.
+    fn worker_over(world: World) -> (Worker, watch::Receiver<SessionStatus>, CancellationToken) {
+        let options = BuildOptions::default();
         let (status, status_rx) = watch::channel(SessionStatus::default());
         let (events, _) = broadcast::channel(4);
         let (frames, _frames_rx) = mpsc::channel(4);
@@ -459,21 +522,32 @@ mod tests {
             frames,
             latest: Arc::new(std::sync::Mutex::new(Arc::new(world.frame()))),
         };
+        let cancel = CancellationToken::new();
         let worker = Worker::new(
             "s".into(),
             world,
             options,
             out,
             SharedDesign::default(),
-            CancellationToken::new(),
+            cancel.clone(),
+            Arc::new(Interrupts::default()),
         );
-        (worker, status_rx)
+        (worker, status_rx, cancel)
+    }
+
+    /// The next message number, as the session's mailbox takes it.
+    fn number(worker: &Worker) -> u64 {
+        worker
+            .interrupts
+            .send(false, |_| Ok::<(), ()>(()))
+            .expect("numbered")
     }
 
     /// Applies `command` with a caller that waits for the answer.
     fn command(worker: &mut Worker, command: Command) -> Result<SessionStatus, ServiceError> {
         let (reply, _answer) = tokio::sync::oneshot::channel();
-        worker.handle(command, &reply)
+        let number = number(worker);
+        worker.handle(command, number, &reply)
     }
 
     #[test]
@@ -481,8 +555,9 @@ mod tests {
         let (mut worker, _status) = worker();
         let (reply, answer) = tokio::sync::oneshot::channel();
         drop(answer);
+        let number = number(&worker);
         let status = worker
-            .handle(Command::Step(1_000_000), &reply)
+            .handle(Command::Step(1_000_000), number, &reply)
             .expect("answers");
         assert_eq!(status.step, 0, "no step for a caller that is gone");
         assert_eq!(
@@ -531,5 +606,180 @@ mod tests {
         assert_eq!(pacing(1.0).wait(-1.0), None);
         let short = pacing(1e6).wait(1.0).expect("1 us ahead");
         assert!(short <= Duration::from_micros(1), "{short:?}");
+    }
+
+    /// Longest a Pause, a deletion or the next command may take while a
+    /// step that runs for a minute is in progress.
+    const PROMPT: Duration = Duration::from_secs(5);
+
+    /// A 2D tank of 900 particles whose one step takes about 50 000
+    /// sub-steps (about a minute here): only an interruption ends it in
+    /// time.
+    fn long_step_world() -> World {
+        let scene = |dt: f64| {
+            Scene::from_toml_str(&format!(
+                r#"
+                dimension = 2
+                [domain]
+                min = [0.0, 0.0, 0.0]
+                max = [1.0, 1.0, 0.0]
+                [time]
+                dt = {dt:e}
+                max_substeps = 1000000
+                cfl = 0.2
+                [[systems]]
+                kind = "fluid"
+                spacing = 0.02
+                stiffness = 1000.0
+                [[systems.blocks]]
+                region = {{ min = [0.0, 0.0, 0.0], max = [0.6, 0.6, 0.0] }}
+                "#
+            ))
+            .expect("scene")
+        };
+        let options = BuildOptions::default();
+        // The sub-step length, from a short probe step.
+        let probe_dt = 0.01;
+        let mut probe = scene(probe_dt).build(&options).expect("world");
+        let substeps = probe.step().expect("a stable probe step").substeps;
+        let dt = 50_000.0 * probe_dt / f64::from(substeps);
+        scene(dt).build(&options).expect("world")
+    }
+
+    /// A worker on its own thread, as a session runs it.
+    struct Threaded {
+        mailbox: Mailbox,
+        status: watch::Receiver<SessionStatus>,
+        cancel: CancellationToken,
+        design: SharedDesign,
+        thread: std::thread::JoinHandle<()>,
+    }
+
+    impl Threaded {
+        fn start(world: World) -> Self {
+            let (worker, status, cancel) = worker_over(world);
+            let (commands, messages) = std::sync::mpsc::channel();
+            let mailbox = Mailbox {
+                commands,
+                interrupts: worker.interrupts.clone(),
+            };
+            let design = worker.design.clone();
+            let thread = std::thread::spawn(move || worker.run(messages));
+            Self {
+                mailbox,
+                status,
+                cancel,
+                design,
+                thread,
+            }
+        }
+
+        /// Polls `step`, a `Step` command sent after the work of message
+        /// `before` began, until its own work has begun.
+        async fn until_begun<F: std::future::Future>(
+            &self,
+            before: Option<u64>,
+            step: &mut std::pin::Pin<&mut F>,
+        ) {
+            let started = Instant::now();
+            while self.mailbox.interrupts.begun() == before {
+                assert!(started.elapsed() < PROMPT, "the step never began");
+                if tokio::time::timeout(Duration::from_millis(10), step.as_mut())
+                    .await
+                    .is_ok()
+                {
+                    panic!("the step ended before it was interrupted");
+                }
+            }
+        }
+    }
+
+    async fn promptly<T>(what: &str, future: impl std::future::Future<Output = T>) -> T {
+        tokio::time::timeout(PROMPT, future)
+            .await
+            .unwrap_or_else(|_| panic!("{what} took over {PROMPT:?} during a long step"))
+    }
+
+    #[tokio::test]
+    async fn a_pause_interrupts_a_long_step_which_the_session_takes_again() {
+        let session = Threaded::start(long_step_world());
+        for attempt in 0..2 {
+            let before = session.mailbox.interrupts.begun();
+            let step = session.mailbox.command(Command::Step(1));
+            tokio::pin!(step);
+            session.until_begun(before, &mut step).await;
+            let started = Instant::now();
+            let paused = promptly("Pause", session.mailbox.command(Command::Pause))
+                .await
+                .expect("the thread runs")
+                .expect("paused");
+            let stepped = promptly("the interrupted Step", step)
+                .await
+                .expect("the thread runs")
+                .expect("answered");
+            println!("attempt {attempt}: paused in {:?}", started.elapsed());
+            assert_eq!(paused.state, SessionState::Paused as i32);
+            assert_eq!(paused.step, 0, "the last completed step is kept");
+            assert_eq!(stepped.step, 0);
+            assert!(
+                stepped.reason.contains("interrupted after 0 of 1 steps"),
+                "{}",
+                stepped.reason
+            );
+            // Not faulted: the next attempt steps again from step 0.
+            assert_eq!(session.status.borrow().step, 0);
+        }
+    }
+
+    #[tokio::test]
+    async fn deleting_a_session_interrupts_its_long_step_and_ends_its_thread() {
+        let session = Threaded::start(long_step_world());
+        let step = session.mailbox.command(Command::Step(1));
+        tokio::pin!(step);
+        session.until_begun(None, &mut step).await;
+        let started = Instant::now();
+        // What `Session::shut_down` does before it joins the thread.
+        stop(&session.cancel, &session.mailbox, &session.design);
+        let thread = session.thread;
+        let joined = promptly("the compute thread's exit", async {
+            while !thread.is_finished() {
+                tokio::time::sleep(Duration::from_millis(10)).await;
+            }
+            thread.join()
+        })
+        .await;
+        println!("thread gone {:?} after the delete", started.elapsed());
+        joined.expect("the thread did not panic");
+        // The caller hears of it: the interrupted step, or the session gone.
+        let _ = promptly("the Step caller's answer", step).await;
+    }
+
+    #[tokio::test]
+    async fn an_abandoned_step_is_interrupted_mid_step() {
+        let session = Threaded::start(long_step_world());
+        {
+            let step = session.mailbox.command(Command::Step(1));
+            tokio::pin!(step);
+            session.until_begun(None, &mut step).await;
+            // The caller gives up (a cancelled call, a deadline): dropped.
+        }
+        // A command that interrupts nothing is answered as soon as the
+        // abandoned step has stopped.
+        let refused = promptly("the next command", session.mailbox.command(Command::Resume))
+            .await
+            .expect("the thread runs")
+            .expect_err("no run to resume");
+        assert!(
+            matches!(refused, ServiceError::WrongState { .. }),
+            "{refused:?}"
+        );
+        let status = session.status.borrow().clone();
+        assert_eq!(status.step, 0);
+        assert_eq!(
+            status.state,
+            SessionState::Paused as i32,
+            "{}",
+            status.reason
+        );
     }
 }

@@ -56,6 +56,7 @@ pub(crate) use rows::{Rows, Term};
 use super::DesignError;
 use super::params::SolverParams;
 use super::progress::{Energies, Observer, Progress, SolveInfo};
+use crate::cancel::Cancel;
 use crate::linalg::{Sequential, Space};
 use crate::math::Real;
 use normal::NormalEquations;
@@ -120,18 +121,25 @@ pub(crate) struct RunState {
 }
 
 /// Minimises `|r(x)|^2` from `x`, overwriting it with the result.
+/// `cancel` is read at every iteration, every damped retry within one and
+/// every CG iteration, so a large problem stops within one of them.
 ///
 /// # Errors
-/// [`DesignError::Cancelled`] when the observer breaks (`x` then holds the
-/// last accepted iterate); [`DesignError::Diverged`] naming the first term
-/// whose energy is not finite.
+/// [`DesignError::Cancelled`] when the observer breaks or `cancel` is
+/// raised (`x` then holds the last accepted iterate);
+/// [`DesignError::Diverged`] naming the first term whose energy is not
+/// finite.
 pub(crate) fn minimise(
     problem: &impl LeastSquares,
     x: &mut [Real],
     params: &SolverParams,
     run: &mut RunState,
     observer: &mut Observer<'_>,
+    cancel: &Cancel,
 ) -> Result<SolveInfo, DesignError> {
+    let cancelled = |run: &RunState| DesignError::Cancelled {
+        iteration: run.iteration,
+    };
     let n = problem.unknowns();
     let mut rows = Rows::default();
     let mut trial_rows = Rows::default();
@@ -148,6 +156,9 @@ pub(crate) fn minimise(
     let mut iterations = 0;
     let (mut energies, mut gradient_norm);
     loop {
+        if cancel.is_cancelled() {
+            return Err(cancelled(run));
+        }
         evaluate(problem, x, true, &mut rows);
         energies = rows.energies();
         check_finite(&energies, run.iteration)?;
@@ -165,9 +176,7 @@ pub(crate) fn minimise(
             sampling_error: run.sampling_error,
         };
         if let ControlFlow::Break(()) = observer(&report) {
-            return Err(DesignError::Cancelled {
-                iteration: run.iteration,
-            });
+            return Err(cancelled(run));
         }
         if gradient_norm <= params.tolerance * (1.0 + energy) {
             converged = true;
@@ -183,19 +192,25 @@ pub(crate) fn minimise(
         diag.iter_mut().for_each(|d| *d = d.max(floor));
         blocks.assemble(&rows, &diag);
         let accepted = loop {
+            if cancel.is_cancelled() {
+                return Err(cancelled(run));
+            }
             iterations += 1;
             run.iteration += 1;
             blocks.factor(&diag, mu);
-            run.linear_iterations += normal.solve(
-                &rows,
-                &mut products,
-                &diag,
-                mu,
-                &blocks,
-                &g,
-                &mut step,
-                params,
-            );
+            run.linear_iterations += normal
+                .solve(
+                    &rows,
+                    &mut products,
+                    &diag,
+                    mu,
+                    &blocks,
+                    &g,
+                    &mut step,
+                    params,
+                    cancel,
+                )
+                .map_err(|_| cancelled(run))?;
             step_from(x, &step, 1.0, &mut trial);
             evaluate(problem, &trial, false, &mut trial_rows);
             let new_energy = trial_rows.energies().total();
@@ -320,9 +335,14 @@ mod tests {
             ..SolverParams::default()
         };
         let mut run = RunState::default();
-        let info = minimise(&Rosenbrock, &mut x, &params, &mut run, &mut |_| {
-            ControlFlow::Continue(())
-        })
+        let info = minimise(
+            &Rosenbrock,
+            &mut x,
+            &params,
+            &mut run,
+            &mut |_| ControlFlow::Continue(()),
+            &Cancel::new(),
+        )
         .expect("solves");
         assert!(
             (x[0] - 1.0).abs() < 1e-6 && (x[1] - 1.0).abs() < 1e-6,
@@ -353,11 +373,86 @@ mod tests {
             &SolverParams::default(),
             &mut RunState::default(),
             &mut |_| ControlFlow::Continue(()),
+            &Cancel::new(),
         )
         .expect_err("NaN");
         assert!(
             matches!(err, DesignError::Diverged { term: "volume", .. }),
             "{err}"
         );
+    }
+
+    /// Rosenbrock, whose first trial point (inside the first iteration)
+    /// has another thread raise the solve's flag and waits until it has.
+    struct RaisedMidIteration {
+        evaluations: std::sync::atomic::AtomicU32,
+        inside: std::sync::Mutex<std::sync::mpsc::Sender<()>>,
+        cancel: Cancel,
+    }
+
+    impl LeastSquares for RaisedMidIteration {
+        fn unknowns(&self) -> usize {
+            2
+        }
+        fn groups(&self) -> usize {
+            1
+        }
+        fn group(&self, g: usize, x: &[Real], rows: &mut Rows) {
+            let call = 1 + self
+                .evaluations
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            if call == 2 {
+                self.inside
+                    .lock()
+                    .expect("not poisoned")
+                    .send(())
+                    .expect("the canceller waits");
+                let start = std::time::Instant::now();
+                while !self.cancel.is_cancelled() {
+                    assert!(
+                        start.elapsed() < std::time::Duration::from_secs(10),
+                        "the flag never went up"
+                    );
+                    std::thread::yield_now();
+                }
+            }
+            Rosenbrock.group(g, x, rows);
+        }
+    }
+
+    #[test]
+    fn a_flag_raised_by_another_thread_stops_the_solve_within_its_iteration() {
+        let cancel = Cancel::new();
+        let (inside, entered) = std::sync::mpsc::channel();
+        let canceller = {
+            let cancel = cancel.clone();
+            std::thread::spawn(move || {
+                entered.recv().expect("the solve reaches its trial point");
+                cancel.cancel();
+            })
+        };
+        let problem = RaisedMidIteration {
+            evaluations: 0.into(),
+            inside: std::sync::Mutex::new(inside),
+            cancel: cancel.clone(),
+        };
+        let mut reports = 0;
+        let mut x = [-1.2, 1.0];
+        let err = minimise(
+            &problem,
+            &mut x,
+            &SolverParams::default(),
+            &mut RunState::default(),
+            // Never breaks: the flag alone stops the solve.
+            &mut |_| {
+                reports += 1;
+                ControlFlow::Continue(())
+            },
+            &cancel,
+        )
+        .expect_err("cancelled");
+        canceller.join().expect("the canceller ends");
+        assert_eq!(err, DesignError::Cancelled { iteration: 1 });
+        assert_eq!(reports, 1, "stopped before the next iteration's report");
     }
 }

@@ -7,7 +7,8 @@ use super::super::params::SolverParams;
 use super::precond::LineBlocks;
 use super::products::Products;
 use super::rows::Rows;
-use crate::linalg::cg::{self, Stopping};
+use crate::cancel::{Cancel, Cancelled};
+use crate::linalg::cg::{self, Stopping, Termination};
 use crate::linalg::{LinOp, Sequential};
 use crate::math::Real;
 
@@ -48,7 +49,8 @@ impl NormalEquations {
     /// Solves `(J^T J + mu D) d = -g`, `D = diag`, into `d` to the
     /// relative residual `params.linear_tolerance` (compared in squares),
     /// stopping at a direction of non-positive or non-finite curvature;
-    /// returns the CG iterations.
+    /// returns the CG iterations, or [`Cancelled`] once `cancel` stopped
+    /// the solve.
     #[allow(clippy::too_many_arguments)]
     pub fn solve(
         &mut self,
@@ -60,7 +62,8 @@ impl NormalEquations {
         g: &[Real],
         d: &mut [Real],
         params: &SolverParams,
-    ) -> u64 {
+        cancel: &Cancel,
+    ) -> Result<u64, Cancelled> {
         self.jp.resize(j.residuals.len(), 0.0);
         self.rhs.clear();
         self.rhs.extend(g.iter().map(|g| -g));
@@ -78,8 +81,13 @@ impl NormalEquations {
             mu,
             jp: &mut self.jp,
         };
-        let info = cg::solve(&mut op, blocks, &self.rhs, d, &params, &mut self.cg);
-        u64::from(info.iterations)
+        let info = cg::solve(&mut op, blocks, &self.rhs, d, &params, &mut self.cg, cancel);
+        match info.termination {
+            Termination::Cancelled => Err(Cancelled),
+            Termination::Converged
+            | Termination::IterationLimit
+            | Termination::Breakdown { .. } => Ok(u64::from(info.iterations)),
+        }
     }
 
     /// `J d`.

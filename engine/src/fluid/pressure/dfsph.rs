@@ -14,6 +14,7 @@
 //! through the gradient of their density (see [`crate::fluid::BoxWalls`]).
 
 use super::{PressureSolver, SolveInfo};
+use crate::cancel::{Cancel, Cancelled};
 use crate::fluid::particles::confine;
 use crate::fluid::reorder::gather;
 use crate::fluid::{Fluid, FluidParams};
@@ -152,7 +153,8 @@ impl PressureSolver for Dfsph {
         min: &Vector,
         max: &Vector,
         timer: &mut StageTimer,
-    ) {
+        cancel: &Cancel,
+    ) -> Result<(), Cancelled> {
         let g = *gravity;
         fluid.accelerations.par_iter_mut().for_each(|a| *a = g);
         if let Some(kernel) = fluid.viscosity_kernel {
@@ -185,8 +187,8 @@ impl PressureSolver for Dfsph {
         });
         fluid.pressures.par_iter_mut().for_each(|p| *p = 0.0);
         let (density_iterations, density_error) = timer.time(Stage::PressureSolve, || {
-            self.solve(fluid, Solve::ConstantDensity, dt)
-        });
+            self.solve(fluid, Solve::ConstantDensity, dt, cancel)
+        })?;
         if let Some(rigid) = &mut fluid.rigid {
             // The solve's total kappa is what `density_kappa` now holds.
             rigid.add_pressure_reaction(&fluid.positions, &self.density_kappa, fluid.params.mass);
@@ -208,9 +210,10 @@ impl PressureSolver for Dfsph {
             fluid.compute_densities();
             self.compute_factors(fluid);
         });
-        let (divergence_iterations, divergence_error) = timer.time(Stage::DivergenceSolve, || {
-            self.solve(fluid, Solve::DivergenceFree, dt)
-        });
+        let (divergence_iterations, divergence_error) = timer
+            .time(Stage::DivergenceSolve, || {
+                self.solve(fluid, Solve::DivergenceFree, dt, cancel)
+            })?;
         if let Some(rigid) = &mut fluid.rigid {
             // The fluid's velocities changed at the end of the sub-step;
             // so do the bodies'.
@@ -227,12 +230,23 @@ impl PressureSolver for Dfsph {
             divergence_iterations,
             divergence_error,
         };
+        Ok(())
     }
 
     /// The warm-start pressures move with their particles; everything
     /// else is recomputed before it is read.
     fn follow(&mut self, order: &[u32], slots: usize) {
         gather(&mut self.density_kappa, order, slots);
+    }
+
+    /// The warm-start pressures of the next constant-density solve.
+    fn save(&self, out: &mut Vec<Real>) {
+        out.clone_from(&self.density_kappa);
+    }
+
+    fn restore(&mut self, saved: &[Real]) {
+        self.density_kappa.clear();
+        self.density_kappa.extend_from_slice(saved);
     }
 
     /// The factors and pair gradients belong to the neighbour lists.
@@ -296,7 +310,16 @@ impl Dfsph {
     /// nothing every sub-step, one particle layer per iteration. The
     /// divergence solve starts from zero: warm-starting it as well made a
     /// resting tank blow up.
-    fn solve(&mut self, fluid: &mut Fluid, solve: Solve, dt: Real) -> (u32, Real) {
+    ///
+    /// Each iteration reads `cancel` (up to `max_iterations` of them, each
+    /// a pass over every particle, can run for seconds).
+    fn solve(
+        &mut self,
+        fluid: &mut Fluid,
+        solve: Solve,
+        dt: Real,
+        cancel: &Cancel,
+    ) -> Result<(u32, Real), Cancelled> {
         let params = self.params;
         let rest = fluid.params.eos.rest_density;
         let n = fluid.len().max(1) as Real;
@@ -326,8 +349,9 @@ impl Dfsph {
                 Solve::DivergenceFree => mean * dt / rest,
             };
             if error <= tolerance || iterations >= params.max_iterations {
-                return (iterations, error);
+                return Ok((iterations, error));
             }
+            cancel.check()?;
             let densities = &fluid.densities;
             self.kappa
                 .par_iter_mut()

@@ -16,6 +16,7 @@ pub use dfsph::{Dfsph, DfsphParams};
 pub use wcsph::Wcsph;
 
 use super::{Fluid, FluidParams};
+use crate::cancel::{Cancel, Cancelled};
 use crate::math::{Real, Vector};
 use crate::stats::StageTimer;
 
@@ -49,7 +50,8 @@ impl Pressure {
 
 /// What a pressure solver does for its fluid. The fluid calls it with its
 /// particles; the solver keeps nothing of theirs but scratch it can
-/// rebuild (a solver's state is the fluid's state).
+/// rebuild and a warm start carried from one sub-step to the next, which
+/// a failed or cancelled step puts back with the fluid's state.
 pub(in crate::fluid) trait PressureSolver {
     /// Sizes the scratch for the fluid's particles and computes what the
     /// solver derives from their densities (pressures, factors): after the
@@ -67,7 +69,10 @@ pub(in crate::fluid) trait PressureSolver {
     fn speed_limit(&self, params: &FluidParams) -> Real;
 
     /// One sub-step of length `dt`, reflecting particles off the walls of
-    /// `[min, max]`, each pass timed under its stage.
+    /// `[min, max]`, each pass timed under its stage. A solver that
+    /// iterates reads `cancel` every iteration and stops with
+    /// [`Cancelled`], the fluid part-way through the sub-step.
+    #[allow(clippy::too_many_arguments)]
     fn substep(
         &mut self,
         fluid: &mut Fluid,
@@ -76,7 +81,8 @@ pub(in crate::fluid) trait PressureSolver {
         min: &Vector,
         max: &Vector,
         timer: &mut StageTimer,
-    );
+        cancel: &Cancel,
+    ) -> Result<(), Cancelled>;
 
     /// The particles moved slots (a sort or a removal): slot `k` now holds
     /// what slot `order[k]` of `slots` held. Scratch carried from one
@@ -86,6 +92,14 @@ pub(in crate::fluid) trait PressureSolver {
     /// Rebuilds what the solver derives from the neighbour lists, after
     /// they were rebuilt between sub-steps (a sort, a restored state).
     fn rebuild(&mut self, fluid: &Fluid);
+
+    /// Copies what the next sub-step starts from (a warm start) into
+    /// `out`, reusing its buffer.
+    fn save(&self, out: &mut Vec<Real>);
+
+    /// Puts back what [`Self::save`] kept, so that a step taken again
+    /// computes what the first attempt would have.
+    fn restore(&mut self, saved: &[Real]);
 }
 
 /// What the solves of the last sub-step achieved.

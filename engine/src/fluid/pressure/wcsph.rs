@@ -7,6 +7,7 @@
 
 use super::PressureSolver;
 use crate::approx::Kernel;
+use crate::cancel::{Cancel, Cancelled};
 use crate::fluid::{BoxWalls, Fluid, FluidParams};
 use crate::math::{Real, Vector};
 use crate::neighbors::NeighborList;
@@ -44,7 +45,8 @@ impl PressureSolver for Wcsph {
         Self::SPEED_LIMIT * params.eos.sound_speed()
     }
 
-    /// One explicit WCSPH sub-step (Algorithm 5).
+    /// One explicit WCSPH sub-step (Algorithm 5): a few passes, nothing
+    /// to cancel within.
     fn substep(
         &mut self,
         fluid: &mut Fluid,
@@ -53,7 +55,8 @@ impl PressureSolver for Wcsph {
         min: &Vector,
         max: &Vector,
         timer: &mut StageTimer,
-    ) {
+        _cancel: &Cancel,
+    ) -> Result<(), Cancelled> {
         timer.time(Stage::NeighborSearch, || fluid.find_neighbors());
         timer.time(Stage::Density, || {
             fluid.compute_densities();
@@ -93,6 +96,7 @@ impl PressureSolver for Wcsph {
             fluid.integrate(dt, min, max);
             fluid.move_bodies(dt, gravity, min, max);
         });
+        Ok(())
     }
 
     /// Nothing to follow: the solver keeps no scratch.
@@ -100,6 +104,13 @@ impl PressureSolver for Wcsph {
 
     /// Nothing to rebuild: pressures come from the next density pass.
     fn rebuild(&mut self, _fluid: &Fluid) {}
+
+    /// No warm start: each sub-step starts from the state alone.
+    fn save(&self, out: &mut Vec<Real>) {
+        out.clear();
+    }
+
+    fn restore(&mut self, _saved: &[Real]) {}
 }
 
 /// `p_i` from `rho_i` by the fluid's equation of state (tutorial Eq. 47).

@@ -7,6 +7,7 @@
 use super::super::body::Body;
 use super::super::forces::InternalForces;
 use super::{SolidStep, finish_substep};
+use crate::cancel::{Cancel, Cancelled};
 use crate::math::{Real, Vector};
 use rayon::prelude::*;
 
@@ -29,26 +30,30 @@ impl Explicit {
 
     /// Advances by `dt` in sub-steps of at most the stability limit, or
     /// in `max_substeps` when it would take more (reported as capped).
+    /// Stops before the next sub-step once `cancel` is raised, `body`
+    /// part-way through the step.
     pub fn step(
         &mut self,
         body: &mut Body,
         dt: Real,
         gravity: &Vector,
         max_substeps: u32,
-    ) -> SolidStep {
+        cancel: &Cancel,
+    ) -> Result<SolidStep, Cancelled> {
         let limit = body.params.stable_dt(self.cfl);
         let wanted = (dt / limit).ceil().max(1.0);
         let count = wanted.min(max_substeps.max(1) as Real);
         let sub = dt / count;
         for _ in 0..count as u32 {
+            cancel.check()?;
             self.substep(body, sub, gravity);
         }
-        SolidStep {
+        Ok(SolidStep {
             substeps: count as u32,
             min_substep: sub,
             capped: wanted > count,
             ..SolidStep::default()
-        }
+        })
     }
 
     /// One symplectic Euler sub-step: forces at the current state,

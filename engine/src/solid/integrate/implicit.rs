@@ -25,7 +25,8 @@ use super::super::material::StressState;
 use super::super::params::ImplicitParams;
 use super::direct::Direct;
 use super::{SolidStep, finish_substep};
-use crate::linalg::cg::{self, Stopping};
+use crate::cancel::{Cancel, Cancelled};
+use crate::linalg::cg::{self, Stopping, Termination};
 use crate::linalg::{LinOp, Parallel, Precond, Space};
 use crate::math::{Real, Vector};
 use rayon::prelude::*;
@@ -118,8 +119,16 @@ impl Implicit {
         self.direct.factor_bytes()
     }
 
-    /// One backward Euler step.
-    pub fn step(&mut self, body: &mut Body, dt: Real, gravity: &Vector) -> SolidStep {
+    /// One backward Euler step; stops at the next Newton or CG iteration
+    /// once `cancel` is raised, `body` as it was (the step only writes it
+    /// after Newton ends).
+    pub fn step(
+        &mut self,
+        body: &mut Body,
+        dt: Real,
+        gravity: &Vector,
+        cancel: &Cancel,
+    ) -> Result<SolidStep, Cancelled> {
         self.resize(body.len(), body.topology.owner.len());
         self.v_new.clone_from(&body.velocities);
         let settings = self.settings;
@@ -141,6 +150,7 @@ impl Implicit {
                 .sqrt();
         let mut first = None;
         for _ in 0..settings.max_newton_iterations.max(1) {
+            cancel.check()?;
             // Phi at the iterate; leaves the forces and states there.
             let phi = objective(
                 body,
@@ -176,7 +186,7 @@ impl Implicit {
                 );
             if !direct {
                 fallbacks += u32::from(factorises);
-                cg += self.cg_direction(body, dt);
+                cg += self.cg_direction(body, dt, cancel)?;
             }
             if !self.line_search(body, dt, gravity, phi) {
                 break;
@@ -188,7 +198,7 @@ impl Implicit {
             .zip(&body.velocities)
             .for_each(|(x, v)| *x += v * dt);
         finish_substep(body, &self.forces.states);
-        SolidStep {
+        Ok(SolidStep {
             substeps: 1,
             min_substep: dt,
             capped: false,
@@ -196,12 +206,13 @@ impl Implicit {
             newton_iterations: newton,
             cholesky_fallbacks: fallbacks,
             residual,
-        }
+        })
     }
 
     /// Solves `H d = -grad Phi` into `self.direction` by preconditioned
-    /// CG; returns the CG iterations.
-    fn cg_direction(&mut self, body: &Body, dt: Real) -> u32 {
+    /// CG; returns the CG iterations, or [`Cancelled`] when `cancel` stopped
+    /// the solve.
+    fn cg_direction(&mut self, body: &Body, dt: Real, cancel: &Cancel) -> Result<u32, Cancelled> {
         let model = body.model();
         // Jacobi preconditioner: the mass, the damping and a stiffness
         // estimate from the squared gradient weights touching each
@@ -245,15 +256,21 @@ impl Implicit {
             dt,
             buffers: &mut self.product,
         };
-        cg::solve(
+        let info = cg::solve(
             &mut hessian,
             &Jacobi(&self.inverse_diagonal),
             &self.rhs,
             &mut self.direction,
             &params,
             &mut self.cg,
-        )
-        .iterations
+            cancel,
+        );
+        match info.termination {
+            Termination::Cancelled => Err(Cancelled),
+            Termination::Converged
+            | Termination::IterationLimit
+            | Termination::Breakdown { .. } => Ok(info.iterations),
+        }
     }
 
     /// Backtracking (Armijo) search along `self.direction` from

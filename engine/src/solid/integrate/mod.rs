@@ -19,6 +19,7 @@ mod implicit;
 use super::body::Body;
 use super::material::StressState;
 use super::params;
+use crate::cancel::{Cancel, Cancelled};
 use crate::math::{Real, Vector};
 use explicit::Explicit;
 use implicit::Implicit;
@@ -69,17 +70,19 @@ impl Integrator {
         }
     }
 
-    /// Advances `body` by `dt` under `gravity`.
+    /// Advances `body` by `dt` under `gravity`, or stops at the next
+    /// sub-step, Newton or CG iteration once `cancel` is raised.
     pub fn step(
         &mut self,
         body: &mut Body,
         dt: Real,
         gravity: &Vector,
         max_substeps: u32,
-    ) -> SolidStep {
+        cancel: &Cancel,
+    ) -> Result<SolidStep, Cancelled> {
         match self {
-            Self::Explicit(e) => e.step(body, dt, gravity, max_substeps),
-            Self::Implicit(i) => i.step(body, dt, gravity),
+            Self::Explicit(e) => e.step(body, dt, gravity, max_substeps, cancel),
+            Self::Implicit(i) => i.step(body, dt, gravity, cancel),
         }
     }
 

@@ -1,0 +1,75 @@
+//! Stopping long work from another thread. One step can run for seconds
+//! (a large `time.dt` split into many sub-steps, an implicit solid's
+//! Newton loop, a CG solve) and so can an optimisation; whoever started
+//! it may need it back sooner (a pause, a deletion, a client that gave
+//! up). A [`Cancel`] is raised by the other thread and read by the work
+//! at its loop heads: once per sub-step, per Newton or Levenberg–Marquardt
+//! iteration and per CG iteration, each a relaxed atomic load, so the
+//! work stops within one of those iterations and an uncancelled run
+//! computes exactly what it did without the checks.
+//!
+//! Cancelled work reports [`Cancelled`] and leaves its owner at a
+//! consistent state: a world goes back to the start of the step (see
+//! [`crate::World::step_cancellable`]), a design solve changes nothing.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// A cancellation flag shared by the work and whoever may stop it: clones
+/// share one flag, and once raised it stays raised (make a new one for
+/// the next piece of work).
+#[derive(Debug, Clone, Default)]
+pub struct Cancel(Arc<AtomicBool>);
+
+impl Cancel {
+    /// A flag not raised yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Asks the work holding a clone to stop at its next check.
+    pub fn cancel(&self) {
+        // Relaxed: the flag orders nothing else; the working thread only
+        // needs to see it eventually, and sees it within one iteration.
+        self.0.store(true, Ordering::Relaxed);
+    }
+
+    /// Whether [`Self::cancel`] was called on this flag or a clone.
+    pub fn is_cancelled(&self) -> bool {
+        self.0.load(Ordering::Relaxed)
+    }
+
+    /// [`Cancelled`] once raised, to end work with `?`.
+    ///
+    /// # Errors
+    /// [`Cancelled`] when the flag is raised.
+    pub fn check(&self) -> Result<(), Cancelled> {
+        if self.is_cancelled() {
+            Err(Cancelled)
+        } else {
+            Ok(())
+        }
+    }
+}
+
+/// Work stopped because its [`Cancel`] was raised.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("cancelled")]
+pub struct Cancelled;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clones_share_one_flag_that_stays_raised() {
+        let cancel = Cancel::new();
+        let other = cancel.clone();
+        assert!(!cancel.is_cancelled());
+        assert_eq!(cancel.check(), Ok(()));
+        other.cancel();
+        assert!(cancel.is_cancelled());
+        assert_eq!(cancel.check(), Err(Cancelled));
+        assert!(!Cancel::new().is_cancelled(), "a new flag is its own");
+    }
+}
