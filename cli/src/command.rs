@@ -88,7 +88,7 @@ impl ServerArg {
     /// Connects to `--server` with the token and client id given.
     ///
     /// # Errors
-    /// As [`Client::connect_as`].
+    /// As [`meshless_client::Client::connect_as`].
     pub async fn connect(&self) -> Result<meshless_client::Client, meshless_client::ClientError> {
         meshless_client::Client::connect_as(
             &self.server,

@@ -70,7 +70,7 @@ pub enum ShapeSpec {
 
 impl ShapeSpec {
     /// Loads the file a mesh shape names into its `data` under `files`
-    /// (see [`super::mesh`]); other shapes, and meshes that carry their
+    /// (see [`MeshFiles`]); other shapes, and meshes that carry their
     /// data, are left as they are. `at` names the shape's field in errors.
     ///
     /// # Errors
