@@ -153,8 +153,9 @@ fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
     a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
 }
 
-/// Checks a principal name or client id.
-fn check_name(name: &str) -> Result<(), String> {
+/// Checks a principal name, client id or observer: the one rule for all
+/// three, so a name that may own a session may also observe one.
+pub(crate) fn check_name(name: &str) -> Result<(), String> {
     let allowed = |c: char| c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-');
     if name.is_empty() || name.len() > MAX_NAME_BYTES || !name.chars().all(allowed) {
         return Err(format!(
@@ -207,14 +208,9 @@ impl tonic::service::Interceptor for Authenticator {
             Some(value) => {
                 let id = value
                     .to_str()
-                    .ok()
-                    .filter(|id| check_name(id).is_ok())
-                    .ok_or_else(|| {
-                        Status::invalid_argument(format!(
-                            "{CLIENT_ID}: must be 1 to {MAX_NAME_BYTES} letters, digits, '.', \
-                             '_' or '-'"
-                        ))
-                    })?;
+                    .map_err(|_| "must be visible ASCII".to_owned())
+                    .and_then(|id| check_name(id).map(|()| id))
+                    .map_err(|e| Status::invalid_argument(format!("{CLIENT_ID}: {e}")))?;
                 Some(Arc::from(id))
             }
         };

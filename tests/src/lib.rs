@@ -168,3 +168,86 @@ impl ServerProcess {
         Ok(within("server exit after SIGTERM", self.child.wait()).await?)
     }
 }
+
+/// A temporary directory, removed when dropped.
+#[derive(Debug)]
+pub struct TempDir(pub PathBuf);
+
+impl TempDir {
+    /// An empty directory `meshless-{name}-{pid}` under the system's
+    /// temporary directory.
+    ///
+    /// # Panics
+    /// When it cannot be created.
+    pub fn new(name: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("meshless-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        Self(dir)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// A shipped mesh, `scenes/meshes/{name}`.
+pub fn shipped_mesh(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../scenes/meshes")
+        .join(name)
+}
+
+/// A server mesh directory, `{root}/meshes`, laid out as a hostile client
+/// would wish: `ball.obj` (a good mesh), and three traps, `out.obj` (a
+/// link to `{root}/secret.obj`, outside it), `zero.obj` (a link to
+/// `/dev/zero`) and `fifo.obj` (a FIFO).
+///
+/// # Panics
+/// When the files, links or FIFO cannot be made.
+pub fn hostile_mesh_dir(name: &str) -> TempDir {
+    let dir = TempDir::new(name);
+    let meshes = dir.0.join("meshes");
+    std::fs::create_dir_all(&meshes).expect("mesh dir");
+    let ball = shipped_mesh("icosphere.obj");
+    std::fs::copy(&ball, meshes.join("ball.obj")).expect("copy");
+    std::fs::copy(&ball, dir.0.join("secret.obj")).expect("copy");
+    std::os::unix::fs::symlink(dir.0.join("secret.obj"), meshes.join("out.obj")).expect("link");
+    std::os::unix::fs::symlink("/dev/zero", meshes.join("zero.obj")).expect("link");
+    let made = std::process::Command::new("mkfifo")
+        .arg(meshes.join("fifo.obj"))
+        .status();
+    assert!(made.is_ok_and(|s| s.success()), "mkfifo");
+    dir
+}
+
+/// An edit adding obstacle `name` whose shape is the mesh at `path`,
+/// standing at the origin.
+pub fn mesh_obstacle(name: &str, path: &str) -> meshless_client::v1::ConstraintEdit {
+    use meshless_client::v1;
+    v1::ConstraintEdit {
+        edit: Some(v1::constraint_edit::Edit::Add(v1::Constraint {
+            name: name.into(),
+            kind: Some(v1::constraint::Kind::Obstacle(v1::ObstacleConstraint {
+                shape: Some(v1::Shape {
+                    kind: Some(v1::shape::Kind::Mesh(v1::MeshShape {
+                        path: path.into(),
+                        scale: None,
+                        data: None,
+                    })),
+                }),
+                orientation: None,
+                path: vec![v1::Waypoint {
+                    time: 0.0,
+                    position: Some(v1::Vec3 {
+                        x: 0.0,
+                        y: 0.0,
+                        z: 0.0,
+                    }),
+                }],
+            })),
+        })),
+    }
+}

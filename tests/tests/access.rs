@@ -9,31 +9,16 @@
 //! unreadable ones in its errors.
 
 use meshless_client::{ClientError, Identity, v1};
-use meshless_tests::{ServerProcess, binary, small_scene, within};
-use std::path::{Path, PathBuf};
+use meshless_tests::{
+    ServerProcess, TempDir, binary, hostile_mesh_dir, mesh_obstacle, shipped_mesh, small_scene,
+    within,
+};
+use std::path::Path;
 use tonic::Code;
 
 const ALICE: &str = "alice-token-0123456789";
 const BOB: &str = "bob-token-0123456789ab";
 const CAROL: &str = "carol-token-0123456789";
-
-/// A directory removed when dropped.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("meshless-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("temp dir");
-        Self(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 fn identity(token: &str, client_id: Option<&str>, take_over: bool) -> Identity {
     Identity {
@@ -254,25 +239,10 @@ fn mesh_scene(shape: &str) -> String {
     )
 }
 
-fn shipped_mesh(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../scenes/meshes")
-        .join(name)
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn scenes_read_only_the_mesh_directory_and_nothing_of_the_host() {
-    let dir = TempDir::new("mesh-dir");
+    let dir = hostile_mesh_dir("mesh-dir");
     let meshes = dir.0.join("meshes");
-    std::fs::create_dir_all(&meshes).expect("mesh dir");
-    std::fs::copy(shipped_mesh("icosphere.obj"), meshes.join("ball.obj")).expect("copy");
-    std::fs::copy(shipped_mesh("icosphere.obj"), dir.0.join("secret.obj")).expect("copy");
-    std::os::unix::fs::symlink(dir.0.join("secret.obj"), meshes.join("out.obj")).expect("link");
-    std::os::unix::fs::symlink("/dev/zero", meshes.join("zero.obj")).expect("link");
-    let fifo = meshes.join("fifo.obj");
-    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
-    assert!(made.is_ok_and(|s| s.success()), "mkfifo");
-
     let server = ServerProcess::spawn(&["--mesh-dir", meshes.to_str().expect("utf-8")])
         .await
         .expect("server starts");
@@ -314,32 +284,9 @@ async fn scenes_read_only_the_mesh_directory_and_nothing_of_the_host() {
 
     // An obstacle's mesh is read under the same rules, and a refused
     // edit changes nothing.
-    let obstacle = |path: &str| v1::ConstraintEdit {
-        edit: Some(v1::constraint_edit::Edit::Add(v1::Constraint {
-            name: "wall".into(),
-            kind: Some(v1::constraint::Kind::Obstacle(v1::ObstacleConstraint {
-                shape: Some(v1::Shape {
-                    kind: Some(v1::shape::Kind::Mesh(v1::MeshShape {
-                        path: path.into(),
-                        scale: None,
-                        data: None,
-                    })),
-                }),
-                orientation: None,
-                path: vec![v1::Waypoint {
-                    time: 0.0,
-                    position: Some(v1::Vec3 {
-                        x: 0.0,
-                        y: 0.0,
-                        z: 0.0,
-                    }),
-                }],
-            })),
-        })),
-    };
     let err = within(
         "edit",
-        client.edit_constraints(&ball.id, vec![obstacle("../secret.obj")]),
+        client.edit_constraints(&ball.id, vec![mesh_obstacle("wall", "../secret.obj")]),
     )
     .await
     .expect_err("outside the directory");

@@ -12,9 +12,10 @@
 //! values of every kind.
 
 use meshless_client::{ClientError, Identity, v1};
-use meshless_tests::{ServerProcess, small_scene, small_solid_scene, within};
+use meshless_tests::{
+    ServerProcess, hostile_mesh_dir, mesh_obstacle, small_scene, small_solid_scene, within,
+};
 use std::collections::HashMap;
-use std::path::PathBuf;
 use tonic::Code;
 
 const ALICE: &str = "alice-token-0123456789";
@@ -133,33 +134,6 @@ fn mesh_path(path: &str) -> String {
     with_mesh(&format!(
         "{{ type = \"mesh\", path = {path:?}, scale = 0.05 }}"
     ))
-}
-
-/// An obstacle constraint named `name` whose mesh is `path`.
-fn obstacle(name: &str, path: &str) -> v1::ConstraintEdit {
-    v1::ConstraintEdit {
-        edit: Some(v1::constraint_edit::Edit::Add(v1::Constraint {
-            name: name.into(),
-            kind: Some(v1::constraint::Kind::Obstacle(v1::ObstacleConstraint {
-                shape: Some(v1::Shape {
-                    kind: Some(v1::shape::Kind::Mesh(v1::MeshShape {
-                        path: path.into(),
-                        scale: None,
-                        data: None,
-                    })),
-                }),
-                orientation: None,
-                path: vec![v1::Waypoint {
-                    time: 0.0,
-                    position: Some(v1::Vec3 {
-                        x: 0.0,
-                        y: 0.0,
-                        z: 0.0,
-                    }),
-                }],
-            })),
-        })),
-    }
 }
 
 fn sphere_obstacle(name: &str, radius: f64) -> v1::ConstraintEdit {
@@ -282,9 +256,9 @@ fn cases() -> Vec<Case> {
         case("the same name twice in a batch", Alice, Edit(v(), vec![sphere_obstacle("twin", 0.1), sphere_obstacle("twin", 0.1)]), InvalidArgument, "twin"),
         case("a good edit then a bad one", Alice, Edit(v(), vec![sphere_obstacle("fine", 0.1), sphere_obstacle("bad", f64::NAN)]), InvalidArgument, "bad"),
         case("an edit with nothing in it", Alice, Edit(v(), vec![v1::ConstraintEdit { edit: None }]), InvalidArgument, "edits[0]"),
-        case("obstacle mesh outside the directory", Alice, Edit(v(), vec![obstacle("wall", "../secret.obj")]), InvalidArgument, "wall"),
-        case("obstacle mesh at an absolute path", Alice, Edit(v(), vec![obstacle("wall", "/etc/passwd.obj")]), InvalidArgument, "wall"),
-        case("obstacle mesh on a FIFO", Alice, Edit(v(), vec![obstacle("wall", "fifo.obj")]), InvalidArgument, "wall"),
+        case("obstacle mesh outside the directory", Alice, Edit(v(), vec![mesh_obstacle("wall", "../secret.obj")]), InvalidArgument, "wall"),
+        case("obstacle mesh at an absolute path", Alice, Edit(v(), vec![mesh_obstacle("wall", "/etc/passwd.obj")]), InvalidArgument, "wall"),
+        case("obstacle mesh on a FIFO", Alice, Edit(v(), vec![mesh_obstacle("wall", "fifo.obj")]), InvalidArgument, "wall"),
         // Authentication: UNAUTHENTICATED before anything is done.
         case("no token: info", Nobody, Info, Unauthenticated, "token"),
         case("no token: create", Nobody, Toml(small_scene()), Unauthenticated, "token"),
@@ -401,19 +375,9 @@ const MEMORY_BOUND: u64 = 512 << 20;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn hostile_requests_are_refused_and_change_nothing() {
-    let dir = std::env::temp_dir().join(format!("meshless-hostile-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let fixture = hostile_mesh_dir("hostile");
+    let dir = &fixture.0;
     let meshes = dir.join("meshes");
-    std::fs::create_dir_all(&meshes).expect("dirs");
-    let ball = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes/meshes/icosphere.obj");
-    std::fs::copy(&ball, meshes.join("ball.obj")).expect("copy");
-    std::fs::copy(&ball, dir.join("secret.obj")).expect("copy");
-    std::os::unix::fs::symlink(dir.join("secret.obj"), meshes.join("out.obj")).expect("link");
-    std::os::unix::fs::symlink("/dev/zero", meshes.join("zero.obj")).expect("link");
-    let made = std::process::Command::new("mkfifo")
-        .arg(meshes.join("fifo.obj"))
-        .status();
-    assert!(made.is_ok_and(|s| s.success()), "mkfifo");
     let tokens = dir.join("tokens");
     std::fs::write(
         &tokens,
@@ -545,5 +509,4 @@ async fn hostile_requests_are_refused_and_change_nothing() {
         failures.join("\n")
     );
     server.terminate().await.expect("stops");
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -157,15 +157,12 @@ fn read_inside(
     if !target.starts_with(&root) {
         return Err(absent());
     }
-    read_regular_file(&target, max_bytes).map_err(|e| {
-        if e.kind() == std::io::ErrorKind::InvalidInput && e.to_string().contains("limit") {
-            SceneError::invalid(
-                field,
-                format!("is larger than this host's limit of {max_bytes} bytes"),
-            )
-        } else {
-            absent()
-        }
+    read_regular_file(&target, max_bytes).map_err(|e| match e.kind() {
+        std::io::ErrorKind::FileTooLarge => SceneError::invalid(
+            field,
+            format!("is larger than this host's limit of {max_bytes} bytes"),
+        ),
+        _ => absent(),
     })
 }
 

@@ -119,21 +119,11 @@ pub fn check_observers(observers: &[String]) -> Result<(), ServiceError> {
             ),
         ));
     }
-    let allowed = |c: char| c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-');
     for (k, name) in observers.iter().enumerate() {
-        let valid = name == EVERYONE
-            || (!name.is_empty()
-                && name.len() <= crate::auth::MAX_NAME_BYTES
-                && name.chars().all(allowed));
-        if !valid {
-            return Err(ServiceError::invalid(
-                format!("observers[{k}]"),
-                format!(
-                    "must be a principal's name (1 to {} letters, digits, '.', '_' or '-') \
-                     or \"*\"",
-                    crate::auth::MAX_NAME_BYTES
-                ),
-            ));
+        if name != EVERYONE {
+            crate::auth::check_name(name).map_err(|e| {
+                ServiceError::invalid(format!("observers[{k}]"), format!("{e}, or \"*\""))
+            })?;
         }
     }
     Ok(())

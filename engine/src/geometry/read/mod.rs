@@ -108,15 +108,18 @@ pub fn parse(label: &Path, format: MeshFormat, bytes: &[u8]) -> Result<LoadedMes
 /// past the limit while read is refused rather than read on.
 ///
 /// # Errors
-/// The I/O error, or one of kind `InvalidInput` saying which limit.
+/// The I/O error; `InvalidInput` for anything but a regular file,
+/// `FileTooLarge` past the limit.
 pub fn read_regular_file(path: &Path, max_bytes: u64) -> std::io::Result<Vec<u8>> {
-    let invalid = |message: String| std::io::Error::new(std::io::ErrorKind::InvalidInput, message);
+    use std::io::{Error, ErrorKind};
+    let invalid = |message: &str| Error::new(ErrorKind::InvalidInput, message);
+    let too_large = |message: String| Error::new(ErrorKind::FileTooLarge, message);
     let metadata = std::fs::metadata(path)?;
     if !metadata.is_file() {
-        return Err(invalid("not a regular file".into()));
+        return Err(invalid("not a regular file"));
     }
     if metadata.len() > max_bytes {
-        return Err(invalid(format!(
+        return Err(too_large(format!(
             "{} bytes, over the limit of {max_bytes}",
             metadata.len()
         )));
@@ -124,12 +127,12 @@ pub fn read_regular_file(path: &Path, max_bytes: u64) -> std::io::Result<Vec<u8>
     let file = std::fs::File::open(path)?;
     // The file may have been swapped between the check and the open.
     if !file.metadata()?.is_file() {
-        return Err(invalid("not a regular file".into()));
+        return Err(invalid("not a regular file"));
     }
     let mut bytes = Vec::with_capacity(metadata.len() as usize);
     file.take(max_bytes + 1).read_to_end(&mut bytes)?;
     if bytes.len() as u64 > max_bytes {
-        return Err(invalid(format!("over the limit of {max_bytes} bytes")));
+        return Err(too_large(format!("over the limit of {max_bytes} bytes")));
     }
     Ok(bytes)
 }
@@ -233,6 +236,7 @@ mod tests {
         let file = dir.join("big.obj");
         std::fs::write(&file, vec![b'#'; 4096]).expect("write");
         let err = read_regular_file(&file, 1000).expect_err("over the limit");
+        assert_eq!(err.kind(), std::io::ErrorKind::FileTooLarge, "{err}");
         assert!(err.to_string().contains("limit of 1000"), "{err}");
         assert_eq!(
             read_regular_file(&file, 4096).expect("at the limit").len(),
