@@ -82,23 +82,52 @@ pub struct ServerArg {
     /// Take control of a session another client instance drives.
     #[arg(long, global = true)]
     pub take_over: bool,
+    /// The CA (PEM) that signed an `https://` server's certificate
+    /// (default: the public web CAs).
+    #[arg(long, global = true, env = "MESHLESS_TLS_CA")]
+    pub tls_ca: Option<std::path::PathBuf>,
+    /// This client's certificate (PEM), for a server that asks for one.
+    #[arg(long, global = true, env = "MESHLESS_TLS_CERT", requires = "tls_key")]
+    pub tls_cert: Option<std::path::PathBuf>,
+    /// The private key of `--tls-cert` (PEM).
+    #[arg(long, global = true, env = "MESHLESS_TLS_KEY", requires = "tls_cert")]
+    pub tls_key: Option<std::path::PathBuf>,
+    /// The name the server's certificate carries, when not the URL's host.
+    #[arg(long, global = true, env = "MESHLESS_TLS_DOMAIN")]
+    pub tls_domain: Option<String>,
 }
 
 impl ServerArg {
-    /// Connects to `--server` with the token and client id given.
+    /// Connects to `--server` with the token, client id and TLS files
+    /// given.
     ///
     /// # Errors
-    /// As [`meshless_client::Client::connect_as`].
-    pub async fn connect(&self) -> Result<meshless_client::Client, meshless_client::ClientError> {
-        meshless_client::Client::connect_as(
-            &self.server,
-            &meshless_client::Identity {
-                token: self.token.clone(),
-                client_id: self.client_id.clone(),
-                take_over: self.take_over,
+    /// An unreadable TLS file, or as
+    /// [`meshless_client::Client::connect_with`].
+    pub async fn connect(&self) -> anyhow::Result<meshless_client::Client> {
+        let read = |path: &std::path::Path, flag: &str| {
+            std::fs::read(path).map_err(|e| anyhow::anyhow!("{flag} {}: {e}", path.display()))
+        };
+        let tls = meshless_client::Tls {
+            ca: self
+                .tls_ca
+                .as_deref()
+                .map(|path| read(path, "--tls-ca"))
+                .transpose()?,
+            client: match (&self.tls_cert, &self.tls_key) {
+                (Some(cert), Some(key)) => {
+                    Some((read(cert, "--tls-cert")?, read(key, "--tls-key")?))
+                }
+                _ => None,
             },
-        )
-        .await
+            domain: self.tls_domain.clone(),
+        };
+        let identity = meshless_client::Identity {
+            token: self.token.clone(),
+            client_id: self.client_id.clone(),
+            take_over: self.take_over,
+        };
+        Ok(meshless_client::Client::connect_with(&self.server, &identity, &tls).await?)
     }
 }
 

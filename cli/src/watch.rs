@@ -16,6 +16,10 @@ pub struct WatchArgs {
     /// Zenoh endpoints to subscribe through (default: the server's own).
     #[arg(long, value_delimiter = ',')]
     zenoh: Vec<String>,
+    /// A zenoh configuration file (JSON5) to connect with: the CA of
+    /// `tls/` endpoints, a client certificate, a user and password.
+    #[arg(long, env = "MESHLESS_ZENOH_CONFIG")]
+    zenoh_config: Option<std::path::PathBuf>,
     /// Stop after this many frames.
     #[arg(long)]
     frames: Option<u64>,
@@ -35,7 +39,12 @@ pub async fn watch(args: WatchArgs) -> Result<()> {
     } else {
         args.zenoh
     };
-    let link = ZenohLink::connect(&endpoints).await?;
+    let config = match &args.zenoh_config {
+        Some(path) => zenoh::Config::from_file(path)
+            .map_err(|e| anyhow::anyhow!("--zenoh-config {}: {e}", path.display()))?,
+        None => zenoh::Config::default(),
+    };
+    let link = ZenohLink::connect_with(&endpoints, config).await?;
     let frames = link.frames(&args.session).await?;
     println!("watching {} through {}", args.session, endpoints.join(","));
     let start = Instant::now();

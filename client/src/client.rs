@@ -5,7 +5,7 @@ use meshless_proto::v1::{self, simulation_client::SimulationClient};
 use tokio_stream::{Stream, StreamExt};
 use tonic::metadata::{AsciiMetadataValue, MetadataKey};
 use tonic::service::interceptor::InterceptedService;
-use tonic::transport::{Channel, Endpoint};
+use tonic::transport::{Certificate, Channel, ClientTlsConfig, Endpoint};
 
 /// Who a client is to the server, sent with every call.
 #[derive(Clone, Default, PartialEq, Eq)]
@@ -30,6 +30,48 @@ impl std::fmt::Debug for Identity {
             .field("client_id", &self.client_id)
             .field("take_over", &self.take_over)
             .finish()
+    }
+}
+
+/// How a client checks a server it reaches over `https://` and, where the
+/// server asks for one (mutual TLS), the certificate it shows. The
+/// default trusts the public web CAs and shows none.
+#[derive(Clone, Default, PartialEq, Eq)]
+pub struct Tls {
+    /// The CA (PEM) that signed the server's certificate, in place of the
+    /// public web CAs.
+    pub ca: Option<Vec<u8>>,
+    /// The certificate chain and private key (PEM) this client presents.
+    pub client: Option<(Vec<u8>, Vec<u8>)>,
+    /// The name the server's certificate must carry when it is not the
+    /// URL's host (a server reached by an address or through a tunnel).
+    pub domain: Option<String>,
+}
+
+/// The private key is a secret: debug output shows only whether there is one.
+impl std::fmt::Debug for Tls {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Tls")
+            .field("ca", &self.ca.as_ref().map(|_| "<set>"))
+            .field("client", &self.client.as_ref().map(|_| "<set>"))
+            .field("domain", &self.domain)
+            .finish()
+    }
+}
+
+impl Tls {
+    fn client_config(&self) -> ClientTlsConfig {
+        let mut config = match &self.ca {
+            Some(ca) => ClientTlsConfig::new().ca_certificate(Certificate::from_pem(ca)),
+            None => ClientTlsConfig::new().with_webpki_roots(),
+        };
+        if let Some((cert, key)) = &self.client {
+            config = config.identity(tonic::transport::Identity::from_pem(cert, key));
+        }
+        if let Some(domain) = &self.domain {
+            config = config.domain_name(domain.clone());
+        }
+        config
     }
 }
 
@@ -119,6 +161,18 @@ impl Client {
     /// [`ClientError::Connect`] when the URL is malformed or unreachable,
     /// or the token or client id is not visible ASCII.
     pub async fn connect_as(url: &str, identity: &Identity) -> Result<Self> {
+        Self::connect_with(url, identity, &Tls::default()).await
+    }
+
+    /// Connects to a server at `url` as `identity`; an `https://` URL
+    /// checks the server's certificate and shows the client's as `tls`
+    /// says.
+    ///
+    /// # Errors
+    /// As [`Client::connect_as`]; a TLS setting on an `http://` URL, and
+    /// a certificate the server or this client refuses (the message says
+    /// which).
+    pub async fn connect_with(url: &str, identity: &Identity, tls: &Tls) -> Result<Self> {
         let stamp = Stamp::new(identity).map_err(|message| ClientError::Connect {
             url: url.to_owned(),
             message,
@@ -139,11 +193,20 @@ impl Client {
                 message,
             }
         };
-        let channel = Endpoint::from_shared(url.to_owned())
-            .map_err(connect_error)?
-            .connect()
-            .await
-            .map_err(connect_error)?;
+        let mut endpoint = Endpoint::from_shared(url.to_owned()).map_err(connect_error)?;
+        if url.starts_with("https://") {
+            endpoint = endpoint
+                .tls_config(tls.client_config())
+                .map_err(connect_error)?;
+        } else if *tls != Tls::default() {
+            return Err(ClientError::Connect {
+                url: url.to_owned(),
+                message: "TLS settings (a CA, a client certificate, a domain) need an \
+                          https:// URL"
+                    .into(),
+            });
+        }
+        let channel = endpoint.connect().await.map_err(connect_error)?;
         let grpc = SimulationClient::with_interceptor(channel, stamp)
             .max_decoding_message_size(usize::MAX)
             .max_encoding_message_size(64 * 1024 * 1024);
@@ -443,5 +506,34 @@ impl Client {
     /// malformed one.
     pub async fn get_design(&self, id: &str) -> Result<Design> {
         Design::from_proto(self.grpc().get_design(session_ref(id)).await?.into_inner())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[tokio::test]
+    async fn tls_settings_on_a_plain_url_are_refused_before_connecting() {
+        let tls = Tls {
+            ca: Some(b"-----BEGIN CERTIFICATE-----".to_vec()),
+            ..Tls::default()
+        };
+        // Port 9 (discard) is never dialled: the check comes first.
+        let e = Client::connect_with("http://127.0.0.1:9", &Identity::default(), &tls)
+            .await
+            .expect_err("refused");
+        assert!(e.to_string().contains("https://"), "{e}");
+    }
+
+    #[test]
+    fn debug_output_hides_the_private_key() {
+        let tls = Tls {
+            client: Some((b"cert".to_vec(), b"SECRET KEY".to_vec())),
+            ..Tls::default()
+        };
+        let shown = format!("{tls:?}");
+        assert!(!shown.contains("SECRET"), "{shown}");
+        assert!(shown.contains("<set>"), "{shown}");
     }
 }

@@ -31,7 +31,7 @@ mod frame;
 mod link;
 mod scene_file;
 
-pub use client::{Client, Identity};
+pub use client::{Client, Identity, Tls};
 pub use design::{Design, DesignKind, OptimizeEvent};
 pub use error::ClientError;
 pub use frame::{FieldView, FrameView, SolidSurfaceView, SurfaceView};

@@ -29,12 +29,22 @@ impl ZenohLink {
     /// # Errors
     /// [`ClientError::Zenoh`] when no endpoint can be reached.
     pub async fn connect(endpoints: &[String]) -> Result<Self> {
+        Self::connect_with(endpoints, zenoh::Config::default()).await
+    }
+
+    /// [`ZenohLink::connect`] starting from `config`, zenoh's own
+    /// configuration (e.g. `zenoh::Config::from_file`): the CA of `tls/`
+    /// endpoints, a client certificate, a user and password. The mode,
+    /// the endpoints and scouting are set over it.
+    ///
+    /// # Errors
+    /// As [`ZenohLink::connect`].
+    pub async fn connect_with(endpoints: &[String], mut config: zenoh::Config) -> Result<Self> {
         if endpoints.is_empty() {
             return Err(ClientError::Zenoh(
                 "no zenoh endpoint to connect to; pass the server's or a router's".into(),
             ));
         }
-        let mut config = zenoh::Config::default();
         let endpoints_json = format!(
             "[{}]",
             endpoints

@@ -26,6 +26,19 @@ impl ZenohMode {
     }
 }
 
+/// Who may publish on the session keys (`meshless/v1/sessions/**`)
+/// through the server's zenoh session.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ZenohPublishers {
+    /// Only the server: zenoh's access control drops every put, delete,
+    /// queryable and reply that other peers send on any key, so no peer
+    /// can forge a frame, a status or a latest-frame answer (the default).
+    Server,
+    /// Any peer: for a zenoh network whose router enforces its own access
+    /// control, and for tests of the subscribers' own checks.
+    Any,
+}
+
 /// Default of `--max-particles`.
 pub const DEFAULT_MAX_PARTICLES: u64 = 2_000_000;
 /// Default of `--max-sessions`.
@@ -51,8 +64,9 @@ pub struct ServerConfig {
     #[arg(long, env = "MESHLESS_ZENOH_MODE", value_enum, default_value = "peer")]
     pub zenoh_mode: ZenohMode,
 
-    /// Zenoh endpoints to listen on (peer mode), comma separated; a TCP
-    /// port 0 picks a free port.
+    /// Zenoh endpoints to listen on (peer mode), comma separated, `tcp/`
+    /// or `tls/` (whose certificate `--zenoh-config` names); port 0 picks
+    /// a free port.
     #[arg(
         long,
         env = "MESHLESS_ZENOH_LISTEN",
@@ -64,6 +78,37 @@ pub struct ServerConfig {
     /// Zenoh endpoints to connect to, e.g. a router at `tcp/zenohd:7447`.
     #[arg(long, env = "MESHLESS_ZENOH_CONNECT", value_delimiter = ',')]
     pub zenoh_connect: Vec<String>,
+
+    /// A zenoh configuration file (JSON5, zenoh's own format) the
+    /// server's session starts from: TLS certificates for `tls/`
+    /// endpoints, user-password authentication, anything zenoh offers.
+    /// The flags above and `--zenoh-publishers` are set over it.
+    #[arg(long, env = "MESHLESS_ZENOH_CONFIG")]
+    pub zenoh_config: Option<std::path::PathBuf>,
+
+    /// Who may publish on the session keys through the server's zenoh
+    /// session.
+    #[arg(
+        long,
+        env = "MESHLESS_ZENOH_PUBLISHERS",
+        value_enum,
+        default_value = "server"
+    )]
+    pub zenoh_publishers: ZenohPublishers,
+
+    /// The gRPC endpoint's certificate chain (PEM); with `--tls-key` the
+    /// endpoint speaks only TLS (clients use `https://`).
+    #[arg(long, env = "MESHLESS_TLS_CERT", requires = "tls_key")]
+    pub tls_cert: Option<std::path::PathBuf>,
+
+    /// The private key of `--tls-cert` (PEM).
+    #[arg(long, env = "MESHLESS_TLS_KEY", requires = "tls_cert")]
+    pub tls_key: Option<std::path::PathBuf>,
+
+    /// A CA (PEM) whose certificate every client must present (mutual
+    /// TLS); needs `--tls-cert`.
+    #[arg(long, env = "MESHLESS_TLS_CLIENT_CA", requires = "tls_cert")]
+    pub tls_client_ca: Option<std::path::PathBuf>,
 
     /// Largest particle count one session may create.
     #[arg(long, env = "MESHLESS_MAX_PARTICLES", default_value_t = DEFAULT_MAX_PARTICLES)]
@@ -146,6 +191,26 @@ impl ServerConfig {
         }
     }
 
+    /// The gRPC endpoint's TLS configuration; `None` without `--tls-cert`.
+    ///
+    /// # Errors
+    /// A missing, unreadable or malformed file, named by its flag.
+    pub fn grpc_tls(&self) -> Result<Option<tonic::transport::ServerTlsConfig>, String> {
+        match (&self.tls_cert, &self.tls_key) {
+            (Some(cert), Some(key)) => crate::tls::server_config(crate::tls::TlsFiles {
+                cert,
+                key,
+                client_ca: self.tls_client_ca.as_deref(),
+            })
+            .map(Some),
+            (None, None) if self.tls_client_ca.is_some() => {
+                Err("--tls-client-ca needs --tls-cert and --tls-key".into())
+            }
+            (None, None) => Ok(None),
+            _ => Err("--tls-cert and --tls-key go together: give both or neither".into()),
+        }
+    }
+
     /// The memory budget in bytes: the configured one, or half of the
     /// host's physical memory (`MemTotal` of `/proc/meminfo`).
     pub fn memory_budget_bytes(&self) -> u64 {
@@ -170,6 +235,11 @@ impl ServerConfig {
             zenoh_mode: ZenohMode::Peer,
             zenoh_listen: vec!["tcp/127.0.0.1:0".into()],
             zenoh_connect: Vec::new(),
+            zenoh_config: None,
+            zenoh_publishers: ZenohPublishers::Server,
+            tls_cert: None,
+            tls_key: None,
+            tls_client_ca: None,
             max_particles: DEFAULT_MAX_PARTICLES,
             max_sessions: DEFAULT_MAX_SESSIONS,
             max_connections: DEFAULT_MAX_CONNECTIONS,

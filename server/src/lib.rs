@@ -17,8 +17,9 @@ mod pubsub;
 mod registry;
 mod service;
 mod session;
+mod tls;
 
-pub use config::{ServerConfig, ZenohMode};
+pub use config::{ServerConfig, ZenohMode, ZenohPublishers};
 
 use anyhow::{Context, Result};
 use meshless_proto::v1::{self, simulation_server::SimulationServer};
@@ -78,6 +79,22 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
              and may drive every session"
         ),
     }
+    let tls = config.grpc_tls().map_err(anyhow::Error::msg)?;
+    if tls.is_none() && !config.grpc_addr.ip().is_loopback() {
+        tracing::warn!(
+            grpc_addr = %config.grpc_addr,
+            "gRPC without TLS on an address other hosts reach: tokens and scenes cross \
+             the network in clear; give --tls-cert and --tls-key"
+        );
+    }
+    let mut grpc = tonic::transport::Server::builder()
+        .http2_keepalive_interval(Some(KEEPALIVE_INTERVAL))
+        .http2_keepalive_timeout(Some(KEEPALIVE_TIMEOUT));
+    if let Some(tls) = tls {
+        grpc = grpc
+            .tls_config(tls)
+            .context("--tls-cert and --tls-key do not make a TLS identity")?;
+    }
     let (zenoh, zenoh_locators) = pubsub::open(&config).await?;
     let listener = tokio::net::TcpListener::bind(config.grpc_addr)
         .await
@@ -129,9 +146,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
     );
     let stop = shutdown.clone();
     let task = tokio::spawn(async move {
-        let served = tonic::transport::Server::builder()
-            .http2_keepalive_interval(Some(KEEPALIVE_INTERVAL))
-            .http2_keepalive_timeout(Some(KEEPALIVE_TIMEOUT))
+        let served = grpc
             .layer(tower::util::MapResponseLayer::new(codes::recode))
             .add_service(health)
             .add_service(reflection)

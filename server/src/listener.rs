@@ -90,7 +90,8 @@ impl Connected for Admitted {
 /// once, until `stop` or until the stream is dropped. Each gets
 /// `TCP_NODELAY`: a small response held back by Nagle's algorithm until
 /// the client's delayed ACK cost about 44 ms per sequential call in the
-/// loopback test of issue 13 (no benchmark here measures it yet).
+/// loopback test of issue 13 (`cargo bench -p meshless-load` measures
+/// sequential calls; docs/performance.md has its figures).
 pub fn incoming(
     listener: TcpListener,
     max_connections: usize,

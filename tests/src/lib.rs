@@ -10,6 +10,8 @@ use std::time::Duration;
 use tokio::io::{AsyncBufReadExt, BufReader};
 use tokio::process::{Child, Command};
 
+pub mod pki;
+
 /// Upper bound on any single wait in a test.
 pub const TIMEOUT: Duration = Duration::from_secs(30);
 
@@ -73,7 +75,8 @@ pub fn binary(name: &str) -> Result<PathBuf> {
 #[derive(Debug)]
 pub struct ServerProcess {
     child: Child,
-    /// `http://127.0.0.1:PORT`.
+    /// `http://127.0.0.1:PORT` (a server with TLS answers on the same
+    /// port as `https://localhost:PORT`).
     pub grpc_url: String,
     /// The zenoh endpoints it listens on.
     pub zenoh: Vec<String>,
@@ -86,13 +89,17 @@ impl ServerProcess {
     /// # Errors
     /// When the binary is missing or the server does not come up.
     pub async fn spawn(extra_args: &[&str]) -> Result<Self> {
+        Self::spawn_listening("tcp/127.0.0.1:0", extra_args).await
+    }
+
+    /// [`ServerProcess::spawn`] with zenoh listening on `zenoh_listen`
+    /// alone (e.g. `tls/127.0.0.1:0`).
+    ///
+    /// # Errors
+    /// As [`ServerProcess::spawn`].
+    pub async fn spawn_listening(zenoh_listen: &str, extra_args: &[&str]) -> Result<Self> {
         let mut child = Command::new(binary("meshless-server")?)
-            .args([
-                "--grpc-addr",
-                "127.0.0.1:0",
-                "--zenoh-listen",
-                "tcp/127.0.0.1:0",
-            ])
+            .args(["--grpc-addr", "127.0.0.1:0", "--zenoh-listen", zenoh_listen])
             .args(extra_args)
             .env("MESHLESS_LOG", "warn")
             .stdout(Stdio::piped())

@@ -1,9 +1,14 @@
 //! A hostile zenoh peer against the subscribers, end to end: a second
 //! zenoh session connected to the real server puts garbage, forged and
 //! replayed messages on a session's keys and answers its latest-frame
-//! queries, while the session is stepped. The subscribers (`Frames`,
-//! `Statuses`, `latest_frame`, `meshless watch`) hand on only the
-//! server's messages and count what they drop.
+//! queries, while the session is stepped.
+//!
+//! By default the server's zenoh access control drops all of it, so even
+//! a well-formed forgery in the session's name never reaches a subscriber
+//! (the last test). Behind `--zenoh-publishers any` (a network whose
+//! router enforces nothing) everything reaches them, and the subscribers
+//! (`Frames`, `Statuses`, `latest_frame`, `meshless watch`) hand on only
+//! the server's messages and count what they drop.
 //!
 //! The peer's puts reach the subscriber through the server, so a query
 //! the peer sends after them and sees answered means the server has
@@ -18,6 +23,10 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use tokio::io::{AsyncBufReadExt, BufReader};
 use tokio::process::Command;
+use zenoh::query::QueryTarget;
+
+/// A server that lets any peer publish on its keys.
+const OPEN: [&str; 2] = ["--zenoh-publishers", "any"];
 
 /// A zenoh session in client mode connected to `endpoints`, as any
 /// program on the network can open one.
@@ -109,7 +118,7 @@ async fn real_frame(frames: &Frames, id: &str, step: u64, particles: usize) {
 /// six it dropped, by reason.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn forged_frames_are_dropped_and_counted() {
-    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let server = ServerProcess::spawn(&OPEN).await.expect("server starts");
     let client = server.client().await.expect("client");
     let info = within("info", client.server_info()).await.expect("info");
     let session = within("create", client.create_session_toml(&small_scene()))
@@ -182,7 +191,7 @@ async fn forged_frames_are_dropped_and_counted() {
 /// wildcard key: the subscriber hands on only the server's status changes.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn forged_statuses_are_dropped_and_counted() {
-    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let server = ServerProcess::spawn(&OPEN).await.expect("server starts");
     let client = server.client().await.expect("client");
     let info = within("info", client.server_info()).await.expect("info");
     let session = within("create", client.create_session_toml(&small_scene()))
@@ -262,7 +271,7 @@ async fn forged_statuses_are_dropped_and_counted() {
 /// takes its frame.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn latest_frame_ignores_forged_replies() {
-    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let server = ServerProcess::spawn(&OPEN).await.expect("server starts");
     let client = server.client().await.expect("client");
     let info = within("info", client.server_info()).await.expect("info");
     let session = within("create", client.create_session_toml(&small_scene()))
@@ -332,7 +341,7 @@ async fn latest_frame_ignores_forged_replies() {
 /// how many it dropped.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn watch_counts_dropped_frames_and_goes_on() {
-    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let server = ServerProcess::spawn(&OPEN).await.expect("server starts");
     let client = server.client().await.expect("client");
     let info = within("info", client.server_info()).await.expect("info");
     let session = within("create", client.create_session_toml(&small_scene()))
@@ -382,4 +391,112 @@ async fn watch_counts_dropped_frames_and_goes_on() {
         summary.starts_with("3 frames in") && summary.contains(", 2 dropped (last "),
         "{rest:?}"
     );
+}
+
+/// With the server's access control (the default): a peer puts a
+/// well-formed frame and status forged in the session's name on its exact
+/// keys and declares a queryable answering latest-frame queries with a
+/// forged frame. No subscriber sees any of it, and no query reaches the
+/// peer's queryable.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn no_peer_publishes_or_answers_through_the_server() {
+    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let client = server.client().await.expect("client");
+    let info = within("info", client.server_info()).await.expect("info");
+    let session = within("create", client.create_session_toml(&small_scene()))
+        .await
+        .expect("session");
+    let (id, particles) = (session.id.as_str(), session.particle_count as usize);
+    within("step", client.step(id, 2)).await.expect("steps");
+    let link = within("zenoh connect", ZenohLink::connect(&info.zenoh_locators))
+        .await
+        .expect("zenoh link");
+    let frames = within("subscribe", link.frames(id)).await.expect("frames");
+    let statuses = within("subscribe", link.statuses(id))
+        .await
+        .expect("statuses");
+
+    let peer = hostile_peer(&info.zenoh_locators).await;
+    let prefix = &session.zenoh_key_prefix;
+    let latest = format!("{prefix}/latest");
+    let queryable = within(
+        "hostile queryable",
+        peer.declare_queryable(&latest).complete(true).into_future(),
+    )
+    .await
+    .expect("zenoh declares it locally");
+    let answering = {
+        let latest = latest.clone();
+        let forgery = forged_frame(id, 999_999).encode_to_vec();
+        tokio::spawn(async move {
+            while let Ok(query) = queryable.recv_async().await {
+                let _ = query.reply(&latest, forgery.clone()).await;
+            }
+        })
+    };
+    let forged_status = v1::SessionStatus {
+        session_id: id.into(),
+        state: v1::SessionState::Faulted as i32,
+        step: 999_999,
+        reason: "forged".into(),
+        ..Default::default()
+    };
+    for (key, payload) in [
+        (
+            format!("{prefix}/frames"),
+            forged_frame(id, 999_999).encode_to_vec(),
+        ),
+        (format!("{prefix}/status"), forged_status.encode_to_vec()),
+    ] {
+        within("hostile put", peer.put(&key, payload).into_future())
+            .await
+            .expect("zenoh sends it");
+    }
+    // The server answers the peer's own query after it has handled (and
+    // dropped) the declaration and the puts sent before it; the peer's
+    // own queryable answers too, locally. A peer that has only just
+    // connected may not know the server's queryable yet: ask until the
+    // server answers.
+    within("the server answers the peer", async {
+        loop {
+            let replies = peer
+                .get(&latest)
+                .target(QueryTarget::All)
+                .await
+                .expect("query");
+            while let Ok(reply) = replies.recv_async().await {
+                let Ok(sample) = reply.result() else { continue };
+                let frame = v1::Frame::decode(&*sample.payload().to_bytes()).expect("a frame");
+                if frame.header.map(|h| h.step) == Some(2) {
+                    return;
+                }
+            }
+        }
+    })
+    .await;
+
+    within("step", client.step(id, 1)).await.expect("steps");
+    real_frame(&frames, id, 3, particles).await;
+    // Were the peer's queryable asked, its reply would come among the
+    // server's, and the last valid reply wins about half the time.
+    for _ in 0..5 {
+        let latest = within("latest", link.latest_frame(id))
+            .await
+            .expect("query")
+            .expect("the server's frame");
+        assert_eq!(latest.step, 3, "only the server answers");
+    }
+    // A reset is the next status change the server publishes.
+    within("reset", client.reset(id)).await.expect("resets");
+    let status = within("status", statuses.recv()).await.expect("status");
+    assert_eq!(
+        (status.step, status.reason.as_str()),
+        (0, "reset"),
+        "the server's status, not the forged FAULTED one"
+    );
+    assert_ne!(status.state, v1::SessionState::Faulted as i32);
+    assert_eq!(frames.dropped().total(), 0, "nothing forged arrived");
+    assert_eq!(statuses.dropped().total(), 0, "nothing forged arrived");
+    answering.abort();
+    link.close().await;
 }

@@ -101,6 +101,11 @@ class Client:
     ``token`` is the bearer token of a server with tokens; ``client_id``
     names this client instance (one instance drives a session at a time);
     ``take_over`` takes control of sessions another instance drives.
+    ``tls`` speaks TLS to a server started with ``--tls-cert``, checking
+    its certificate against ``tls_ca`` (PEM bytes; default: the system's
+    CAs) and the name ``tls_domain`` (default: the target's host); a
+    server with ``--tls-client-ca`` also wants ``tls_cert`` and
+    ``tls_key`` (PEM bytes). Any ``tls_*`` argument implies ``tls``.
     Errors surface as ``grpc.RpcError`` with the server's status code and a
     message that names what to change.
     """
@@ -112,13 +117,27 @@ class Client:
         token: str | None = None,
         client_id: str | None = None,
         take_over: bool = False,
+        tls: bool = False,
+        tls_ca: bytes | None = None,
+        tls_cert: bytes | None = None,
+        tls_key: bytes | None = None,
+        tls_domain: str | None = None,
     ):
         from .v1 import simulation_pb2 as pb
         from .v1 import simulation_pb2_grpc
 
         self._pb = pb
         self._timeout = timeout
-        self._channel = grpc.insecure_channel(target)
+        if (tls_cert is None) != (tls_key is None):
+            raise ValueError("tls_cert and tls_key go together: give both or neither")
+        if tls or any(x is not None for x in (tls_ca, tls_cert, tls_key, tls_domain)):
+            credentials = grpc.ssl_channel_credentials(
+                root_certificates=tls_ca, private_key=tls_key, certificate_chain=tls_cert
+            )
+            options = [] if tls_domain is None else [("grpc.ssl_target_name_override", tls_domain)]
+            self._channel = grpc.secure_channel(target, credentials, options=options)
+        else:
+            self._channel = grpc.insecure_channel(target)
         grpc.channel_ready_future(self._channel).result(timeout=timeout)
         metadata = []
         if token is not None:
@@ -260,11 +279,15 @@ class Frames:
     reason: ``wrong_key``, ``undecodable``, ``malformed``,
     ``wrong_session``) and ``last_drop`` (the last reason and what was
     wrong). A peer that puts a well-formed frame naming this session is not
-    caught here: only access control on the zenoh plane can refuse it.
+    caught here: the server's zenoh access control refuses it (its
+    default), or a router's.
+
+    ``zenoh_config`` names a zenoh configuration file (JSON5) to start
+    from: the CA of ``tls/`` endpoints, a client certificate.
     """
 
-    def __init__(self, endpoints: list[str], session_id: str):
-        config = zenoh.Config()
+    def __init__(self, endpoints: list[str], session_id: str, zenoh_config: str | None = None):
+        config = zenoh.Config() if zenoh_config is None else zenoh.Config.from_file(zenoh_config)
         config.insert_json5("mode", '"client"')
         config.insert_json5("connect/endpoints", json.dumps(list(endpoints)))
         config.insert_json5("scouting/multicast/enabled", "false")

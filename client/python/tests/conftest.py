@@ -73,3 +73,11 @@ def running_server(*extra_args: str):
 def server():
     with running_server() as running:
         yield running
+
+
+@pytest.fixture()
+def open_server():
+    """A server that lets any zenoh peer publish on its session keys (no
+    access control), so that the subscribers' own checks meet forgeries."""
+    with running_server("--zenoh-publishers", "any") as running:
+        yield running

@@ -1,7 +1,8 @@
-"""What the Python subscriber accepts: any zenoh peer can put on a
-session's keys, so ``decode_frame`` raises ``ValueError`` for every
-malformed payload and ``Frames`` keeps only the server's frames of its
-session, counting the rest."""
+"""What the Python subscriber accepts. By default the server lets no other
+zenoh peer publish through it; where one can (``--zenoh-publishers any``,
+or a router without access control), ``decode_frame`` raises
+``ValueError`` for every malformed payload and ``Frames`` keeps only the
+server's frames of its session, counting the rest."""
 
 from __future__ import annotations
 
@@ -71,7 +72,8 @@ def until(condition, what: str) -> None:
         time.sleep(0.01)
 
 
-def test_frames_keep_only_the_sessions_frames_and_count_the_rest(server):
+def test_frames_keep_only_the_sessions_frames_and_count_the_rest(open_server):
+    server = open_server
     with Client(server.grpc_target) as client:
         session = client.create_session(SCENE)
         other = client.create_session(SCENE)
@@ -106,7 +108,8 @@ def test_frames_keep_only_the_sessions_frames_and_count_the_rest(server):
             assert frames.last_drop is not None and frames.last_drop[0] == "wrong_key"
 
 
-def test_frames_latest_skips_forged_replies(server):
+def test_frames_latest_skips_forged_replies(open_server):
+    server = open_server
     with Client(server.grpc_target) as client:
         session = client.create_session(SCENE)
         client.step(session.id, 2)
@@ -133,3 +136,38 @@ def test_frames_latest_skips_forged_replies(server):
                 if known:
                     break
                 assert time.monotonic() < deadline, "the peer's queryable was never asked"
+
+
+def test_no_peer_publishes_or_answers_through_the_server(server):
+    """The server's access control drops a well-formed frame forged in the
+    session's name and keeps a peer's queryable from being asked."""
+    with Client(server.grpc_target) as client:
+        session = client.create_session(SCENE)
+        client.step(session.id, 2)
+        key = latest_key(session.id)
+        with hostile_peer(server.zenoh_endpoints) as peer:
+            peer.declare_queryable(
+                key, lambda query: query.reply(key, forged_frame(session.id)), complete=True
+            )
+            with Frames(server.zenoh_endpoints, session.id) as frames:
+                peer.put(frames_key(session.id), forged_frame(session.id))
+                # The server answers the peer's query after routing (here:
+                # dropping) its declaration and its put; the peer's own
+                # queryable answers too, and a peer that has only just
+                # connected may not know the server's queryable yet.
+                until(
+                    lambda: 2
+                    in [
+                        decode_frame(r.ok.payload.to_bytes()).step
+                        for r in peer.get(key, target=zenoh.QueryTarget.ALL)
+                        if r.ok
+                    ],
+                    "the server's answer to the peer",
+                )
+                client.step(session.id, 1)
+                got = frames.next()
+                assert (got.session_id, got.step) == (session.id, 3)
+                assert frames.dropped == 0, "the forgery never reached the subscriber"
+            for _ in range(5):
+                with Frames(server.zenoh_endpoints, session.id) as late:
+                    assert late.latest is not None and late.latest.step == 3

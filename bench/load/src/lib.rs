@@ -1,0 +1,22 @@
+//! # meshless-load
+//!
+//! The load bench of the service (`cargo bench -p meshless-load`), in
+//! three parts that print one table each:
+//!
+//! - [`rpc`]: `GetSession` and `Step(1)` over real gRPC on loopback,
+//!   sequential, from concurrent callers, and at a fixed arrival rate
+//!   (the goal: p99 under 1 ms for `GetSession` at 5,000 calls a
+//!   second);
+//! - [`frames`]: frames of 10k, 100k and 1M particles delivered over zenoh
+//!   to a subscriber that unpacks them (goal: 1M-particle frames at 60 a
+//!   second);
+//! - [`slow_subscriber`]: a session's steps per second with and without a
+//!   subscriber that cannot keep up, as a ratio (goal: at least 0.98).
+//!
+//! The server is the real one, started in this process on its own tokio
+//! runtime (`meshless_server::start`) and reached over TCP, so the bench
+//! needs no binary built beforehand. Nothing here asserts a figure.
+
+pub mod frames;
+pub mod rpc;
+pub mod slow_subscriber;

@@ -1,0 +1,142 @@
+//! TLS for the gRPC endpoint: the server's certificate chain and key, and
+//! optionally a CA whose certificates clients must present (mutual TLS),
+//! all PEM files named in the configuration.
+//!
+//! A file that is missing, unreadable or not PEM stops the server at
+//! start with a message naming the flag, never at the first handshake.
+
+use std::path::Path;
+use std::time::Duration;
+use tonic::transport::{Certificate, Identity, ServerTlsConfig};
+
+/// Largest PEM file read: a chain of a few certificates is a few kB, so
+/// anything near this is the wrong file.
+const MAX_PEM_BYTES: u64 = 1 << 20;
+
+/// How long a client may take to finish the handshake: as long as it may
+/// stay silent before its first byte (`listener::FIRST_BYTE_TIMEOUT`).
+pub const HANDSHAKE_TIMEOUT: Duration = crate::listener::FIRST_BYTE_TIMEOUT;
+
+/// Where the gRPC endpoint's TLS material lives.
+#[derive(Debug, Clone, Copy)]
+pub struct TlsFiles<'a> {
+    /// The server's certificate chain (PEM), leaf first.
+    pub cert: &'a Path,
+    /// The private key of the leaf certificate (PEM: PKCS#8, PKCS#1 or SEC1).
+    pub key: &'a Path,
+    /// Clients must present a certificate this CA signed (PEM); `None`
+    /// accepts any client, as tokens then identify them.
+    pub client_ca: Option<&'a Path>,
+}
+
+/// Reads and checks the files into tonic's server configuration.
+///
+/// # Errors
+/// A message naming the flag whose file is missing, unreadable, too large
+/// or holds no PEM block of the kind expected.
+pub fn server_config(files: TlsFiles<'_>) -> Result<ServerTlsConfig, String> {
+    let cert = read_pem(files.cert, "--tls-cert", "CERTIFICATE")?;
+    let key = read_pem(files.key, "--tls-key", "PRIVATE KEY")?;
+    let mut config = ServerTlsConfig::new()
+        .identity(Identity::from_pem(cert, key))
+        .timeout(HANDSHAKE_TIMEOUT);
+    if let Some(ca) = files.client_ca {
+        let ca = read_pem(ca, "--tls-client-ca", "CERTIFICATE")?;
+        config = config.client_ca_root(Certificate::from_pem(ca));
+    }
+    Ok(config)
+}
+
+/// The bytes of a PEM file that holds at least one `label` block (`PRIVATE
+/// KEY` also matches `RSA PRIVATE KEY` and `EC PRIVATE KEY`).
+fn read_pem(path: &Path, flag: &str, label: &str) -> Result<Vec<u8>, String> {
+    let unreadable = |e: std::io::Error| format!("{flag} {}: {e}", path.display());
+    let size = std::fs::metadata(path).map_err(unreadable)?.len();
+    if size > MAX_PEM_BYTES {
+        return Err(format!(
+            "{flag} {}: {size} bytes is no PEM certificate or key (at most {MAX_PEM_BYTES})",
+            path.display()
+        ));
+    }
+    let bytes = std::fs::read(path).map_err(unreadable)?;
+    let text = String::from_utf8_lossy(&bytes);
+    let has_block = text
+        .lines()
+        .any(|line| line.starts_with("-----BEGIN ") && line.contains(label));
+    if !has_block {
+        return Err(format!(
+            "{flag} {}: no PEM `{label}` block; give a PEM file (-----BEGIN {label}-----)",
+            path.display()
+        ));
+    }
+    Ok(bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn temp_file(name: &str, content: &[u8]) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("meshless-tls-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let path = dir.join(name);
+        std::fs::write(&path, content).expect("write");
+        path
+    }
+
+    #[test]
+    fn each_bad_file_is_told_by_its_flag() {
+        let cert = temp_file(
+            "cert.pem",
+            b"-----BEGIN CERTIFICATE-----\nAA==\n-----END CERTIFICATE-----\n",
+        );
+        let key = temp_file(
+            "key.pem",
+            b"-----BEGIN EC PRIVATE KEY-----\nAA==\n-----END EC PRIVATE KEY-----\n",
+        );
+        let not_pem = temp_file("not.pem", b"hello");
+        let missing = Path::new("/nonexistent/meshless/cert.pem");
+        let error = |files| server_config(files).expect_err("refused");
+
+        let e = error(TlsFiles {
+            cert: missing,
+            key: &key,
+            client_ca: None,
+        });
+        assert!(e.starts_with("--tls-cert /nonexistent"), "{e}");
+        let e = error(TlsFiles {
+            cert: &cert,
+            key: &not_pem,
+            client_ca: None,
+        });
+        assert!(
+            e.starts_with("--tls-key") && e.contains("PRIVATE KEY"),
+            "{e}"
+        );
+        let e = error(TlsFiles {
+            cert: &cert,
+            key: &key,
+            client_ca: Some(&not_pem),
+        });
+        assert!(e.starts_with("--tls-client-ca"), "{e}");
+        // A key where the certificate belongs is refused too.
+        let e = error(TlsFiles {
+            cert: &key,
+            key: &key,
+            client_ca: None,
+        });
+        assert!(
+            e.starts_with("--tls-cert") && e.contains("CERTIFICATE"),
+            "{e}"
+        );
+        assert!(
+            server_config(TlsFiles {
+                cert: &cert,
+                key: &key,
+                client_ca: Some(&cert),
+            })
+            .is_ok(),
+            "well-formed PEM files pass this check; rustls judges their content"
+        );
+    }
+}
