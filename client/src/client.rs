@@ -283,7 +283,8 @@ impl Client {
         Ok(self.grpc().get_session(session_ref(id)).await?.into_inner())
     }
 
-    /// All sessions, oldest first.
+    /// Every session the caller may see, oldest first, without their
+    /// scenes ([`Client::get_session`] has them).
     ///
     /// # Errors
     /// [`ClientError::Rpc`] with the server's status.

@@ -185,7 +185,7 @@ impl Simulation for SimulationService {
             .list()
             .iter()
             .filter(|s| s.access.may_read(&caller))
-            .map(|s| s.to_proto())
+            .map(|s| s.summary())
             .collect();
         Ok(Response::new(v1::ListSessionsResponse { sessions }))
     }

@@ -187,6 +187,12 @@ async fn sessions_are_independent_and_listed() {
         .map(|s| s.status.as_ref().expect("status").step)
         .collect();
     assert_eq!(steps, vec![3, 0]);
+    // The list leaves scenes out (they may be large); GetSession has them.
+    assert!(listed.iter().all(|s| s.scene.is_none()));
+    let got = within("get a", client.get_session(&a.id))
+        .await
+        .expect("get");
+    assert!(got.scene.is_some());
 }
 
 /// Errors from the client carry the server's code.

@@ -1,7 +1,8 @@
 //! What a slow subscriber costs the simulation: steps per second of one
 //! session with nobody watching, then with a subscriber that takes
-//! `pause` over every frame, alternating the two so that drift in the
-//! machine's speed falls on both. The server publishes frames with
+//! `pause` over every frame, each from the scene's start and in
+//! alternating order, so that neither the scene's own changes nor a drift
+//! in the machine's speed fall on one side. The server publishes frames with
 //! congestion control *drop*, so a slow reader should cost it nothing:
 //! the goal is a ratio of at least 0.98.
 
@@ -48,29 +49,45 @@ pub async fn measure(
     client.step(&id, steps).await?;
     let link = ZenohLink::connect(zenoh).await?;
     let (mut alone, mut watched, mut frames_read) = (Duration::ZERO, Duration::ZERO, 0u64);
-    for _ in 0..rounds {
-        let start = Instant::now();
-        client.step(&id, steps).await?;
-        alone += start.elapsed();
-
-        let frames = link.frames(&id).await?;
-        let read = Arc::new(AtomicU64::new(0));
-        let reader = tokio::spawn({
-            let read = Arc::clone(&read);
-            async move {
-                while frames.recv().await.is_ok() {
-                    read.fetch_add(1, Ordering::Relaxed);
-                    // A reader that cannot keep up: zenoh's queue fills,
-                    // then the socket, then the server's send queue.
-                    tokio::time::sleep(pause).await;
+    for round in 0..rounds {
+        // Each arm simulates the same steps from the scene's start (a
+        // reset), in the order alone-watched, then watched-alone, so that
+        // a drift in the machine's speed falls on both.
+        let order = if round % 2 == 0 {
+            [false, true]
+        } else {
+            [true, false]
+        };
+        for with_reader in order {
+            client.reset(&id).await?;
+            let read = Arc::new(AtomicU64::new(0));
+            let reader = if with_reader {
+                let frames = link.frames(&id).await?;
+                let read = Arc::clone(&read);
+                Some(tokio::spawn(async move {
+                    while frames.recv().await.is_ok() {
+                        read.fetch_add(1, Ordering::Relaxed);
+                        // A reader that cannot keep up: zenoh's queue
+                        // fills, then the socket, then the server's send
+                        // queue, which drops frames rather than wait.
+                        tokio::time::sleep(pause).await;
+                    }
+                }))
+            } else {
+                None
+            };
+            let start = Instant::now();
+            client.step(&id, steps).await?;
+            let elapsed = start.elapsed();
+            match reader {
+                Some(reader) => {
+                    watched += elapsed;
+                    reader.abort();
+                    frames_read += read.load(Ordering::Relaxed);
                 }
+                None => alone += elapsed,
             }
-        });
-        let start = Instant::now();
-        client.step(&id, steps).await?;
-        watched += start.elapsed();
-        reader.abort();
-        frames_read += read.load(Ordering::Relaxed);
+        }
     }
     link.close().await;
     client.delete_session(&id).await?;

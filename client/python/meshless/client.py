@@ -177,6 +177,8 @@ class Client:
         return self._stub.GetSession(self._ref(session_id), timeout=self._timeout)
 
     def list_sessions(self):
+        """Every session the caller may see, oldest first, without their
+        scenes (``get_session`` has them)."""
         return list(
             self._stub.ListSessions(self._pb.ListSessionsRequest(), timeout=self._timeout).sessions
         )

@@ -378,6 +378,16 @@ impl Session {
             .clone()
     }
 
+    /// The `Session` message for this session, without its scene: what
+    /// `ListSessions` returns, so that a list of many sessions stays small
+    /// however large their scenes (up to `--max-request-mb` each).
+    pub fn summary(&self) -> v1::Session {
+        v1::Session {
+            scene: None,
+            ..self.to_proto()
+        }
+    }
+
     /// The `Session` message for this session.
     pub fn to_proto(&self) -> v1::Session {
         v1::Session {
