@@ -8,8 +8,8 @@ use meshless_proto::v1;
 use meshless_wire::frame::{frame_from_proto, frame_to_proto};
 use prost::Message;
 
-/// Frame bytes through the decoder. A frame it accepts is consistent (see
-/// [`assert_consistent`]) and decoding is the inverse of encoding on it:
+/// Frame bytes through the decoder. A frame it accepts is consistent (its lengths
+/// agree, as `assert_consistent` lists) and decoding is the inverse of encoding on it:
 /// encoding it and decoding again gives a frame that encodes to the same
 /// bytes. An error quotes briefly.
 ///

@@ -26,9 +26,12 @@ pub use mesh::{mesh_obj, mesh_ply};
 pub use requests::requests;
 pub use scene::{scene_spec, scene_toml};
 
+/// A target's body: the fuzzer's bytes in, a panic when a property fails.
+pub type Target = fn(&[u8]);
+
 /// Every target by name (the names of `fuzz/libfuzzer/fuzz_targets/*.rs`
 /// and of the directories under `fuzz/corpus/`), for the replay test.
-pub const TARGETS: &[(&str, fn(&[u8]))] = &[
+pub const TARGETS: &[(&str, Target)] = &[
     ("scene_toml", scene_toml),
     ("scene_spec", scene_spec),
     ("requests", requests),

@@ -6,12 +6,13 @@ use meshless_engine::geometry::LoadedMesh;
 use meshless_engine::geometry::read::{MeshFormat, parse};
 use std::path::Path;
 
-/// OBJ bytes through the reader; see [`read`] for the properties.
+/// OBJ bytes through the reader; asserts the properties
+/// of the private `read`.
 pub fn mesh_obj(data: &[u8]) {
     read(MeshFormat::Obj, data);
 }
 
-/// PLY bytes (ASCII or binary) through the reader; see [`read`].
+/// PLY bytes (ASCII or binary) through the reader; as [`mesh_obj`].
 pub fn mesh_ply(data: &[u8]) {
     read(MeshFormat::Ply, data);
 }

@@ -26,7 +26,7 @@ fn options() -> BuildOptions {
 /// and that a scene the check passes has a finite, positive memory
 /// estimate (the server reserves it against its budget) and survives the
 /// trip to a `SceneSpec` and back, and to TOML and back, unchanged and
-/// still valid (see [`admitted`]).
+/// still valid (see the private `admitted`).
 pub fn scene_toml(data: &[u8]) {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
