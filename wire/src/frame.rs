@@ -212,12 +212,17 @@ fn field_from_proto(field: v1::FieldData, particles: usize, path: &str) -> Resul
             ),
         ));
     }
-    let expected = 4 * components * particles;
-    if data.len() != expected {
+    // Checked: a header may claim any particle count, and 4 x components
+    // x a count near 2^62 wraps around to a small length (to 0 for an
+    // empty field), which would pass a field too short for its count.
+    let expected = particles
+        .checked_mul(4 * components)
+        .filter(|&bytes| bytes == data.len());
+    if expected.is_none() {
         return Err(WireError::new(
             format!("{path}.data"),
             format!(
-                "has {} bytes, expected {expected} for {particles} particles x {components}",
+                "has {} bytes, expected 4 x {components} components x {particles} particles",
                 data.len()
             ),
         ));
@@ -468,6 +473,15 @@ mod tests {
             f.fields[1].data.pop();
         });
         refused(&frame, "fields[0].kind", |f| f.fields[0].kind = 0);
+        // 4 x 3 x 2^62 bytes wraps to 0: an empty position field for
+        // 2^62 particles once overflowed and was accepted (release) or
+        // panicked (debug).
+        refused(&frame, "fields[0].data", |f| {
+            if let Some(header) = &mut f.header {
+                header.particle_count = 1 << 62;
+            }
+            f.fields[0].data.clear();
+        });
         refused(&frame, "fields[0].scalar", |f| f.fields[0].scalar = 7);
         refused(&frame, "fields[0].components", |f| {
             f.fields[0].components = 1;

@@ -112,8 +112,13 @@ impl DesignError {
     }
 }
 
-/// Checks the weights and solver settings.
-pub(crate) fn check_params(params: &DesignParams) -> Result<(), DesignError> {
+/// Checks the weights and solver settings, as both solvers do before
+/// they start; public so that a host (and the fuzz targets) can check an
+/// `Optimize` request's settings without a world.
+///
+/// # Errors
+/// [`DesignError::Parameter`] naming the first setting out of range.
+pub fn check_params(params: &DesignParams) -> Result<(), DesignError> {
     let invalid = |field, message: String| Err(DesignError::Parameter { field, message });
     for (name, w) in params.weights.named() {
         if !(w.is_finite() && w >= 0.0) {

@@ -347,7 +347,12 @@ fn motion_on_pool(
     }
 }
 
-fn check_motion(m: &MotionParams) -> Result<(), DesignError> {
+/// Checks the motion settings, as [`solve_motion`] does before it starts;
+/// public for the same reason as [`super::check_params`].
+///
+/// # Errors
+/// [`DesignError::Parameter`] naming the first setting out of range.
+pub fn check_motion(m: &MotionParams) -> Result<(), DesignError> {
     let invalid = |field, message: String| Err(DesignError::Parameter { field, message });
     if !(m.tolerance.is_finite() && m.tolerance > 0.0) {
         return invalid(

@@ -35,7 +35,7 @@ pub enum MeshError {
     Parse {
         /// The mesh file.
         path: PathBuf,
-        /// Where in the file: `line N` (OBJ), `header`, `element '...'` or
+        /// Where in the file: `line N` (OBJ), `header`, `element "..."` or
         /// `face N` (PLY).
         location: String,
         /// What is wrong there.

@@ -11,7 +11,7 @@
 //! nor learn whether one exists.
 
 use super::SceneError;
-use crate::geometry::read::{MeshFormat, read_regular_file};
+use crate::geometry::read::{MeshFormat, quote, read_regular_file};
 use serde::{Deserialize, Serialize};
 use std::path::{Component, Path, PathBuf};
 
@@ -103,8 +103,17 @@ pub(crate) fn load(
         }
     };
     let file = Path::new(path);
-    let format =
-        MeshFormat::of_path(file).map_err(|e| SceneError::invalid(&field, e.to_string()))?;
+    // The path is the client's: quoted short, not echoed whole as the
+    // reader's own error does (found by the `requests` fuzz target).
+    let format = MeshFormat::of_path(file).map_err(|_| {
+        SceneError::invalid(
+            &field,
+            format!(
+                "is {}, not an .obj or .ply file; name one, or send the mesh's bytes in `data`",
+                quote(path)
+            ),
+        )
+    })?;
     let content = match files {
         MeshFiles::Host => read_regular_file(file, max_bytes).map_err(|e| {
             let tried = std::path::absolute(file).unwrap_or_else(|_| file.to_path_buf());
@@ -278,6 +287,22 @@ mod tests {
 
         let err = load(None, &mut None, &MeshFiles::Host, 10, "s").expect_err("nothing");
         assert!(err.to_string().starts_with("s.path: is empty"), "{err}");
+    }
+
+    /// A path that names no mesh format is quoted short, not echoed
+    /// whole (`fuzz/regressions/requests` holds the obstacle edit that
+    /// found it, its path a whole OBJ file).
+    #[test]
+    fn a_path_without_a_mesh_extension_is_quoted_short() {
+        let long = "v 0 0 0\n".repeat(100);
+        let err = load_path(&long, &MeshFiles::None).expect_err("no extension");
+        let message = err.to_string();
+        assert!(
+            message.starts_with("systems[1].shape.path: is \"v 0 0 0\\n"),
+            "{message}"
+        );
+        assert!(message.contains(".obj or .ply"), "{message}");
+        assert!(message.len() < 200, "{message}");
     }
 
     #[test]

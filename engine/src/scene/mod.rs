@@ -32,6 +32,7 @@ pub use solid::{
 
 use crate::approx::KernelKind;
 use crate::geometry::Shape;
+use crate::geometry::read::parser_message;
 use crate::math::Real;
 use crate::surface::SurfaceExtractor;
 use error::{check_box, check_positive, check_range, check_vector};
@@ -242,14 +243,8 @@ const MAX_PARSE_MESSAGE_CHARS: usize = 300;
 /// what, without the offending line itself (a 60 MB line would make a
 /// 180 MB message), and with what to change when the file nests too deep.
 fn toml_error(text: &str, error: &toml::de::Error) -> String {
-    let mut message: String = error
-        .message()
-        .chars()
-        .take(MAX_PARSE_MESSAGE_CHARS)
-        .collect();
-    if message.chars().count() == MAX_PARSE_MESSAGE_CHARS {
-        message.push_str("...");
-    }
+    // The parser quotes unknown keys and values in full.
+    let mut message = parser_message(error.message(), MAX_PARSE_MESSAGE_CHARS);
     if message.contains("recursion") || message.contains("recurse") {
         message.push_str(
             " (arrays or inline tables nested too deeply; a scene needs a few levels at most)",

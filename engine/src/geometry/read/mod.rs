@@ -142,10 +142,51 @@ const MAX_QUOTE_CHARS: usize = 32;
 
 /// `text` debug-quoted, cut to [`MAX_QUOTE_CHARS`] characters: an error
 /// names the offending token without echoing a file's content.
-fn quote(text: &str) -> String {
+pub(crate) fn quote(text: &str) -> String {
     match text.char_indices().nth(MAX_QUOTE_CHARS) {
         None => format!("{text:?}"),
         Some((end, _)) => format!("{:?}... ({} bytes)", &text[..end], text.len()),
+    }
+}
+
+/// A third-party parser's message as an error may carry it: each span it
+/// quotes between backticks or double quotes (serde's ``unknown variant
+/// `...` `` and `string "..."`) cut to [`MAX_QUOTE_CHARS`] characters, and
+/// the whole to `max_chars`. Parsers quote the offending token in full,
+/// which would echo a file's content back to whoever sent it (found by
+/// the `scene_toml` fuzz target).
+pub(crate) fn parser_message(message: &str, max_chars: usize) -> String {
+    let mut out = String::new();
+    // The open quote and the characters inside it so far.
+    let mut open: Option<(char, usize)> = None;
+    let mut escaped = false;
+    for c in message.chars() {
+        match open {
+            Some((quote, _)) if c == quote && !escaped => {
+                out.push(c);
+                open = None;
+            }
+            Some((quote, inside)) => {
+                if inside < MAX_QUOTE_CHARS {
+                    out.push(c);
+                } else if inside == MAX_QUOTE_CHARS {
+                    out.push_str("...");
+                }
+                escaped = c == '\\' && !escaped;
+                open = Some((quote, inside + 1));
+            }
+            None => {
+                if matches!(c, '`' | '"') {
+                    open = Some((c, 0));
+                    escaped = false;
+                }
+                out.push(c);
+            }
+        }
+    }
+    match out.char_indices().nth(max_chars) {
+        None => out,
+        Some((end, _)) => format!("{}...", &out[..end]),
     }
 }
 
@@ -260,6 +301,34 @@ mod tests {
             message.len()
         );
         assert!(message.contains("100000 bytes"), "{message}");
+    }
+
+    /// The quoting rule holds for what parsers say too: a quoted token
+    /// is cut to a short prefix wherever it sits in the message, and the
+    /// rest of the message is kept (`fuzz/regressions/scene_toml` holds
+    /// the input that found it).
+    #[test]
+    fn parser_messages_quote_a_short_prefix() {
+        let long = "w".repeat(500);
+        let message = format!(
+            "unknown variant `{long}`, expected `wcsph` or `dfsph`; can't use \"{long}\" here"
+        );
+        let cut = parser_message(&message, 10_000);
+        assert!(!cut.contains(&"w".repeat(MAX_QUOTE_CHARS + 1)), "{cut}");
+        assert_eq!(
+            cut.matches(&"w".repeat(MAX_QUOTE_CHARS)).count(),
+            2,
+            "{cut}"
+        );
+        assert!(
+            cut.contains("expected `wcsph` or `dfsph`; can't use"),
+            "{cut}"
+        );
+        assert!(cut.ends_with("...\" here"), "{cut}");
+        // An escaped quote does not close the span; the cap still holds.
+        let escaped = parser_message(&format!("string \"a\\\"{long}\" here"), 10_000);
+        assert!(escaped.ends_with("...\" here"), "{escaped}");
+        assert_eq!(parser_message(&"z".repeat(50), 20).chars().count(), 23);
     }
 
     #[test]
