@@ -21,6 +21,45 @@ fn https_url(server: &ServerProcess) -> String {
     format!("https://localhost:{port}")
 }
 
+/// A server whose gRPC endpoint and only zenoh endpoint (`tls/`) show
+/// the PKI's server certificate; `mutual` asks clients of both for a
+/// certificate of its CA. Returns it with its `https://localhost` URL.
+async fn tls_server(pki: &TestPki, mutual: bool) -> (ServerProcess, String) {
+    let mut entries = vec![
+        ("listen_certificate", pki.server_cert.as_path()),
+        ("listen_private_key", pki.server_key.as_path()),
+    ];
+    if mutual {
+        entries.push(("root_ca_certificate", pki.ca.as_path()));
+    }
+    let zenoh_config = pki
+        .zenoh_config("zenoh-server.json5", &entries, mutual)
+        .expect("config");
+    let path = |p: &Path| p.display().to_string();
+    let (cert, key, ca, config) = (
+        path(&pki.server_cert),
+        path(&pki.server_key),
+        path(&pki.ca),
+        path(&zenoh_config),
+    );
+    let mut args = vec![
+        "--tls-cert",
+        &cert,
+        "--tls-key",
+        &key,
+        "--zenoh-config",
+        &config,
+    ];
+    if mutual {
+        args.extend(["--tls-client-ca", ca.as_str()]);
+    }
+    let server = ServerProcess::spawn_listening("tls/127.0.0.1:0", &args)
+        .await
+        .expect("server starts");
+    let url = https_url(&server);
+    (server, url)
+}
+
 /// TLS settings trusting `ca`, with a client certificate when given.
 fn tls(ca: &Path, client: Option<(&Path, &Path)>) -> Tls {
     let read = |path: &Path| std::fs::read(path).expect("a PEM file");
@@ -54,33 +93,7 @@ async fn zenoh_link(endpoints: &[String], config: &Path) -> Result<ZenohLink, Cl
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn both_planes_speak_tls_and_refuse_clients_that_do_not_trust_the_server() {
     let pki = TestPki::new("tls-server").expect("certificates");
-    let zenoh_server = pki
-        .zenoh_config(
-            "zenoh-server.json5",
-            &[
-                ("listen_certificate", &pki.server_cert),
-                ("listen_private_key", &pki.server_key),
-            ],
-            false,
-        )
-        .expect("config");
-    let cert = pki.server_cert.display().to_string();
-    let key = pki.server_key.display().to_string();
-    let config = zenoh_server.display().to_string();
-    let server = ServerProcess::spawn_listening(
-        "tls/127.0.0.1:0",
-        &[
-            "--tls-cert",
-            &cert,
-            "--tls-key",
-            &key,
-            "--zenoh-config",
-            &config,
-        ],
-    )
-    .await
-    .expect("server starts");
-    let url = https_url(&server);
+    let (server, url) = tls_server(&pki, false).await;
     assert!(
         server.zenoh.iter().all(|e| e.starts_with("tls/")),
         "{:?}",
@@ -172,37 +185,7 @@ async fn both_planes_speak_tls_and_refuse_clients_that_do_not_trust_the_server()
 async fn mutual_tls_refuses_clients_without_a_certificate() {
     let pki = TestPki::new("tls-mutual").expect("certificates");
     let ca = pki.ca.as_path();
-    let zenoh_server = pki
-        .zenoh_config(
-            "zenoh-server.json5",
-            &[
-                ("listen_certificate", &pki.server_cert),
-                ("listen_private_key", &pki.server_key),
-                ("root_ca_certificate", ca),
-            ],
-            true,
-        )
-        .expect("config");
-    let cert = pki.server_cert.display().to_string();
-    let key = pki.server_key.display().to_string();
-    let client_ca = ca.display().to_string();
-    let config = zenoh_server.display().to_string();
-    let server = ServerProcess::spawn_listening(
-        "tls/127.0.0.1:0",
-        &[
-            "--tls-cert",
-            &cert,
-            "--tls-key",
-            &key,
-            "--tls-client-ca",
-            &client_ca,
-            "--zenoh-config",
-            &config,
-        ],
-    )
-    .await
-    .expect("server starts");
-    let url = https_url(&server);
+    let (server, url) = tls_server(&pki, true).await;
 
     assert!(
         info(&url, &tls(ca, None)).await.is_err(),
