@@ -528,7 +528,11 @@ impl Scene {
                     shapes[s] = Some(self.validate_body(&format!("systems[{s}]"), body, fluid)?);
                 }
                 SystemSpec::Solid(solid) => {
-                    let (shape, count) = self.validate_solid(&format!("systems[{s}]"), solid)?;
+                    let (shape, count) = self.validate_solid(
+                        &format!("systems[{s}]"),
+                        solid,
+                        options.max_particles,
+                    )?;
                     solid_particles += count as f64;
                     footprint.add_solid(
                         count as f64,

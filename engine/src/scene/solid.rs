@@ -276,6 +276,7 @@ impl Scene {
         &self,
         at: &str,
         solid: &SolidSpec,
+        max_particles: u64,
     ) -> Result<(Shape, usize), SceneError> {
         let dim = self.dimension;
         let shape_at = format!("{at}.shape");
@@ -376,7 +377,24 @@ impl Scene {
                 limit: crate::geometry::MAX_SAMPLES as u64,
             });
         }
+        // Sampling allocates for every particle and an embedded surface
+        // costs MLS work per vertex, so a solid beyond the host's limit is
+        // refused before either: first by its lattice's expected count
+        // (volume / spacing^dim, refused at twice the limit so that the
+        // estimate's boundary error never refuses a scene that fits),
+        // then by the count sampled.
+        let too_many = |count: u64| SceneError::TooManyParticles {
+            count,
+            limit: max_particles,
+        };
+        let expected = shape.volume(dim).unwrap_or(0.0) / solid.spacing.powi(dim as i32);
+        if expected > 2.0 * max_particles as Real {
+            return Err(too_many(expected.round().min(u64::MAX as Real) as u64));
+        }
         let particles = solid.particles(&shape, dim);
+        if particles.len() as u64 > max_particles {
+            return Err(too_many(particles.len() as u64));
+        }
         if particles.is_empty() {
             return Err(SceneError::invalid(
                 format!("{at}.spacing"),

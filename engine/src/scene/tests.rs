@@ -249,6 +249,62 @@ fn a_solid_too_fine_to_sample_is_a_resource_limit() {
     }
 }
 
+/// A solid over the host's particle limit is refused before its
+/// particles are sampled or its embedded surface is built (either could
+/// take gigabytes and seconds inside the admission check, found by the
+/// `scene_spec` fuzz target): far over the limit by its volume's
+/// expected count, just over it by the count sampled.
+#[test]
+fn a_solid_over_the_particle_limit_is_refused_before_sampling() {
+    let solid = |spacing: f64, surface: &str| {
+        Scene::from_toml_str(&format!(
+            r#"
+            gravity = [0.0, 0.0, 0.0]
+            [domain]
+            min = [-2.0, -2.0, -2.0]
+            max = [2.0, 2.0, 2.0]
+            [time]
+            dt = 0.001
+            [[systems]]
+            kind = "solid"
+            shape = {{ type = "box", half_extents = [0.5, 0.5, 0.5] }}
+            position = [0.0, 0.0, 0.0]
+            spacing = {spacing}
+            young = 1e6
+            density = 1000.0
+            {surface}
+            "#
+        ))
+        .expect("parses")
+    };
+    let limit = |max_particles| BuildOptions {
+        max_particles,
+        ..BuildOptions::default()
+    };
+    // 1 m^3 at 0.01 m: 10^6 expected, refused at a limit of 1,000 by the
+    // estimate (the sampled count of the lattice would differ from it).
+    match solid(0.01, "surface = { subdivisions = 7 }").validate(&limit(1_000)) {
+        Err(SceneError::TooManyParticles { count, limit }) => {
+            assert_eq!((count, limit), (1_000_000, 1_000));
+        }
+        other => panic!("expected TooManyParticles, got {other:?}"),
+    }
+    // 1 m^3 at 0.1 m: about 1,000 sampled; a limit just below the sampled
+    // count (within the estimate's factor of two) is met by the count.
+    let sampled = solid(0.1, "")
+        .check(&limit(1_000_000))
+        .expect("fits a large limit")
+        .footprint()
+        .particles;
+    let just_below = (sampled as u64).saturating_sub(1);
+    match solid(0.1, "").validate(&limit(just_below)) {
+        Err(SceneError::TooManyParticles { count, limit }) => {
+            assert_eq!((count as f64, limit), (sampled, just_below));
+        }
+        other => panic!("expected TooManyParticles, got {other:?}"),
+    }
+}
+
 fn with_body(body: &str) -> Scene {
     Scene::from_toml_str(&format!(
         "{SMALL}\n[[systems]]\nkind = \"rigid_body\"\n{body}"
