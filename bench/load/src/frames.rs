@@ -117,8 +117,11 @@ pub async fn deliver(particles: usize, duration: Duration) -> Result<Delivery> {
     let link = ZenohLink::connect(std::slice::from_ref(&endpoint)).await?;
     let frames = link.frames(SESSION).await?;
 
-    let payload = frame(particles).encode_to_vec();
-    let frame_bytes = payload.len();
+    let encoded = frame(particles).encode_to_vec();
+    let frame_bytes = encoded.len();
+    // Encoded once and shared: a put hands zenoh the bytes without a copy,
+    // as the server's publisher hands it each frame's fresh encoding.
+    let payload = zenoh::bytes::ZBytes::from(encoded);
     let receiving = tokio::spawn(async move {
         let (mut delivered, mut first, mut last) = (0u64, None, None);
         while let Ok(Ok(frame)) = tokio::time::timeout(

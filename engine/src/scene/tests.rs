@@ -217,12 +217,10 @@ fn particle_limit_is_enforced_before_allocation() {
     );
 }
 
-/// A solid too fine to sample is a resource limit like the fluid's
-/// particle limit (the host answers both RESOURCE_EXHAUSTED), naming the
-/// spacing.
-#[test]
-fn a_solid_too_fine_to_sample_is_a_resource_limit() {
-    let scene = Scene::from_toml_str(
+/// A 1 m elastic cube at `spacing`, centred in a 4 m domain, with
+/// `extra` lines added to its system (e.g. a surface).
+fn unit_box_solid(spacing: f64, extra: &str) -> Scene {
+    Scene::from_toml_str(&format!(
         r#"
         gravity = [0.0, 0.0, 0.0]
         [domain]
@@ -232,15 +230,23 @@ fn a_solid_too_fine_to_sample_is_a_resource_limit() {
         dt = 0.001
         [[systems]]
         kind = "solid"
-        shape = { type = "box", half_extents = [0.5, 0.5, 0.5] }
+        shape = {{ type = "box", half_extents = [0.5, 0.5, 0.5] }}
         position = [0.0, 0.0, 0.0]
-        spacing = 1e-4
+        spacing = {spacing}
         young = 1e6
         density = 1000.0
-        "#,
-    )
-    .expect("parses");
-    match scene.validate(&BuildOptions::default()) {
+        {extra}
+        "#
+    ))
+    .expect("parses")
+}
+
+/// A solid too fine to sample is a resource limit like the fluid's
+/// particle limit (the host answers both RESOURCE_EXHAUSTED), naming the
+/// spacing.
+#[test]
+fn a_solid_too_fine_to_sample_is_a_resource_limit() {
+    match unit_box_solid(1e-4, "").validate(&BuildOptions::default()) {
         Err(SceneError::TooFine { field, points, .. }) => {
             assert_eq!(field, "systems[0].spacing");
             assert!(points >= 1_000_000_000_000, "{points}");
@@ -256,34 +262,13 @@ fn a_solid_too_fine_to_sample_is_a_resource_limit() {
 /// expected count, just over it by the count sampled.
 #[test]
 fn a_solid_over_the_particle_limit_is_refused_before_sampling() {
-    let solid = |spacing: f64, surface: &str| {
-        Scene::from_toml_str(&format!(
-            r#"
-            gravity = [0.0, 0.0, 0.0]
-            [domain]
-            min = [-2.0, -2.0, -2.0]
-            max = [2.0, 2.0, 2.0]
-            [time]
-            dt = 0.001
-            [[systems]]
-            kind = "solid"
-            shape = {{ type = "box", half_extents = [0.5, 0.5, 0.5] }}
-            position = [0.0, 0.0, 0.0]
-            spacing = {spacing}
-            young = 1e6
-            density = 1000.0
-            {surface}
-            "#
-        ))
-        .expect("parses")
-    };
     let limit = |max_particles| BuildOptions {
         max_particles,
         ..BuildOptions::default()
     };
     // 1 m^3 at 0.01 m: 10^6 expected, refused at a limit of 1,000 by the
     // estimate (the sampled count of the lattice would differ from it).
-    match solid(0.01, "surface = { subdivisions = 7 }").validate(&limit(1_000)) {
+    match unit_box_solid(0.01, "surface = { subdivisions = 7 }").validate(&limit(1_000)) {
         Err(SceneError::TooManyParticles { count, limit }) => {
             assert_eq!((count, limit), (1_000_000, 1_000));
         }
@@ -291,13 +276,13 @@ fn a_solid_over_the_particle_limit_is_refused_before_sampling() {
     }
     // 1 m^3 at 0.1 m: about 1,000 sampled; a limit just below the sampled
     // count (within the estimate's factor of two) is met by the count.
-    let sampled = solid(0.1, "")
+    let sampled = unit_box_solid(0.1, "")
         .check(&limit(1_000_000))
         .expect("fits a large limit")
         .footprint()
         .particles;
     let just_below = (sampled as u64).saturating_sub(1);
-    match solid(0.1, "").validate(&limit(just_below)) {
+    match unit_box_solid(0.1, "").validate(&limit(just_below)) {
         Err(SceneError::TooManyParticles { count, limit }) => {
             assert_eq!((count as f64, limit), (sampled, just_below));
         }
