@@ -67,7 +67,7 @@ async fn drive(
     );
 
     let link = ZenohLink::connect(&info.zenoh_locators).await?;
-    let frames = link.frames(&id).await?;
+    let frames = link.frames(&session).await?;
     let files = FrameFiles::start(&args.output, args.format, args.surface_format)?;
     let mut received = 0usize;
     let mut last_step = 0;

@@ -29,13 +29,12 @@ pub struct WatchArgs {
 }
 
 pub async fn watch(args: WatchArgs) -> Result<()> {
+    // The session from the server: it checks that the caller may see it,
+    // and holds the key of its sealed frames.
+    let client = args.server.connect().await?;
+    let session = client.get_session(&args.session).await?;
     let endpoints = if args.zenoh.is_empty() {
-        args.server
-            .connect()
-            .await?
-            .server_info()
-            .await?
-            .zenoh_locators
+        client.server_info().await?.zenoh_locators
     } else {
         args.zenoh
     };
@@ -45,7 +44,7 @@ pub async fn watch(args: WatchArgs) -> Result<()> {
         None => zenoh::Config::default(),
     };
     let link = ZenohLink::connect_with(&endpoints, config).await?;
-    let frames = link.frames(&args.session).await?;
+    let frames = link.frames(&session).await?;
     println!("watching {} through {}", args.session, endpoints.join(","));
     let start = Instant::now();
     let deadline = args.seconds.map(|s| start + Duration::from_secs_f64(s));

@@ -13,7 +13,7 @@
 //!     .create_session_toml(&std::fs::read_to_string("scenes/dam_break.toml").unwrap_or_default())
 //!     .await?;
 //! let link = ZenohLink::connect(&info.zenoh_locators).await?;
-//! let frames = link.frames(&session.id).await?;
+//! let frames = link.frames(&session).await?;
 //! client.step(&session.id, 10).await?;
 //! let frame = frames.recv().await?;
 //! println!("step {} with {} particles", frame.step, frame.particle_count);
@@ -35,6 +35,6 @@ pub use client::{Client, Identity, Tls};
 pub use design::{Design, DesignKind, OptimizeEvent};
 pub use error::ClientError;
 pub use frame::{FieldView, FrameView, SolidSurfaceView, SurfaceView};
-pub use link::{DropReason, Dropped, Frames, Statuses, ZenohLink};
+pub use link::{DropReason, Dropped, Frames, Statuses, Watched, ZenohLink};
 pub use meshless_proto::v1;
 pub use scene_file::{inline_meshes, read_scene_file};

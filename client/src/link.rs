@@ -1,6 +1,7 @@
 //! The zenoh side: frame and status subscriptions, latest-frame queries.
 
 use crate::{ClientError, FrameView};
+use meshless_proto::seal::SealKey;
 use meshless_proto::{keys, v1};
 use prost::Message;
 use std::sync::{Mutex, PoisonError};
@@ -13,6 +14,70 @@ type Result<T> = std::result::Result<T, ClientError>;
 
 fn zenoh_error(context: &str) -> impl Fn(zenoh::Error) -> ClientError + '_ {
     move |e| ClientError::Zenoh(format!("{context}: {e}"))
+}
+
+/// A session to subscribe to: its id and, when the server seals its
+/// payloads (`ServerInfo.zenoh_sealed`), the key that opens them
+/// (`Session.seal_key`, given only to callers that may see the session).
+/// Made from a [`v1::Session`] (both) or an id (a server that does not
+/// seal). Its `Debug` form never shows the key.
+#[derive(Clone)]
+pub struct Watched {
+    id: String,
+    seal_key: Vec<u8>,
+}
+
+impl Watched {
+    /// The session `id`, whose payloads `seal_key` opens (empty: the
+    /// server does not seal).
+    pub fn new(id: impl Into<String>, seal_key: &[u8]) -> Self {
+        Self {
+            id: id.into(),
+            seal_key: seal_key.to_vec(),
+        }
+    }
+
+    /// The gate of this session's `key`: the key's checks, and the
+    /// opening of sealed payloads. `replay` refuses a payload sealed
+    /// before the last one taken (a subscription's; a query's replies are
+    /// each new).
+    fn gate(&self, key: String, replay: bool) -> Result<Gate> {
+        let seal = if self.seal_key.is_empty() {
+            None
+        } else {
+            Some(SealKey::from_bytes(&self.seal_key).map_err(|e| {
+                ClientError::Zenoh(format!("session {}: {e}", quote(self.id.as_bytes())))
+            })?)
+        };
+        Ok(Gate::new(key, &self.id, seal, replay))
+    }
+}
+
+impl std::fmt::Debug for Watched {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Watched")
+            .field("id", &self.id)
+            .field("sealed", &!self.seal_key.is_empty())
+            .finish()
+    }
+}
+
+impl From<&v1::Session> for Watched {
+    fn from(session: &v1::Session) -> Self {
+        Self::new(session.id.clone(), &session.seal_key)
+    }
+}
+
+impl From<&str> for Watched {
+    fn from(id: &str) -> Self {
+        Self::new(id, &[])
+    }
+}
+
+impl From<&String> for Watched {
+    fn from(id: &String) -> Self {
+        Self::new(id.clone(), &[])
+    }
 }
 
 /// A zenoh session connected to a meshless server (or a router in front of
@@ -68,43 +133,41 @@ impl ZenohLink {
         Ok(Self { session })
     }
 
-    /// Subscribes to a session's frames. Returns once the server knows of
-    /// the subscription (a latest-frame query has made the round trip), so
-    /// no frame published afterwards is missed.
+    /// Subscribes to a session's frames (pass the [`v1::Session`] the
+    /// server answered with, so that sealed frames open). Returns once the
+    /// server knows of the subscription (a latest-frame query has made the
+    /// round trip), so no frame published afterwards is missed.
     ///
     /// # Errors
-    /// [`ClientError::Zenoh`] when the subscription cannot be declared.
-    pub async fn frames(&self, session_id: &str) -> Result<Frames> {
-        let key = keys::frames(session_id);
+    /// [`ClientError::Zenoh`] when the subscription cannot be declared or
+    /// the seal key is malformed.
+    pub async fn frames(&self, session: impl Into<Watched>) -> Result<Frames> {
+        let session = session.into();
+        let gate = session.gate(keys::frames(&session.id), true)?;
         let subscriber = self
             .session
-            .declare_subscriber(key.clone())
+            .declare_subscriber(gate.key.clone())
             .await
             .map_err(zenoh_error("declare frame subscriber"))?;
-        self.latest_message(session_id).await?;
-        Ok(Frames {
-            subscriber,
-            gate: Gate::new(key, session_id),
-        })
+        self.latest_message(session).await?;
+        Ok(Frames { subscriber, gate })
     }
 
     /// Subscribes to a session's status changes, with the same guarantee
     /// as [`ZenohLink::frames`].
     ///
     /// # Errors
-    /// [`ClientError::Zenoh`] when the subscription cannot be declared.
-    pub async fn statuses(&self, session_id: &str) -> Result<Statuses> {
-        let key = keys::status(session_id);
+    /// As [`ZenohLink::frames`].
+    pub async fn statuses(&self, session: impl Into<Watched>) -> Result<Statuses> {
+        let session = session.into();
+        let gate = session.gate(keys::status(&session.id), true)?;
         let subscriber = self
             .session
-            .declare_subscriber(key.clone())
+            .declare_subscriber(gate.key.clone())
             .await
             .map_err(zenoh_error("declare status subscriber"))?;
-        self.latest_message(session_id).await?;
-        Ok(Statuses {
-            subscriber,
-            gate: Gate::new(key, session_id),
-        })
+        self.latest_message(session).await?;
+        Ok(Statuses { subscriber, gate })
     }
 
     /// Asks the session's `latest` queryable for its most recent frame;
@@ -112,9 +175,10 @@ impl ZenohLink {
     /// passes the subscribers' checks (see [`Frames`]).
     ///
     /// # Errors
-    /// [`ClientError::Zenoh`] when the query cannot be sent.
-    pub async fn latest_frame(&self, session_id: &str) -> Result<Option<FrameView>> {
-        self.latest(session_id, FrameView::from_proto).await
+    /// [`ClientError::Zenoh`] when the query cannot be sent or the seal
+    /// key is malformed.
+    pub async fn latest_frame(&self, session: impl Into<Watched>) -> Result<Option<FrameView>> {
+        self.latest(session.into(), FrameView::from_proto).await
     }
 
     /// [`ZenohLink::latest_frame`] as the protocol's message, checked
@@ -122,10 +186,12 @@ impl ZenohLink {
     /// frames themselves (`meshless demo` hands them to `meshless-wire`).
     ///
     /// # Errors
-    /// [`ClientError::Zenoh`] when the query cannot be sent.
-    pub async fn latest_message(&self, session_id: &str) -> Result<Option<v1::Frame>> {
-        self.latest(session_id, |frame| FrameView::check(&frame).map(|()| frame))
-            .await
+    /// As [`ZenohLink::latest_frame`].
+    pub async fn latest_message(&self, session: impl Into<Watched>) -> Result<Option<v1::Frame>> {
+        self.latest(session.into(), |frame| {
+            FrameView::check(&frame).map(|()| frame)
+        })
+        .await
     }
 
     /// Queries `…/latest` and keeps the last reply that passes the
@@ -137,10 +203,10 @@ impl ZenohLink {
     /// and skipped: the server never sends them.
     async fn latest<T>(
         &self,
-        session_id: &str,
+        session: Watched,
         accept: impl Fn(v1::Frame) -> Result<T>,
     ) -> Result<Option<T>> {
-        let gate = Gate::new(keys::latest(session_id), session_id);
+        let gate = session.gate(keys::latest(&session.id), false)?;
         let replies = self
             .session
             .get(&gate.key)
@@ -190,6 +256,13 @@ pub enum DropReason {
     Malformed,
     /// A message naming another session than the one subscribed to.
     WrongSession,
+    /// A payload that does not open with the session's seal key: not
+    /// sealed, sealed with another key or for another key expression, or
+    /// altered on the way.
+    NotAuthentic,
+    /// A sealed payload that opens but was sealed before the last one
+    /// taken: a recording played again.
+    Replayed,
 }
 
 /// The samples a subscriber has dropped so far, by reason. Any zenoh peer
@@ -204,6 +277,10 @@ pub struct Dropped {
     pub malformed: u64,
     /// Messages naming another session ([`DropReason::WrongSession`]).
     pub wrong_session: u64,
+    /// Payloads that did not open ([`DropReason::NotAuthentic`]).
+    pub not_authentic: u64,
+    /// Sealed payloads played again ([`DropReason::Replayed`]).
+    pub replayed: u64,
     /// The last drop: its reason and what was wrong, with any text the
     /// sender chose (a session id, a key) cut to 64 characters.
     pub last: Option<(DropReason, String)>,
@@ -212,7 +289,12 @@ pub struct Dropped {
 impl Dropped {
     /// Samples dropped for any reason.
     pub fn total(&self) -> u64 {
-        self.wrong_key + self.undecodable + self.malformed + self.wrong_session
+        self.wrong_key
+            + self.undecodable
+            + self.malformed
+            + self.wrong_session
+            + self.not_authentic
+            + self.replayed
     }
 
     fn count(&mut self, reason: DropReason, why: String) {
@@ -221,6 +303,8 @@ impl Dropped {
             DropReason::Undecodable => &mut self.undecodable,
             DropReason::Malformed => &mut self.malformed,
             DropReason::WrongSession => &mut self.wrong_session,
+            DropReason::NotAuthentic => &mut self.not_authentic,
+            DropReason::Replayed => &mut self.replayed,
         };
         *counter += 1;
         self.last = Some((reason, why));
@@ -252,19 +336,27 @@ fn status_session(status: &v1::SessionStatus) -> Option<&str> {
 }
 
 /// What one subscription (or query) accepts: samples on exactly its key
-/// whose message decodes and names its session. Counts what it drops.
+/// that open with the session's seal key (when it has one), sealed after
+/// the last one taken (when it checks replays), whose message decodes and
+/// names its session. Counts what it drops.
 #[derive(Debug)]
 struct Gate {
     key: String,
     session_id: String,
+    seal: Option<SealKey>,
+    /// The counter of the last sealed payload taken; `None` when replays
+    /// are not checked.
+    newest: Option<Mutex<u64>>,
     dropped: Mutex<Dropped>,
 }
 
 impl Gate {
-    fn new(key: String, session_id: &str) -> Self {
+    fn new(key: String, session_id: &str, seal: Option<SealKey>, replay: bool) -> Self {
         Self {
             key,
             session_id: session_id.to_owned(),
+            seal,
+            newest: replay.then(Mutex::default),
             dropped: Mutex::default(),
         }
     }
@@ -309,6 +401,18 @@ impl Gate {
                 format!("put on {}, not {}", quote(key.as_bytes()), self.key),
             ));
         }
+        let mut opened;
+        let payload = match &self.seal {
+            None => payload,
+            Some(seal) => {
+                opened = payload.to_vec();
+                let (counter, plain) = seal
+                    .open(key, &mut opened)
+                    .map_err(|e| (DropReason::NotAuthentic, e.to_string()))?;
+                self.check_fresh(counter)?;
+                plain
+            }
+        };
         let message = M::decode(payload).map_err(|e| {
             (
                 DropReason::Undecodable,
@@ -327,6 +431,24 @@ impl Gate {
             )),
             Some(_) => Ok(message),
         }
+    }
+
+    /// Takes the counter of an authentic payload, refusing one at or
+    /// below the last taken. Only authentic payloads get here, so a
+    /// forger cannot move the mark.
+    fn check_fresh(&self, counter: u64) -> std::result::Result<(), Rejection> {
+        let Some(newest) = &self.newest else {
+            return Ok(());
+        };
+        let mut newest = newest.lock().unwrap_or_else(PoisonError::into_inner);
+        if counter <= *newest {
+            return Err((
+                DropReason::Replayed,
+                format!("sealed as number {counter}, after number {newest}"),
+            ));
+        }
+        *newest = counter;
+        Ok(())
     }
 
     fn reject(&self, (reason, why): Rejection) {
@@ -461,7 +583,7 @@ mod tests {
     }
 
     fn frame_gate() -> Gate {
-        Gate::new(keys::frames("abc"), "abc")
+        Gate::new(keys::frames("abc"), "abc", None, true)
     }
 
     /// The reason a frame sample on `key` is refused, `None` if it passes.
@@ -513,7 +635,7 @@ mod tests {
 
     #[test]
     fn statuses_must_name_the_session() {
-        let gate = Gate::new(keys::status("abc"), "abc");
+        let gate = Gate::new(keys::status("abc"), "abc", None, true);
         let status = |id: &str| {
             v1::SessionStatus {
                 session_id: id.into(),
@@ -564,5 +686,48 @@ mod tests {
             .expect_err("refused");
         assert!(why.len() < 200, "a sender's text is cut: {why}");
         assert!(why.contains(&"x".repeat(64)) && why.contains('…'), "{why}");
+    }
+
+    #[test]
+    fn sealed_frames_open_once_in_order_and_nothing_else_passes() {
+        let sealer = meshless_proto::seal::Sealer::generate().expect("random");
+        let watched = Watched::new("abc", sealer.key().bytes());
+        let gate = watched.gate(keys::frames("abc"), true).expect("32 bytes");
+        let key = keys::frames("abc");
+        let check = |payload: &[u8]| {
+            gate.check::<v1::Frame>(&key, payload, frame_session)
+                .map(|f| f.header.map(|h| h.step))
+                .map_err(|(reason, _)| reason)
+        };
+        let first = sealer.seal(&key, &frame("abc", 1));
+        let second = sealer.seal(&key, &frame("abc", 2));
+        assert_eq!(check(&first), Ok(Some(1)));
+        assert_eq!(check(&second), Ok(Some(2)));
+        assert_eq!(check(&first), Err(DropReason::Replayed), "played again");
+        assert_eq!(
+            check(&frame("abc", 3).encode_to_vec()),
+            Err(DropReason::NotAuthentic),
+            "a plain frame where sealed ones are expected"
+        );
+        let stranger = meshless_proto::seal::Sealer::generate().expect("random");
+        assert_eq!(
+            check(&stranger.seal(&key, &frame("abc", 4))),
+            Err(DropReason::NotAuthentic)
+        );
+        assert_eq!(
+            check(&sealer.seal(&keys::status("abc"), &frame("abc", 5))),
+            Err(DropReason::NotAuthentic),
+            "sealed for the status key"
+        );
+        let mut altered = sealer.seal(&key, &frame("abc", 6));
+        altered[20] ^= 4;
+        assert_eq!(check(&altered), Err(DropReason::NotAuthentic));
+        assert_eq!(check(&sealer.seal(&key, &frame("abc", 7))), Ok(Some(7)));
+
+        let err = Watched::new("abc", &[1; 5])
+            .gate(key.clone(), true)
+            .expect_err("short key");
+        assert!(err.to_string().contains("32 bytes"), "{err}");
+        assert!(!format!("{watched:?}").contains(&format!("{:?}", sealer.key().bytes())));
     }
 }

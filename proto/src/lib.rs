@@ -1,6 +1,6 @@
 //! The `meshless.v1` wire protocol: generated message types, the
 //! `Simulation` gRPC client and server stubs, and the zenoh key expressions
-//! that carry frames and status.
+//! that carry frames and status, and the sealing of what is put on them.
 //!
 //! The `.proto` files live in `proto/meshless/v1/`, laid out so that Python
 //! code generated with `grpc_tools.protoc -I proto` imports as `meshless.v1`.
@@ -18,6 +18,7 @@ pub mod v1 {
 }
 
 pub mod keys;
+pub mod seal;
 
 /// Encoded `FileDescriptorSet` of all meshless protos, for gRPC reflection.
 pub const FILE_DESCRIPTOR_SET: &[u8] =

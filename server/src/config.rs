@@ -39,6 +39,21 @@ pub enum ZenohPublishers {
     Any,
 }
 
+/// Whether sessions seal what they put on zenoh (`meshless_proto::seal`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ZenohSealing {
+    /// Seal when the server has tokens: sessions then have owners, and
+    /// only the callers that may see a session get the key that opens
+    /// its frames (the default). Without tokens every caller may see every
+    /// session, and sealing would keep nobody out.
+    Auto,
+    /// Always seal.
+    Always,
+    /// Never seal: for a zenoh plane that no stranger reaches, to save
+    /// the encryption (measured in docs/performance.md).
+    Never,
+}
+
 /// Default of `--max-particles`.
 pub const DEFAULT_MAX_PARTICLES: u64 = 2_000_000;
 /// Default of `--max-sessions`.
@@ -95,6 +110,17 @@ pub struct ServerConfig {
         default_value = "server"
     )]
     pub zenoh_publishers: ZenohPublishers,
+
+    /// Whether sessions seal their frames, status changes and latest-frame
+    /// replies with a key that only the callers who may see them receive
+    /// (`Session.seal_key`).
+    #[arg(
+        long,
+        env = "MESHLESS_ZENOH_SEALING",
+        value_enum,
+        default_value = "auto"
+    )]
+    pub zenoh_sealing: ZenohSealing,
 
     /// The gRPC endpoint's certificate chain (PEM); with `--tls-key` the
     /// endpoint speaks only TLS (clients use `https://`).
@@ -191,6 +217,16 @@ impl ServerConfig {
         }
     }
 
+    /// Whether sessions seal their zenoh payloads, given whether the
+    /// server has tokens.
+    pub fn seals(&self, has_tokens: bool) -> bool {
+        match self.zenoh_sealing {
+            ZenohSealing::Auto => has_tokens,
+            ZenohSealing::Always => true,
+            ZenohSealing::Never => false,
+        }
+    }
+
     /// The gRPC endpoint's TLS configuration; `None` without `--tls-cert`.
     ///
     /// # Errors
@@ -237,6 +273,7 @@ impl ServerConfig {
             zenoh_connect: Vec::new(),
             zenoh_config: None,
             zenoh_publishers: ZenohPublishers::Server,
+            zenoh_sealing: ZenohSealing::Auto,
             tls_cert: None,
             tls_key: None,
             tls_client_ca: None,

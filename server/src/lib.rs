@@ -102,8 +102,10 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
     let grpc_addr = listener.local_addr()?;
 
     let shutdown = CancellationToken::new();
+    let sealed = config.seals(tokens.is_some());
     let registry = Arc::new(Registry::new(
         zenoh.clone(),
+        sealed,
         config.build_options(),
         config.max_sessions,
         config.memory_budget_bytes(),
@@ -115,6 +117,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         zenoh_key_root: meshless_proto::keys::ROOT.into(),
         max_particles_per_session: config.max_particles,
         max_sessions: config.max_sessions,
+        zenoh_sealed: sealed,
     };
     let simulation = SimulationServer::new(SimulationService::new(
         registry.clone(),

@@ -1,8 +1,9 @@
 //! The sessions a server holds, by id, within its limits.
 
 use crate::error::{ServiceError, quote};
-use crate::session::{Access, Session};
+use crate::session::{Access, Outlet, Session};
 use meshless_engine::{BuildOptions, Scene};
+use meshless_proto::seal::Sealer;
 use std::collections::HashMap;
 use std::hash::{BuildHasher, RandomState};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -13,6 +14,8 @@ use tokio_util::sync::CancellationToken;
 pub struct Registry {
     sessions: RwLock<HashMap<String, Arc<Session>>>,
     zenoh: zenoh::Session,
+    /// Whether each session seals its zenoh payloads with a key of its own.
+    seal: bool,
     options: BuildOptions,
     max_sessions: u32,
     memory: Mutex<Memory>,
@@ -24,6 +27,7 @@ pub struct Registry {
 impl Registry {
     pub fn new(
         zenoh: zenoh::Session,
+        seal: bool,
         options: BuildOptions,
         max_sessions: u32,
         memory_budget: u64,
@@ -32,6 +36,7 @@ impl Registry {
         Self {
             sessions: RwLock::default(),
             zenoh,
+            seal,
             options,
             max_sessions,
             memory: Mutex::new(Memory {
@@ -101,12 +106,25 @@ impl Registry {
                 return Err(e);
             }
         };
+        let sealer = match self.seal.then(Sealer::generate).transpose() {
+            Ok(sealer) => sealer.map(Arc::new),
+            Err(e) => {
+                self.memory().release_unassigned(needed);
+                return Err(ServiceError::Internal(format!(
+                    "cannot make a seal key: {e}"
+                )));
+            }
+        };
+        let outlet = Outlet {
+            zenoh: self.zenoh.clone(),
+            sealer,
+        };
         let started = Session::start(
             id.clone(),
             serial,
             world,
             self.options.clone(),
-            &self.zenoh,
+            outlet,
             self.cancel.child_token(),
             access,
         );

@@ -228,6 +228,7 @@ fn cases() -> Vec<Case> {
         case("mesh: no path and no data", Alice, Toml(with_mesh("{ type = \"mesh\" }")), InvalidArgument, "systems[1].shape.path"),
         case("mesh: data not Base64", Alice, Toml(with_mesh("{ type = \"mesh\", data = { format = \"obj\", base64 = \"*\" } }")), InvalidArgument, "Base64"),
         case("mesh: data not a mesh", Alice, Toml(with_mesh("{ type = \"mesh\", data = { format = \"obj\", base64 = \"aGVsbG8=\" } }")), InvalidArgument, "systems[1].shape.data"),
+        case("mesh: so large its moments overflow", Alice, Toml(with_mesh(&format!("{{ type = \"mesh\", data = {{ format = \"obj\", base64 = {:?} }} }}", base64_of(HUGE_CUBE.as_bytes())))), InvalidArgument, "too large to measure"),
         case("mesh: PLY announcing billions of vertices", Alice, Toml(with_mesh(&format!("{{ type = \"mesh\", data = {{ format = \"ply\", base64 = {:?} }} }}", base64_of(b"ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n")))), InvalidArgument, "elements"),
         case("mesh: negative scale", Alice, Toml(with_mesh("{ type = \"mesh\", path = \"ball.obj\", scale = -1.0 }")), InvalidArgument, "scale"),
         // Ids, counts and durations at the edge.
@@ -303,6 +304,13 @@ fn cases() -> Vec<Case> {
     }
     cases
 }
+
+/// A closed, outward cube reaching 1e80 m: its moments of inertia
+/// overflow, which once hung the admission check (found by the
+/// `scene_spec` fuzz target).
+const HUGE_CUBE: &str = "v -1e80 -1e80 -1e80\nv 1e80 -1e80 -1e80\nv 1e80 1e80 -1e80\nv -1e80 1e80 -1e80\n\
+v -1e80 -1e80 1e80\nv 1e80 -1e80 1e80\nv 1e80 1e80 1e80\nv -1e80 1e80 1e80\n\
+f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\nf 4 1 5\nf 4 5 8\n";
 
 fn base64_of(bytes: &[u8]) -> String {
     use base64::Engine as _;

@@ -500,3 +500,143 @@ async fn no_peer_publishes_or_answers_through_the_server() {
     answering.abort();
     link.close().await;
 }
+
+/// A server with tokens seals each session's frames, status changes and
+/// latest-frame replies with a key that only the callers who may see the
+/// session receive (`Session.seal_key`). A stranger subscribed to every
+/// session's frames by wildcard receives ciphertext that decodes as no
+/// frame; a subscriber without the key drops every payload; the
+/// observer's subscriber opens them, and drops a recorded frame played
+/// again and a plain frame forged in the session's name (behind
+/// `--zenoh-publishers any`, where a peer can put them).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sealed_payloads_open_only_for_those_who_may_see_the_session() {
+    let dir = meshless_tests::TempDir::new("sealed");
+    let tokens = dir.0.join("tokens");
+    std::fs::write(
+        &tokens,
+        "alice alice-token-0123456789\nbob bob-token-0123456789ab\n",
+    )
+    .expect("tokens file");
+    let tokens = tokens.to_str().expect("utf-8");
+    let server = ServerProcess::spawn(&["--tokens-file", tokens, OPEN[0], OPEN[1]])
+        .await
+        .expect("server starts");
+    let as_user = |token: &str| meshless_client::Identity {
+        token: Some(token.into()),
+        ..Default::default()
+    };
+    let alice = server
+        .client_as(&as_user("alice-token-0123456789"))
+        .await
+        .expect("alice");
+    let bob = server
+        .client_as(&as_user("bob-token-0123456789ab"))
+        .await
+        .expect("bob");
+    let info = within("info", alice.server_info()).await.expect("info");
+    assert!(info.zenoh_sealed, "a server with tokens seals by default");
+    let session = within(
+        "create",
+        alice.create_session_toml_with_observers(&small_scene(), vec!["bob".into()]),
+    )
+    .await
+    .expect("session");
+    assert_eq!(session.seal_key.len(), 32, "an AES-256 key");
+    let seen_by_bob = within("bob gets it", bob.get_session(&session.id))
+        .await
+        .expect("bob observes");
+    assert_eq!(seen_by_bob.seal_key, session.seal_key);
+    let (id, particles) = (session.id.as_str(), session.particle_count as usize);
+
+    let link = within("zenoh connect", ZenohLink::connect(&info.zenoh_locators))
+        .await
+        .expect("zenoh link");
+    let frames = within("subscribe", link.frames(&seen_by_bob))
+        .await
+        .expect("frames");
+    let statuses = within("subscribe", link.statuses(&seen_by_bob))
+        .await
+        .expect("statuses");
+    let keyless = within("subscribe without the key", link.frames(id))
+        .await
+        .expect("frames");
+    let latest = within("latest", link.latest_frame(&seen_by_bob))
+        .await
+        .expect("query")
+        .expect("the sealed latest reply opens");
+    assert_eq!(latest.step, 0);
+    assert!(
+        within("latest without the key", link.latest_frame(id))
+            .await
+            .expect("query")
+            .is_none(),
+        "the latest reply is sealed too"
+    );
+
+    let peer = hostile_peer(&info.zenoh_locators).await;
+    let stranger = within(
+        "wildcard subscriber",
+        peer.declare_subscriber("meshless/v1/sessions/*/frames")
+            .into_future(),
+    )
+    .await
+    .expect("zenoh lets any peer subscribe");
+    // The stranger's subscription reaches the server before the fence
+    // query's answer comes back.
+    put_all(&peer, &session.zenoh_key_prefix, Vec::new()).await;
+
+    within("step", alice.step(id, 2)).await.expect("steps");
+    real_frame(&frames, id, 1, particles).await;
+    real_frame(&frames, id, 2, particles).await;
+    let mut captured = Vec::new();
+    for _ in 0..2 {
+        let sample = within("the stranger's sample", stranger.recv_async())
+            .await
+            .expect("a sample");
+        let payload = sample.payload().to_bytes().into_owned();
+        if let Ok(frame) = v1::Frame::decode(&payload[..]) {
+            assert!(
+                frame.header.is_none_or(|h| h.session_id != id),
+                "the stranger reads no frame of the session"
+            );
+        }
+        captured.push(payload);
+    }
+    let status = within("status", statuses.recv()).await.expect("status");
+    assert_eq!(status.session_id, id, "statuses open for the observer");
+    // The keyless subscriber counts its drops as `recv` meets them, and
+    // never returns one of these frames.
+    within("the keyless subscriber's drops", async {
+        while keyless.dropped().total() < 2 {
+            let pass = tokio::time::timeout(std::time::Duration::from_millis(10), keyless.recv());
+            assert!(pass.await.is_err(), "no frame opens without the key");
+        }
+    })
+    .await;
+    let dropped = keyless.dropped();
+    assert_eq!(dropped.total(), dropped.undecodable + dropped.malformed);
+
+    let prefix = &session.zenoh_key_prefix;
+    put_all(
+        &peer,
+        prefix,
+        vec![
+            (format!("{prefix}/frames"), captured[0].clone()),
+            (
+                format!("{prefix}/frames"),
+                forged_frame(id, 999_999).encode_to_vec(),
+            ),
+        ],
+    )
+    .await;
+    within("step", alice.step(id, 1)).await.expect("steps");
+    real_frame(&frames, id, 3, particles).await;
+    let dropped = frames.dropped();
+    assert_eq!(
+        (dropped.replayed, dropped.not_authentic, dropped.total()),
+        (1, 1, 2),
+        "{dropped:?}"
+    );
+    link.close().await;
+}

@@ -7,6 +7,7 @@ mod smoke;
 
 use anyhow::{Context, Result};
 use meshless_client::Client;
+use meshless_load::frames::Payload;
 use meshless_load::{frames, rpc, slow_subscriber};
 use meshless_server::ServerConfig;
 use std::time::Duration;
@@ -121,7 +122,7 @@ async fn frames_table() -> Result<()> {
     println!("| particles | frame MB | puts/s | delivered/s | delivered MB/s |");
     println!("|---|---|---|---|---|");
     for &particles in counts {
-        let delivery = frames::deliver(particles, window)
+        let delivery = frames::deliver(particles, window, Payload::Shared)
             .await
             .with_context(|| format!("{particles}-particle frames"))?;
         println!(
@@ -130,6 +131,19 @@ async fn frames_table() -> Result<()> {
             delivery.published as f64 / window.as_secs_f64(),
             delivery.frames_per_s(),
             delivery.mb_per_s()
+        );
+    }
+    println!("\nSealing's cost: frames encoded for every put, plain and sealed (AES-256-GCM)\n");
+    println!("| particles | plain delivered/s | sealed delivered/s | sealed / plain |");
+    println!("|---|---|---|---|");
+    for &particles in counts {
+        let plain = frames::deliver(particles, window, Payload::Encoded).await?;
+        let sealed = frames::deliver(particles, window, Payload::Sealed).await?;
+        println!(
+            "| {particles} | {:.1} | {:.1} | {:.3} |",
+            plain.frames_per_s(),
+            sealed.frames_per_s(),
+            sealed.frames_per_s() / plain.frames_per_s().max(f64::MIN_POSITIVE)
         );
     }
     Ok(())

@@ -10,10 +10,17 @@
 //! a fluid scene that asks for velocities publishes; the simulation
 //! itself is left out, since no machine steps a million particles 60
 //! times a second.
+//!
+//! [`Payload`] says what each put costs the publisher: one encoding
+//! shared by every put (the transport alone), a fresh encoding per put,
+//! or a fresh encoding sealed per put and opened by the subscriber (what
+//! a server with tokens does: `meshless_proto::seal`). The last two,
+//! side by side, give sealing's cost.
 
 use anyhow::{Context, Result};
-use meshless_client::{ZenohLink, v1};
+use meshless_client::{Watched, ZenohLink, v1};
 use meshless_proto::keys;
+use meshless_proto::seal::Sealer;
 use prost::Message;
 use std::future::IntoFuture;
 use std::time::{Duration, Instant};
@@ -24,6 +31,19 @@ const SESSION: &str = "load-bench";
 
 /// How long the subscriber waits for stragglers once the publisher stops.
 const DRAIN: Duration = Duration::from_secs(2);
+
+/// What the publisher does for each put.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Payload {
+    /// One encoding, shared by every put: what the transport alone does.
+    Shared,
+    /// The frame encoded afresh for every put, as a server that does not
+    /// seal does.
+    Encoded,
+    /// Encoded and sealed afresh for every put, and opened by the
+    /// subscriber, as a server with tokens does.
+    Sealed,
+}
 
 /// What one run delivered.
 #[derive(Debug, Clone, Copy)]
@@ -88,12 +108,12 @@ fn free_port() -> Result<u16> {
     Ok(listener.local_addr()?.port())
 }
 
-/// Publishes frames of `particles` particles for `duration` and counts
-/// what the subscriber receives.
+/// Publishes frames of `particles` particles for `duration`, each made as
+/// `payload` says, and counts what the subscriber receives.
 ///
 /// # Errors
 /// When zenoh cannot open, listen or connect.
-pub async fn deliver(particles: usize, duration: Duration) -> Result<Delivery> {
+pub async fn deliver(particles: usize, duration: Duration, payload: Payload) -> Result<Delivery> {
     let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
     let mut config = zenoh::Config::default();
     for (key, value) in [
@@ -114,14 +134,19 @@ pub async fn deliver(particles: usize, duration: Duration) -> Result<Delivery> {
         .priority(Priority::DataLow)
         .await
         .map_err(|e| anyhow::anyhow!("declare publisher: {e}"))?;
+    let sealer = Sealer::generate().map_err(|e| anyhow::anyhow!("seal key: {e}"))?;
+    let watched = match payload {
+        Payload::Sealed => Watched::new(SESSION, sealer.key().bytes()),
+        Payload::Shared | Payload::Encoded => Watched::new(SESSION, &[]),
+    };
     let link = ZenohLink::connect(std::slice::from_ref(&endpoint)).await?;
-    let frames = link.frames(SESSION).await?;
+    let frames = link.frames(watched).await?;
 
-    let encoded = frame(particles).encode_to_vec();
-    let frame_bytes = encoded.len();
-    // Encoded once and shared: a put hands zenoh the bytes without a copy,
-    // as the server's publisher hands it each frame's fresh encoding.
-    let payload = zenoh::bytes::ZBytes::from(encoded);
+    let message = frame(particles);
+    let key = keys::frames(SESSION);
+    let frame_bytes = message.encoded_len();
+    // Shared: a put hands zenoh the bytes without a copy.
+    let shared = zenoh::bytes::ZBytes::from(message.encode_to_vec());
     let receiving = tokio::spawn(async move {
         let (mut delivered, mut first, mut last) = (0u64, None, None);
         while let Ok(Ok(frame)) = tokio::time::timeout(
@@ -150,8 +175,13 @@ pub async fn deliver(particles: usize, duration: Duration) -> Result<Delivery> {
     let start = Instant::now();
     let mut published = 0u64;
     while start.elapsed() < duration {
+        let bytes = match payload {
+            Payload::Shared => shared.clone(),
+            Payload::Encoded => message.encode_to_vec().into(),
+            Payload::Sealed => sealer.seal(&key, &message).into(),
+        };
         publisher
-            .put(payload.clone())
+            .put(bytes)
             .into_future()
             .await
             .map_err(|e| anyhow::anyhow!("put: {e}"))?;

@@ -7,10 +7,12 @@ with ``grpc_tools.protoc -I proto``). Frames arrive over zenoh;
 parsing, and raises ``ValueError`` for any malformed payload.
 :class:`Client` drives a server over gRPC and :class:`Frames` subscribes
 to a session's frames, dropping and counting samples that are malformed or
-name another session.
+name another session, and opening sealed ones with the session's key
+(:class:`Seal`).
 """
 
 from .frames import Body, Frame, SolidRange, SolidSurface, Surface, decode_frame, frames_key, latest_key, status_key
+from .seal import Seal
 
 
 def __getattr__(name: str):
@@ -23,4 +25,4 @@ def __getattr__(name: str):
     raise AttributeError(name)
 
 
-__all__ = ["Body", "Client", "Design", "Frame", "Frames", "SolidRange", "SolidSurface", "Surface", "decode_frame", "frames_key", "latest_key", "status_key"]
+__all__ = ["Body", "Client", "Design", "Frame", "Frames", "Seal", "SolidRange", "SolidSurface", "Surface", "decode_frame", "frames_key", "latest_key", "status_key"]

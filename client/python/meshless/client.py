@@ -16,6 +16,7 @@ import numpy as np
 import zenoh
 
 from .frames import Frame, decode_frame, frames_key, latest_key, parse_frame, unpack_frame
+from .seal import Seal
 
 DEFAULT_TIMEOUT = 30.0
 
@@ -279,22 +280,46 @@ class Frames:
     session, and pass :func:`decode_frame`'s checks. Anything else is
     dropped and counted: ``dropped`` (the total), ``drop_reasons`` (by
     reason: ``wrong_key``, ``undecodable``, ``malformed``,
-    ``wrong_session``) and ``last_drop`` (the last reason and what was
+    ``wrong_session``, and for sealed frames ``not_authentic`` and
+    ``replayed``) and ``last_drop`` (the last reason and what was
     wrong). A peer that puts a well-formed frame naming this session is not
     caught here: the server's zenoh access control refuses it (its
     default), or a router's.
+
+    ``session`` is the ``Session`` message the server answered with
+    (``Client.create_session``, ``get_session``), or a session id. A server
+    with tokens seals what it puts on zenoh with a key of each session
+    (``ServerInfo.zenoh_sealed``) that only callers who may see the session
+    receive (``Session.seal_key``); given the message, or ``seal_key``,
+    frames are opened with it (:class:`Seal`), and a payload that does not
+    open (``not_authentic``) or was sealed before the last one taken
+    (``replayed``) is dropped too.
 
     ``zenoh_config`` names a zenoh configuration file (JSON5) to start
     from: the CA of ``tls/`` endpoints, a client certificate.
     """
 
-    def __init__(self, endpoints: list[str], session_id: str, zenoh_config: str | None = None):
+    def __init__(
+        self,
+        endpoints: list[str],
+        session,
+        zenoh_config: str | None = None,
+        seal_key: bytes | None = None,
+    ):
+        if isinstance(session, str):
+            session_id, key = session, b""
+        else:
+            session_id, key = session.id, session.seal_key
+        if seal_key is not None:
+            key = seal_key
+        self._seal = Seal(key) if key else None
         config = zenoh.Config() if zenoh_config is None else zenoh.Config.from_file(zenoh_config)
         config.insert_json5("mode", '"client"')
         config.insert_json5("connect/endpoints", json.dumps(list(endpoints)))
         config.insert_json5("scouting/multicast/enabled", "false")
         self._session_id = session_id
         self._key = frames_key(session_id)
+        self._newest = 0
         self._lock = threading.Lock()
         self._drop_reasons: Counter[str] = Counter()
         self._last_drop: tuple[str, str] | None = None
@@ -322,10 +347,23 @@ class Frames:
         with self._lock:
             return self._last_drop
 
-    def _admit(self, key: str, data: bytes, expected_key: str) -> Frame:
-        """The frame of a sample on ``key``, or ``_Dropped`` saying why not."""
+    def _admit(self, key: str, data: bytes, expected_key: str, replay: bool = True) -> Frame:
+        """The frame of a sample on ``key``, or ``_Dropped`` saying why not.
+        ``replay``: refuse a sealed payload sealed before the last one taken
+        (a subscription's; a query's replies are each new)."""
         if key != expected_key:
             raise _Dropped("wrong_key", f"put on {_quote(key)}, not {expected_key}")
+        if self._seal is not None:
+            try:
+                counter, data = self._seal.open(key, data)
+            except ValueError as e:
+                raise _Dropped("not_authentic", str(e)) from e
+            if replay:
+                if counter <= self._newest:
+                    raise _Dropped(
+                        "replayed", f"sealed as number {counter}, after number {self._newest}"
+                    )
+                self._newest = counter
         try:
             message = parse_frame(data)
         except ValueError as e:
@@ -374,7 +412,9 @@ class Frames:
             if reply.ok is None:
                 continue
             try:
-                latest = self._admit(str(reply.ok.key_expr), reply.ok.payload.to_bytes(), key)
+                latest = self._admit(
+                    str(reply.ok.key_expr), reply.ok.payload.to_bytes(), key, replay=False
+                )
             except Exception:
                 # Skipped as the subscriber drops it, but not counted: the
                 # counts are of the subscription.

@@ -14,8 +14,8 @@ import time
 import pytest
 import zenoh
 
-from conftest import TIMEOUT, fixture
-from meshless import Client, Frames, decode_frame, frames_key, latest_key
+from conftest import TIMEOUT, fixture, running_server
+from meshless import Client, Frames, Seal, decode_frame, frames_key, latest_key
 
 SCENE = fixture("python_tank")
 
@@ -171,3 +171,48 @@ def test_no_peer_publishes_or_answers_through_the_server(server):
             for _ in range(5):
                 with Frames(server.zenoh_endpoints, session.id) as late:
                     assert late.latest is not None and late.latest.step == 3
+
+
+def test_sealed_frames_open_only_for_those_who_may_see_the_session(tmp_path):
+    """A server with tokens seals each session's frames with a key that only
+    its owner and observers receive over gRPC: a stranger on the zenoh plane
+    holds ciphertext, and a replayed or plain payload is dropped."""
+    tokens = tmp_path / "tokens"
+    tokens.write_text("alice alice-token-0123456789\nbob bob-token-0123456789ab\n")
+    with running_server("--tokens-file", str(tokens), "--zenoh-publishers", "any") as server:
+        with Client(server.grpc_target, token="alice-token-0123456789") as alice, Client(
+            server.grpc_target, token="bob-token-0123456789ab"
+        ) as bob:
+            assert alice.server_info().zenoh_sealed
+            session = alice.create_session(SCENE, observers=["bob"])
+            assert len(session.seal_key) == 32
+            seen_by_bob = bob.get_session(session.id)
+            assert seen_by_bob.seal_key == session.seal_key
+
+            captured: list[bytes] = []
+            with hostile_peer(server.zenoh_endpoints) as stranger:
+                stranger.declare_subscriber(
+                    "meshless/v1/sessions/*/frames",
+                    lambda sample: captured.append(sample.payload.to_bytes()),
+                )
+                with Frames(server.zenoh_endpoints, seen_by_bob) as frames, Frames(
+                    server.zenoh_endpoints, session.id
+                ) as keyless:
+                    assert frames.latest is not None and frames.latest.step == 0
+                    assert keyless.latest is None, "the latest reply is sealed too"
+                    alice.step(session.id, 2)
+                    assert [frames.next().step for _ in range(2)] == [1, 2]
+                    until(lambda: len(captured) == 2, "the stranger's two payloads")
+                    for payload in captured:
+                        with pytest.raises(ValueError):
+                            decode_frame(payload)
+                        with pytest.raises(ValueError, match="does not open"):
+                            Seal(bytes(32)).open(frames_key(session.id), payload)
+                    until(lambda: keyless.dropped == 2, "the keyless subscriber's drops")
+
+                    stranger.put(frames_key(session.id), captured[0])
+                    stranger.put(frames_key(session.id), forged_frame(session.id))
+                    until(lambda: frames.dropped == 2, "the replay and the plain frame dropped")
+                    assert dict(frames.drop_reasons) == {"replayed": 1, "not_authentic": 1}
+                    alice.step(session.id, 1)
+                    assert frames.next().step == 3

@@ -152,6 +152,16 @@ pub enum MeshError {
         volume: Real,
     },
 
+    /// A mesh so large that its volume or moments of inertia overflow.
+    #[error(
+        "the mesh is too large to measure: its vertices reach {extent:e} m from the origin, \
+         and its moments of inertia overflow; scale it down"
+    )]
+    Unmeasurable {
+        /// The largest coordinate of a vertex, in absolute value (m).
+        extent: Real,
+    },
+
     /// A sampling spacing that is zero, negative, NaN or infinite.
     #[error("spacing must be finite and positive, got {spacing}")]
     InvalidSpacing {

@@ -56,6 +56,10 @@ pub struct MeshSolid {
 
 /// Volume, first moment and second moment `int x x^T dV` of a closed mesh
 /// about the origin, by signed tetrahedra.
+/// Iterations the 3 x 3 inertia eigensolver may take; a finite symmetric
+/// 3 x 3 matrix converges in a few dozen.
+const MAX_EIGEN_SWEEPS: usize = 10_000;
+
 fn moments(mesh: &TriMesh) -> (Real, Vector, Matrix3<Real>) {
     let (mut volume, mut first, mut second) = (0.0, Vector::zeros(), Matrix3::zeros());
     for t in 0..mesh.triangles.len() {
@@ -76,7 +80,8 @@ impl MeshSolid {
     ///
     /// # Errors
     /// The errors of [`MeshSdf::new`]: a mesh that is not closed, has
-    /// degenerate triangles or faces inward.
+    /// degenerate triangles or faces inward; [`MeshError::Unmeasurable`]
+    /// for one so large that its moments overflow.
     pub fn new(mesh: &TriMesh) -> Result<MeshSolid, MeshError> {
         // Checks closure, orientation and degeneracy before any measuring.
         MeshSdf::new(mesh)?;
@@ -86,7 +91,17 @@ impl MeshSolid {
         // the inertia tensor per unit density, I = tr(C) 1 - C.
         let about_centroid = second - centroid * centroid.transpose() * volume;
         let inertia = Matrix3::identity() * about_centroid.trace() - about_centroid;
-        let eigen = SymmetricEigen::new(inertia);
+        // Moments grow as the fifth power of the size: vertices some 1e62 m
+        // out overflow them, and the eigensolver, given no iteration cap,
+        // would iterate on infinities for ever.
+        let unmeasurable = || MeshError::Unmeasurable {
+            extent: mesh.vertices.iter().map(|v| v.amax()).fold(0.0, Real::max),
+        };
+        if !(volume.is_finite() && centroid.iter().chain(inertia.iter()).all(|x| x.is_finite())) {
+            return Err(unmeasurable());
+        }
+        let eigen = SymmetricEigen::try_new(inertia, Real::EPSILON, MAX_EIGEN_SWEEPS)
+            .ok_or_else(unmeasurable)?;
         let mut columns = eigen.eigenvectors;
         // A proper rotation: a reflection would turn the mesh inside out.
         if columns.determinant() < 0.0 {
@@ -353,5 +368,35 @@ mod tests {
         }
         assert_eq!(corners, 8, "every corner of the inset box is sampled");
         assert!(solid.inset(0.1).is_none(), "nothing is 0.1 inside");
+    }
+
+    /// A mesh so large that its moments of inertia overflow is refused
+    /// at once, naming its extent; it once hung the admission check (the
+    /// `scene_spec` fuzz target: the inertia eigensolver iterated on
+    /// infinities for ever). Up to the overflow, a box's volume is still
+    /// exact.
+    #[test]
+    fn a_mesh_whose_moments_overflow_is_refused() {
+        for scale in [1e60, 1e80, 1e150] {
+            let half = Vector::new(1.0, 2.0, 3.0) * scale;
+            match MeshSolid::new(&TriMesh::cuboid(-half, half)) {
+                Ok(solid) => {
+                    assert_eq!(scale, 1e60, "overflows beyond 1e62");
+                    let volume = 48.0 * scale * scale * scale;
+                    assert!((solid.volume() - volume).abs() < 1e-12 * volume);
+                }
+                Err(MeshError::Unmeasurable { extent }) => {
+                    assert!(scale > 1e60, "{scale:e} is measurable");
+                    assert_eq!(extent, 3.0 * scale);
+                }
+                Err(e) => panic!("{scale:e}: {e}"),
+            }
+        }
+        let err = MeshSolid::new(&TriMesh::cuboid(
+            Vector::repeat(-1e80),
+            Vector::repeat(1e80),
+        ))
+        .expect_err("overflows");
+        assert!(err.to_string().contains("1e80"), "{err}");
     }
 }

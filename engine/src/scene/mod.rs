@@ -26,6 +26,7 @@ pub use error::SceneError;
 pub use fluid::{FluidBlock, FluidSpec, ParticleSpec, SolverKind, WallModel};
 pub use footprint::Footprint;
 pub use mesh::{DEFAULT_MAX_MESH_BYTES, MeshData, MeshFiles};
+pub(crate) use solid::SampledSolid;
 pub use solid::{
     AnchorSpec, IntegratorKind, SolidSpec, SolidSurfaceSpec, defaults as solid_defaults,
 };
@@ -220,13 +221,27 @@ pub enum SystemSpec {
     Solid(SolidSpec),
 }
 
-/// A validated scene with what validation found (the engine shape of
-/// each body, the memory estimate), ready to build.
+/// A validated scene with what validation made (each body's engine
+/// shape, each solid's particles and surface, the memory estimate), ready
+/// to build.
 #[derive(Debug, Clone)]
 pub struct Checked {
     pub(crate) scene: Scene,
-    pub(crate) shapes: Vec<Option<Shape>>,
+    pub(crate) systems: Vec<Prepared>,
     footprint: Footprint,
+}
+
+/// What the check made of one system that its build takes over, so that
+/// nothing is read, sampled or embedded twice.
+#[derive(Debug, Clone, Default)]
+pub(crate) enum Prepared {
+    /// A fluid (built from its spec), or an entry already taken.
+    #[default]
+    Nothing,
+    /// A rigid body's engine shape.
+    Body(Shape),
+    /// A solid's particles and embedded surface.
+    Solid(SampledSolid),
 }
 
 impl Checked {
@@ -236,6 +251,9 @@ impl Checked {
     }
 }
 
+/// Longest piece of the offending token a scene error repeats.
+const MAX_TOKEN_CHARS: usize = 32;
+
 /// Longest piece of a TOML parser's message a scene error repeats.
 const MAX_PARSE_MESSAGE_CHARS: usize = 300;
 
@@ -243,8 +261,21 @@ const MAX_PARSE_MESSAGE_CHARS: usize = 300;
 /// what, without the offending line itself (a 60 MB line would make a
 /// 180 MB message), and with what to change when the file nests too deep.
 fn toml_error(text: &str, error: &toml::de::Error) -> String {
-    // The parser quotes unknown keys and values in full.
-    let mut message = parser_message(error.message(), MAX_PARSE_MESSAGE_CHARS);
+    // The parser quotes unknown keys and values in full. The span names the
+    // offending token in the input: its echoes go first, since a token
+    // holding quote characters of its own ends a quoted span early, and
+    // the span cutting of `parser_message` would keep the rest of it
+    // (found by the `scene_toml` fuzz target). Then every quoted span is
+    // cut, for what the span does not name.
+    let mut raw = error.message().to_owned();
+    if let Some(token) = error.span().and_then(|span| text.get(span)) {
+        let token = token.trim_matches(['"', '\'']);
+        if token.chars().count() > MAX_TOKEN_CHARS {
+            let short: String = token.chars().take(MAX_TOKEN_CHARS).collect();
+            raw = raw.replace(token, &format!("{short}..."));
+        }
+    }
+    let mut message = parser_message(&raw, MAX_PARSE_MESSAGE_CHARS);
     if message.contains("recursion") || message.contains("recurse") {
         message.push_str(
             " (arrays or inline tables nested too deeply; a scene needs a few levels at most)",
@@ -426,21 +457,20 @@ impl Scene {
     /// As [`Self::validate`].
     pub fn check(mut self, options: &BuildOptions) -> Result<Checked, SceneError> {
         self.load_meshes(options)?;
-        let (shapes, footprint) = self.checked_shapes(options)?;
+        let (systems, footprint) = self.checked_systems(options)?;
         Ok(Checked {
             scene: self,
-            shapes,
+            systems,
             footprint,
         })
     }
 
-    /// [`Self::validate`], keeping the engine shape of each rigid body
-    /// (by system index; `None` for other systems), so that a mesh file is
-    /// read once per build.
-    pub(crate) fn checked_shapes(
+    /// [`Self::validate`], keeping what it made of each system (by system
+    /// index) for the build.
+    pub(crate) fn checked_systems(
         &self,
         options: &BuildOptions,
-    ) -> Result<(Vec<Option<Shape>>, Footprint), SceneError> {
+    ) -> Result<(Vec<Prepared>, Footprint), SceneError> {
         let name_chars = self.name.chars().count();
         if name_chars > MAX_NAME_CHARS {
             return Err(SceneError::invalid(
@@ -480,9 +510,9 @@ impl Scene {
         let mut fluids = 0;
         let mut solid_particles = 0.0;
         let mut footprint = Footprint::default();
-        let mut shapes = Vec::with_capacity(self.systems.len());
+        let mut prepared = Vec::with_capacity(self.systems.len());
         for (s, system) in self.systems.iter().enumerate() {
-            shapes.push(None);
+            prepared.push(Prepared::Nothing);
             if let SystemSpec::RigidBody(RigidBodySpec { shape, .. })
             | SystemSpec::Solid(SolidSpec { shape, .. }) = system
                 && let ShapeSpec::Mesh {
@@ -525,14 +555,19 @@ impl Scene {
                              fluid, a static body is an obstacle for solids)",
                         ));
                     }
-                    shapes[s] = Some(self.validate_body(&format!("systems[{s}]"), body, fluid)?);
+                    prepared[s] = Prepared::Body(self.validate_body(
+                        &format!("systems[{s}]"),
+                        body,
+                        fluid,
+                    )?);
                 }
                 SystemSpec::Solid(solid) => {
-                    let (shape, count) = self.validate_solid(
+                    let sampled = self.validate_solid(
                         &format!("systems[{s}]"),
                         solid,
                         options.max_particles,
                     )?;
+                    let count = sampled.particles.len();
                     solid_particles += count as f64;
                     footprint.add_solid(
                         count as f64,
@@ -540,7 +575,7 @@ impl Scene {
                         self.dimension,
                         matches!(solid.integrator, IntegratorKind::Implicit),
                     );
-                    shapes[s] = Some(shape);
+                    prepared[s] = Prepared::Solid(sampled);
                 }
             }
         }
@@ -557,7 +592,7 @@ impl Scene {
                 limit: options.max_particles,
             });
         }
-        Ok((shapes, footprint))
+        Ok((prepared, footprint))
     }
 
     /// The scene's fluid, if it has one.

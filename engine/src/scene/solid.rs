@@ -277,7 +277,7 @@ impl Scene {
         at: &str,
         solid: &SolidSpec,
         max_particles: u64,
-    ) -> Result<(Shape, usize), SceneError> {
+    ) -> Result<SampledSolid, SceneError> {
         let dim = self.dimension;
         let shape_at = format!("{at}.shape");
         if matches!(solid.shape, ShapeSpec::Plane { .. }) {
@@ -446,13 +446,25 @@ impl Scene {
                     ),
                 ));
             }
-            let rest: Vec<Vector> = particles.iter().map(|(x, _)| *x).collect();
-            if let Some(Err(e)) = solid.embedded_surface(&shape, dim, &rest) {
-                return Err(SceneError::invalid(field, e));
-            }
         }
-        Ok((shape, particles.len()))
+        // Built here rather than at the build: checking a surface means
+        // building it, its MLS work per vertex is the dearest part of a
+        // solid's admission, and the build takes it from here.
+        let rest: Vec<Vector> = particles.iter().map(|(x, _)| *x).collect();
+        let surface = solid
+            .embedded_surface(&shape, dim, &rest)
+            .transpose()
+            .map_err(|e| SceneError::invalid(format!("{at}.surface"), e))?;
+        Ok(SampledSolid { particles, surface })
     }
+}
+
+/// What admitting a solid made, kept for its build: its particles' rest
+/// positions and initial velocities, and its embedded surface.
+#[derive(Debug, Clone)]
+pub(crate) struct SampledSolid {
+    pub(crate) particles: Vec<(Vector, Vector)>,
+    pub(crate) surface: Option<EmbeddedSurface>,
 }
 
 fn inside(b: &Aabb, x: &Vector, dim: usize) -> bool {

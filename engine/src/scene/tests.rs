@@ -71,6 +71,19 @@ fn parse_errors_are_short_and_located() {
         .to_string();
     assert!(message.contains("nested too deeply"), "{message}");
     assert!(message.len() < 600, "{} bytes", message.len());
+
+    // A value holding the parser's own quote characters ends its quoted
+    // span early; the error still repeats no more than a short prefix
+    // of it (found by the `scene_toml` fuzz target; reproducer in
+    // fuzz/regressions/scene_toml).
+    let ticks = format!("ri{}gid_body", "`".repeat(80));
+    let text = SMALL.replacen("kind = \"fluid\"", &format!("kind = \"{ticks}\""), 1);
+    assert_ne!(text, SMALL, "the small scene names its fluid's kind");
+    let message = Scene::from_toml_str(&text)
+        .expect_err("unknown kind")
+        .to_string();
+    assert!(message.contains("unknown variant"), "{message}");
+    assert!(!message.contains(&"`".repeat(40)), "{message}");
 }
 
 #[test]
@@ -288,6 +301,34 @@ fn a_solid_over_the_particle_limit_is_refused_before_sampling() {
         }
         other => panic!("expected TooManyParticles, got {other:?}"),
     }
+}
+
+/// The check samples a solid and embeds its surface, and the build takes
+/// both over instead of making them again (an embedded surface is the
+/// dearest part of admitting a solid): the world's solid rests at the
+/// particles the check sampled, and its surface is the one it embedded.
+#[test]
+fn the_build_takes_over_the_solid_the_check_made() {
+    let checked = unit_box_solid(0.1, "surface = { subdivisions = 1 }")
+        .check(&BuildOptions::default())
+        .expect("valid");
+    let Some(Prepared::Solid(sampled)) = checked.systems.first().cloned() else {
+        panic!("the check keeps the solid it sampled");
+    };
+    let surface = sampled.surface.expect("the check embedded the surface");
+    let world = checked.build();
+    let frame = world.frame();
+    let positions = &frame.field(FieldKind::Position).expect("positions").values;
+    assert_eq!(positions.len(), 3 * sampled.particles.len());
+    for (k, (x, _)) in sampled.particles.iter().enumerate() {
+        for a in 0..3 {
+            assert_eq!(positions[3 * k + a], x[a] as f32, "particle {k}");
+        }
+    }
+    assert_eq!(
+        frame.solid_surfaces[0].mesh.vertices.len(),
+        surface.vertex_count()
+    );
 }
 
 fn with_body(body: &str) -> Scene {

@@ -14,8 +14,8 @@ use crate::math::{Vector, vector};
 use crate::neighbors::{Periodic, UniformGrid};
 use crate::rigid::{BodyState, Motion, Oscillation, RigidBodies, RigidBody, Slip};
 use crate::scene::{
-    BuildOptions, Checked, FluidSpec, MotionKind, RigidBodySpec, Scene, SceneError, SlipKind,
-    SolidSpec, SolverKind, SystemSpec, WallModel, body_pose,
+    BuildOptions, Checked, FluidSpec, MotionKind, Prepared, RigidBodySpec, SampledSolid, Scene,
+    SceneError, SlipKind, SolidSpec, SolverKind, SystemSpec, WallModel, body_pose,
 };
 use crate::solid::embedded::EmbeddedSurface;
 use crate::solid::{ElasticSolid, Obstacle, Obstacles, SolidState};
@@ -36,15 +36,15 @@ impl Scene {
 impl Checked {
     /// Builds the world of the checked scene.
     pub fn build(self) -> World {
-        World::new(self.scene, self.shapes)
+        World::new(self.scene, self.systems)
     }
 }
 
 impl World {
-    /// Builds the world of an already validated scene (see [`Scene::build`]).
-    /// `shapes` holds the engine shape of each rigid body by system index.
-    fn new(scene: Scene, mut shapes: Vec<Option<Shape>>) -> Self {
-        let solids = build_solids(&scene, &shapes);
+    /// Builds the world of an already validated scene (see [`Scene::build`])
+    /// from what its check made of each system, by system index.
+    fn new(scene: Scene, mut prepared: Vec<Prepared>) -> Self {
+        let solids = build_solids(&scene, &mut prepared);
         // Bodies after the fluid: they take its spacing and kernels.
         let fluid = scene
             .systems
@@ -59,7 +59,12 @@ impl World {
                     .iter()
                     .enumerate()
                     .filter_map(|(s, system)| match system {
-                        SystemSpec::RigidBody(body) => Some((s, body, shapes.get_mut(s)?.take()?)),
+                        SystemSpec::RigidBody(body) => {
+                            match prepared.get_mut(s).map(std::mem::take) {
+                                Some(Prepared::Body(shape)) => Some((s, body, shape)),
+                                _ => None,
+                            }
+                        }
                         SystemSpec::Fluid(_) | SystemSpec::Solid(_) => None,
                     })
                     .collect();
@@ -92,16 +97,19 @@ impl World {
     }
 }
 
-/// The solids of a validated scene, each colliding with the domain walls
-/// and the scene's static rigid bodies.
-fn build_solids(scene: &Scene, shapes: &[Option<Shape>]) -> Vec<SolidEntry> {
+/// The solids of a validated scene (taking their particles and surfaces
+/// from `prepared`), each colliding with the domain walls and the scene's
+/// static rigid bodies.
+fn build_solids(scene: &Scene, prepared: &mut [Prepared]) -> Vec<SolidEntry> {
     let dim = scene.dimension;
     let obstacles: Vec<Obstacle> = scene
         .systems
         .iter()
-        .zip(shapes)
-        .filter_map(|(system, shape)| match (system, shape) {
-            (SystemSpec::RigidBody(body), Some(shape)) if body.motion == MotionKind::Static => {
+        .zip(prepared.iter())
+        .filter_map(|(system, prepared)| match (system, prepared) {
+            (SystemSpec::RigidBody(body), Prepared::Body(shape))
+                if body.motion == MotionKind::Static =>
+            {
                 let (position, orientation) = body_pose(body, shape, dim);
                 Some(Obstacle {
                     shape: shape.clone(),
@@ -116,44 +124,43 @@ fn build_solids(scene: &Scene, shapes: &[Option<Shape>]) -> Vec<SolidEntry> {
     scene
         .systems
         .iter()
-        .zip(shapes)
+        .zip(prepared.iter_mut())
         .enumerate()
-        .filter_map(|(system, (spec, shape))| match (spec, shape) {
-            (SystemSpec::Solid(spec), Some(shape)) => {
-                let (solid, surface) = build_solid(spec, shape, dim, walls, obstacles.clone());
-                Some(SolidEntry {
-                    index: system,
-                    solid,
-                    backup: SolidState::default(),
-                    surface,
-                })
-            }
-            _ => None,
+        .filter_map(|(system, (spec, prepared))| {
+            let SystemSpec::Solid(spec) = spec else {
+                return None;
+            };
+            let Prepared::Solid(sampled) = std::mem::take(prepared) else {
+                return None;
+            };
+            let (solid, surface) = build_solid(spec, sampled, dim, walls, obstacles.clone());
+            Some(SolidEntry {
+                index: system,
+                solid,
+                backup: SolidState::default(),
+                surface,
+            })
         })
         .collect()
 }
 
-/// Builds the engine solid of a validated spec, colliding with the
-/// domain's walls and `obstacles`.
+/// Builds the engine solid of a validated spec from the particles and
+/// surface its check made, colliding with the domain's walls and
+/// `obstacles`.
 fn build_solid(
     spec: &SolidSpec,
-    shape: &Shape,
+    sampled: SampledSolid,
     dim: usize,
     walls: (Vector, Vector),
     obstacles: Vec<Obstacle>,
 ) -> (ElasticSolid, Option<EmbeddedSurface>) {
-    let (rest, velocities): (Vec<Vector>, Vec<Vector>) =
-        spec.particles(shape, dim).into_iter().unzip();
+    let (rest, velocities): (Vec<Vector>, Vec<Vector>) = sampled.particles.into_iter().unzip();
     let fixed = rest.iter().map(|x| spec.anchored(x, dim)).collect();
     let obstacles = Obstacles {
         shapes: obstacles,
         walls: Some(walls),
     };
-    // Validated by Scene::validate: a surface that cannot be embedded was
-    // refused there.
-    let surface = spec
-        .embedded_surface(shape, dim, &rest)
-        .and_then(Result::ok);
+    let surface = sampled.surface;
     let solid = ElasticSolid::new(spec.params(dim), rest, velocities, fixed, obstacles)
         .expect("validated by Scene::validate");
     (solid, surface)

@@ -20,6 +20,7 @@ use tokio_util::sync::CancellationToken;
 
 pub use access::{Access, check_observers};
 pub use optimize::{OptimizeJob, Problem};
+pub use publish::Outlet;
 pub use worker::RunTarget;
 use worker::{Message, Queued};
 
@@ -174,17 +175,20 @@ pub struct Session {
     /// What constraints are checked against; fixed by the scene.
     context: Context,
     design: SharedDesign,
+    /// The key of the session's sealed payloads, for the callers that may
+    /// read it; empty when the server does not seal.
+    seal_key: Vec<u8>,
 }
 
 impl Session {
     /// Starts the compute thread for an already built world and declares
-    /// the session's zenoh publishers and queryable.
+    /// the session's zenoh publishers and queryable on `outlet`.
     pub fn start(
         id: String,
         serial: u64,
         world: World,
         options: BuildOptions,
-        zenoh: &zenoh::Session,
+        outlet: Outlet,
         cancel: CancellationToken,
         access: Access,
     ) -> std::io::Result<Arc<Self>> {
@@ -208,9 +212,14 @@ impl Session {
         let (commands, commands_rx) = std::sync::mpsc::channel();
         let interrupts = Arc::new(Interrupts::default());
 
-        publish::spawn_frames(zenoh.clone(), id.clone(), frames_rx);
-        publish::spawn_status(zenoh.clone(), id.clone(), events.subscribe());
-        publish::spawn_latest(zenoh.clone(), id.clone(), latest.clone(), cancel.clone());
+        let seal_key = outlet
+            .sealer
+            .as_ref()
+            .map(|sealer| sealer.key().bytes().to_vec())
+            .unwrap_or_default();
+        publish::spawn_frames(outlet.clone(), id.clone(), frames_rx);
+        publish::spawn_status(outlet.clone(), id.clone(), events.subscribe());
+        publish::spawn_latest(outlet, id.clone(), latest.clone(), cancel.clone());
         // Server shutdown cancels the token before it stops the sessions,
         // and waits for the calls in flight first: a step or optimisation
         // in progress stops now, so that those calls end.
@@ -257,6 +266,7 @@ impl Session {
             thread: Mutex::new(Some(thread)),
             context,
             design,
+            seal_key,
         }))
     }
 
@@ -388,7 +398,8 @@ impl Session {
         }
     }
 
-    /// The `Session` message for this session.
+    /// The `Session` message for this session, seal key included: only
+    /// for callers that may read it.
     pub fn to_proto(&self) -> v1::Session {
         v1::Session {
             id: self.id.clone(),
@@ -399,6 +410,7 @@ impl Session {
             scene: Some(self.scene_echo.clone()),
             owner: self.access.owner().to_owned(),
             observers: self.access.observers().to_vec(),
+            seal_key: self.seal_key.clone(),
         }
     }
 

@@ -4,6 +4,7 @@
 
 use super::LatestFrame;
 use meshless_engine::Frame;
+use meshless_proto::seal::Sealer;
 use meshless_proto::{keys, v1};
 use meshless_wire::frame::frame_to_proto;
 use prost::Message;
@@ -12,11 +13,31 @@ use tokio::sync::{broadcast, mpsc};
 use tokio_util::sync::CancellationToken;
 use zenoh::qos::{CongestionControl, Priority};
 
+/// Where a session puts its payloads: the server's zenoh session, and the
+/// session's sealer when the server seals (`meshless_proto::seal`).
+#[derive(Debug, Clone)]
+pub struct Outlet {
+    pub zenoh: zenoh::Session,
+    pub sealer: Option<Arc<Sealer>>,
+}
+
+impl Outlet {
+    /// `message` as it is put on `key`: encoded, and sealed for `key` when
+    /// the session seals.
+    fn payload(&self, key: &str, message: &impl Message) -> Vec<u8> {
+        match &self.sealer {
+            Some(sealer) => sealer.seal(key, message),
+            None => message.encode_to_vec(),
+        }
+    }
+}
+
 /// Puts every frame from `frames` until the worker drops its sender.
-pub fn spawn_frames(zenoh: zenoh::Session, id: String, mut frames: mpsc::Receiver<Arc<Frame>>) {
+pub fn spawn_frames(outlet: Outlet, id: String, mut frames: mpsc::Receiver<Arc<Frame>>) {
     tokio::spawn(async move {
         let key = keys::frames(&id);
-        let publisher = match zenoh
+        let publisher = match outlet
+            .zenoh
             .declare_publisher(key.clone())
             .congestion_control(CongestionControl::Drop)
             .priority(Priority::DataLow)
@@ -29,7 +50,7 @@ pub fn spawn_frames(zenoh: zenoh::Session, id: String, mut frames: mpsc::Receive
             }
         };
         while let Some(frame) = frames.recv().await {
-            let bytes = frame_to_proto(&id, &frame).encode_to_vec();
+            let bytes = outlet.payload(&key, &frame_to_proto(&id, &frame));
             if let Err(e) = publisher.put(bytes).await {
                 tracing::warn!(session = %id, step = frame.step, "frame not published: {e}");
             }
@@ -39,13 +60,14 @@ pub fn spawn_frames(zenoh: zenoh::Session, id: String, mut frames: mpsc::Receive
 
 /// Puts every status change until the session is closed.
 pub fn spawn_status(
-    zenoh: zenoh::Session,
+    outlet: Outlet,
     id: String,
     mut events: broadcast::Receiver<v1::SessionStatus>,
 ) {
     tokio::spawn(async move {
         let key = keys::status(&id);
-        let publisher = match zenoh
+        let publisher = match outlet
+            .zenoh
             .declare_publisher(key.clone())
             .congestion_control(CongestionControl::Block)
             .priority(Priority::InteractiveLow)
@@ -61,7 +83,7 @@ pub fn spawn_status(
             match events.recv().await {
                 Ok(status) => {
                     let closed = status.state == v1::SessionState::Closed as i32;
-                    if let Err(e) = publisher.put(status.encode_to_vec()).await {
+                    if let Err(e) = publisher.put(outlet.payload(&key, &status)).await {
                         tracing::warn!(session = %id, "status not published: {e}");
                     }
                     if closed {
@@ -78,15 +100,10 @@ pub fn spawn_status(
 }
 
 /// Answers `…/latest` queries with the latest frame until cancelled.
-pub fn spawn_latest(
-    zenoh: zenoh::Session,
-    id: String,
-    latest: LatestFrame,
-    cancel: CancellationToken,
-) {
+pub fn spawn_latest(outlet: Outlet, id: String, latest: LatestFrame, cancel: CancellationToken) {
     tokio::spawn(async move {
         let key = keys::latest(&id);
-        let queryable = match zenoh.declare_queryable(key.clone()).await {
+        let queryable = match outlet.zenoh.declare_queryable(key.clone()).await {
             Ok(q) => q,
             Err(e) => {
                 tracing::error!(session = %id, "cannot declare queryable {key}: {e}");
@@ -105,7 +122,7 @@ pub fn spawn_latest(
                 .lock()
                 .unwrap_or_else(std::sync::PoisonError::into_inner)
                 .clone();
-            let bytes = frame_to_proto(&id, &frame).encode_to_vec();
+            let bytes = outlet.payload(&key, &frame_to_proto(&id, &frame));
             if let Err(e) = query.reply(key.clone(), bytes).await {
                 tracing::warn!(session = %id, "latest-frame reply failed: {e}");
             }
