@@ -3,14 +3,16 @@
 //! around it. Built by a counting sort: O(n), no hashing in the hot loop.
 
 use super::CandidateSearch;
-use crate::math::{Real, Vector};
+use crate::math::{Brief, Real, Vector};
 use rayon::prelude::*;
 
 /// The grid would need more cells than [`UniformGrid::MAX_CELLS`].
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error(
-    "the domain spans {cells} grid cells of size {cell_size} m, above the limit of {limit}; \
-     shrink the domain or increase the support radius"
+    "the domain spans {} grid cells of size {} m, above the limit of {limit}; \
+     shrink the domain or increase the support radius",
+    Brief(*cells),
+    Brief(*cell_size)
 )]
 pub struct GridError {
     /// Cells the box would need (product of the per-axis counts; a float

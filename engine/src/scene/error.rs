@@ -2,7 +2,7 @@
 //! error names the offending field and what to change.
 
 use super::Aabb;
-use crate::math::Real;
+use crate::math::{Brief, Real};
 
 /// Why a scene was rejected. Every variant names the offending field and
 /// says what to change.
@@ -71,18 +71,18 @@ pub(super) fn check_range(field: &str, value: Real, lo: Real, hi: Real) -> Resul
     if !value.is_finite() {
         return Err(SceneError::invalid(
             field,
-            format!("must be a finite number, got {value}"),
+            format!("must be a finite number, got {}", Brief(value)),
         ));
     }
     if value < lo || value > hi {
         let range = if hi.is_infinite() {
-            format!(">= {lo}")
+            format!(">= {}", Brief(lo))
         } else {
-            format!("in [{lo}, {hi}]")
+            format!("in [{}, {}]", Brief(lo), Brief(hi))
         };
         return Err(SceneError::invalid(
             field,
-            format!("must be {range}, got {value}"),
+            format!("must be {range}, got {}", Brief(value)),
         ));
     }
     Ok(())
@@ -101,7 +101,7 @@ pub(super) fn check_vector(field: &str, v: [Real; 3]) -> Result<(), SceneError> 
         if !value.is_finite() {
             return Err(SceneError::invalid(
                 format!("{field}.{axis}"),
-                format!("must be a finite number, got {value}"),
+                format!("must be a finite number, got {}", Brief(value)),
             ));
         }
     }

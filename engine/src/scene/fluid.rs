@@ -235,43 +235,39 @@ impl Scene {
             other => other,
         })?;
         check_positive(&format!("{at}.rest_density"), fluid.rest_density)?;
-        match fluid.solver {
-            SolverKind::Wcsph => {
-                check_positive(&format!("{at}.stiffness"), fluid.stiffness).map_err(
-                    |e| match e {
-                        SceneError::Invalid { field, message } => SceneError::Invalid {
-                            field,
-                            message: format!(
-                                "{message} (the wcsph solver needs the Tait stiffness)"
-                            ),
-                        },
-                        other => other,
-                    },
-                )?;
-                // Water's bulk modulus is 2.2e9 Pa; beyond 1e12 the explicit
-                // sub-steps would be needlessly tiny and pressures overflow frames.
-                check_range(&format!("{at}.stiffness"), fluid.stiffness, 0.0, 1e12)?;
-            }
-            SolverKind::Dfsph => {
-                check_range(
-                    &format!("{at}.density_tolerance"),
-                    fluid.density_tolerance,
-                    1e-6,
-                    0.1,
-                )?;
-                check_range(
-                    &format!("{at}.divergence_tolerance"),
-                    fluid.divergence_tolerance,
-                    1e-6,
-                    0.1,
-                )?;
-                if fluid.max_solver_iterations == 0 || fluid.max_solver_iterations > 10_000 {
-                    return Err(SceneError::invalid(
-                        format!("{at}.max_solver_iterations"),
-                        format!("must be in [1, 10000], got {}", fluid.max_solver_iterations),
-                    ));
-                }
-            }
+        if fluid.solver == SolverKind::Wcsph {
+            check_positive(&format!("{at}.stiffness"), fluid.stiffness).map_err(|e| match e {
+                SceneError::Invalid { field, message } => SceneError::Invalid {
+                    field,
+                    message: format!("{message} (the wcsph solver needs the Tait stiffness)"),
+                },
+                other => other,
+            })?;
+        }
+        // Every knob is checked whichever solver reads it: a NaN the other
+        // solver ignores would still be stored, echoed and compared
+        // (found by the `requests` fuzz target: a NaN divergence
+        // tolerance on a WCSPH fluid made the scene unequal to itself).
+        // Water's bulk modulus is 2.2e9 Pa; beyond 1e12 the explicit
+        // sub-steps would be needlessly tiny and pressures overflow frames.
+        check_range(&format!("{at}.stiffness"), fluid.stiffness, 0.0, 1e12)?;
+        check_range(
+            &format!("{at}.density_tolerance"),
+            fluid.density_tolerance,
+            1e-6,
+            0.1,
+        )?;
+        check_range(
+            &format!("{at}.divergence_tolerance"),
+            fluid.divergence_tolerance,
+            1e-6,
+            0.1,
+        )?;
+        if fluid.max_solver_iterations == 0 || fluid.max_solver_iterations > 10_000 {
+            return Err(SceneError::invalid(
+                format!("{at}.max_solver_iterations"),
+                format!("must be in [1, 10000], got {}", fluid.max_solver_iterations),
+            ));
         }
         check_range(&format!("{at}.gamma"), fluid.gamma, 1.0, 10.0)?;
         check_range(

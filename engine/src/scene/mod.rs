@@ -251,9 +251,6 @@ impl Checked {
     }
 }
 
-/// Longest piece of the offending token a scene error repeats.
-const MAX_TOKEN_CHARS: usize = 32;
-
 /// Longest piece of a TOML parser's message a scene error repeats.
 const MAX_PARSE_MESSAGE_CHARS: usize = 300;
 
@@ -261,21 +258,8 @@ const MAX_PARSE_MESSAGE_CHARS: usize = 300;
 /// what, without the offending line itself (a 60 MB line would make a
 /// 180 MB message), and with what to change when the file nests too deep.
 fn toml_error(text: &str, error: &toml::de::Error) -> String {
-    // The parser quotes unknown keys and values in full. The span names the
-    // offending token in the input: its echoes go first, since a token
-    // holding quote characters of its own ends a quoted span early, and
-    // the span cutting of `parser_message` would keep the rest of it
-    // (found by the `scene_toml` fuzz target). Then every quoted span is
-    // cut, for what the span does not name.
-    let mut raw = error.message().to_owned();
-    if let Some(token) = error.span().and_then(|span| text.get(span)) {
-        let token = token.trim_matches(['"', '\'']);
-        if token.chars().count() > MAX_TOKEN_CHARS {
-            let short: String = token.chars().take(MAX_TOKEN_CHARS).collect();
-            raw = raw.replace(token, &format!("{short}..."));
-        }
-    }
-    let mut message = parser_message(&raw, MAX_PARSE_MESSAGE_CHARS);
+    // The parser quotes unknown keys and values in full.
+    let mut message = parser_message(error.message(), MAX_PARSE_MESSAGE_CHARS);
     if message.contains("recursion") || message.contains("recurse") {
         message.push_str(
             " (arrays or inline tables nested too deeply; a scene needs a few levels at most)",

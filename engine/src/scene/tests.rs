@@ -117,6 +117,15 @@ fn bad_values_name_their_field() {
     fluid(&mut s).support_radius = Some(0.0);
     assert_eq!(rejected_field(&s), "systems[0].support_radius");
 
+    // Checked whichever solver reads them: the small tank is WCSPH, which
+    // reads neither tolerance.
+    let mut s = small();
+    fluid(&mut s).divergence_tolerance = Real::NAN;
+    assert_eq!(rejected_field(&s), "systems[0].divergence_tolerance");
+    let mut s = small();
+    fluid(&mut s).max_solver_iterations = 0;
+    assert_eq!(rejected_field(&s), "systems[0].max_solver_iterations");
+
     let mut s = small();
     s.domain.max[1] = s.domain.min[1];
     assert_eq!(rejected_field(&s), "domain");

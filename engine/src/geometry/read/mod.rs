@@ -151,43 +151,70 @@ pub(crate) fn quote(text: &str) -> String {
 
 /// A third-party parser's message as an error may carry it: each span it
 /// quotes between backticks or double quotes (serde's ``unknown variant
-/// `...` `` and `string "..."`) cut to [`MAX_QUOTE_CHARS`] characters, and
-/// the whole to `max_chars`. Parsers quote the offending token in full,
-/// which would echo a file's content back to whoever sent it (found by
-/// the `scene_toml` fuzz target).
+/// `...` `` and `string "...", expected`) cut to [`MAX_QUOTE_CHARS`]
+/// characters, and the whole to `max_chars`. Parsers quote the offending
+/// token in full, which would echo a file's content back to whoever sent
+/// it (found by the `scene_toml` fuzz target).
+///
+/// A token may hold the quote character itself, so a span does not end
+/// at the first quote after it opens: it ends where serde's formats end
+/// a token (the last `` `, expected `` or `", expected` of the message),
+/// or else at a quote followed by what cannot go on a token (the end,
+/// white space or punctuation). Tokens with quotes inside were echoed
+/// past their first one (found by `scene_toml` and `requests`).
 pub(crate) fn parser_message(message: &str, max_chars: usize) -> String {
+    let chars: Vec<char> = message.chars().collect();
     let mut out = String::new();
-    // The open quote and the characters inside it so far.
-    let mut open: Option<(char, usize)> = None;
-    let mut escaped = false;
-    for c in message.chars() {
-        match open {
-            Some((quote, _)) if c == quote && !escaped => {
-                out.push(c);
-                open = None;
-            }
-            Some((quote, inside)) => {
-                if inside < MAX_QUOTE_CHARS {
-                    out.push(c);
-                } else if inside == MAX_QUOTE_CHARS {
-                    out.push_str("...");
-                }
-                escaped = c == '\\' && !escaped;
-                open = Some((quote, inside + 1));
-            }
-            None => {
-                if matches!(c, '`' | '"') {
-                    open = Some((c, 0));
-                    escaped = false;
-                }
-                out.push(c);
+    let mut k = 0;
+    while k < chars.len() {
+        let c = chars[k];
+        out.push(c);
+        k += 1;
+        if !matches!(c, '`' | '"') {
+            continue;
+        }
+        let end = span_end(&chars, k, c);
+        for (inside, &d) in chars[k..end].iter().enumerate() {
+            if inside < MAX_QUOTE_CHARS {
+                out.push(d);
+            } else {
+                out.push_str("...");
+                break;
             }
         }
+        if end < chars.len() {
+            out.push(chars[end]);
+        }
+        k = end + 1;
     }
     match out.char_indices().nth(max_chars) {
         None => out,
         Some((end, _)) => format!("{}...", &out[..end]),
     }
+}
+
+/// Where the span that `quote` opened just before `start` closes: the
+/// index of its closing quote, or the end of `chars` when none closes it.
+fn span_end(chars: &[char], start: usize, quote: char) -> usize {
+    let expected: Vec<char> = format!("{quote}, expected").chars().collect();
+    let serde_end = (start..chars.len())
+        .rev()
+        .find(|&i| chars[i..].starts_with(&expected));
+    if let Some(end) = serde_end {
+        return end;
+    }
+    let mut escaped = false;
+    for i in start..chars.len() {
+        let c = chars[i];
+        if c == quote && !escaped {
+            let next = chars.get(i + 1);
+            if next.is_none_or(|n| n.is_whitespace() || ",.;:)]".contains(*n)) {
+                return i;
+            }
+        }
+        escaped = c == '\\' && !escaped;
+    }
+    chars.len()
 }
 
 impl TriMesh {
@@ -329,6 +356,24 @@ mod tests {
         let escaped = parser_message(&format!("string \"a\\\"{long}\" here"), 10_000);
         assert!(escaped.ends_with("...\" here"), "{escaped}");
         assert_eq!(parser_message(&"z".repeat(50), 20).chars().count(), 23);
+        // A token holding the quote character does not end its span
+        // there (`fuzz/regressions/scene_toml/variant-with-backticks-echoed.toml`,
+        // `fuzz/regressions/requests/format-with-backtick-echoed.pb`).
+        for token in [
+            format!("ri{}gid_body", "`".repeat(80)),
+            format!("pl{long}`{long}"),
+            format!("a` {long}"),
+        ] {
+            let message = format!("unknown variant `{token}`, expected one of `fluid`, `solid`");
+            let cut = parser_message(&message, 10_000);
+            assert!(cut.chars().count() < 120, "{cut}");
+            assert!(
+                cut.ends_with("...`, expected one of `fluid`, `solid`"),
+                "{cut}"
+            );
+        }
+        let unclosed = parser_message(&format!("string \"{long}"), 10_000);
+        assert!(unclosed.len() < 60, "{unclosed}");
     }
 
     #[test]
