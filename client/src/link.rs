@@ -474,9 +474,12 @@ impl Gate {
 /// before it is handed on: it must be put on exactly the session's frame
 /// key, decode as a `Frame`, carry a header naming this session, and pass
 /// [`FrameView::check`]. Anything else is dropped and counted
-/// ([`Frames::dropped`]); `recv` goes on to the next sample. A peer that
-/// puts a well-formed frame naming this session is not caught here: only
-/// access control on the zenoh plane can refuse it.
+/// ([`Frames::dropped`]); `recv` goes on to the next sample. When the
+/// server seals (see [`Watched`]), a sample must also open with the
+/// session's key and be sealed after the last one taken, so a frame a
+/// peer forged or recorded is dropped too; unsealed, a well-formed frame
+/// a peer puts in the session's name is refused only by access control
+/// on the zenoh plane.
 #[derive(Debug)]
 pub struct Frames {
     subscriber: Subscriber<FifoChannelHandler<Sample>>,

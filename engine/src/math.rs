@@ -12,17 +12,18 @@ pub fn vector(v: [Real; 3]) -> Vector {
     Vector::new(v[0], v[1], v[2])
 }
 
-/// A number as a message shows it: plainly between 1e-4 and 1e9, in
+/// A number as a message shows it: plainly between 1e-4 and 1e6, in
 /// scientific notation beyond. `{}` of an `f64` writes every digit, so
 /// 1e300 became a 301-character message that repeated its input's digits
-/// (found by the `scene_toml` fuzz target).
+/// (found by the `scene_toml` fuzz target). The server's messages use it
+/// too.
 #[derive(Debug, Clone, Copy)]
 pub struct Brief(pub Real);
 
 impl std::fmt::Display for Brief {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let x = self.0;
-        if x == 0.0 || !x.is_finite() || (1e-4..1e9).contains(&x.abs()) {
+        if x == 0.0 || !x.is_finite() || (1e-4..1e6).contains(&x.abs()) {
             write!(f, "{x}")
         } else {
             write!(f, "{x:e}")
@@ -41,6 +42,7 @@ mod tests {
         assert_eq!(Brief(1e300).to_string(), "1e300");
         assert_eq!(Brief(5.555e126).to_string(), "5.555e126");
         assert_eq!(Brief(1e-7).to_string(), "1e-7");
+        assert_eq!(Brief(2.5e7).to_string(), "2.5e7");
         assert_eq!(Brief(Real::NAN).to_string(), "NaN");
         assert_eq!(Brief(0.0).to_string(), "0");
         assert!(Brief(-Real::MAX).to_string().len() < 30);

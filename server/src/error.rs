@@ -160,17 +160,6 @@ pub fn quote(input: &str) -> String {
     truncate(&format!("{input:?}"), MAX_QUOTE_CHARS)
 }
 
-/// A number as a message prints it: plain in the everyday range, in
-/// exponent form outside it (`1e300`, not 301 digits).
-pub fn short_number(value: f64) -> String {
-    let magnitude = value.abs();
-    if value == 0.0 || !value.is_finite() || (1e-4..1e6).contains(&magnitude) {
-        format!("{value}")
-    } else {
-        format!("{value:e}")
-    }
-}
-
 /// Lower-case name of a state, for messages.
 pub fn state_name(state: SessionState) -> &'static str {
     match state {
@@ -206,13 +195,5 @@ mod tests {
         let status = Status::from(error);
         assert_eq!(status.code(), Code::InvalidArgument);
         assert!(status.message().len() < MAX_MESSAGE_CHARS + 64);
-    }
-
-    #[test]
-    fn huge_and_tiny_numbers_print_short() {
-        assert_eq!(short_number(1e300), "1e300");
-        assert_eq!(short_number(1e-300), "1e-300");
-        assert_eq!(short_number(2.5), "2.5");
-        assert_eq!(short_number(f64::NAN), "NaN");
     }
 }

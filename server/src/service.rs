@@ -3,11 +3,12 @@
 //! converts the answer back.
 
 use crate::auth::{Caller, caller};
-use crate::error::{ServiceError, short_number};
+use crate::error::ServiceError;
 use crate::registry::Registry;
 use crate::session::{Access, Command, OptimizeJob, Problem, RunTarget, Session, check_observers};
 use meshless_engine::Scene;
 use meshless_engine::design::{Constraint, Edit};
+use meshless_engine::math::Brief;
 use meshless_proto::v1::{self, simulation_server::Simulation};
 use meshless_wire::design::{
     constraint_to_proto, design_params_from_proto, edit_from_proto, motion_params_from_proto,
@@ -256,7 +257,7 @@ impl Simulation for SimulationService {
                          per second, got {}",
                         REALTIME_FACTORS.start(),
                         REALTIME_FACTORS.end(),
-                        short_number(f)
+                        Brief(f)
                     ),
                 )
                 .into());

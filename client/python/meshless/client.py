@@ -282,9 +282,9 @@ class Frames:
     reason: ``wrong_key``, ``undecodable``, ``malformed``,
     ``wrong_session``, and for sealed frames ``not_authentic`` and
     ``replayed``) and ``last_drop`` (the last reason and what was
-    wrong). A peer that puts a well-formed frame naming this session is not
-    caught here: the server's zenoh access control refuses it (its
-    default), or a router's.
+    wrong). Unsealed (below), a peer that puts a well-formed frame naming
+    this session is not caught here: the server's zenoh access control
+    refuses it (its default), or a router's.
 
     ``session`` is the ``Session`` message the server answered with
     (``Client.create_session``, ``get_session``), or a session id. A server
