@@ -59,12 +59,12 @@ async fn drive(
     let info = client.server_info().await?;
     let session = client.create_session_toml(scene).await?;
     let id = session.id.clone();
-    println!(
+    outln!(
         "embedded server at {url} (zenoh {}); session {id}: {}, {} particles",
         info.zenoh_locators.join(","),
         session.name,
         session.particle_count
-    );
+    )?;
 
     let link = ZenohLink::connect(&info.zenoh_locators).await?;
     let frames = link.frames(&session).await?;
@@ -127,24 +127,25 @@ async fn drive(
     let published = status.step / u64::from(frame_every) + 1;
     link.close().await;
 
-    println!("meshless demo: {}", session.name);
-    println!(
+    outln!("meshless demo: {}", session.name)?;
+    outln!(
         "  particles         {}",
         crate::command::particle_summary(session.particle_count, &solids)
-    );
-    println!(
+    )?;
+    outln!(
         "  simulated         {:.3} s in {} steps",
-        status.time, status.step
-    );
-    println!(
+        status.time,
+        status.step
+    )?;
+    outln!(
         "  wall time         {wall:.2} s  ({:.1} steps/s, {:.3e} particle-steps/s)",
         status.step as f64 / wall,
         session.particle_count as f64 * status.step as f64 / wall
-    );
-    println!(
+    )?;
+    outln!(
         "  frames received   {received} of {published} over zenoh (key {}/frames)",
         session.zenoh_key_prefix
-    );
-    written.print();
+    )?;
+    written.print()?;
     Ok(())
 }

@@ -200,7 +200,7 @@ async fn drive(args: &OptimiseArgs, problem: &ProblemFile, scene: &str, url: &st
         write_vtk(&mut file, &particles_frame(k, time, &positions))
             .with_context(|| format!("cannot write {}", path.display()))?;
     }
-    summary(args, &design, wall, surfaces, poses.len());
+    summary(args, &design, wall, surfaces, poses.len())?;
     Ok(())
 }
 
@@ -272,6 +272,8 @@ fn particles_frame(k: usize, time: f64, positions: &[[f64; 3]]) -> Frame {
         substep_dt: 0.0,
         solver_iterations: 0,
         density_error: 0.0,
+        capped: false,
+        unconverged: 0,
         particle_count: positions.len(),
         fields: vec![FieldData {
             kind: FieldKind::Position,
@@ -285,16 +287,22 @@ fn particles_frame(k: usize, time: f64, positions: &[[f64; 3]]) -> Frame {
     }
 }
 
-fn summary(args: &OptimiseArgs, design: &Design, wall: f64, surfaces: usize, poses: usize) {
+fn summary(
+    args: &OptimiseArgs,
+    design: &Design,
+    wall: f64,
+    surfaces: usize,
+    poses: usize,
+) -> std::io::Result<()> {
     let info = &design.info;
-    println!("meshless optimise: {}", args.problem.display());
-    println!(
+    outln!("meshless optimise: {}", args.problem.display())?;
+    outln!(
         "  problem           {:?} of system {}, {} design particles",
         design.kind,
         design.system,
         design.rest_positions.len()
-    );
-    println!(
+    )?;
+    outln!(
         "  solver            {} iterations, {}, gradient {:.3e}",
         info.iterations,
         if info.converged {
@@ -303,18 +311,18 @@ fn summary(args: &OptimiseArgs, design: &Design, wall: f64, surfaces: usize, pos
             "not converged"
         },
         info.gradient_norm
-    );
+    )?;
     if design.times.len() > 1 {
-        println!(
+        outln!(
             "  frames            {} ({} inserted), t in [{}, {}] s",
             design.times.len(),
             info.inserted,
             design.times[0],
             design.times[design.times.len() - 1]
-        );
+        )?;
     }
-    println!("  wall time         {wall:.2} s");
-    println!("  energy            weighted, dimensionless");
+    outln!("  wall time         {wall:.2} s")?;
+    outln!("  energy            weighted, dimensionless")?;
     if let Some(e) = &info.energies {
         let terms = [
             ("handle", e.handle),
@@ -325,14 +333,15 @@ fn summary(args: &OptimiseArgs, design: &Design, wall: f64, surfaces: usize, pos
             ("obstacle", e.obstacle),
         ];
         for (name, value) in terms {
-            println!("    {name:<16} {value:.4e}");
+            outln!("    {name:<16} {value:.4e}")?;
         }
         let total: f64 = terms.iter().map(|(_, v)| v).sum();
-        println!("    {:<16} {total:.4e}", "total");
+        outln!("    {:<16} {total:.4e}", "total")?;
     }
-    println!(
+    outln!(
         "  output            {}/design_*.{} ({surfaces} surfaces), design_particles_*.vtk ({poses})",
         args.out.display(),
         MeshFormat::from(args.format).extension()
-    );
+    )?;
+    Ok(())
 }

@@ -59,21 +59,25 @@ pub struct Written {
 
 impl Written {
     /// The summary lines naming the files, for `run` and `demo`.
-    pub fn print(&self) {
+    ///
+    /// # Errors
+    /// Standard output closed (see `outln!`).
+    pub fn print(&self) -> std::io::Result<()> {
         let [frames, surfaces, solids] = &self.patterns;
-        println!(
+        outln!(
             "  output            {frames}  ({} files; ParaView opens them as a series)",
             self.frames
-        );
+        )?;
         if self.surfaces > 0 {
-            println!("  surfaces          {surfaces}  ({} files)", self.surfaces);
+            outln!("  surfaces          {surfaces}  ({} files)", self.surfaces)?;
         }
         if self.solid_surfaces > 0 {
-            println!(
+            outln!(
                 "  solid surfaces    {solids}  ({} files, solidSYSTEM_STEP, with normals)",
                 self.solid_surfaces
-            );
+            )?;
         }
+        Ok(())
     }
 }
 

@@ -73,8 +73,8 @@ fn state(status: Option<&v1::SessionStatus>) -> String {
     )
 }
 
-fn print_session(session: &v1::Session) {
-    println!(
+fn print_session(session: &v1::Session) -> std::io::Result<()> {
+    outln!(
         "{}  {:<20} {} particles  {}",
         session.id,
         if session.name.is_empty() {
@@ -84,7 +84,8 @@ fn print_session(session: &v1::Session) {
         },
         session.particle_count,
         state(session.status.as_ref())
-    );
+    )?;
+    Ok(())
 }
 
 pub async fn session(args: SessionArgs) -> Result<()> {
@@ -97,18 +98,20 @@ pub async fn session(args: SessionArgs) -> Result<()> {
             let session = client
                 .create_session_toml_with_observers(&text, observers)
                 .await?;
-            print_session(&session);
-            println!("frames on zenoh: {}/frames", session.zenoh_key_prefix);
+            print_session(&session)?;
+            outln!("frames on zenoh: {}/frames", session.zenoh_key_prefix)?;
         }
         Action::List => {
             let sessions = client.list_sessions().await?;
             if sessions.is_empty() {
-                println!("no sessions");
+                outln!("no sessions")?;
             }
-            sessions.iter().for_each(print_session);
+            for session in &sessions {
+                print_session(session)?;
+            }
         }
-        Action::Get { id } => print_session(&client.get_session(&id).await?),
-        Action::Step { id, steps } => print_session(&client.step(&id, steps).await?),
+        Action::Get { id } => print_session(&client.get_session(&id).await?)?,
+        Action::Step { id, steps } => print_session(&client.step(&id, steps).await?)?,
         Action::Run {
             id,
             until,
@@ -119,14 +122,14 @@ pub async fn session(args: SessionArgs) -> Result<()> {
                 Some(t) => client.run_until(&id, t, realtime).await?,
                 None => client.run_forever(&id, realtime).await?,
             };
-            print_session(&session);
+            print_session(&session)?;
         }
-        Action::Pause { id } => print_session(&client.pause(&id).await?),
-        Action::Resume { id } => print_session(&client.resume(&id).await?),
-        Action::Reset { id } => print_session(&client.reset(&id).await?),
+        Action::Pause { id } => print_session(&client.pause(&id).await?)?,
+        Action::Resume { id } => print_session(&client.resume(&id).await?)?,
+        Action::Reset { id } => print_session(&client.reset(&id).await?)?,
         Action::Delete { id } => {
             client.delete_session(&id).await?;
-            println!("deleted {id}");
+            outln!("deleted {id}")?;
         }
     }
     Ok(())

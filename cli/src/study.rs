@@ -257,8 +257,8 @@ pub fn study(args: StudyArgs) -> Result<()> {
     let mut csv = String::from(
         "knob,value,particles,substeps,solver_iterations,wall_seconds,particle_substeps_per_second,worst_front_error,rms_front_error,status\n",
     );
-    println!("meshless study: dam break against Martin & Moyce (1952), sweeping {name}");
-    println!("  value        particles  sub-steps  iterations  wall [s]  worst error  rms error");
+    outln!("meshless study: dam break against Martin & Moyce (1952), sweeping {name}")?;
+    outln!("  value        particles  sub-steps  iterations  wall [s]  worst error  rms error")?;
     for Row { value, run } in &rows {
         let rate = run.particles as f64 * run.substeps as f64 / run.seconds.max(1e-9);
         let (worst, rms) = run.error.map_or((f64::NAN, f64::NAN), |e| e);
@@ -272,7 +272,7 @@ pub fn study(args: StudyArgs) -> Result<()> {
             run.seconds,
             status.replace(',', ";")
         )?;
-        println!(
+        outln!(
             "  {:<12} {:>9}  {:>9}  {:>10}  {:>8.2}  {:>10.1} %  {:>7.1} %  {}",
             value,
             run.particles,
@@ -286,11 +286,11 @@ pub fn study(args: StudyArgs) -> Result<()> {
             } else {
                 &status
             }
-        );
+        )?;
     }
     std::fs::write(&csv_path, csv)
         .with_context(|| format!("cannot write {}", csv_path.display()))?;
-    println!("  table             {}", csv_path.display());
+    outln!("  table             {}", csv_path.display())?;
 
     let points: Vec<chart::Point> = rows
         .iter()
@@ -309,10 +309,10 @@ pub fn study(args: StudyArgs) -> Result<()> {
         "rms front error, 1 <= T <= 3 [%]",
         &points,
     )? {
-        true => println!("  chart             {}", png_path.display()),
-        false => println!(
+        true => outln!("  chart             {}", png_path.display()),
+        false => outln!(
             "  chart             not drawn: no TrueType font found (set MESHLESS_FONT to a .ttf file)"
         ),
-    }
+    }?;
     Ok(())
 }

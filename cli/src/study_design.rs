@@ -173,8 +173,8 @@ pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> 
     let csv_path = output.join(format!("study_{name}.csv"));
     std::fs::write(&csv_path, csv(name, &rows)?)
         .with_context(|| format!("cannot write {}", csv_path.display()))?;
-    print_tables(name, &rows);
-    println!("  table             {}", csv_path.display());
+    print_tables(name, &rows)?;
+    outln!("  table             {}", csv_path.display())?;
 
     let charted = experiments(name);
     for &experiment in charted {
@@ -240,27 +240,27 @@ fn csv(name: &str, rows: &[Row]) -> Result<String> {
     Ok(csv)
 }
 
-fn print_tables(name: &str, rows: &[Row]) {
+fn print_tables(name: &str, rows: &[Row]) -> std::io::Result<()> {
     for &experiment in experiments(name) {
         match experiment {
             Experiment::Stretch => {
-                println!(
+                outln!(
                     "meshless study: Figure 13 stretch with the volume energy, sweeping {name}"
-                );
-                println!(
+                )?;
+                outln!(
                     "  value        particles  volume change  handle error  iterations  linear its  solve [ms]  converged"
-                );
+                )?;
             }
             Experiment::Passage => {
-                println!("meshless study: cube passing a ball, sweeping {name}");
-                println!(
+                outln!("meshless study: cube passing a ball, sweeping {name}")?;
+                outln!(
                     "  value        particles  frames  inserted  penetration  key error  last LM its  solve [s]"
-                );
+                )?;
             }
         }
         for r in rows.iter().filter(|r| r.experiment == experiment) {
             match &r.outcome {
-                Ok(Outcome::Stretch(s)) => println!(
+                Ok(Outcome::Stretch(s)) => outln!(
                     "  {:<12} {:>9}  {:>+11.2} %  {:>12.4}  {:>10}  {:>10}  {:>10.1}  {}",
                     r.value,
                     s.particles,
@@ -271,7 +271,7 @@ fn print_tables(name: &str, rows: &[Row]) {
                     s.elapsed.as_secs_f64() * 1e3,
                     s.solution.info.converged
                 ),
-                Ok(Outcome::Passage(p)) => println!(
+                Ok(Outcome::Passage(p)) => outln!(
                     "  {:<12} {:>9}  {:>6}  {:>8}  {:>11.3}  {:>9.3}  {:>11}  {:>9.3}",
                     r.value,
                     p.particles,
@@ -282,14 +282,15 @@ fn print_tables(name: &str, rows: &[Row]) {
                     p.solution.info.iterations,
                     p.elapsed.as_secs_f64()
                 ),
-                Err(e) => println!("  {:<12} failed: {e}", r.value),
-            }
+                Err(e) => outln!("  {:<12} failed: {e}", r.value),
+            }?;
         }
     }
-    println!(
+    outln!(
         "  handle error, penetration and key error in design spacings; a motion's last LM its \
          count its final solve only"
-    );
+    )?;
+    Ok(())
 }
 
 /// The experiment's error against solve time: the surface's volume
@@ -320,10 +321,10 @@ fn chart_of(name: &str, experiment: Experiment, rows: &[Row], path: &Path) -> Re
         ),
     };
     match chart::error_against_cost(path, &title, y, &points)? {
-        true => println!("  chart             {}", path.display()),
-        false => println!(
+        true => outln!("  chart             {}", path.display()),
+        false => outln!(
             "  chart             not drawn: no TrueType font found (set MESHLESS_FONT to a .ttf file)"
         ),
-    }
+    }?;
     Ok(())
 }

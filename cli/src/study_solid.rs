@@ -116,8 +116,8 @@ pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> 
         Quantity::Period => "first bending period",
     };
     let what = rows.first().map_or("", |r| measured(r.quantity));
-    println!("meshless study: cantilever against Euler-Bernoulli ({what}), sweeping {name}");
-    println!("  value        particles  world steps  wall [s]      error  first peak / 2 static");
+    outln!("meshless study: cantilever against Euler-Bernoulli ({what}), sweeping {name}")?;
+    outln!("  value        particles  world steps  wall [s]      error  first peak / 2 static")?;
     let mut csv = String::from(
         "knob,value,quantity,particles,steps,wall_seconds,value_measured,error,peak_over_twice_static,status\n",
     );
@@ -140,14 +140,14 @@ pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> 
                     Quantity::Period => format!("{:>8.3}", m.amplitude),
                     Quantity::Deflection => String::new(),
                 };
-                println!(
+                outln!(
                     "  {:<12} {:>9}  {:>11}  {:>8.2}  {:>+8.1} %  {peak}",
                     r.value,
                     m.particles,
                     m.steps,
                     r.seconds,
                     100.0 * m.error
-                );
+                )?;
             }
             Err(e) => {
                 writeln!(
@@ -157,14 +157,14 @@ pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> 
                     r.seconds,
                     e.replace(',', ";")
                 )?;
-                println!("  {:<12} failed: {e}", r.value);
+                outln!("  {:<12} failed: {e}", r.value)?;
             }
         }
     }
     let csv_path = output.join(format!("study_{name}.csv"));
     std::fs::write(&csv_path, csv)
         .with_context(|| format!("cannot write {}", csv_path.display()))?;
-    println!("  table             {}", csv_path.display());
+    outln!("  table             {}", csv_path.display())?;
 
     let points: Vec<chart::Point> = rows
         .iter()
@@ -183,10 +183,10 @@ pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> 
         &format!("|{what} error| [%]"),
         &points,
     )? {
-        true => println!("  chart             {}", png_path.display()),
-        false => println!(
+        true => outln!("  chart             {}", png_path.display()),
+        false => outln!(
             "  chart             not drawn: no TrueType font found (set MESHLESS_FONT to a .ttf file)"
         ),
-    }
+    }?;
     Ok(())
 }

@@ -45,7 +45,7 @@ pub async fn watch(args: WatchArgs) -> Result<()> {
     };
     let link = ZenohLink::connect_with(&endpoints, config).await?;
     let frames = link.frames(&session).await?;
-    println!("watching {} through {}", args.session, endpoints.join(","));
+    outln!("watching {} through {}", args.session, endpoints.join(","))?;
     let start = Instant::now();
     let deadline = args.seconds.map(|s| start + Duration::from_secs_f64(s));
     let (mut total, mut window, mut window_start) = (0u64, 0u64, Instant::now());
@@ -72,11 +72,11 @@ pub async fn watch(args: WatchArgs) -> Result<()> {
                 let rate = window as f64 / window_start.elapsed().as_secs_f64();
                 let dropped = frames.dropped().total();
                 match &last {
-                    Some((step, time, particles, solids)) => println!(
+                    Some((step, time, particles, solids)) => outln!(
                         "{rate:6.1} frames/s  step {step:>8}  t = {time:9.4} s  particles {}  dropped {dropped}",
                         crate::command::particle_summary(*particles as u64, solids)
-                    ),
-                    None => println!("{rate:6.1} frames/s  (no frame yet)  dropped {dropped}"),
+                    )?,
+                    None => outln!("{rate:6.1} frames/s  (no frame yet)  dropped {dropped}")?,
                 }
                 window = 0;
                 window_start = Instant::now();
@@ -92,11 +92,11 @@ pub async fn watch(args: WatchArgs) -> Result<()> {
         .as_ref()
         .map(|(reason, why)| format!(" (last {reason:?}: {why})"))
         .unwrap_or_default();
-    println!(
+    outln!(
         "{total} frames in {elapsed:.1} s ({:.1} frames/s), {} dropped{last_dropped}",
         total as f64 / elapsed.max(1e-9),
         dropped.total()
-    );
+    )?;
     link.close().await;
     Ok(())
 }

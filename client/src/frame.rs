@@ -172,6 +172,12 @@ pub struct FrameView {
     pub solver_iterations: u32,
     /// Worst average density error of the last step's solves (fraction).
     pub density_error: f64,
+    /// Whether the scene's `time.max_substeps` capped the last step, so
+    /// its sub-steps exceeded the stability limit.
+    pub capped: bool,
+    /// Solves of the last step that stopped at their iteration cap above
+    /// their tolerance.
+    pub unconverged: u32,
     /// The particle fields: position first, then the scene's
     /// `output.fields`, each once.
     pub fields: Vec<FieldView>,
@@ -247,6 +253,8 @@ impl FrameView {
             fields: _,
             solver_iterations,
             density_error,
+            capped,
+            unconverged,
         } = header;
         let fields = fields
             .into_iter()
@@ -274,6 +282,8 @@ impl FrameView {
             substep_dt,
             solver_iterations,
             density_error,
+            capped,
+            unconverged,
             fields,
             bodies,
             surface: surface.map(SurfaceView::from_proto).transpose()?,
@@ -366,6 +376,8 @@ mod tests {
                 fields: vec![v1::FieldKind::Density as i32],
                 solver_iterations: 0,
                 density_error: 0.0,
+                capped: false,
+                unconverged: 0,
             }),
             fields: vec![v1::FieldData {
                 kind: v1::FieldKind::Density as i32,

@@ -21,6 +21,18 @@ pub enum FieldKind {
     Density,
     /// Pressures, Pa.
     Pressure,
+    /// Masses, kg (per metre of depth in 2D).
+    Mass,
+    /// Volumes `m / rho`, m^3 (m^2 in 2D): their sum is the body's or
+    /// fluid's volume.
+    Volume,
+    /// Kinetic energies `m |v|^2 / 2`, J.
+    KineticEnergy,
+    /// Stored elastic energy, J: a solid particle's strain energy
+    /// `V W(F)`, a fluid particle's compression energy under the Tait
+    /// equation, `m int_rho0^rho p / rho^2 drho` (0 for DFSPH, which has no
+    /// equation of state).
+    ElasticEnergy,
 }
 
 impl FieldKind {
@@ -28,7 +40,12 @@ impl FieldKind {
     pub fn components(self) -> usize {
         match self {
             Self::Position | Self::Velocity => 3,
-            Self::Density | Self::Pressure => 1,
+            Self::Density
+            | Self::Pressure
+            | Self::Mass
+            | Self::Volume
+            | Self::KineticEnergy
+            | Self::ElasticEnergy => 1,
         }
     }
 
@@ -39,6 +56,10 @@ impl FieldKind {
             Self::Velocity => "velocity",
             Self::Density => "density",
             Self::Pressure => "pressure",
+            Self::Mass => "mass",
+            Self::Volume => "volume",
+            Self::KineticEnergy => "kinetic_energy",
+            Self::ElasticEnergy => "elastic_energy",
         }
     }
 }
@@ -69,6 +90,12 @@ pub struct Frame {
     pub solver_iterations: u32,
     /// Worst average density error of the last step's solves (fraction).
     pub density_error: Real,
+    /// Whether `time.max_substeps` capped the last step's split, so its
+    /// sub-steps exceeded the stability limit.
+    pub capped: bool,
+    /// Solves of the last step that stopped at their iteration cap above
+    /// their tolerance (DFSPH pressure, implicit solids' Newton).
+    pub unconverged: u32,
     /// Particles over all systems: the length of each field.
     pub particle_count: usize,
     /// Positions first, then the requested fields in scene order.

@@ -40,7 +40,7 @@ fn tank(solver: SolverKind, dt: f64, cfl: f64) -> Scene {
         [[systems]]
         kind = "fluid"
         spacing = 0.02
-        stiffness = 1000.0
+        stiffness = 1e4
         [[systems.blocks]]
         region = {{ min = [0.0, 0.0, 0.0], max = [0.6, 0.6, 0.0] }}
         "#
@@ -149,9 +149,11 @@ fn a_long_fluid_step_stops_soon_after_its_flag_and_keeps_the_world() {
 }
 
 /// The tank with a small elastic box beside it (systems[1]), steps of
-/// 0.05 s (a few hundred sub-steps) at the default Courant number.
+/// 0.01 s (dozens of sub-steps) at the default Courant number. (At 0.05 s
+/// DFSPH's first step compressed a particle to 2.5 rho_0, which now
+/// faults.)
 fn tank_and_box(solver: SolverKind) -> Scene {
-    let mut scene = tank(solver, 0.05, 0.4);
+    let mut scene = tank(solver, 0.01, 0.4);
     let solid = Scene::from_toml_str(
         r#"
         dimension = 2
@@ -184,7 +186,8 @@ fn a_cancelled_step_taken_again_equals_the_uncancelled_step() {
         let scene = tank_and_box(solver);
         let mut twin = build(&scene);
         // Past the start at rest, so that every state has moved.
-        twin.step().expect("a first step");
+        twin.step()
+            .unwrap_or_else(|e| panic!("{solver:?}: a first step: {e}"));
         let start = Instant::now();
         twin.step().expect("the uncancelled step");
         // Cancelled half-way through the same step, by the twin's clock.

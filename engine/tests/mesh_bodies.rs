@@ -45,6 +45,9 @@ dt = 0.01
 kind = "fluid"
 solver = "dfsph"
 spacing = {spacing}
+# XSPH keeps the particle order these resting tanks settle into, as the
+# shipped floating_box scene does.
+xsph = 0.1
 [[systems.blocks]]
 region = {{ min = [0.0, 0.0, 0.0], max = [{side}, {depth}, {side}] }}
 {bodies}

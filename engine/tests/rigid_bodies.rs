@@ -25,6 +25,13 @@ fn scene(
     bodies: &str,
 ) -> World {
     let [x0, y0, x1, y1] = fluid_box;
+    // XSPH keeps the particle order the resting tanks settle into, as the
+    // shipped floating_box scene does, unless the keys name their own.
+    let xsph = if fluid_keys.contains("xsph") {
+        ""
+    } else {
+        "xsph = 0.1"
+    };
     let text = format!(
         r#"
 dimension = 2
@@ -38,6 +45,7 @@ dt = 0.01
 kind = "fluid"
 solver = "dfsph"
 spacing = {spacing}
+{xsph}
 {fluid_keys}
 [[systems.blocks]]
 region = {{ min = [{x0}, {y0}, 0.0], max = [{x1}, {y1}, 0.0] }}

@@ -5,8 +5,8 @@ use meshless_engine::approx::mls::Order;
 use meshless_engine::geometry::Shape;
 use meshless_engine::math::{Real, Vector};
 use meshless_engine::solid::{
-    ElasticSolid, ImplicitParams, Integrator, LinearSolver, Material, Obstacles, SolidParams,
-    cofactor, green_strain,
+    ElasticSolid, ImplicitParams, ImplicitScheme, Integrator, LinearSolver, Material, Obstacles,
+    SolidParams, cofactor, green_strain,
 };
 use nalgebra::{Matrix3, Rotation3};
 
@@ -429,4 +429,125 @@ fn plastic_flow_rebases_the_reference_shape() {
             .iter()
             .all(|x| x.iter().all(|c| c.is_finite()))
     );
+}
+
+/// Angular momentum `sum m x × v` of a solid about its centre of mass,
+/// and its kinetic energy.
+fn spin_of(solid: &ElasticSolid) -> (Vector, Real) {
+    let masses = solid.masses();
+    let total: Real = masses.iter().sum();
+    let centre: Vector = solid
+        .positions
+        .iter()
+        .zip(masses)
+        .map(|(x, m)| x * *m)
+        .sum::<Vector>()
+        / total;
+    let momentum = solid
+        .positions
+        .iter()
+        .zip(&solid.velocities)
+        .zip(masses)
+        .map(|((x, v), m)| (x - centre).cross(v) * *m)
+        .sum();
+    (momentum, solid.kinetic_energy())
+}
+
+/// A free 3D block (E = 50 kPa, `damping = 5` as `scenes/jelly_drop.toml`
+/// ships) spinning at 2 rad/s about a tilted axis and drifting, with no
+/// gravity: a rigid motion, which damping must leave alone. Explicitly
+/// integrated (symplectic, no numerical damping) it keeps its angular
+/// momentum to 1e-6 over 2 s, while the same block set vibrating by a 5 %
+/// stretch loses over 90 % of its vibration energy in the same time: damping
+/// acts on the rate of deformation only. (Damping the whole pairwise
+/// relative velocity lost 34 % of the spin in 2 s.)
+#[test]
+fn damping_spares_rigid_motion_and_damps_deformation() {
+    let mut p = params(3, 0.04, 5e4, 0.3);
+    p.damping = 5.0;
+    let spinning = |p: SolidParams| {
+        let mut solid = block(p, [0.12, 0.12, 0.12]);
+        let axis = Vector::new(0.3, 1.0, 0.5).normalize();
+        let v: Vec<Vector> = solid
+            .rest_positions()
+            .iter()
+            .map(|x| axis.cross(x) * 2.0 + Vector::new(0.1, 0.0, -0.2))
+            .collect();
+        let x = solid.rest_positions().to_vec();
+        solid.set_state(x, v).expect("same length");
+        solid
+    };
+    let mut solid = spinning(p);
+    let (start, _) = spin_of(&solid);
+    for _ in 0..200 {
+        solid.step(0.01, &Vector::zeros(), 10_000);
+    }
+    let (end, _) = spin_of(&solid);
+    let drift = (end - start).norm() / start.norm();
+    println!("explicit, damping 5: angular momentum drift {drift:.2e} over 2 s");
+    assert!(drift < 1e-6, "damping changed the spin by {drift}");
+
+    // The same body vibrating: released from a 5 % stretch at rest.
+    let mut solid = block(p, [0.12, 0.12, 0.12]);
+    let n = solid.len();
+    let stretched: Vec<Vector> = solid
+        .rest_positions()
+        .iter()
+        .map(|x| Vector::new(1.05 * x.x, x.y, x.z))
+        .collect();
+    solid
+        .set_state(stretched, vec![Vector::zeros(); n])
+        .expect("same length");
+    let mut peak: Real = 0.0;
+    let mut late: Real = 0.0;
+    for step in 0..200 {
+        solid.step(0.01, &Vector::zeros(), 10_000);
+        let energy = solid.kinetic_energy();
+        if step < 20 {
+            peak = peak.max(energy);
+        } else if step >= 180 {
+            late = late.max(energy);
+        }
+    }
+    println!("vibration: peak kinetic energy {peak:.3e} J, in the last 0.2 s {late:.3e} J");
+    assert!(late < 0.1 * peak, "damping left {late} of {peak}");
+}
+
+/// The implicit integrators' own damping of a free spinning block (no
+/// material damping), 2 s at 5 ms steps, reported: backward Euler's is
+/// numerical and large; the energy-conserving implicit midpoint's is
+/// round-off. Asserted: midpoint keeps 99.9 % of the angular momentum and
+/// backward Euler less than 99 % (its damping is real, and documented).
+#[test]
+fn implicit_integrators_report_their_numerical_damping() {
+    let mut kept = Vec::new();
+    for scheme in [ImplicitScheme::BackwardEuler, ImplicitScheme::Midpoint] {
+        let mut p = params(3, 0.04, 5e4, 0.3);
+        p.integrator = Integrator::Implicit(ImplicitParams {
+            scheme,
+            ..ImplicitParams::default()
+        });
+        let mut solid = block(p, [0.12, 0.12, 0.12]);
+        let axis = Vector::new(0.3, 1.0, 0.5).normalize();
+        let v: Vec<Vector> = solid
+            .rest_positions()
+            .iter()
+            .map(|x| axis.cross(x) * 2.0)
+            .collect();
+        let x = solid.rest_positions().to_vec();
+        solid.set_state(x, v).expect("same length");
+        let (start, e0) = spin_of(&solid);
+        for _ in 0..400 {
+            solid.step(0.005, &Vector::zeros(), 1);
+        }
+        let (end, e1) = spin_of(&solid);
+        let fraction = end.dot(&start) / start.norm_squared();
+        println!(
+            "{scheme:?}: angular momentum kept {fraction:.5}, kinetic energy kept {:.5} after 2 s",
+            e1 / e0
+        );
+        kept.push(fraction);
+    }
+    assert!(kept[0] < 0.99, "backward Euler kept {}", kept[0]);
+    assert!(kept[1] > 0.999, "midpoint kept {}", kept[1]);
 }

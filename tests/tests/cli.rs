@@ -200,6 +200,132 @@ async fn a_bad_scene_file_fails_with_the_field_named() {
     assert!(stderr.contains("systems[0].spacing"), "{stderr}");
 }
 
+/// A value of the wrong type names its field (it used to say only
+/// "invalid type: string" at the start of the system's table).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_wrongly_typed_value_names_its_field() {
+    let dir = TempDir::new("typed");
+    let scene = dir.file(
+        "typed.toml",
+        &small_scene().replace("spacing = 0.04", "spacing = \"0.04\""),
+    );
+    let output = meshless(&["run", scene.to_str().expect("utf-8")]).await;
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("`spacing`") && stderr.contains("invalid type: string"),
+        "{stderr}"
+    );
+}
+
+/// `meshless run … | head -1`: the reader goes away after one line, and
+/// the run ends quietly with success instead of panicking on the broken
+/// pipe (exit 101).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_closed_pipe_ends_the_run_quietly() {
+    let dir = TempDir::new("pipe");
+    let scene = dir.file("small.toml", &small_scene());
+    let out = dir.0.join("frames");
+    let mut child = Command::new(binary("meshless").expect("built"))
+        .args([
+            "run",
+            scene.to_str().expect("utf-8"),
+            "--until",
+            "0.05",
+            "--output",
+            out.to_str().expect("utf-8"),
+        ])
+        .env("MESHLESS_LOG", "error")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("starts");
+    // Close the read end at once: every line the summary writes meets a
+    // closed pipe.
+    drop(child.stdout.take());
+    let output = within("meshless run into a closed pipe", child.wait_with_output())
+        .await
+        .expect("ends");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{:?}: {stderr}", output.status);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+/// A run whose first step faults still leaves the initial frame on disk
+/// (the frame writer is joined on the error path too), says why it
+/// stopped and fails.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_run_that_faults_at_once_keeps_its_first_frames() {
+    let dir = TempDir::new("fault");
+    // A stiffness the single sub-step cannot follow: the first step blows
+    // up.
+    let scene = dir.file(
+        "fault.toml",
+        &small_scene()
+            .replace("[time]", "[time]\nmax_substeps = 1")
+            .replace("stiffness = ", "stiffness = 1e12 #"),
+    );
+    let out = dir.0.join("frames");
+    let output = meshless(&[
+        "run",
+        scene.to_str().expect("utf-8"),
+        "--until",
+        "0.05",
+        "--output",
+        out.to_str().expect("utf-8"),
+    ])
+    .await;
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{stderr}");
+    assert!(stderr.contains("step 1"), "{stderr}");
+    let files = listing(&out);
+    assert!(
+        files.contains(&"frame_000000.vtk".to_owned()),
+        "the initial frame is on disk: {files:?}"
+    );
+}
+
+/// A run of capped steps warns in its summary; a solid-only run reports
+/// its Newton work as the implicit solids', not as a pressure solver's.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn run_summaries_warn_of_capped_steps_and_name_solver_work() {
+    let dir = TempDir::new("summary");
+    let capped = dir.file(
+        "capped.toml",
+        &small_scene().replace("[time]", "[time]\nmax_substeps = 1"),
+    );
+    let out = dir.0.join("frames");
+    let stdout = meshless_ok(&[
+        "run",
+        capped.to_str().expect("utf-8"),
+        "--until",
+        "0.02",
+        "--output",
+        out.to_str().expect("utf-8"),
+    ])
+    .await;
+    assert!(
+        stdout.contains("WARNING") && stdout.contains("hit time.max_substeps"),
+        "{stdout}"
+    );
+    let solid = dir.file(
+        "solid.toml",
+        &meshless_tests::small_solid_scene()
+            .replace("[[systems]]", "[[systems]]\nintegrator = \"implicit\""),
+    );
+    let stdout = meshless_ok(&[
+        "run",
+        solid.to_str().expect("utf-8"),
+        "--until",
+        "0.02",
+        "--output",
+        out.to_str().expect("utf-8"),
+    ])
+    .await;
+    assert!(stdout.contains("implicit solids"), "{stdout}");
+    assert!(!stdout.contains("pressure solver"), "{stdout}");
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn session_commands_drive_a_server() {
     let server = ServerProcess::spawn(&[]).await.expect("server starts");

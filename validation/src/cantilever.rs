@@ -21,6 +21,7 @@ use meshless_engine::BuildOptions;
 use meshless_engine::approx::mls::Order;
 use meshless_engine::math::Real;
 use meshless_engine::scene::{IntegratorKind, Scene, SceneError};
+use meshless_engine::solid::LinearSolver;
 use meshless_engine::world::{StepError, World};
 
 /// First root of the clamped-free frequency equation.
@@ -53,6 +54,9 @@ pub struct Cantilever {
     pub integrator: IntegratorKind,
     /// Step of the world, s (explicit sub-steps below it as needed).
     pub dt: Real,
+    /// The implicit integrator's linear solver (static runs and implicit
+    /// period runs).
+    pub linear_solver: LinearSolver,
 }
 
 impl Default for Cantilever {
@@ -72,6 +76,7 @@ impl Default for Cantilever {
             hourglass: meshless_engine::scene::solid_defaults::HOURGLASS,
             integrator: IntegratorKind::Explicit,
             dt: 1e-3,
+            linear_solver: LinearSolver::Auto,
         }
     }
 }
@@ -139,6 +144,11 @@ impl Cantilever {
             IntegratorKind::Explicit => "explicit",
             IntegratorKind::Implicit => "implicit",
         };
+        let linear_solver = match self.linear_solver {
+            LinearSolver::Auto => "auto",
+            LinearSolver::Cholesky => "cholesky",
+            LinearSolver::ConjugateGradient => "conjugate_gradient",
+        };
         let text = format!(
             r#"
             name = "cantilever"
@@ -162,6 +172,7 @@ impl Cantilever {
             support = {support}
             hourglass = {hourglass}
             integrator = "{integrator}"
+            implicit = {{ linear_solver = "{linear_solver}" }}
             anchors = [{{ min = [-1.0, -1.0, -1.0], max = [0.0, 1.0, 1.0] }}]
             "#,
             dim = self.dim,

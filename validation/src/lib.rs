@@ -12,8 +12,11 @@
 //! - [`cantilever`]: an elastic beam under its own weight against
 //!   Euler–Bernoulli theory;
 //! - [`design`]: the optimiser's Figure 13 stretch and the cube passing a
-//!   ball.
+//!   ball;
+//! - [`viscous`]: start-up Poiseuille and Couette flow and the spin-down
+//!   of a rotating fluid, the references of viscosity and no-slip walls.
 
 pub mod cantilever;
 pub mod dam_break;
 pub mod design;
+pub mod viscous;

@@ -152,8 +152,8 @@ mod tests {
     use meshless_engine::design::Quadrature;
     use meshless_engine::fluid::ViscosityModel;
     use meshless_engine::scene::{IntegratorKind, MotionKind, SlipKind, SolverKind, WallModel};
-    use meshless_engine::solid::LinearSolver;
     use meshless_engine::solid::embedded::EmbeddingMethod;
+    use meshless_engine::solid::{ImplicitScheme, LinearSolver};
 
     /// Every name of `E`'s table is the scene file's spelling of its
     /// variant, and every variant survives both conversions.
@@ -190,6 +190,7 @@ mod tests {
         check::<IntegratorKind>();
         check::<EmbeddingMethod>();
         check::<LinearSolver>();
+        check::<ImplicitScheme>();
         check::<Quadrature>();
     }
 
@@ -200,12 +201,13 @@ mod tests {
         assert_eq!(SolverKind::choices(), "wcsph or dfsph");
         assert_eq!(
             FieldKind::choices(),
-            "position, velocity, density or pressure"
+            "position, velocity, density, pressure, mass, volume, kinetic_energy or elastic_energy"
         );
         let err = required_enum::<FieldKind>(0, "output.fields[0]").expect_err("unspecified");
         assert_eq!(
             err.to_string(),
-            "output.fields[0]: unknown field kind 0; use position, velocity, density or pressure"
+            "output.fields[0]: unknown field kind 0; use position, velocity, density, pressure, \
+             mass, volume, kinetic_energy or elastic_energy"
         );
         assert_eq!(
             enum_or(0, MotionKind::Dynamic, "motion"),

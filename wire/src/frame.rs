@@ -25,6 +25,8 @@ pub fn frame_to_proto(session_id: &str, frame: &Frame) -> v1::Frame {
             substep_dt: frame.substep_dt,
             solver_iterations: frame.solver_iterations,
             density_error: frame.density_error,
+            capped: frame.capped,
+            unconverged: frame.unconverged,
             fields: frame.fields.iter().map(|f| f.kind.to_i32()).collect(),
         }),
         fields: frame
@@ -136,6 +138,8 @@ pub fn frame_from_proto(frame: v1::Frame) -> Result<Frame> {
         fields: _,
         solver_iterations,
         density_error,
+        capped,
+        unconverged,
     } = required(header, "header")?;
     let particle_count = usize::try_from(particle_count).map_err(|_| {
         WireError::new(
@@ -174,6 +178,8 @@ pub fn frame_from_proto(frame: v1::Frame) -> Result<Frame> {
         substep_dt,
         solver_iterations,
         density_error,
+        capped,
+        unconverged,
         particle_count,
         fields,
         bodies,

@@ -15,10 +15,10 @@ use meshless_engine::scene::MeshData;
 use meshless_engine::scene::{
     Aabb, FluidBlock, FluidSpec, IntegratorKind, MotionKind, OscillationSpec, OutputSpec,
     ParticleSpec, RigidBodySpec, ShapeSpec, SlipKind, SolidSpec, SolidSurfaceSpec, SolverKind,
-    SurfaceSpec, SystemSpec, TimeSpec, WallModel, defaults, solid_defaults,
+    SurfaceSpec, SystemSpec, TimeSpec, WallModel, WallVelocities, defaults, solid_defaults,
 };
 use meshless_engine::solid::embedded::EmbeddingMethod;
-use meshless_engine::solid::{ImplicitParams, LinearSolver, Plasticity};
+use meshless_engine::solid::{ImplicitParams, ImplicitScheme, LinearSolver, Plasticity};
 use meshless_engine::{FieldKind, Scene};
 use meshless_proto::v1;
 
@@ -29,6 +29,10 @@ wire_enum! {
         "velocity" => Velocity,
         "density" => Density,
         "pressure" => Pressure,
+        "mass" => Mass,
+        "volume" => Volume,
+        "kinetic_energy" => KineticEnergy,
+        "elastic_energy" => ElasticEnergy,
     }
 }
 
@@ -56,6 +60,7 @@ wire_enum! {
     ViscosityModel <-> ViscosityModel, "viscosity model" {
         "morris" => Morris,
         "kernel_laplacian" => KernelLaplacian,
+        "monaghan" => Monaghan,
     }
 }
 
@@ -123,6 +128,14 @@ wire_enum! {
         "auto" => Auto,
         "cholesky" => Cholesky,
         "conjugate_gradient" => ConjugateGradient,
+    }
+}
+
+wire_enum! {
+    /// The implicit solid's time discretisation.
+    ImplicitScheme <-> ImplicitScheme, "implicit scheme" {
+        "backward_euler" => BackwardEuler,
+        "midpoint" => Midpoint,
     }
 }
 
@@ -400,6 +413,7 @@ fn implicit_from_proto(
         cg_tolerance,
         max_cg_iterations,
         linear_solver,
+        scheme,
     }) = settings
     else {
         return Ok(defaults);
@@ -414,6 +428,11 @@ fn implicit_from_proto(
             defaults.linear_solver,
             &format!("{field}.implicit.linear_solver"),
         )?,
+        scheme: enum_or::<ImplicitScheme>(
+            scheme,
+            defaults.scheme,
+            &format!("{field}.implicit.scheme"),
+        )?,
     })
 }
 
@@ -424,6 +443,7 @@ fn to_implicit(params: &ImplicitParams) -> v1::ImplicitSettings {
         cg_tolerance,
         max_cg_iterations,
         linear_solver,
+        scheme,
     } = *params;
     v1::ImplicitSettings {
         newton_tolerance: Some(newton_tolerance),
@@ -431,6 +451,7 @@ fn to_implicit(params: &ImplicitParams) -> v1::ImplicitSettings {
         cg_tolerance: Some(cg_tolerance),
         max_cg_iterations: Some(max_cg_iterations),
         linear_solver: linear_solver.to_i32(),
+        scheme: scheme.to_i32(),
     }
 }
 
@@ -615,7 +636,27 @@ fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
         max_solver_iterations,
         particles,
         viscosity_model: model,
+        wall_slip,
+        wall_velocity,
     } = fluid;
+    let wall_velocity = wall_velocity.map_or_else(WallVelocities::default, |w| {
+        let v1::WallVelocities {
+            min_x,
+            max_x,
+            min_y,
+            max_y,
+            min_z,
+            max_z,
+        } = w;
+        WallVelocities {
+            min_x: min_x.map(vec3),
+            max_x: max_x.map(vec3),
+            min_y: min_y.map(vec3),
+            max_y: max_y.map(vec3),
+            min_z: min_z.map(vec3),
+            max_z: max_z.map(vec3),
+        }
+    });
     let particles = particles
         .into_iter()
         .enumerate()
@@ -657,6 +698,8 @@ fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
             &format!("{field}.viscosity_model"),
         )?,
         walls: optional_enum(walls, defaults::WALLS, &format!("{field}.walls"))?,
+        wall_slip: optional_enum(wall_slip, defaults::SLIP, &format!("{field}.wall_slip"))?,
+        wall_velocity,
         solver: optional_enum(solver, defaults::SOLVER, &format!("{field}.solver"))?,
         density_tolerance: density_tolerance.unwrap_or(defaults::DENSITY_TOLERANCE),
         divergence_tolerance: divergence_tolerance.unwrap_or(defaults::DIVERGENCE_TOLERANCE),
@@ -711,6 +754,18 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
                         viscosity: Some(f.viscosity),
                         viscosity_model: Some(f.viscosity_model.to_i32()),
                         walls: Some(f.walls.to_i32()),
+                        wall_slip: Some(f.wall_slip.to_i32()),
+                        wall_velocity: (!f.wall_velocity.is_still()).then(|| {
+                            let w = &f.wall_velocity;
+                            v1::WallVelocities {
+                                min_x: w.min_x.map(to_vec3),
+                                max_x: w.max_x.map(to_vec3),
+                                min_y: w.min_y.map(to_vec3),
+                                max_y: w.max_y.map(to_vec3),
+                                min_z: w.min_z.map(to_vec3),
+                                max_z: w.max_z.map(to_vec3),
+                            }
+                        }),
                         solver: Some(f.solver.to_i32()),
                         density_tolerance: Some(f.density_tolerance),
                         divergence_tolerance: Some(f.divergence_tolerance),
@@ -975,6 +1030,7 @@ mod tests {
                 cg_tolerance: 1e-2,
                 max_cg_iterations: 33,
                 linear_solver: LinearSolver::ConjugateGradient,
+                scheme: ImplicitScheme::Midpoint,
             },
             velocity: [1.0, 2.0, 3.0],
             angular_velocity: [-1.0, 0.5, 0.25],

@@ -35,6 +35,23 @@ impl Tait {
         if p < 0.0 { self.negative_scale * p } else { p }
     }
 
+    /// Energy stored per unit mass at density `rho`, J/kg: the work
+    /// `int_rho0^rho p(r) / r^2 dr` of compressing (or, with `zeta > 0`,
+    /// stretching) the fluid from rest, so that `d e / d rho = p / rho^2`.
+    pub fn energy(&self, rho: Real) -> Real {
+        let (k, g, r0) = (self.stiffness, self.gamma, self.rest_density);
+        // The antiderivative of K ((r / r0)^g - 1) / r^2.
+        let primitive = |r: Real| {
+            if g == 1.0 {
+                k * ((r / r0).ln() + r0 / r) / r0
+            } else {
+                k * (r.powf(g - 1.0) / ((g - 1.0) * r0.powf(g)) + 1.0 / r)
+            }
+        };
+        let e = primitive(rho) - primitive(r0);
+        if rho < r0 { self.negative_scale * e } else { e }
+    }
+
     /// Speed of sound at rest, `sqrt(dp/drho) = sqrt(gamma K / rho_0)`; it
     /// sets the CFL limit of the explicit solver.
     pub fn sound_speed(&self) -> Real {
@@ -89,5 +106,25 @@ mod tests {
     #[test]
     fn sound_speed_is_sqrt_gamma_k_over_rho() {
         assert!((tait(7.0, 0.0).sound_speed() - (1400.0 as Real).sqrt()).abs() < 1e-12);
+    }
+
+    /// `d e / d rho = p / rho^2`, on both sides of the rest density, for
+    /// the exponents with their own branches and a general one.
+    #[test]
+    fn energy_is_the_work_of_the_pressure() {
+        for gamma in [1.0, 7.0, 2.5] {
+            let eos = tait(gamma, 0.5);
+            assert_eq!(eos.energy(1000.0), 0.0);
+            for rho in [950.0, 990.0, 1010.0, 1100.0] {
+                let h = 1e-3;
+                let slope = (eos.energy(rho + h) - eos.energy(rho - h)) / (2.0 * h);
+                let expected = eos.pressure(rho) / (rho * rho);
+                assert!(
+                    (slope - expected).abs() < 1e-6 * expected.abs(),
+                    "gamma {gamma}, rho {rho}: {slope} against {expected}"
+                );
+                assert!(eos.energy(rho) > 0.0, "stored energy is positive");
+            }
+        }
     }
 }

@@ -136,7 +136,7 @@ impl Fluid {
             },
             walls,
             viscosity_kernel: (params.viscosity > 0.0).then(|| match params.viscosity_model {
-                ViscosityModel::Morris => params.gradient_kernel,
+                ViscosityModel::Morris | ViscosityModel::Monaghan => params.gradient_kernel,
                 ViscosityModel::KernelLaplacian => Kernel::new(
                     KernelKind::Viscosity,
                     params.density_kernel.dim(),
@@ -180,6 +180,57 @@ impl Fluid {
         self.last_solve
     }
 
+    /// Kinetic energy `sum m |v|^2 / 2`, J (per metre of depth in 2D).
+    pub fn kinetic_energy(&self) -> Real {
+        let m = self.params.mass;
+        self.velocities
+            .par_iter()
+            .map(|v| 0.5 * m * v.norm_squared())
+            .sum()
+    }
+
+    /// Potential energy in `gravity`, `-sum m g . x`, J: zero where the
+    /// positions are at the origin.
+    pub fn potential_energy(&self, gravity: &Vector) -> Real {
+        let m = self.params.mass;
+        -self
+            .positions
+            .par_iter()
+            .map(|x| m * gravity.dot(x))
+            .sum::<Real>()
+    }
+
+    /// The id (index in the scene's order) of the particle in `slot`.
+    pub fn id_of(&self, slot: usize) -> usize {
+        self.ids[slot] as usize
+    }
+
+    /// Total mass, kg.
+    pub fn total_mass(&self) -> Real {
+        self.params.mass * self.len() as Real
+    }
+
+    /// The largest density as a multiple of the rest density.
+    pub fn max_compression(&self) -> (usize, Real) {
+        let rest = self.params.eos.rest_density;
+        self.densities
+            .par_iter()
+            .enumerate()
+            .map(|(k, rho)| (k, rho / rest))
+            .reduce(|| (0, 0.0), |a, b| if b.1 > a.1 { b } else { a })
+    }
+
+    /// Whether anything besides gravity can put energy into the fluid:
+    /// moving walls or bodies that move (kinematic ones drive it, dynamic
+    /// ones hand it their own energy).
+    pub fn has_energy_source(&self) -> bool {
+        self.walls.as_ref().is_some_and(BoxWalls::moving)
+            || self
+                .rigid
+                .as_ref()
+                .is_some_and(|r| r.bodies().iter().any(|b| b.moves()))
+    }
+
     /// The largest speed of a particle or of a body's surface: what the
     /// CFL conditions of the solvers bound.
     pub(in crate::fluid) fn max_speed(&self) -> Real {
@@ -202,9 +253,16 @@ impl Fluid {
             // the support radius itself made a Taylor–Green vortex blow up
             // (tests/tests/validation_periodic.rs).
             let smoothing = 0.5 * h;
+            // Monaghan's form acts on compression with three times the
+            // viscosity (its limit is `nu (Lap v + 2 grad div v)`), so its
+            // fastest mode decays three times as fast.
+            let stiffer = match self.params.viscosity_model {
+                ViscosityModel::Monaghan => 3.0,
+                ViscosityModel::Morris | ViscosityModel::KernelLaplacian => 1.0,
+            };
             dt = dt.min(
                 0.125 * smoothing * smoothing * self.params.eos.rest_density
-                    / self.params.viscosity,
+                    / (stiffer * self.params.viscosity),
             );
         }
         dt

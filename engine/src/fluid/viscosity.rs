@@ -1,19 +1,33 @@
-//! Physical viscosity: `a_i += (mu / rho_i) Lap v_i`, with two SPH
+//! Physical viscosity: `a_i += (mu / rho_i) Lap v_i`, with three SPH
 //! approximations of the Laplacian a scene chooses between.
 //!
-//! Both cost one pass over the neighbour pairs; they differ in accuracy.
+//! All cost one pass over the neighbour pairs; they differ in accuracy and
+//! in what they conserve. All are antisymmetric in each pair, so all
+//! conserve linear momentum; only [`ViscosityModel::Monaghan`] pushes each
+//! pair along the line between them, so only it conserves angular
+//! momentum. The other two push along `v_i - v_j`, which exerts a torque:
+//! a viscous fluid in rigid rotation, whose exact solution keeps rotating,
+//! lost 13.7 % of its angular momentum per second with Morris's form at
+//! any resolution (engine/tests/viscous_flows.rs).
+//!
 //! On the Taylor–Green vortex (tests/tests/validation_periodic.rs) the
 //! tutorial's Eq. 52 with Müller's viscosity kernel dissipates only about
 //! 70 % of the analytic rate at `h = 2 dx`, independent of resolution: its
 //! discrete kernel Laplacian misses the continuum normalisation on a
 //! particle lattice. Morris et al. (1997) build the Laplacian from the
 //! first kernel derivative (Brookshaw 1985), which the lattice integrates
-//! far better, and match the analytic decay within a few per cent. Both
-//! are antisymmetric in each pair, so both conserve linear momentum.
+//! far better, and match the analytic decay within a few per cent.
+//! Monaghan's form projects the velocity difference onto the pair; the
+//! factor `2 (d + 2)` restores the full Laplacian for a divergence-free
+//! flow (its continuum limit is `nu (Lap v + 2 grad div v)`), so it
+//! matches the vortex as Morris's does.
+//!
+//! The domain's no-slip walls add their share through the friction tables of
+//! [`BoxWalls`](super::BoxWalls), whatever the model.
 
 use super::Fluid;
 use crate::approx::Kernel;
-use crate::math::Vector;
+use crate::math::{Real, Vector};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -28,22 +42,31 @@ pub enum ViscosityModel {
     /// Tutorial Eq. 52 with Müller's viscosity kernel:
     /// `a_i += (mu / rho_i) sum_j m_j (v_j - v_i) / rho_j Lap W_visc(x_ij)`.
     KernelLaplacian,
+    /// Monaghan 2005 (after Español & Revenga 2003):
+    /// `a_i += sum_j 2 (d + 2) mu m_j / (rho_i rho_j)
+    /// ((v_i - v_j) . x_ij) / (|x_ij|^2 + 0.01 h^2) grad W_ij`, with the
+    /// gradient kernel: each pair force lies along `x_ij`, so it conserves
+    /// angular momentum.
+    Monaghan,
 }
 
 impl Fluid {
     /// Adds the viscous acceleration of the scene's model (see the module
-    /// documentation). `kernel` is Müller's viscosity kernel for
-    /// [`ViscosityModel::KernelLaplacian`] and the gradient kernel for
-    /// [`ViscosityModel::Morris`].
+    /// documentation), and the friction of no-slip walls. `kernel` is
+    /// Müller's viscosity kernel for [`ViscosityModel::KernelLaplacian`]
+    /// and the gradient kernel otherwise.
     pub(super) fn apply_viscosity(&mut self, model: ViscosityModel, kernel: &Kernel) {
-        let (positions, velocities, densities, neighbors) = (
+        let (positions, velocities, densities, neighbors, walls) = (
             &self.positions,
             &self.velocities,
             &self.densities,
             &self.neighbors,
+            self.walls.as_ref().filter(|w| w.no_slip()),
         );
         let (mass, mu) = (self.params.mass, self.params.viscosity);
+        let rest_density = self.params.eos.rest_density;
         let eta2 = 0.01 * kernel.support() * kernel.support();
+        let projected = 2.0 * (kernel.dim() as Real + 2.0);
         self.accelerations
             .par_iter_mut()
             .enumerate()
@@ -61,8 +84,16 @@ impl Fluid {
                         let radial = r.dot(&kernel.gradient(&r, rn)) / (rn * rn + eta2);
                         acc + (vi - velocities[j]) * (2.0 * radial / densities[j])
                     }),
+                    ViscosityModel::Monaghan => pairs.fold(Vector::zeros(), |acc, (j, r)| {
+                        let rn = r.norm();
+                        let along = (vi - velocities[j]).dot(&r) / (rn * rn + eta2);
+                        acc + kernel.gradient(&r, rn) * (projected * along / densities[j])
+                    }),
                 };
                 *a += sum * (mu * mass / densities[i]);
+                if let Some(walls) = walls {
+                    *a += walls.friction(&positions[i], &vi) * (mu / (densities[i] * rest_density));
+                }
             });
     }
 }

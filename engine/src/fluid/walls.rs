@@ -19,7 +19,19 @@
 //! the wall's density term implies, so walls neither gain nor lose energy;
 //! mirroring the pressure onto the ghosts, as the symmetric form of Eq. 51
 //! would, doubles the push and measurably pumped energy into a resting
-//! tank. Walls are free-slip: they take no part in XSPH.
+//! tank. Walls take no part in XSPH.
+//!
+//! Walls are free-slip unless the scene makes them no-slip. Then the ghost
+//! lattice also carries velocity, extrapolated as Morris et al. (1997) do
+//! so that the flow meets the wall's velocity at the wall: a ghost at depth
+//! `d_g` behind a wall seen from a particle at distance `d` moves relative
+//! to the wall at `-(d_g / d)` times the particle's relative velocity,
+//! making the pair's relative velocity `beta = min(1.5, 1 + d_g / d)` times
+//! the particle's (their cap, which keeps particles touching the wall
+//! finite). The ghosts act through Monaghan's pair form (see
+//! `viscosity.rs`), whose sum over a planar lattice is again a function of
+//! `d` alone, in two tables: one for the velocity along the wall and one
+//! across it.
 
 use crate::approx::Kernel;
 use crate::math::{Real, Vector};
@@ -42,6 +54,51 @@ pub struct BoxWalls {
     density: Vec<Real>,
     /// `Phi_g'(d)` with the gradient kernel, times `m / dx^3`.
     slope: Vec<Real>,
+    /// No-slip walls' friction, when the scene asks for it.
+    friction: Option<Friction>,
+}
+
+/// The friction of no-slip walls (see the module documentation).
+#[derive(Debug, Clone)]
+struct Friction {
+    /// Ghost-lattice sum of `2 (d + 2) beta x_t^2 W'(r) / (r (r^2 + eta^2))`
+    /// for one tangential component, times `m / dx^3`.
+    tangential: Vec<Real>,
+    /// The same with the normal component `x_n^2`.
+    normal: Vec<Real>,
+    /// Each wall's velocity, `[axis][0 below, 1 above]`.
+    velocity: [[Vector; 2]; 3],
+}
+
+/// Morris et al.'s cap on the ghosts' velocity extrapolation.
+const BETA_MAX: Real = 1.5;
+
+/// One ghost layer's friction sums at distance `z` from the particle:
+/// `(int x_t^2 g dA, int z^2 g dA)` over the layer's plane (3D) or line
+/// (2D), with `g(r) = W'(r) / (r (r^2 + eta^2))`.
+fn friction_layer(kernel: &Kernel, z: Real) -> (Real, Real) {
+    let h = kernel.support();
+    if z >= h {
+        return (0.0, 0.0);
+    }
+    let eta2 = 0.01 * h * h;
+    let g = |s: Real| {
+        let r2 = s * s + z * z;
+        let r = r2.sqrt();
+        kernel.derivative(r) / (r * (r2 + eta2))
+    };
+    let reach = (h * h - z * z).sqrt();
+    if kernel.dim() == 2 {
+        (
+            2.0 * integrate(0.0, reach, |s| s * s * g(s)),
+            2.0 * z * z * integrate(0.0, reach, g),
+        )
+    } else {
+        (
+            PI * integrate(0.0, reach, |s| s * s * s * g(s)),
+            2.0 * PI * z * z * integrate(0.0, reach, |s| s * g(s)),
+        )
+    }
 }
 
 /// `int_a^b f(x) dx` by 3-point Gauss–Legendre on 64 panels.
@@ -132,7 +189,60 @@ impl BoxWalls {
             walled: [true, true, axes == 3],
             density,
             slope,
+            friction: None,
         }
+    }
+
+    /// Makes the walls no-slip for a fluid sampled at `spacing` with
+    /// particle `mass`, viscous through `gradient_kernel`; `velocity`
+    /// gives each wall's (tangential) velocity, `[axis][0 below, 1
+    /// above]`.
+    pub fn with_friction(
+        mut self,
+        spacing: Real,
+        mass: Real,
+        gradient_kernel: &Kernel,
+        velocity: [[Vector; 2]; 3],
+    ) -> Self {
+        let axes = gradient_kernel.dim();
+        let per_volume = mass / spacing.powi(axes as i32);
+        let projected = 2.0 * (axes as Real + 2.0);
+        let layers = (self.h / spacing).ceil() as usize + 1;
+        let sample = |i: usize| self.h * i as Real / (SAMPLES - 1) as Real;
+        let sums: Vec<(Real, Real)> = (0..SAMPLES)
+            .map(|i| {
+                let d = sample(i);
+                (0..layers).fold((0.0, 0.0), |(t, n), k| {
+                    let depth = (k as Real + 0.5) * spacing;
+                    let beta = if d > 0.0 {
+                        (1.0 + depth / d).min(BETA_MAX)
+                    } else {
+                        BETA_MAX
+                    };
+                    let (lt, ln) = friction_layer(gradient_kernel, d + depth);
+                    let scale = projected * per_volume * spacing * beta;
+                    (t + scale * lt, n + scale * ln)
+                })
+            })
+            .collect();
+        self.friction = Some(Friction {
+            tangential: sums.iter().map(|s| s.0).collect(),
+            normal: sums.iter().map(|s| s.1).collect(),
+            velocity,
+        });
+        self
+    }
+
+    /// Whether the walls are no-slip.
+    pub fn no_slip(&self) -> bool {
+        self.friction.is_some()
+    }
+
+    /// Whether a no-slip wall moves (and so can drive the fluid).
+    pub fn moving(&self) -> bool {
+        self.friction
+            .as_ref()
+            .is_some_and(|f| f.velocity.iter().flatten().any(|v| *v != Vector::zeros()))
     }
 
     /// Removes the walls of the `open` axes (periodic axes have none).
@@ -155,21 +265,22 @@ impl BoxWalls {
         table[i] * (1.0 - t) + table[i + 1] * t
     }
 
-    /// Calls `visit(d, n)` for every wall within the support radius of
-    /// `x`: its distance and inward normal.
+    /// Calls `visit(d, n, [axis, side])` for every wall within the
+    /// support radius of `x`: its distance, inward normal and place (side
+    /// 0 below, 1 above).
     #[inline]
-    fn near(&self, x: &Vector, mut visit: impl FnMut(Real, Vector)) {
+    fn near(&self, x: &Vector, mut visit: impl FnMut(Real, Vector, [usize; 2])) {
         for a in (0..3).filter(|&a| self.walled[a]) {
             let mut n = Vector::zeros();
             let below = x[a] - self.min[a];
             if below < self.h {
                 n[a] = 1.0;
-                visit(below, n);
+                visit(below, n, [a, 0]);
             }
             let above = self.max[a] - x[a];
             if above < self.h {
                 n[a] = -1.0;
-                visit(above, n);
+                visit(above, n, [a, 1]);
             }
         }
     }
@@ -178,7 +289,7 @@ impl BoxWalls {
     #[inline]
     pub fn density(&self, x: &Vector) -> Real {
         let mut rho = 0.0;
-        self.near(x, |d, _| rho += self.lookup(&self.density, d));
+        self.near(x, |d, _, _| rho += self.lookup(&self.density, d));
         rho
     }
 
@@ -187,8 +298,26 @@ impl BoxWalls {
     #[inline]
     pub fn density_gradient(&self, x: &Vector) -> Vector {
         let mut gradient = Vector::zeros();
-        self.near(x, |d, n| gradient += n * self.lookup(&self.slope, d));
+        self.near(x, |d, n, _| gradient += n * self.lookup(&self.slope, d));
         gradient
+    }
+
+    /// The no-slip walls' friction on a particle at `x` moving at `v`,
+    /// to be scaled by `mu / (rho_i rho_0)`; zero for free-slip walls.
+    #[inline]
+    pub fn friction(&self, x: &Vector, v: &Vector) -> Vector {
+        let Some(friction) = &self.friction else {
+            return Vector::zeros();
+        };
+        let mut sum = Vector::zeros();
+        self.near(x, |d, n, [axis, side]| {
+            let relative = v - friction.velocity[axis][side];
+            let across = relative.dot(&n);
+            let along = relative - n * across;
+            sum += along * self.lookup(&friction.tangential, d)
+                + n * (across * self.lookup(&friction.normal, d));
+        });
+        sum
     }
 
     /// The pressure acceleration the walls exert on a particle at `x` with

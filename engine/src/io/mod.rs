@@ -64,6 +64,8 @@ pub(crate) mod test_frame {
             substep_dt: 0.25,
             solver_iterations: 0,
             density_error: 0.0,
+            capped: false,
+            unconverged: 0,
             particle_count: 2,
             fields: vec![
                 FieldData {

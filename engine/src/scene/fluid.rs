@@ -3,7 +3,7 @@
 //! viscosity), and their validation.
 
 use super::error::{check_box, check_positive, check_range, check_vector};
-use super::{Aabb, Scene, SceneError, defaults};
+use super::{Aabb, Scene, SceneError, SlipKind, defaults};
 use crate::approx::KernelKind;
 use crate::fluid::ViscosityModel;
 use crate::math::Real;
@@ -57,6 +57,52 @@ pub enum WallModel {
     Reflect,
 }
 
+/// The velocities of moving domain walls, m/s, each along its wall (a
+/// component across it is refused): a Couette flow's sliding lid, a
+/// conveyor floor. Walls left out stand still.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WallVelocities {
+    /// The wall at the domain's smallest x.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_x: Option<[Real; 3]>,
+    /// The wall at the domain's largest x.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_x: Option<[Real; 3]>,
+    /// The wall at the domain's smallest y.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_y: Option<[Real; 3]>,
+    /// The wall at the domain's largest y.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_y: Option<[Real; 3]>,
+    /// The wall at the domain's smallest z.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_z: Option<[Real; 3]>,
+    /// The wall at the domain's largest z.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_z: Option<[Real; 3]>,
+}
+
+/// One wall's scene name and velocity, if it moves.
+pub type NamedWallVelocity = (&'static str, Option<[Real; 3]>);
+
+impl WallVelocities {
+    /// Each wall's velocity, `[axis][0 below, 1 above]`, with its scene
+    /// name; unset walls stand still.
+    pub fn by_wall(&self) -> [[NamedWallVelocity; 2]; 3] {
+        [
+            [("min_x", self.min_x), ("max_x", self.max_x)],
+            [("min_y", self.min_y), ("max_y", self.max_y)],
+            [("min_z", self.min_z), ("max_z", self.max_z)],
+        ]
+    }
+
+    /// Whether every wall stands still (nothing to write in a scene).
+    pub fn is_still(&self) -> bool {
+        self.by_wall().iter().flatten().all(|(_, v)| v.is_none())
+    }
+}
+
 /// A weakly compressible SPH fluid (Adams–Wicke tutorial, Algorithm 5).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -90,6 +136,13 @@ pub struct FluidSpec {
     /// How the fluid meets the domain's walls.
     #[serde(default = "default_walls")]
     pub walls: WallModel,
+    /// Whether `solid` walls hold the fluid back along them (`no`, through
+    /// the fluid's viscosity) or let it slide (`free`).
+    #[serde(default = "default_wall_slip")]
+    pub wall_slip: SlipKind,
+    /// Velocities of moving no-slip walls.
+    #[serde(default, skip_serializing_if = "WallVelocities::is_still")]
+    pub wall_velocity: WallVelocities,
     /// The pressure solver.
     #[serde(default = "default_solver")]
     pub solver: SolverKind,
@@ -218,6 +271,56 @@ impl Scene {
         Ok(())
     }
 
+    /// No-slip walls need solid walls and viscosity; moving walls need
+    /// no slip, a wall to move and a velocity along it.
+    fn check_walls(&self, at: &str, fluid: &FluidSpec) -> Result<(), SceneError> {
+        if fluid.wall_slip == SlipKind::No {
+            if fluid.walls != WallModel::Solid {
+                return Err(SceneError::invalid(
+                    format!("{at}.wall_slip"),
+                    "needs `walls = \"solid\"`: reflecting walls have no ghost layers to hold \
+                     the fluid back",
+                ));
+            }
+            if fluid.viscosity <= 0.0 {
+                return Err(SceneError::invalid(
+                    format!("{at}.wall_slip"),
+                    "acts through the fluid's viscosity, which is 0; set `viscosity`",
+                ));
+            }
+        }
+        let periodic = self.periodic_axes();
+        for (a, walls) in fluid.wall_velocity.by_wall().iter().enumerate() {
+            for &(name, velocity) in walls {
+                let Some(velocity) = velocity else { continue };
+                let field = format!("{at}.wall_velocity.{name}");
+                check_vector(&field, velocity)?;
+                if fluid.wall_slip != SlipKind::No {
+                    return Err(SceneError::invalid(
+                        field,
+                        "moves a free-slip wall, which cannot drag the fluid; set `wall_slip = \"no\"`",
+                    ));
+                }
+                if a >= self.dimension || periodic[a] {
+                    return Err(SceneError::invalid(
+                        field,
+                        "names a wall the domain does not have (a periodic axis, or z in 2D)",
+                    ));
+                }
+                if velocity[a] != 0.0 {
+                    return Err(SceneError::invalid(
+                        field,
+                        format!(
+                            "has a component {} across the wall; a wall moves only along itself",
+                            crate::math::Brief(velocity[a])
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
     pub(super) fn validate_fluid(&self, at: &str, fluid: &FluidSpec) -> Result<(), SceneError> {
         check_positive(&format!("{at}.spacing"), fluid.spacing)?;
         let h = fluid.support_radius();
@@ -280,6 +383,7 @@ impl Scene {
         // Honey is about 10 Pa s; beyond 1e4 the diffusion limit of the
         // explicit step makes sub-steps vanishingly small.
         check_range(&format!("{at}.viscosity"), fluid.viscosity, 0.0, 1e4)?;
+        self.check_walls(at, fluid)?;
         if fluid.density_kernel == KernelKind::Viscosity {
             return Err(SceneError::invalid(
                 format!("{at}.density_kernel"),
@@ -400,6 +504,9 @@ fn default_max_solver_iterations() -> u32 {
 }
 fn default_walls() -> WallModel {
     defaults::WALLS
+}
+fn default_wall_slip() -> SlipKind {
+    defaults::SLIP
 }
 fn default_density_kernel() -> KernelKind {
     defaults::DENSITY_KERNEL

@@ -194,6 +194,18 @@ impl Body {
             .collect()
     }
 
+    /// Each particle's stored elastic energy `V_i W(F_i)` (strain and
+    /// volume terms; the hourglass term, a numerical penalty, left out),
+    /// J.
+    pub fn elastic_energies(&self) -> Vec<Real> {
+        let material = self.params.material;
+        self.current_states()
+            .iter()
+            .zip(&self.volumes)
+            .map(|(s, v)| v * material.energy_density(s))
+            .collect()
+    }
+
     /// Kinetic energy, J.
     pub fn kinetic_energy(&self) -> Real {
         self.velocities

@@ -33,9 +33,18 @@
 //! `F_i` is kept (`dU_h/dF_i` adds to `T_i`), so the forces stay
 //! conservative for any basis order.
 //!
-//! **Damping** is pairwise, `c_e (v_j - v_i)` with `c_e = alpha m_i
-//! w~_ij`, equal and opposite on the pair: it damps relative motion only,
-//! so a falling or spinning body is not slowed.
+//! **Damping** is a dashpot along each pair, `c_e n_e n_e^T (v_j - v_i)`
+//! with `c_e = alpha m_i w~_ij` and `n_e` the pair's direction at the
+//! start of the step, equal and opposite on the pair and along it: it
+//! damps only the rate at which pairs stretch, which every deformation
+//! changes and no rigid motion does, so a falling or spinning body is not
+//! slowed and angular momentum is conserved. (Damping the whole relative
+//! velocity `v_j - v_i`, as this did before, also damps rotation, whose
+//! relative velocities are `omega x (x_j - x_i)`: a free block with
+//! `damping = 5` lost 34 % of its angular momentum in 2 s without
+//! deforming; engine/tests/solid_conservation.rs.) With `n_e` fixed over
+//! a step the damping force stays linear in `v`, `-D v` with `D`
+//! symmetric, as the implicit integrator's objective needs.
 
 use super::body::Body;
 use super::material::{Material, StressState};
@@ -58,6 +67,9 @@ pub(super) struct Model<'a> {
     /// `c_h E / h^2`, multiplied by `V_i` per particle.
     pub hourglass: Real,
     pub damping: Real,
+    /// Positions at the start of the step, which set the dashpots'
+    /// directions.
+    pub positions: &'a [Vector],
 }
 
 /// The output of pass 1: per particle the force it puts on itself, per
@@ -159,7 +171,7 @@ impl Model<'_> {
                             c += err * (kappa * w);
                         }
                         if let Some(v) = damped {
-                            c += (v[j] - v[i]) * (self.damping * self.masses[i] * w);
+                            c += self.dashpot(i, j, e, v);
                         }
                         pair_sum += c;
                         edge[e - base] = c;
@@ -213,6 +225,18 @@ impl Model<'_> {
             });
     }
 
+    /// The dashpot force `c_e n_e n_e^T (v_j - v_i)` of edge `e = (i -> j)`.
+    #[inline]
+    fn dashpot(&self, i: usize, j: usize, e: usize, v: &[Vector]) -> Vector {
+        let along = self.positions[j] - self.positions[i];
+        let length2 = along.norm_squared();
+        if length2 == 0.0 {
+            return Vector::zeros();
+        }
+        let c = self.damping * self.masses[i] * self.topology.pair_weight[e];
+        along * (c * (v[j] - v[i]).dot(&along) / length2)
+    }
+
     /// The split of the damping force `f_d(v) = -D v`.
     pub fn damping_pass(&self, v: &[Vector], split: &mut Split) {
         let t = self.topology;
@@ -226,8 +250,7 @@ impl Model<'_> {
                     let i = first + k;
                     let mut sum = Vector::zeros();
                     for e in t.gradients.range(i) {
-                        let c = (v[edges[e] as usize] - v[i])
-                            * (self.damping * self.masses[i] * t.pair_weight[e]);
+                        let c = self.dashpot(i, edges[e] as usize, e, v);
                         edge[e - base] = c;
                         sum += c;
                     }
@@ -256,7 +279,7 @@ impl Model<'_> {
         });
     }
 
-    /// Damping power `sum_e c_e |v_j - v_i|^2 / 2` (the Rayleigh
+    /// Damping power `sum_e c_e (n_e . (v_j - v_i))^2 / 2` (the Rayleigh
     /// dissipation function), W.
     pub fn dissipation(&self, v: &[Vector]) -> Real {
         if self.damping == 0.0 {
@@ -267,9 +290,8 @@ impl Model<'_> {
         (0..edges.len())
             .into_par_iter()
             .map(|e| {
-                let i = t.owner[e] as usize;
-                let dv = v[edges[e] as usize] - v[i];
-                0.5 * self.damping * self.masses[i] * t.pair_weight[e] * dv.norm_squared()
+                let (i, j) = (t.owner[e] as usize, edges[e] as usize);
+                0.5 * self.dashpot(i, j, e, v).dot(&(v[j] - v[i]))
             })
             .sum()
     }
@@ -322,6 +344,7 @@ impl Body {
             plastic: self.plastic.as_deref(),
             hourglass: p.hourglass * p.young / (p.support * p.support),
             damping: p.damping,
+            positions: &self.positions,
         }
     }
 

@@ -34,4 +34,6 @@ pub use contact::{Obstacle, Obstacles};
 pub use elastic::ElasticSolid;
 pub use integrate::SolidStep;
 pub use material::{Material, StressState, cofactor, green_strain};
-pub use params::{ImplicitParams, Integrator, LinearSolver, Plasticity, SolidParams};
+pub use params::{
+    ImplicitParams, ImplicitScheme, Integrator, LinearSolver, Plasticity, SolidParams,
+};

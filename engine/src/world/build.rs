@@ -3,6 +3,7 @@
 //! [`Scene::build`] lives here.
 
 use super::system::{FluidEntry, RemovalMask, SolidEntry, System};
+use super::watch::EnergyWatch;
 use super::{Clock, StepInfo, World};
 use crate::approx::Kernel;
 use crate::fluid::{
@@ -267,7 +268,17 @@ fn build_fluid(
                 &gradient_kernel,
             )
             .without_axes(periodic_axes),
-        ),
+        )
+        .map(|walls| match spec.wall_slip {
+            SlipKind::Free => walls,
+            SlipKind::No => {
+                let velocity = spec
+                    .wall_velocity
+                    .by_wall()
+                    .map(|sides| sides.map(|(_, v)| v.map_or(Vector::zeros(), vector)));
+                walls.with_friction(spec.spacing, params.mass, &gradient_kernel, velocity)
+            }
+        }),
         WallModel::Reflect => None,
     };
     let bodies: Vec<RigidBody> = body_specs
@@ -327,5 +338,6 @@ fn build_fluid(
         bounds: (min, max),
         surface,
         removal: RemovalMask::default(),
+        watch: EnergyWatch::default(),
     }
 }

@@ -11,6 +11,7 @@ mod build;
 mod system;
 #[cfg(test)]
 mod tests;
+pub mod watch;
 
 pub use system::RemoveError;
 
@@ -48,6 +49,16 @@ pub struct StepInfo {
     /// Worst average density error after a sub-step's pressure solve
     /// (fraction of rho_0; 0 for WCSPH).
     pub density_error: Real,
+    /// Of `solver_iterations`, the implicit solids' Newton and CG
+    /// iterations.
+    pub solid_iterations: u32,
+    /// The implicit solids' worst final Newton residual (relative; see
+    /// `SolidStep::residual`).
+    pub solid_residual: Real,
+    /// Solves that stopped at their iteration cap above their tolerance:
+    /// DFSPH pressure solves and implicit solids' Newton solves. Nonzero
+    /// means the step is not as accurate as the scene asked.
+    pub unconverged: u32,
 }
 
 impl StepInfo {
@@ -59,6 +70,9 @@ impl StepInfo {
             capped: false,
             solver_iterations: 0,
             density_error: 0.0,
+            solid_iterations: 0,
+            solid_residual: 0.0,
+            unconverged: 0,
         }
     }
 
@@ -70,6 +84,9 @@ impl StepInfo {
         self.capped |= system.capped;
         self.solver_iterations += system.solver_iterations;
         self.density_error = self.density_error.max(system.density_error);
+        self.solid_iterations += system.solid_iterations;
+        self.solid_residual = self.solid_residual.max(system.solid_residual);
+        self.unconverged += system.unconverged;
     }
 }
 
@@ -109,6 +126,42 @@ pub enum StepError {
         particle: usize,
         /// The offending value (a norm for vectors).
         value: f64,
+        /// The step that failed.
+        step: u64,
+    },
+    /// A fluid particle was compressed beyond the band a fluid allows
+    /// ([`watch::MAX_COMPRESSION`]).
+    #[error(
+        "the density of fluid particle {particle} reached {ratio:.3} times the rest density in \
+         step {step}, beyond the {limit} a fluid allows: the pressure solve is not holding the \
+         fluid; lower time.dt or raise time.max_substeps, raise the stiffness (wcsph) or lower \
+         density_tolerance (dfsph)"
+    )]
+    Compressed {
+        /// The particle's id.
+        particle: usize,
+        /// Its density over the rest density.
+        ratio: Real,
+        /// The largest ratio allowed.
+        limit: Real,
+        /// The step that failed.
+        step: u64,
+    },
+    /// The fluid gained mechanical energy with nothing to supply it
+    /// ([`watch::MAX_ENERGY_GAIN`]).
+    #[error(
+        "the fluid's mechanical energy rose by {gained:.3e} J since it started ({:.1} % of its \
+         scale, beyond the {:.0} % allowed) in step {step}, with no moving wall or body to supply \
+         it: the scheme is adding energy; lower time.dt, set negative_pressure_scale = 0, or use \
+         one kernel for densities and pressure", 100.0 * fraction, 100.0 * limit
+    )]
+    EnergyGained {
+        /// Joules gained (per metre of depth in 2D).
+        gained: Real,
+        /// The gain as a fraction of the energy scale.
+        fraction: Real,
+        /// The largest fraction allowed.
+        limit: Real,
         /// The step that failed.
         step: u64,
     },
@@ -312,6 +365,8 @@ impl World {
             substep_dt: self.last_step.min_substep,
             solver_iterations: self.last_step.solver_iterations,
             density_error: self.last_step.density_error,
+            capped: self.last_step.capped,
+            unconverged: self.last_step.unconverged,
             particle_count: self.particle_count(),
             fields,
             bodies: self.body_poses(),

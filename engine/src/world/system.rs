@@ -13,6 +13,7 @@
 // silently empty field.
 #![warn(clippy::wildcard_enum_match_arm)]
 
+use super::watch::EnergyWatch;
 use super::{StepError, StepInfo};
 use crate::cancel::Cancel;
 use crate::fluid::{FluidState, FluidSystem, Invalid};
@@ -213,6 +214,8 @@ pub(crate) struct FluidEntry {
     pub surface: Option<SurfaceExtractor>,
     /// Particles to remove at the start of the next step.
     pub removal: RemovalMask,
+    /// The energy the fluid started from, which it may not exceed.
+    pub watch: EnergyWatch,
 }
 
 impl FluidEntry {
@@ -242,6 +245,7 @@ impl Simulated for FluidEntry {
     fn start_step(&mut self) {
         if let Some(removed) = self.removal.take() {
             self.fluid.remove(&removed);
+            self.watch.restart();
         }
         self.fluid.reorder_if_due();
     }
@@ -260,6 +264,7 @@ impl Simulated for FluidEntry {
     fn step(&mut self, env: &StepEnv, timer: &mut StageTimer) -> Result<StepInfo, StepError> {
         let dt = env.dt;
         let mut info = StepInfo::start(dt);
+        self.watch.begin(&self.fluid, &env.gravity, &self.bounds);
         let (min, max) = self.bounds;
         let mut elapsed = 0.0;
         while dt - elapsed > dt * 1e-9 {
@@ -278,6 +283,7 @@ impl Simulated for FluidEntry {
             let solve = self.fluid.fluid().last_solve();
             info.solver_iterations += solve.density_iterations + solve.divergence_iterations;
             info.density_error = info.density_error.max(solve.density_error);
+            info.unconverged += solve.unconverged;
             info.substeps += 1;
             info.min_substep = info.min_substep.min(sub);
             elapsed += sub;
@@ -291,6 +297,7 @@ impl Simulated for FluidEntry {
                 });
             }
         }
+        self.watch.check(&self.fluid, &env.gravity, env.step)?;
         Ok(info)
     }
 
@@ -310,6 +317,24 @@ impl Simulated for FluidEntry {
             FieldKind::Velocity => vectors(&fluid.velocities, out),
             FieldKind::Density => scalars(&fluid.densities, out),
             FieldKind::Pressure => scalars(&fluid.pressures, out),
+            FieldKind::Mass => fluid.in_id_order(out, |_| [fluid.params.mass as f32]),
+            FieldKind::Volume => {
+                fluid.in_id_order(out, |k| [(fluid.params.mass / fluid.densities[k]) as f32])
+            }
+            FieldKind::KineticEnergy => fluid.in_id_order(out, |k| {
+                [(0.5 * fluid.params.mass * fluid.velocities[k].norm_squared()) as f32]
+            }),
+            FieldKind::ElasticEnergy => {
+                let stored = self.fluid.pressure().has_equation_of_state();
+                fluid.in_id_order(out, |k| {
+                    let e = if stored {
+                        fluid.params.mass * fluid.params.eos.energy(fluid.densities[k])
+                    } else {
+                        0.0
+                    };
+                    [e as f32]
+                })
+            }
         }
     }
 
@@ -365,6 +390,9 @@ impl Simulated for SolidEntry {
             capped: step.capped,
             solver_iterations: step.iterations,
             density_error: 0.0,
+            solid_iterations: step.iterations,
+            solid_residual: step.residual,
+            unconverged: u32::from(step.unconverged),
         };
         match self.first_invalid() {
             Some(invalid) => Err(StepError::SolidUnstable {
@@ -397,6 +425,24 @@ impl Simulated for SolidEntry {
             FieldKind::Velocity => vectors(&solid.velocities, out),
             FieldKind::Density => out.extend(solid.densities().into_iter().map(|d| d as f32)),
             FieldKind::Pressure => out.extend(solid.pressures().into_iter().map(|p| p as f32)),
+            FieldKind::Mass => out.extend(solid.masses().iter().map(|&m| m as f32)),
+            FieldKind::Volume => out.extend(
+                solid
+                    .masses()
+                    .iter()
+                    .zip(solid.densities())
+                    .map(|(m, rho)| (m / rho) as f32),
+            ),
+            FieldKind::KineticEnergy => out.extend(
+                solid
+                    .masses()
+                    .iter()
+                    .zip(&solid.velocities)
+                    .map(|(m, v)| (0.5 * m * v.norm_squared()) as f32),
+            ),
+            FieldKind::ElasticEnergy => {
+                out.extend(solid.elastic_energies().into_iter().map(|e| e as f32));
+            }
         }
     }
 

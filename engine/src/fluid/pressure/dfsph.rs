@@ -229,6 +229,8 @@ impl PressureSolver for Dfsph {
             density_error,
             divergence_iterations,
             divergence_error,
+            unconverged: u32::from(density_error > self.params.density_tolerance)
+                + u32::from(divergence_error > self.params.divergence_tolerance),
         };
         Ok(())
     }

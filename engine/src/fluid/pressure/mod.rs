@@ -39,6 +39,13 @@ impl Pressure {
         }
     }
 
+    /// Whether pressure comes from the Tait equation of state (WCSPH), so
+    /// that compression stores energy; DFSPH's pressure is a constraint
+    /// force and stores none.
+    pub fn has_equation_of_state(&self) -> bool {
+        matches!(self, Self::Wcsph(_))
+    }
+
     /// The solver, to step or update through `PressureSolver`.
     pub(in crate::fluid) fn solver_mut(&mut self) -> &mut dyn PressureSolver {
         match self {
@@ -114,4 +121,7 @@ pub struct SolveInfo {
     /// Average density change rate times the sub-step after the
     /// divergence solve (fraction).
     pub divergence_error: Real,
+    /// Solves that stopped at their iteration cap above their tolerance
+    /// (0, 1 or 2).
+    pub unconverged: u32,
 }

@@ -16,7 +16,7 @@
 //!   `x`: each edge error is `e_e = sum_n alpha_n x_n` with `alpha_j += 1`,
 //!   `alpha_i -= 1`, `alpha_n -= c_n . X_e`, so block `(m, n)` gains
 //!   `kappa_i sum_e w~_e alpha_m alpha_n I`;
-//! - **damping**: each edge `(i -> j)` adds `c_e [[I, -I], [-I, I]]` on
+//! - **damping**: each edge `(i -> j)` adds `c_e [[nn^T, -nn^T], [-nn^T, nn^T]]` on
 //!   `(i, j)`, `c_e = alpha m_i w~_e` (`forces.rs`).
 //!
 //! Each block column `n` gathers its blocks from the particles `i` whose
@@ -238,8 +238,9 @@ fn assemble_column(
         }
     }
 
-    // The diagonal block is the first: every other row is below it.
-    let mut diagonal = body.masses[pn];
+    // The diagonal block is the first: every other row is below it. The
+    // dashpots add `c_e n n^T` there and subtract it at the pair's block.
+    let mut diagonal = nalgebra::Matrix3::from_diagonal_element(body.masses[pn]);
     if model.damping > 0.0 {
         let pairs = t
             .gradients
@@ -250,20 +251,28 @@ fn assemble_column(
                 (i, body.masses[i], e as usize)
             }));
         for (other, mass, e) in pairs {
-            if other == pn {
+            let along = body.positions[other] - body.positions[pn];
+            let length2 = along.norm_squared();
+            if other == pn || length2 == 0.0 {
                 continue;
             }
-            let c = dt * model.damping * mass * t.pair_weight[e];
+            let c = along
+                * along.transpose()
+                * (dt * model.damping * mass * t.pair_weight[e] / length2);
             diagonal += c;
             if let Some(slot) = out.slot(pattern.index[other]) {
                 for a in 0..dim {
-                    out.sub(slot, a, a, c);
+                    for b in 0..dim {
+                        out.sub(slot, a, b, c[(a, b)]);
+                    }
                 }
             }
         }
     }
     for a in 0..dim {
-        out.add(0, a, a, diagonal);
+        for b in 0..dim {
+            out.add(0, a, b, diagonal[(a, b)]);
+        }
     }
 }
 

@@ -17,12 +17,14 @@
 //! curvature ends early with the descent made so far; the line search
 //! guarantees `Phi` decreases.
 //!
-//! [`LinearSolver`]: crate::solid::LinearSolver
+//! Implicit midpoint ([`ImplicitScheme::Midpoint`]) reuses the same solve:
+//! its midpoint velocity `v_m = v + (dt/2) a(x + (dt/2) v_m)` is a backward
+//! Euler step of `dt / 2`, and `x+ = x + dt v_m`, `v+ = 2 v_m - v` follow.
 
 use super::super::body::Body;
 use super::super::forces::{InternalForces, Split};
 use super::super::material::StressState;
-use super::super::params::ImplicitParams;
+use super::super::params::{ImplicitParams, ImplicitScheme, LinearSolver};
 use super::direct::Direct;
 use super::{SolidStep, finish_substep};
 use crate::cancel::{Cancel, Cancelled};
@@ -57,7 +59,17 @@ pub(in crate::solid) struct Implicit {
     cg: cg::Workspace<Vector, Parallel>,
     /// The assembled Hessian and its factorisation.
     direct: Direct,
+    /// Whether [`LinearSolver::Auto`] has switched this body to Cholesky
+    /// after CG failed to converge on it.
+    escalated: bool,
 }
+
+/// Most particles of a 3D body that [`LinearSolver::Auto`] switches to
+/// Cholesky when CG does not converge: the factor of a 2.8k-particle bar
+/// takes 49 MiB and 0.26 s per Newton step, and grows as `n^1.4` (see
+/// [`LinearSolver::Cholesky`]). Larger bodies stay on CG and report the
+/// steps that did not converge.
+pub const AUTO_FACTOR_LIMIT: usize = 5000;
 
 /// The matrix-free Hessian product's scratch: the split of pass 1 and the
 /// gathered damping forces.
@@ -94,6 +106,7 @@ impl Implicit {
             product: ProductBuffers::default(),
             cg: cg::Workspace::default(),
             direct: Direct::default(),
+            escalated: false,
         }
     }
 
@@ -119,12 +132,47 @@ impl Implicit {
         self.direct.factor_bytes()
     }
 
-    /// One backward Euler step; stops at the next Newton or CG iteration
+    /// One step of the settings' scheme; stops at the next Newton or CG iteration
     /// once `cancel` is raised, `body` as it was (the step only writes it
     /// after Newton ends).
     pub fn step(
         &mut self,
         body: &mut Body,
+        dt: Real,
+        gravity: &Vector,
+        cancel: &Cancel,
+    ) -> Result<SolidStep, Cancelled> {
+        // Midpoint: a backward Euler solve over `dt / 2` gives the
+        // midpoint velocity `v_m`; then `x+ = x + dt v_m`,
+        // `v+ = 2 v_m - v`.
+        let midpoint = self.settings.scheme == ImplicitScheme::Midpoint;
+        let h = if midpoint { 0.5 * dt } else { dt };
+        let report = self.solve(body, h, gravity, cancel)?;
+        if midpoint {
+            body.velocities
+                .par_iter_mut()
+                .zip(&self.v_new)
+                .for_each(|(v, v_mid)| *v = v_mid * 2.0 - *v);
+        } else {
+            body.velocities.clone_from(&self.v_new);
+        }
+        body.positions
+            .par_iter_mut()
+            .zip(&self.v_new)
+            .for_each(|(x, v)| *x += v * dt);
+        finish_substep(body, &self.forces.states);
+        Ok(SolidStep {
+            min_substep: dt,
+            ..report
+        })
+    }
+
+    /// Solves the backward Euler step of length `dt` for its velocities,
+    /// left in `self.v_new` (the body unchanged), and reports the
+    /// iterations and residual.
+    fn solve(
+        &mut self,
+        body: &Body,
         dt: Real,
         gravity: &Vector,
         cancel: &Cancel,
@@ -175,8 +223,8 @@ impl Implicit {
                 break;
             }
             newton += 1;
-            let factorises = settings.linear_solver.factorises(body.params.dim);
-            let direct = factorises
+            let factorises = self.escalated || settings.linear_solver.factorises(body.params.dim);
+            let mut direct = factorises
                 && self.direct.direction(
                     body,
                     &self.forces.states,
@@ -186,18 +234,31 @@ impl Implicit {
                 );
             if !direct {
                 fallbacks += u32::from(factorises);
-                cg += self.cg_direction(body, dt, cancel)?;
+                let (iterations, converged) = self.cg_direction(body, dt, cancel)?;
+                cg += iterations;
+                // Auto chose CG and CG ran to its cap: the problem is too
+                // ill-conditioned for it (a slender 3D beam), so factorise
+                // from now on, where the body is small enough.
+                if !converged
+                    && !factorises
+                    && settings.linear_solver == LinearSolver::Auto
+                    && body.len() <= AUTO_FACTOR_LIMIT
+                {
+                    self.escalated = true;
+                    direct = self.direct.direction(
+                        body,
+                        &self.forces.states,
+                        dt,
+                        &self.gradient,
+                        &mut self.direction,
+                    );
+                    fallbacks += u32::from(!direct);
+                }
             }
             if !self.line_search(body, dt, gravity, phi) {
                 break;
             }
         }
-        body.velocities.clone_from(&self.v_new);
-        body.positions
-            .par_iter_mut()
-            .zip(&body.velocities)
-            .for_each(|(x, v)| *x += v * dt);
-        finish_substep(body, &self.forces.states);
         Ok(SolidStep {
             substeps: 1,
             min_substep: dt,
@@ -206,13 +267,20 @@ impl Implicit {
             newton_iterations: newton,
             cholesky_fallbacks: fallbacks,
             residual,
+            unconverged: residual > settings.newton_tolerance,
         })
     }
 
     /// Solves `H d = -grad Phi` into `self.direction` by preconditioned
-    /// CG; returns the CG iterations, or [`Cancelled`] when `cancel` stopped
-    /// the solve.
-    fn cg_direction(&mut self, body: &Body, dt: Real, cancel: &Cancel) -> Result<u32, Cancelled> {
+    /// CG; returns the CG iterations and whether CG stopped short of its
+    /// cap (converged, or ended on negative curvature), or [`Cancelled`]
+    /// when `cancel` stopped the solve.
+    fn cg_direction(
+        &mut self,
+        body: &Body,
+        dt: Real,
+        cancel: &Cancel,
+    ) -> Result<(u32, bool), Cancelled> {
         let model = body.model();
         // Jacobi preconditioner: the mass, the damping and a stiffness
         // estimate from the squared gradient weights touching each
@@ -267,9 +335,8 @@ impl Implicit {
         );
         match info.termination {
             Termination::Cancelled => Err(Cancelled),
-            Termination::Converged
-            | Termination::IterationLimit
-            | Termination::Breakdown { .. } => Ok(info.iterations),
+            Termination::Converged | Termination::Breakdown { .. } => Ok((info.iterations, true)),
+            Termination::IterationLimit => Ok((info.iterations, false)),
         }
     }
 

@@ -47,6 +47,10 @@ pub struct SolidStep {
     /// Newton's final residual relative to its first, or to the step's
     /// gravity impulse `dt |M g|` where that is larger (implicit only).
     pub residual: Real,
+    /// Whether Newton stopped at `max_newton_iterations` (or at a line
+    /// search that could not descend) above `newton_tolerance`: the step
+    /// is not the backward Euler solution it claims to be.
+    pub unconverged: bool,
 }
 
 /// A solid's integrator as [`params::Integrator`] chose it, with its
