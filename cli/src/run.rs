@@ -3,7 +3,7 @@
 use crate::output::{Format, FrameFiles, SurfaceFormat};
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use meshless_engine::{BuildOptions, Scene, World};
+use meshless_engine::{BuildOptions, FieldKind, Scene, World};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -113,6 +113,19 @@ fn run_steps(world: &mut World, steps: u64, files: &FrameFiles) -> Result<Totals
     Ok(totals)
 }
 
+/// The world's kinetic and stored elastic energy (the `kinetic_energy` and
+/// `elastic_energy` frame fields, summed).
+fn energies(world: &World) -> (f64, f64) {
+    let sum = |kind| {
+        world
+            .field_values(kind)
+            .iter()
+            .map(|&e| f64::from(e))
+            .sum::<f64>()
+    };
+    (sum(FieldKind::KineticEnergy), sum(FieldKind::ElasticEnergy))
+}
+
 /// The run's summary on standard output, with a warning for every step
 /// that was not as accurate as the scene asked.
 fn summarise(args: &RunArgs, world: &World, steps: u64, totals: &Totals, wall: f64) -> Result<()> {
@@ -136,6 +149,15 @@ fn summarise(args: &RunArgs, world: &World, steps: u64, totals: &Totals, wall: f
         "  wall time         {wall:.2} s  ({:.1} steps/s, {:.3e} particle-sub-steps/s)",
         steps as f64 / wall,
         particles * substeps as f64 / wall
+    )?;
+    let (kinetic, elastic) = energies(world);
+    let depth = if world.scene().dimension == 2 {
+        " per metre of depth"
+    } else {
+        ""
+    };
+    outln!(
+        "  energy            kinetic {kinetic:.4e} J, elastic {elastic:.4e} J{depth}, at the end"
     )?;
     if totals.pressure_iterations > 0 {
         outln!(

@@ -13,6 +13,7 @@
 pub mod approx;
 pub mod cancel;
 pub mod design;
+pub mod expression;
 pub mod fluid;
 pub mod frame;
 pub mod geometry;

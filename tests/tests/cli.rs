@@ -323,6 +323,7 @@ async fn run_summaries_warn_of_capped_steps_and_name_solver_work() {
     ])
     .await;
     assert!(stdout.contains("implicit solids"), "{stdout}");
+    assert!(stdout.contains("energy            kinetic"), "{stdout}");
     assert!(!stdout.contains("pressure solver"), "{stdout}");
 }
 

@@ -7,7 +7,7 @@
 
 use meshless_engine::approx::mls::Order;
 use meshless_engine::math::{Real, Vector};
-use meshless_engine::solid::LinearSolver;
+use meshless_engine::solid::{ImplicitScheme, LinearSolver};
 use meshless_engine::{BuildOptions, Scene, StepError, World};
 use meshless_validation::cantilever::Cantilever;
 use nalgebra::Rotation3;
@@ -470,6 +470,45 @@ fn cantilever_deflection_converges_to_euler_bernoulli() {
         "quadratic at 8 across: {}",
         errors[2].1
     );
+}
+
+/// The static scheme solves the equilibrium in one step: the 2D
+/// cantilever (8 across) lands where backward Euler steps of a hundred
+/// beam periods settle it, at rest, and a free solid is refused it.
+#[test]
+fn a_static_step_solves_the_equilibrium() {
+    let beam = Cantilever {
+        integrator: meshless_engine::scene::IntegratorKind::Implicit,
+        ..Cantilever::default()
+    };
+    let settled = beam.settle(1e-6).expect("settles");
+    let mut scene = beam.scene().expect("valid");
+    let meshless_engine::scene::SystemSpec::Solid(solid) = &mut scene.systems[0] else {
+        panic!("the beam is a solid")
+    };
+    solid.implicit.scheme = ImplicitScheme::Static;
+    let mut world = scene.build(&BuildOptions::default()).expect("valid");
+    let info = world.step().expect("solves");
+    let tip = beam.tip(&world);
+    println!(
+        "static step: tip {tip:.6e} m in {} Newton and CG iterations; settled {:.6e} m",
+        info.solid_iterations, settled.value
+    );
+    assert_eq!(info.unconverged, 0);
+    assert!(((tip - settled.value) / settled.value).abs() < 1e-3);
+    let (_, solid) = world.solids().next().expect("the beam");
+    assert!(solid.velocities.iter().all(|v| *v == Vector::zeros()));
+
+    let meshless_engine::scene::SystemSpec::Solid(solid) = &mut scene.systems[0] else {
+        panic!("the beam is a solid")
+    };
+    solid.anchors.clear();
+    let Err(meshless_engine::scene::SceneError::Invalid { field, .. }) =
+        scene.validate(&BuildOptions::default())
+    else {
+        panic!("a free static solid was accepted")
+    };
+    assert_eq!(field, "systems[0].implicit.scheme");
 }
 
 /// A slender 3D cantilever (L/H = 10, 6 particles across, 2.4k

@@ -136,6 +136,7 @@ wire_enum! {
     ImplicitScheme <-> ImplicitScheme, "implicit scheme" {
         "backward_euler" => BackwardEuler,
         "midpoint" => Midpoint,
+        "static" => Static,
     }
 }
 
@@ -146,6 +147,20 @@ fn kernel_kind(value: Option<i32>, default: KernelKind, field: &str) -> Result<K
 }
 
 /// The engine form of a vector.
+/// A vector field's three formulas, or none when the list is empty.
+fn formulas(texts: Vec<String>, field: &str) -> Result<Option<[String; 3]>> {
+    if texts.is_empty() {
+        return Ok(None);
+    }
+    let count = texts.len();
+    <[String; 3]>::try_from(texts).map(Some).map_err(|_| {
+        WireError::new(
+            field,
+            format!("has {count} formulas; give three (x, y and z components) or none"),
+        )
+    })
+}
+
 pub(crate) fn vec3(v: v1::Vec3) -> [f64; 3] {
     let v1::Vec3 { x, y, z } = v;
     [x, y, z]
@@ -638,7 +653,11 @@ fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
         viscosity_model: model,
         wall_slip,
         wall_velocity,
+        velocity_field,
+        body_force,
     } = fluid;
+    let velocity_field = formulas(velocity_field, &format!("{field}.velocity_field"))?;
+    let body_force = formulas(body_force, &format!("{field}.body_force"))?;
     let wall_velocity = wall_velocity.map_or_else(WallVelocities::default, |w| {
         let v1::WallVelocities {
             min_x,
@@ -700,6 +719,8 @@ fn fluid_from_proto(fluid: v1::FluidSpec, field: &str) -> Result<FluidSpec> {
         walls: optional_enum(walls, defaults::WALLS, &format!("{field}.walls"))?,
         wall_slip: optional_enum(wall_slip, defaults::SLIP, &format!("{field}.wall_slip"))?,
         wall_velocity,
+        velocity_field,
+        body_force,
         solver: optional_enum(solver, defaults::SOLVER, &format!("{field}.solver"))?,
         density_tolerance: density_tolerance.unwrap_or(defaults::DENSITY_TOLERANCE),
         divergence_tolerance: divergence_tolerance.unwrap_or(defaults::DIVERGENCE_TOLERANCE),
@@ -766,6 +787,8 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
                                 max_z: w.max_z.map(to_vec3),
                             }
                         }),
+                        velocity_field: f.velocity_field.clone().map(Vec::from).unwrap_or_default(),
+                        body_force: f.body_force.clone().map(Vec::from).unwrap_or_default(),
                         solver: Some(f.solver.to_i32()),
                         density_tolerance: Some(f.density_tolerance),
                         divergence_tolerance: Some(f.divergence_tolerance),

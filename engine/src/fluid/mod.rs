@@ -21,6 +21,7 @@ pub use viscosity::ViscosityModel;
 pub use walls::BoxWalls;
 
 use crate::cancel::{Cancel, Cancelled};
+use crate::expression::VectorField;
 use crate::math::{Real, Vector};
 use crate::neighbors::{Periodic, UniformGrid};
 use crate::rigid::RigidBodies;
@@ -63,6 +64,12 @@ impl FluidSystem {
     pub fn attach_bodies(&mut self, bodies: RigidBodies) {
         self.fluid.rigid = Some(bodies);
         self.refresh();
+    }
+
+    /// Adds `force` (per unit mass, at each particle's position) to
+    /// gravity at every sub-step.
+    pub fn set_body_force(&mut self, force: VectorField) {
+        self.fluid.body_force = Some(force);
     }
 
     /// The fluid's particles.

@@ -9,6 +9,7 @@
 use super::pressure::SolveInfo;
 use super::{BoxWalls, Tait, ViscosityModel};
 use crate::approx::{Kernel, KernelKind};
+use crate::expression::VectorField;
 use crate::math::{Real, Vector};
 use crate::neighbors::{CandidateSearch, NeighborList, Periodic, UniformGrid};
 use crate::rigid::{BodyState, BoundaryParams, RigidBodies};
@@ -91,6 +92,9 @@ pub struct Fluid {
     pub(in crate::fluid) smoothed_velocities: Vec<Vector>,
     /// Solid walls of the domain, when the scene asks for them.
     pub(in crate::fluid) walls: Option<BoxWalls>,
+    /// A body force per unit mass besides gravity, when the scene names
+    /// one.
+    pub(in crate::fluid) body_force: Option<VectorField>,
     /// The kernel of the viscosity pass, when the scene has viscosity.
     pub(in crate::fluid) viscosity_kernel: Option<Kernel>,
     /// Rigid bodies in the fluid, when the scene has any.
@@ -135,6 +139,7 @@ impl Fluid {
                 Vec::new()
             },
             walls,
+            body_force: None,
             viscosity_kernel: (params.viscosity > 0.0).then(|| match params.viscosity_model {
                 ViscosityModel::Morris | ViscosityModel::Monaghan => params.gradient_kernel,
                 ViscosityModel::KernelLaplacian => Kernel::new(
@@ -180,6 +185,23 @@ impl Fluid {
         self.last_solve
     }
 
+    /// Adds the scene's body force at each particle to its acceleration.
+    pub(in crate::fluid) fn add_body_force(&mut self) {
+        if let Some(force) = &self.body_force {
+            let planar = self.params.density_kernel.dim() == 2;
+            self.accelerations
+                .par_iter_mut()
+                .zip(self.positions.par_iter())
+                .for_each(|(a, x)| {
+                    let mut f = force.eval(x);
+                    if planar {
+                        f.z = 0.0;
+                    }
+                    *a += f;
+                });
+        }
+    }
+
     /// Kinetic energy `sum m |v|^2 / 2`, J (per metre of depth in 2D).
     pub fn kinetic_energy(&self) -> Real {
         let m = self.params.mass;
@@ -220,11 +242,12 @@ impl Fluid {
             .reduce(|| (0, 0.0), |a, b| if b.1 > a.1 { b } else { a })
     }
 
-    /// Whether anything besides gravity can put energy into the fluid:
-    /// moving walls or bodies that move (kinematic ones drive it, dynamic
-    /// ones hand it their own energy).
+    /// Whether anything besides gravity can put energy into the fluid: a
+    /// body force, moving walls or bodies that move (kinematic ones drive
+    /// it, dynamic ones hand it their own energy).
     pub fn has_energy_source(&self) -> bool {
-        self.walls.as_ref().is_some_and(BoxWalls::moving)
+        self.body_force.is_some()
+            || self.walls.as_ref().is_some_and(BoxWalls::moving)
             || self
                 .rigid
                 .as_ref()

@@ -405,4 +405,91 @@ mod tests {
             Vector::zeros()
         );
     }
+
+    /// The friction tables stand in for the ghost lattice they integrate:
+    /// a particle at distance `d` from the floor moving at `v`, against the
+    /// same sum taken over explicit ghost particles (spacing `dx` along the
+    /// wall, layers at `dx/2, 3dx/2, …` behind it, each moving at
+    /// `-(d_g / d) v` relative to the wall, capped as Morris et al. do),
+    /// in 2D and 3D, along the wall and across it, with the wall itself
+    /// moving.
+    #[test]
+    fn friction_tables_match_the_ghost_lattice_they_integrate() {
+        let spacing = 0.02;
+        for dim in [2, 3] {
+            let kernel = Kernel::new(KernelKind::CubicSpline, dim, 2.0 * spacing);
+            let mass = FluidParams::lattice_mass(spacing, &kernel, 1000.0);
+            let lid = Vector::new(0.3, 0.0, 0.0);
+            let walls = BoxWalls::new(
+                Vector::zeros(),
+                Vector::repeat(1.0),
+                spacing,
+                mass,
+                &kernel,
+                &kernel,
+            )
+            .with_friction(
+                spacing,
+                mass,
+                &kernel,
+                [
+                    [Vector::zeros(); 2],
+                    [lid, Vector::zeros()],
+                    [Vector::zeros(); 2],
+                ],
+            );
+            let h = kernel.support();
+            let eta2 = 0.01 * h * h;
+            let projected = 2.0 * (dim as Real + 2.0);
+            for d in [0.3 * spacing, 0.5 * spacing, 1.2 * spacing] {
+                for v in [Vector::new(1.0, 0.0, 0.0), Vector::new(0.2, -0.5, 0.0)] {
+                    let x = Vector::new(0.5, d, 0.5);
+                    let relative = v - lid;
+                    let reach = (h / spacing).ceil() as i64 + 1;
+                    // Sub-lattices along the wall (the tables integrate
+                    // along it exactly), the ghost layers as they are.
+                    let fine = 8;
+                    let depth_range = if dim == 2 {
+                        0..=0
+                    } else {
+                        -reach * fine..=reach * fine
+                    };
+                    let cell = spacing.powi(dim as i32) / (fine as Real).powi(dim as i32 - 1);
+                    let mut sum = Vector::zeros();
+                    for k in 0..reach {
+                        let depth = (k as Real + 0.5) * spacing;
+                        let beta = (1.0 + depth / d).min(BETA_MAX);
+                        for i in -reach * fine..=reach * fine {
+                            for j in depth_range.clone() {
+                                let ghost = Vector::new(
+                                    x.x + i as Real * spacing / fine as Real,
+                                    -depth,
+                                    x.z + j as Real * spacing / fine as Real,
+                                );
+                                let r = x - ghost;
+                                let rn = r.norm();
+                                if rn >= h {
+                                    continue;
+                                }
+                                let grad = kernel.gradient(&r, rn);
+                                let along = (relative * beta).dot(&r) / (rn * rn + eta2);
+                                sum += grad * (along * projected * cell);
+                            }
+                        }
+                    }
+                    let lattice = sum * (mass / spacing.powi(dim as i32));
+                    let table = walls.friction(&x, &v);
+                    let scale = lattice.norm();
+                    assert!(
+                        (table - lattice).norm() < 0.03 * scale,
+                        "{dim}D, d = {d}, v = {v:?}: table {table:?} against lattice {lattice:?}"
+                    );
+                    assert!(
+                        table.dot(&relative) < 0.0,
+                        "friction opposes the relative motion"
+                    );
+                }
+            }
+        }
+    }
 }

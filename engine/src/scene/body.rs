@@ -6,7 +6,7 @@ use super::error::{check_positive, check_range, check_vector};
 use super::mesh::{MeshData, MeshFiles};
 use super::{FluidSpec, Scene, SceneError, defaults, solid_defaults};
 use crate::geometry::{MeshError, MeshSolid, Shape, read};
-use crate::math::{Real, Vector, vector};
+use crate::math::{Brief, Real, Vector, vector};
 use crate::rigid::Rotation;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -171,6 +171,53 @@ pub struct RigidBodySpec {
 }
 
 impl Scene {
+    /// A body in a periodic domain must be static and keep a support
+    /// radius clear of every periodic face: its boundary samples do not
+    /// wrap around, so a fluid particle near a face would miss the images
+    /// across it. Flow past a cylinder in a periodic channel is allowed;
+    /// a body crossing a periodic face is not.
+    pub(super) fn check_periodic_body(
+        &self,
+        s: usize,
+        body: &RigidBodySpec,
+        shape: &Shape,
+        fluid: Option<&FluidSpec>,
+    ) -> Result<(), SceneError> {
+        let periodic = self.periodic_axes();
+        if !periodic.contains(&true) {
+            return Ok(());
+        }
+        if body.motion != MotionKind::Static {
+            return Err(SceneError::invalid(
+                format!("systems[{s}].motion"),
+                "only static bodies may sit in a periodic domain (moving ones would cross its \
+                 periodic faces, which their boundary samples do not wrap around); make it \
+                 static or the domain non-periodic",
+            ));
+        }
+        let clearance = fluid.map_or(0.0, FluidSpec::support_radius);
+        let reach = shape.bounding_radius(self.dimension) + clearance;
+        for (a, axis) in ["x", "y", "z"].iter().enumerate() {
+            let (lo, hi) = (self.domain.min[a], self.domain.max[a]);
+            let at = body.position[a];
+            if periodic[a] && (at - reach < lo || at + reach > hi) {
+                return Err(SceneError::invalid(
+                    format!("systems[{s}].position"),
+                    format!(
+                        "the body comes within a support radius of the periodic faces along \
+                         {axis} (it reaches {} m from {}, the domain spans [{}, {}]); move it \
+                         inward, shrink it, or make {axis} non-periodic",
+                        Brief(reach),
+                        Brief(at),
+                        Brief(lo),
+                        Brief(hi)
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Checks a shape's parameters and makes its engine shape (parsing
     /// its mesh).
     pub(super) fn checked_shape(

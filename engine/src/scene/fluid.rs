@@ -5,6 +5,7 @@
 use super::error::{check_box, check_positive, check_range, check_vector};
 use super::{Aabb, Scene, SceneError, SlipKind, defaults};
 use crate::approx::KernelKind;
+use crate::expression::VectorField;
 use crate::fluid::ViscosityModel;
 use crate::math::Real;
 use crate::neighbors::{GridError, UniformGrid};
@@ -169,6 +170,16 @@ pub struct FluidSpec {
     /// field); they take the blocks' particle mass.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub particles: Vec<ParticleSpec>,
+    /// The blocks' initial velocity as three formulas in `x`, `y`, `z`
+    /// (see [`crate::expression`]), replacing each block's uniform
+    /// `velocity`; hand-placed particles keep theirs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity_field: Option<[String; 3]>,
+    /// A body force per unit mass, m/s^2, as three formulas in `x`, `y`,
+    /// `z`, added to gravity at every particle and sub-step (a pressure
+    /// gradient driving a periodic channel, a swirl).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub body_force: Option<[String; 3]>,
 }
 
 impl FluidSpec {
@@ -316,6 +327,32 @@ impl Scene {
                         ),
                     ));
                 }
+            }
+        }
+        Ok(())
+    }
+
+    /// Formulas parse, use only `x`, `y`, `z`, and are finite at every
+    /// lattice point (the body force at least where the fluid starts).
+    /// Call only once the particle count is known to be within the limit:
+    /// this visits every particle.
+    pub(super) fn check_fields(&self, at: &str, fluid: &FluidSpec) -> Result<(), SceneError> {
+        for (name, texts) in [
+            ("velocity_field", &fluid.velocity_field),
+            ("body_force", &fluid.body_force),
+        ] {
+            let Some(texts) = texts else { continue };
+            let field = VectorField::parse(texts).map_err(|(a, e)| {
+                SceneError::invalid(format!("{at}.{name}[{a}]"), e.to_string())
+            })?;
+            let points = fluid
+                .lattice(self.dimension)
+                .map(|(x, _)| crate::math::vector(x));
+            if let Some(bad) = field.first_non_finite(points) {
+                return Err(SceneError::invalid(
+                    format!("{at}.{name}"),
+                    format!("{bad} (particle {} of the blocks)", bad.index),
+                ));
             }
         }
         Ok(())

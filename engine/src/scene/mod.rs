@@ -573,13 +573,6 @@ impl Scene {
                     );
                 }
                 SystemSpec::RigidBody(body) => {
-                    if self.periodic_axes().contains(&true) {
-                        return Err(SceneError::invalid(
-                            format!("systems[{s}]"),
-                            "rigid bodies do not wrap around periodic faces; make the domain \
-                             non-periodic (periodic = [false, false, false]) or remove the body",
-                        ));
-                    }
                     let fluid = self.fluid();
                     if fluid.is_none() && !(self.has_solids() && body.motion == MotionKind::Static)
                     {
@@ -590,11 +583,9 @@ impl Scene {
                              fluid, a static body is an obstacle for solids)",
                         ));
                     }
-                    prepared[s] = Prepared::Body(self.validate_body(
-                        &format!("systems[{s}]"),
-                        body,
-                        fluid,
-                    )?);
+                    let shape = self.validate_body(&format!("systems[{s}]"), body, fluid)?;
+                    self.check_periodic_body(s, body, &shape, fluid)?;
+                    prepared[s] = Prepared::Body(shape);
                 }
                 SystemSpec::Solid(solid) => {
                     let sampled = self.validate_solid(
@@ -626,6 +617,14 @@ impl Scene {
                 count: count.min(u64::MAX as f64) as u64,
                 limit: options.max_particles,
             });
+        }
+        // Formulas are evaluated at every particle: only once the count is
+        // known to be within the limit (the fuzzer found a block of 10^19
+        // particles with a velocity field trying to list them all).
+        for (s, system) in self.systems.iter().enumerate() {
+            if let SystemSpec::Fluid(fluid) = system {
+                self.check_fields(&format!("systems[{s}]"), fluid)?;
+            }
         }
         Ok((prepared, footprint))
     }

@@ -8,7 +8,7 @@ use crate::geometry::Shape;
 use crate::geometry::TriMesh;
 use crate::math::{Real, Vector, vector};
 use crate::solid::embedded::{EmbeddedSurface, EmbeddingMethod};
-use crate::solid::{ImplicitParams, Integrator, Material, Plasticity, SolidParams};
+use crate::solid::{ImplicitParams, ImplicitScheme, Integrator, Material, Plasticity, SolidParams};
 use serde::{Deserialize, Serialize};
 
 /// Defaults of the optional solid parameters, shared with the protocol
@@ -343,6 +343,21 @@ impl Scene {
                 return Err(SceneError::invalid(
                     format!("{at}.implicit.{field}"),
                     format!("must be in [1, 100000], got {value}"),
+                ));
+            }
+        }
+        if implicit.scheme == ImplicitScheme::Static {
+            if solid.integrator != IntegratorKind::Implicit {
+                return Err(SceneError::invalid(
+                    format!("{at}.implicit.scheme"),
+                    "\"static\" is an implicit scheme; set integrator = \"implicit\"",
+                ));
+            }
+            if solid.anchors.is_empty() {
+                return Err(SceneError::invalid(
+                    format!("{at}.implicit.scheme"),
+                    "\"static\" needs anchors: a free body has no equilibrium under gravity; \
+                     add anchors or choose backward_euler",
                 ));
             }
         }

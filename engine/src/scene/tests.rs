@@ -494,3 +494,59 @@ fn unknown_systems_and_keys_are_parse_errors() {
     let err = Scene::from_toml_str(&text).expect_err("unknown key");
     assert!(err.to_string().contains("stifness"), "{err}");
 }
+
+/// A velocity field gives each block particle the formula's value at its
+/// position; a body force drives the fluid. Bad formulas are refused
+/// naming the component, a field infinite at a particle naming the field,
+/// and a wrongly typed value inside a system names its key.
+#[test]
+fn formula_fields_build_and_bad_ones_are_refused() {
+    let mut s = small();
+    s.gravity = [0.0; 3];
+    fluid(&mut s).velocity_field = Some(["y".into(), "-x".into(), "0.5*z".into()]);
+    let world = s.build(&BuildOptions::default()).expect("valid");
+    let f = world.fluid().expect("fluid");
+    for (x, v) in f.positions.iter().zip(&f.velocities) {
+        assert_eq!(*v, crate::math::Vector::new(x.y, -x.x, 0.5 * x.z));
+    }
+
+    let mut pushed = small();
+    pushed.gravity = [0.0; 3];
+    fluid(&mut pushed).body_force = Some(["2".into(), "0".into(), "0".into()]);
+    let mut world = pushed.build(&BuildOptions::default()).expect("valid");
+    for _ in 0..5 {
+        world.step().expect("stable");
+    }
+    let f = world.fluid().expect("fluid");
+    let mean = f.velocities.iter().map(|v| v.x).sum::<f64>() / f.len() as f64;
+    // 2 m/s^2 for 0.05 s: 0.1 m/s, give or take what the walls the block
+    // starts against push.
+    assert!((mean - 0.1).abs() < 0.02, "{mean}");
+
+    let mut s = small();
+    fluid(&mut s).velocity_field = Some(["x".into(), "q".into(), "0".into()]);
+    assert_eq!(rejected_field(&s), "systems[0].velocity_field[1]");
+    let mut s = small();
+    fluid(&mut s).body_force = Some(["1/(x - 0.05)".into(), "0".into(), "0".into()]);
+    assert_eq!(rejected_field(&s), "systems[0].body_force");
+
+    // A formula is evaluated only once the particle count is bounded: a
+    // block of 10^18 particles is refused by its count, at once.
+    let mut huge = small();
+    fluid(&mut huge).spacing = 1e-6;
+    fluid(&mut huge).velocity_field = Some(["x".into(), "0".into(), "0".into()]);
+    let refused = huge.validate(&BuildOptions::default());
+    assert!(
+        matches!(
+            refused,
+            Err(SceneError::TooManyParticles { .. } | SceneError::Invalid { .. })
+        ) && !format!("{refused:?}").contains("velocity_field"),
+        "{refused:?}"
+    );
+
+    let typed = SMALL.replace("spacing = 0.1", "spacing = \"0.1\"");
+    let Err(SceneError::Parse(message)) = Scene::from_toml_str(&typed) else {
+        panic!("a string spacing parsed");
+    };
+    assert!(message.contains("`spacing`"), "{message}");
+}

@@ -72,7 +72,19 @@ pub enum ImplicitScheme {
     /// backward Euler step of `dt / 2` extrapolated to `dt`, at the same
     /// cost.
     Midpoint,
+    /// Static equilibrium: each step solves `f(x) + M g = 0` for the
+    /// positions by Newton and leaves the body at rest there (a
+    /// quasi-static load path; inertia plays no part). Posed as a backward
+    /// Euler step whose length is `STATIC_PERIODS` (10^4) times the time
+    /// an elastic wave takes to cross the body, so that the inertia term is
+    /// below a millionth of the stiffness. Needs anchors: a free body has
+    /// no equilibrium under gravity.
+    Static,
 }
+
+/// Elastic crossing times in the static scheme's step (see
+/// [`ImplicitScheme::Static`]).
+pub const STATIC_PERIODS: Real = 1e4;
 
 impl Default for ImplicitParams {
     fn default() -> Self {

@@ -6,6 +6,7 @@ use super::system::{FluidEntry, RemovalMask, SolidEntry, System};
 use super::watch::EnergyWatch;
 use super::{Clock, StepInfo, World};
 use crate::approx::Kernel;
+use crate::expression::VectorField;
 use crate::fluid::{
     BoxWalls, Dfsph, DfsphParams, FluidParams, FluidState, FluidSystem, Pressure, Tait, Wcsph,
 };
@@ -281,6 +282,12 @@ fn build_fluid(
         }),
         WallModel::Reflect => None,
     };
+    let parse = |texts: &Option<[String; 3]>| {
+        texts
+            .as_ref()
+            .map(|t| VectorField::parse(t).expect("validated by Scene::check"))
+    };
+    let velocity_field = parse(&spec.velocity_field);
     let bodies: Vec<RigidBody> = body_specs
         .into_iter()
         .map(|(s, body, shape)| build_body(s, body, shape, spec, dim))
@@ -290,7 +297,13 @@ fn build_fluid(
     let clear = 0.5 * spec.spacing;
     let (positions, velocities): (Vec<Vector>, Vec<Vector>) = spec
         .lattice(dim)
-        .map(|(x, block)| (vector(x), vector(spec.blocks[block].velocity)))
+        .map(|(x, block)| {
+            let x = vector(x);
+            let v = velocity_field
+                .as_ref()
+                .map_or(vector(spec.blocks[block].velocity), |field| field.eval(&x));
+            (x, v)
+        })
         .chain(spec.particles.iter().map(|p| {
             let (mut x, mut v) = (vector(p.position), vector(p.velocity));
             if dim == 2 {
@@ -312,6 +325,9 @@ fn build_fluid(
         grid.clone(),
         periodic,
     );
+    if let Some(force) = parse(&spec.body_force) {
+        fluid.set_body_force(force);
+    }
     if !bodies.is_empty() {
         fluid.attach_bodies(RigidBodies::new(
             bodies,

@@ -447,8 +447,9 @@ impl World {
         ranges
     }
 
-    /// The values of one field, each system's particles in turn.
-    fn field_values(&self, kind: FieldKind) -> Vec<f32> {
+    /// The values of one field, each system's particles in turn, whether
+    /// or not the scene's output asks for it (as frames carry them).
+    pub fn field_values(&self, kind: FieldKind) -> Vec<f32> {
         let mut values = Vec::new();
         for system in &self.systems {
             system.simulated().write_field(kind, &mut values);

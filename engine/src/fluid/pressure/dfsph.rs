@@ -157,6 +157,7 @@ impl PressureSolver for Dfsph {
     ) -> Result<(), Cancelled> {
         let g = *gravity;
         fluid.accelerations.par_iter_mut().for_each(|a| *a = g);
+        fluid.add_body_force();
         if let Some(kernel) = fluid.viscosity_kernel {
             let model = fluid.params.viscosity_model;
             timer.time(Stage::Viscosity, || fluid.apply_viscosity(model, &kernel));

@@ -74,6 +74,7 @@ impl PressureSolver for Wcsph {
                 gravity,
                 &mut fluid.accelerations,
             );
+            fluid.add_body_force();
             if let Some(rigid) = &mut fluid.rigid {
                 rigid.add_forces(
                     &fluid.positions,

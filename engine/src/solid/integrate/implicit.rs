@@ -24,7 +24,7 @@
 use super::super::body::Body;
 use super::super::forces::{InternalForces, Split};
 use super::super::material::StressState;
-use super::super::params::{ImplicitParams, ImplicitScheme, LinearSolver};
+use super::super::params::{ImplicitParams, ImplicitScheme, LinearSolver, STATIC_PERIODS};
 use super::direct::Direct;
 use super::{SolidStep, finish_substep};
 use crate::cancel::{Cancel, Cancelled};
@@ -83,6 +83,21 @@ struct ProductBuffers {
 /// lost in rounding: well above `f64::EPSILON` times the particle counts
 /// met, far below any decrease that matters.
 const ROUNDING: Real = 1e-10;
+
+/// The static scheme's step: [`STATIC_PERIODS`] times the time the
+/// fastest elastic wave takes to cross the body's rest extent.
+fn static_step(body: &Body) -> Real {
+    let rest = body.rest_positions();
+    let (min, max) = rest.iter().fold(
+        (
+            Vector::repeat(Real::INFINITY),
+            Vector::repeat(Real::NEG_INFINITY),
+        ),
+        |(lo, hi), x| (lo.inf(x), hi.sup(x)),
+    );
+    let extent = (max - min).norm().max(body.params.spacing);
+    STATIC_PERIODS * extent / body.params.wave_speed()
+}
 
 fn dot(a: &[Vector], b: &[Vector]) -> Real {
     Parallel::dot(a, b)
@@ -145,21 +160,31 @@ impl Implicit {
         // Midpoint: a backward Euler solve over `dt / 2` gives the
         // midpoint velocity `v_m`; then `x+ = x + dt v_m`,
         // `v+ = 2 v_m - v`.
-        let midpoint = self.settings.scheme == ImplicitScheme::Midpoint;
-        let h = if midpoint { 0.5 * dt } else { dt };
+        // Static: a step so long that inertia no longer counts, from rest,
+        // ending at rest.
+        let (h, advance) = match self.settings.scheme {
+            ImplicitScheme::BackwardEuler => (dt, dt),
+            ImplicitScheme::Midpoint => (0.5 * dt, dt),
+            ImplicitScheme::Static => {
+                body.velocities.fill(Vector::zeros());
+                let h = static_step(body).max(dt);
+                (h, h)
+            }
+        };
         let report = self.solve(body, h, gravity, cancel)?;
-        if midpoint {
-            body.velocities
+        match self.settings.scheme {
+            ImplicitScheme::BackwardEuler => body.velocities.clone_from(&self.v_new),
+            ImplicitScheme::Midpoint => body
+                .velocities
                 .par_iter_mut()
                 .zip(&self.v_new)
-                .for_each(|(v, v_mid)| *v = v_mid * 2.0 - *v);
-        } else {
-            body.velocities.clone_from(&self.v_new);
+                .for_each(|(v, v_mid)| *v = v_mid * 2.0 - *v),
+            ImplicitScheme::Static => {}
         }
         body.positions
             .par_iter_mut()
             .zip(&self.v_new)
-            .for_each(|(x, v)| *x += v * dt);
+            .for_each(|(x, v)| *x += v * advance);
         finish_substep(body, &self.forces.states);
         Ok(SolidStep {
             min_substep: dt,
