@@ -7,8 +7,9 @@
 //! pair along the line between them, so only it conserves angular
 //! momentum. The other two push along `v_i - v_j`, which exerts a torque:
 //! a viscous fluid in rigid rotation, whose exact solution keeps rotating,
-//! lost 13.7 % of its angular momentum per second with Morris's form at
-//! any resolution (engine/tests/viscous_flows.rs).
+//! lost 36 % of its angular momentum in 0.5 s with Morris's form and
+//! 0.5 % with Monaghan's, as much as without viscosity
+//! (tests/tests/validation_viscous.rs).
 //!
 //! On the Taylor–Green vortex (tests/tests/validation_periodic.rs) the
 //! tutorial's Eq. 52 with Müller's viscosity kernel dissipates only about
@@ -19,8 +20,11 @@
 //! far better, and match the analytic decay within a few per cent.
 //! Monaghan's form projects the velocity difference onto the pair; the
 //! factor `2 (d + 2)` restores the full Laplacian for a divergence-free
-//! flow (its continuum limit is `nu (Lap v + 2 grad div v)`), so it
-//! matches the vortex as Morris's does.
+//! flow (its continuum limit is `nu (Lap v + 2 grad div v)`). A force
+//! along the pair is anisotropic on a lattice with few neighbours: at a
+//! support of 3 spacings it matches the vortex within 2.3 %, at 2 it
+//! dissipates 32 % too fast, and a pure shear sees 0.91 (0.65) of the
+//! viscosity (docs/validation.md).
 //!
 //! The domain's no-slip walls add their share through the friction tables of
 //! [`BoxWalls`](super::BoxWalls), whatever the model.

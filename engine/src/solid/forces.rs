@@ -42,7 +42,7 @@
 //! velocity `v_j - v_i`, as this did before, also damps rotation, whose
 //! relative velocities are `omega x (x_j - x_i)`: a free block with
 //! `damping = 5` lost 34 % of its angular momentum in 2 s without
-//! deforming; engine/tests/solid_conservation.rs.) With `n_e` fixed over
+//! deforming; engine/tests/solids.rs.) With `n_e` fixed over
 //! a step the damping force stays linear in `v`, `-D v` with `D`
 //! symmetric, as the implicit integrator's objective needs.
 
