@@ -31,6 +31,10 @@ pub enum Knob {
     Solver,
     /// DFSPH density tolerance (fraction of the rest density).
     DensityTolerance,
+    /// Kernel support radius, in spacings.
+    Support,
+    /// XSPH factor (0: no XSPH pass).
+    Xsph,
     /// Elastic solid: particle spacing of the cantilever, m.
     SolidSpacing,
     /// Elastic solid: MLS basis order (linear with support 2 spacings,
@@ -60,6 +64,8 @@ impl Knob {
             Self::Cfl => "cfl",
             Self::Solver => "solver",
             Self::DensityTolerance => "density_tolerance",
+            Self::Support => "support",
+            Self::Xsph => "xsph",
             Self::SolidSpacing => "solid_spacing",
             Self::SolidOrder => "solid_order",
             Self::SolidIntegrator => "solid_integrator",
@@ -98,6 +104,8 @@ impl Knob {
             Self::Cfl => &["0.2", "0.4", "0.6", "0.8"],
             Self::Solver => &["wcsph", "dfsph"],
             Self::DensityTolerance => &["0.01", "0.003", "0.001", "0.0003"],
+            Self::Support => &["2", "2.5", "3"],
+            Self::Xsph => &["0", "0.05", "0.1", "0.2"],
             Self::SolidSpacing => &["0.025", "0.0167", "0.0125", "0.01", "0.00833"],
             Self::SolidOrder => &["linear", "quadratic"],
             Self::SolidIntegrator => &["explicit", "implicit"],
@@ -150,6 +158,8 @@ impl Knob {
                 fluid.solver = SolverKind::Dfsph;
                 fluid.density_tolerance = number()?;
             }
+            Self::Support => fluid.support_radius = Some(number()? * fluid.spacing),
+            Self::Xsph => fluid.xsph = number()?,
             Self::SolidSpacing
             | Self::SolidOrder
             | Self::SolidIntegrator

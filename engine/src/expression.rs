@@ -93,16 +93,22 @@ impl Component {
         })
     }
 
-    fn eval(&self, at: &Vector, values: &mut Vec<Real>) -> Real {
+    /// The component at `at`, without allocating: it runs for every
+    /// particle at every sub-step of a body force.
+    fn eval(&self, at: &Vector) -> Real {
         if let Some(c) = self.constant {
             return c;
         }
-        values.clear();
-        values.extend(self.axes.iter().map(|&a| at[a]));
+        let mut values = [0.0; 3];
+        for (value, &a) in values.iter_mut().zip(&self.axes) {
+            *value = at[a];
+        }
         // Every variable was given, so evaluation cannot fail for want of
         // one; a domain error is NaN like any other non-finite value,
         // which the callers check.
-        self.expression.eval(values).unwrap_or(Real::NAN)
+        self.expression
+            .eval(&values[..self.axes.len()])
+            .unwrap_or(Real::NAN)
     }
 }
 
@@ -128,8 +134,7 @@ impl VectorField {
     /// The field at `at`; non-finite where a formula is (a division by
     /// zero, `sqrt` of a negative number).
     pub fn eval(&self, at: &Vector) -> Vector {
-        let mut values = Vec::with_capacity(3);
-        Vector::from_fn(|a, _| self.components[a].eval(at, &mut values))
+        Vector::from_fn(|a, _| self.components[a].eval(at))
     }
 
     /// The first of `points` where the field is not finite, if any; one
