@@ -11,6 +11,7 @@ const PROTOS: &[&str] = &[
     "meshless/v1/frame.proto",
     "meshless/v1/design.proto",
     "meshless/v1/simulation.proto",
+    "meshless/v1/snapshot.proto",
 ];
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -209,7 +209,9 @@ impl Client {
         let channel = endpoint.connect().await.map_err(connect_error)?;
         let grpc = SimulationClient::with_interceptor(channel, stamp)
             .max_decoding_message_size(usize::MAX)
-            .max_encoding_message_size(64 * 1024 * 1024);
+            // A Restore request carries a whole snapshot; the server has
+            // its own limit (`ServerInfo.max_snapshot_bytes`).
+            .max_encoding_message_size(usize::MAX);
         Ok(Self { grpc })
     }
 
@@ -507,6 +509,66 @@ impl Client {
     /// malformed one.
     pub async fn get_design(&self, id: &str) -> Result<Design> {
         Design::from_proto(self.grpc().get_design(session_ref(id)).await?.into_inner())
+    }
+
+    /// Steps `steps` times with progress about every `interval` seconds
+    /// (0: the server's default), the last message marked `done`.
+    /// Dropping the stream stops the steps at the last completed one.
+    ///
+    /// # Errors
+    /// `INVALID_ARGUMENT` for a bad count or interval,
+    /// `FAILED_PRECONDITION` while running or faulted, at the call or on
+    /// the stream.
+    pub async fn simulate_steps(
+        &self,
+        id: &str,
+        steps: u64,
+        interval: f64,
+    ) -> Result<impl Stream<Item = Result<v1::SimulateProgress>> + Send + Unpin + use<>> {
+        let stream = self
+            .grpc()
+            .simulate_steps(v1::SimulateStepsRequest {
+                session_id: id.to_owned(),
+                steps,
+                progress_interval: interval,
+            })
+            .await?
+            .into_inner();
+        Ok(stream.map(|item| item.map_err(ClientError::from)))
+    }
+
+    /// A snapshot of the session's state (scene, systems, clock,
+    /// constraints, last design) as an opaque blob in `data`.
+    ///
+    /// # Errors
+    /// `PERMISSION_DENIED` for anyone but the owner, `RESOURCE_EXHAUSTED`
+    /// over the server's snapshot limit.
+    pub async fn snapshot(&self, id: &str) -> Result<v1::SessionSnapshot> {
+        Ok(self.grpc().snapshot(session_ref(id)).await?.into_inner())
+    }
+
+    /// Restores a snapshot's `data` into a new session (`into` unset),
+    /// owned by this client, or into the session `into` names (same
+    /// scene, not running). `observers` unset keeps the snapshot's.
+    ///
+    /// # Errors
+    /// `INVALID_ARGUMENT` for a blob of another build, truncated,
+    /// corrupted or of another scene; nothing changes then.
+    pub async fn restore(
+        &self,
+        data: Vec<u8>,
+        into: Option<&str>,
+        observers: Option<Vec<String>>,
+    ) -> Result<v1::Session> {
+        Ok(self
+            .grpc()
+            .restore(v1::RestoreRequest {
+                data,
+                session_id: into.unwrap_or_default().to_owned(),
+                observers: observers.map(|principals| v1::ObserverList { principals }),
+            })
+            .await?
+            .into_inner())
     }
 }
 

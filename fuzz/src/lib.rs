@@ -20,11 +20,13 @@ mod frame;
 mod mesh;
 mod requests;
 mod scene;
+mod snapshot;
 
 pub use frame::frame;
 pub use mesh::{mesh_obj, mesh_ply};
 pub use requests::requests;
 pub use scene::{scene_spec, scene_toml};
+pub use snapshot::snapshot;
 
 /// A target's body: the fuzzer's bytes in, a panic when a property fails.
 pub type Target = fn(&[u8]);
@@ -38,4 +40,5 @@ pub const TARGETS: &[(&str, Target)] = &[
     ("frame", frame),
     ("mesh_obj", mesh_obj),
     ("mesh_ply", mesh_ply),
+    ("snapshot", snapshot),
 ];

@@ -19,6 +19,7 @@ pub mod v1 {
 
 pub mod keys;
 pub mod seal;
+pub mod snapshot;
 
 /// Encoded `FileDescriptorSet` of all meshless protos, for gRPC reflection.
 pub const FILE_DESCRIPTOR_SET: &[u8] =

@@ -68,6 +68,12 @@ pub const DEFAULT_MAX_REQUEST_MB: u32 = 64;
 /// triangles, far more than a body's sampling uses.
 pub const DEFAULT_MAX_MESH_MB: u32 = 16;
 
+/// Default of `--max-snapshot-mb`: a fluid of about 800,000 particles
+/// (a 150,000-particle one takes about 12 MB).
+pub const DEFAULT_MAX_SNAPSHOT_MB: u32 = 64;
+/// Default of `--checkpoint-interval`, seconds.
+pub const DEFAULT_CHECKPOINT_INTERVAL: f64 = 60.0;
+
 /// Everything the server needs to start.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ServerConfig {
@@ -176,6 +182,23 @@ pub struct ServerConfig {
     /// this host's physical memory.
     #[arg(long, env = "MESHLESS_MEMORY_BUDGET_MB")]
     pub memory_budget_mb: Option<u64>,
+
+    /// Largest snapshot blob, in MB: Snapshot refuses to make a larger
+    /// one and Restore to read one; the response limit grows to hold one,
+    /// while a Restore request must also fit `--max-request-mb`.
+    #[arg(long, env = "MESHLESS_MAX_SNAPSHOT_MB", default_value_t = DEFAULT_MAX_SNAPSHOT_MB)]
+    pub max_snapshot_mb: u32,
+
+    /// A directory for checkpoints: every session's snapshot, written
+    /// every `--checkpoint-interval`, and restored (ids and owners kept)
+    /// when the server starts. Unset: no checkpoints.
+    #[arg(long, env = "MESHLESS_CHECKPOINT_DIR")]
+    pub checkpoint_dir: Option<std::path::PathBuf>,
+
+    /// Seconds between checkpoints, in [0.1, 86400]: at most this much of
+    /// a session's work is lost in a crash.
+    #[arg(long, env = "MESHLESS_CHECKPOINT_INTERVAL", default_value_t = DEFAULT_CHECKPOINT_INTERVAL)]
+    pub checkpoint_interval: f64,
 }
 
 /// The budget when physical memory cannot be read (not Linux).
@@ -185,6 +208,16 @@ impl ServerConfig {
     /// The largest request in bytes.
     pub fn max_request_bytes(&self) -> usize {
         (self.max_request_mb as usize).saturating_mul(1 << 20)
+    }
+
+    /// The largest snapshot in bytes.
+    pub fn max_snapshot_bytes(&self) -> usize {
+        (self.max_snapshot_mb as usize).saturating_mul(1 << 20)
+    }
+
+    /// The checkpoint interval.
+    pub fn checkpoint_period(&self) -> std::time::Duration {
+        std::time::Duration::from_secs_f64(self.checkpoint_interval)
     }
 
     /// What scenes may build: the particle limit, the mesh directory (or
@@ -285,6 +318,9 @@ impl ServerConfig {
             mesh_dir: None,
             max_mesh_mb: DEFAULT_MAX_MESH_MB,
             memory_budget_mb: None,
+            max_snapshot_mb: DEFAULT_MAX_SNAPSHOT_MB,
+            checkpoint_dir: None,
+            checkpoint_interval: DEFAULT_CHECKPOINT_INTERVAL,
         }
     }
 
@@ -317,6 +353,15 @@ impl ServerConfig {
             return Err(format!(
                 "--mesh-dir {} is not a directory this server can read",
                 dir.display()
+            ));
+        }
+        if self.max_snapshot_mb == 0 {
+            return Err("--max-snapshot-mb must be at least 1".into());
+        }
+        if !(0.1..=86_400.0).contains(&self.checkpoint_interval) {
+            return Err(format!(
+                "--checkpoint-interval must be in [0.1, 86400] seconds, got {}",
+                self.checkpoint_interval
             ));
         }
         if self.memory_budget_mb == Some(0) {

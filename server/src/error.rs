@@ -4,6 +4,7 @@
 
 use meshless_engine::SceneError;
 use meshless_engine::design::DesignError;
+use meshless_proto::snapshot::BlobError;
 use meshless_proto::v1::SessionState;
 use meshless_wire::WireError;
 use tonic::{Code, Status};
@@ -70,6 +71,20 @@ pub enum ServiceError {
         /// Who drives it: `principal/client`, or the principal alone.
         controller: String,
     },
+    /// A blob that is not a snapshot of this build, or is over the limit.
+    #[error("data: {0}")]
+    Snapshot(#[from] BlobError),
+    /// The session's snapshot would pass the limit.
+    #[error(
+        "the snapshot would have {size} bytes, over this server's limit of {limit} \
+         (--max-snapshot-mb); raise the limit or snapshot a smaller scene"
+    )]
+    SnapshotTooLarge {
+        /// Its size.
+        size: usize,
+        /// The limit.
+        limit: usize,
+    },
     #[error("session {0} stopped and no longer takes commands; delete it")]
     SessionGone(String),
     #[error("internal error: {0}")]
@@ -108,6 +123,17 @@ impl ServiceError {
             Self::TooManySessions { .. } | Self::MemoryBudget { .. } => Code::ResourceExhausted,
             Self::PermissionDenied { .. } => Code::PermissionDenied,
             Self::ControlledElsewhere { .. } => Code::Aborted,
+            Self::Snapshot(blob) => match blob {
+                BlobError::TooLarge { .. } => Code::ResourceExhausted,
+                BlobError::NotASnapshot
+                | BlobError::Truncated { .. }
+                | BlobError::Format { .. }
+                | BlobError::Build { .. }
+                | BlobError::Trailing { .. }
+                | BlobError::Checksum
+                | BlobError::Payload(_) => Code::InvalidArgument,
+            },
+            Self::SnapshotTooLarge { .. } => Code::ResourceExhausted,
             Self::SessionGone(_) => Code::Unavailable,
             Self::Internal(_) => Code::Internal,
         }

@@ -9,6 +9,7 @@
 //! signal handling.
 
 mod auth;
+mod checkpoint;
 mod codes;
 pub mod config;
 mod error;
@@ -32,6 +33,12 @@ use tokio_util::sync::CancellationToken;
 
 /// Largest gRPC response: a frame of a few million particles.
 const MAX_RESPONSE_BYTES: usize = 64 * 1024 * 1024;
+
+/// Longest the last checkpoint round of a shutdown may take.
+const LAST_ROUND_TIMEOUT: Duration = Duration::from_secs(20);
+
+/// Room around a snapshot blob in the messages that carry one.
+const SNAPSHOT_ENVELOPE: usize = 1 << 20;
 
 /// How often an idle connection is pinged (HTTP/2 PING), so that a peer
 /// that vanished without closing is noticed.
@@ -102,6 +109,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
     let grpc_addr = listener.local_addr()?;
 
     let shutdown = CancellationToken::new();
+    let sessions_stop = CancellationToken::new();
     let sealed = config.seals(tokens.is_some());
     let registry = Arc::new(Registry::new(
         zenoh.clone(),
@@ -109,8 +117,24 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         config.build_options(),
         config.max_sessions,
         config.memory_budget_bytes(),
-        shutdown.child_token(),
+        // Cancelled once the last checkpoint round is written (see the
+        // serving task), not with `shutdown` itself.
+        sessions_stop.clone(),
     ));
+    let checkpoints = match &config.checkpoint_dir {
+        Some(dir) => {
+            let checkpoints = checkpoint::Checkpoints::new(
+                dir,
+                config.checkpoint_period(),
+                config.max_snapshot_bytes(),
+            )
+            .with_context(|| format!("cannot create --checkpoint-dir {}", dir.display()))?;
+            let restored = checkpoints.restore_all(&registry).await;
+            tracing::info!(dir = %dir.display(), restored, "checkpoints");
+            Some(Arc::new(checkpoints))
+        }
+        None => None,
+    };
     let info = v1::ServerInfo {
         version: env!("CARGO_PKG_VERSION").into(),
         zenoh_locators: zenoh_locators.clone(),
@@ -118,14 +142,30 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         max_particles_per_session: config.max_particles,
         max_sessions: config.max_sessions,
         zenoh_sealed: sealed,
+        max_snapshot_bytes: config.max_snapshot_bytes() as u64,
+        checkpoint_interval: if checkpoints.is_some() {
+            config.checkpoint_interval
+        } else {
+            0.0
+        },
     };
+    // A Snapshot answer carries a whole snapshot. A Restore request does
+    // too, within `--max-request-mb` like every request: the request
+    // limit bounds what any caller makes the server hold before a check.
+    let snapshot_room = config
+        .max_snapshot_bytes()
+        .saturating_add(SNAPSHOT_ENVELOPE);
     let simulation = SimulationServer::new(SimulationService::new(
         registry.clone(),
         info,
+        checkpoints.clone(),
         shutdown.clone(),
     ))
     .max_decoding_message_size(config.max_request_bytes())
-    .max_encoding_message_size(MAX_RESPONSE_BYTES);
+    .max_encoding_message_size(MAX_RESPONSE_BYTES.max(snapshot_room));
+    let checkpointer = checkpoints
+        .clone()
+        .map(|c| c.spawn(registry.clone(), shutdown.child_token()));
     // Health and reflection stay open (probes, tools); every simulation
     // call passes the token check first.
     let simulation = tonic::service::interceptor::InterceptedService::new(
@@ -145,17 +185,41 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         listener,
         config.max_connections as usize,
         listener::FIRST_BYTE_TIMEOUT,
-        shutdown.child_token(),
+        // Accepting ends with the sessions (below): tonic stops at the
+        // end of its connections as soon as they end, which would cut
+        // the last checkpoint round short.
+        sessions_stop.child_token(),
     );
     let stop = shutdown.clone();
+    let last_round = registry.clone();
+    // On shutdown: one last checkpoint round while the sessions still
+    // answer (bounded: a session busy with a long `Step` may not), then
+    // the sessions' steps are interrupted so that calls in flight end and
+    // the server can stop.
+    let stopping = async move {
+        stop.cancelled().await;
+        if let Some(checkpoints) = &checkpoints {
+            let round = checkpoints.round(&last_round);
+            if tokio::time::timeout(LAST_ROUND_TIMEOUT, round)
+                .await
+                .is_err()
+            {
+                tracing::warn!("the last checkpoint round did not finish in time");
+            }
+        }
+        sessions_stop.cancel();
+    };
     let task = tokio::spawn(async move {
         let served = grpc
             .layer(tower::util::MapResponseLayer::new(codes::recode))
             .add_service(health)
             .add_service(reflection)
             .add_service(simulation)
-            .serve_with_incoming_shutdown(incoming, stop.cancelled_owned())
+            .serve_with_incoming_shutdown(incoming, stopping)
             .await;
+        if let Some(checkpointer) = checkpointer {
+            let _ = checkpointer.await;
+        }
         registry.shut_down_all().await;
         if let Err(e) = zenoh.close().await {
             tracing::warn!("closing zenoh: {e}");

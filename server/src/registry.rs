@@ -1,7 +1,7 @@
 //! The sessions a server holds, by id, within its limits.
 
 use crate::error::{ServiceError, quote};
-use crate::session::{Access, Outlet, Session};
+use crate::session::{Access, Decoded, Origin, Outlet, Session};
 use meshless_engine::{BuildOptions, Scene};
 use meshless_proto::seal::Sealer;
 use std::collections::HashMap;
@@ -79,6 +79,44 @@ impl Registry {
     /// # Errors
     /// Invalid scenes and exhausted limits; nothing is kept on error.
     pub async fn create(&self, scene: Scene, access: Access) -> Result<Arc<Session>, ServiceError> {
+        self.admit(scene, None, access, None).await
+    }
+
+    /// Starts a session from a decoded snapshot: its scene built, then
+    /// moved to the snapshot's state. `id` keeps the snapshot's id (a
+    /// checkpoint restored at start); `None` makes a new one.
+    ///
+    /// # Errors
+    /// As [`Self::create`], and a snapshot that does not fit its scene, or
+    /// an id already taken.
+    pub async fn restore(
+        &self,
+        snapshot: Decoded,
+        access: Access,
+        id: Option<String>,
+    ) -> Result<Arc<Session>, ServiceError> {
+        if let Some(id) = &id {
+            check_id(id)?;
+            if self.read().contains_key(id) {
+                return Err(ServiceError::invalid(
+                    "session_id",
+                    format!("a session with id {} already exists", quote(id)),
+                ));
+            }
+        }
+        self.admit(snapshot.scene.clone(), Some(snapshot), access, id)
+            .await
+    }
+
+    /// Checks, reserves, builds (and restores `snapshot` into) a world
+    /// for `scene` off the async runtime, then starts its session.
+    async fn admit(
+        &self,
+        scene: Scene,
+        snapshot: Option<Decoded>,
+        access: Access,
+        id: Option<String>,
+    ) -> Result<Arc<Session>, ServiceError> {
         let limit = self.max_sessions;
         if self.read().len() >= limit as usize {
             return Err(ServiceError::TooManySessions { limit });
@@ -92,15 +130,27 @@ impl Registry {
         let needed = checked.footprint().bytes.ceil().min(u64::MAX as f64) as u64;
         self.memory().reserve(needed)?;
         let serial = self.serial.fetch_add(1, Ordering::Relaxed);
-        let id = format!(
-            "{:016x}",
-            self.ids.hash_one((serial, std::time::SystemTime::now()))
-        );
-        let built = tokio::task::spawn_blocking(move || checked.build())
-            .await
-            .map_err(|e| ServiceError::Internal(format!("scene build task failed: {e}")));
-        let world = match built {
-            Ok(world) => world,
+        let id = id.unwrap_or_else(|| {
+            format!(
+                "{:016x}",
+                self.ids.hash_one((serial, std::time::SystemTime::now()))
+            )
+        });
+        let options = self.options.clone();
+        let built = tokio::task::spawn_blocking(move || {
+            let world = checked.build();
+            match snapshot {
+                None => Ok(Origin::Built(Box::new(world))),
+                Some(snapshot) => Ok(Origin::Restored(Box::new(
+                    snapshot.resume(world, &options)?,
+                ))),
+            }
+        })
+        .await
+        .map_err(|e| ServiceError::Internal(format!("scene build task failed: {e}")))
+        .and_then(|built| built);
+        let origin = match built {
+            Ok(origin) => origin,
             Err(e) => {
                 self.memory().release_unassigned(needed);
                 return Err(e);
@@ -122,7 +172,7 @@ impl Registry {
         let started = Session::start(
             id.clone(),
             serial,
-            world,
+            origin,
             self.options.clone(),
             outlet,
             self.cancel.child_token(),
@@ -138,12 +188,22 @@ impl Registry {
             }
         };
         let mut sessions = self.write();
-        if sessions.len() >= limit as usize {
+        let refused = if sessions.len() >= limit as usize {
+            Some(ServiceError::TooManySessions { limit })
+        } else if sessions.contains_key(&id) {
+            Some(ServiceError::invalid(
+                "session_id",
+                format!("a session with id {} already exists", quote(&id)),
+            ))
+        } else {
+            None
+        };
+        if let Some(error) = refused {
             drop(sessions);
             self.memory().release_unassigned(needed);
             let late = session.clone();
             tokio::task::spawn_blocking(move || late.shut_down());
-            return Err(ServiceError::TooManySessions { limit });
+            return Err(error);
         }
         self.memory().assign(&id, needed);
         sessions.insert(id, session.clone());
@@ -187,6 +247,30 @@ impl Registry {
             self.memory().release(&session.id);
             join_blocking(session).await;
         }
+    }
+}
+
+/// Longest session id a snapshot may carry.
+const MAX_ID_LEN: usize = 64;
+
+/// Checks a session id that came from a snapshot: checkpoint files are
+/// named after ids, so only letters, digits, `-` and `_`.
+fn check_id(id: &str) -> Result<(), ServiceError> {
+    let fine = !id.is_empty()
+        && id.len() <= MAX_ID_LEN
+        && id
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+    if fine {
+        Ok(())
+    } else {
+        Err(ServiceError::invalid(
+            "session_id",
+            format!(
+                "{} is not a session id: 1 to {MAX_ID_LEN} letters, digits, '-' or '_'",
+                quote(id)
+            ),
+        ))
     }
 }
 

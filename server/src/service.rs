@@ -3,9 +3,13 @@
 //! converts the answer back.
 
 use crate::auth::{Caller, caller};
+use crate::checkpoint::Checkpoints;
 use crate::error::ServiceError;
 use crate::registry::Registry;
-use crate::session::{Access, Command, OptimizeJob, Problem, RunTarget, Session, check_observers};
+use crate::session::{
+    Access, Command, Decoded, OptimizeJob, Problem, RunTarget, Session, Simulate, check_observers,
+    check_simulate, encode_snapshot, grpc_deadline,
+};
 use meshless_engine::Scene;
 use meshless_engine::design::{Constraint, Edit};
 use meshless_engine::math::Brief;
@@ -32,21 +36,37 @@ const REALTIME_FACTORS: std::ops::RangeInclusive<f64> = 1e-6..=1e6;
 const DEFAULT_PLAYBACK_RATE: f64 = 30.0;
 /// Optimisation events queued per stream.
 const OPTIMIZE_EVENTS: usize = 16;
+/// Progress messages queued per `SimulateSteps` stream.
+const SIMULATE_EVENTS: usize = 4;
 
 #[derive(Debug)]
 pub struct SimulationService {
     registry: Arc<Registry>,
     info: v1::ServerInfo,
+    /// Where deleted sessions' checkpoints are removed, when the server
+    /// keeps any.
+    checkpoints: Option<Arc<Checkpoints>>,
     shutdown: CancellationToken,
 }
 
 impl SimulationService {
-    pub fn new(registry: Arc<Registry>, info: v1::ServerInfo, shutdown: CancellationToken) -> Self {
+    pub fn new(
+        registry: Arc<Registry>,
+        info: v1::ServerInfo,
+        checkpoints: Option<Arc<Checkpoints>>,
+        shutdown: CancellationToken,
+    ) -> Self {
         Self {
             registry,
             info,
+            checkpoints,
             shutdown,
         }
+    }
+
+    /// The largest snapshot blob, bytes.
+    fn snapshot_limit(&self) -> usize {
+        usize::try_from(self.info.max_snapshot_bytes).unwrap_or(usize::MAX)
     }
 
     fn session_id(id: &str) -> Result<&str, ServiceError> {
@@ -199,6 +219,9 @@ impl Simulation for SimulationService {
         let id = request.into_inner().session_id;
         self.drive(&id, &caller, "delete")?;
         self.registry.delete(&id).await?;
+        if let Some(checkpoints) = &self.checkpoints {
+            checkpoints.forget(&id);
+        }
         tracing::info!(session = %id, "session deleted");
         Ok(Response::new(v1::DeleteSessionResponse {}))
     }
@@ -448,5 +471,105 @@ impl Simulation for SimulationService {
         let id = request.into_inner().session_id;
         let session = self.read(&id, &caller)?;
         Ok(Response::new((*session.last_design()?).clone()))
+    }
+
+    type SimulateStepsStream = ReceiverStream<Result<v1::SimulateProgress, Status>>;
+
+    async fn simulate_steps(
+        &self,
+        request: Request<v1::SimulateStepsRequest>,
+    ) -> Reply<Self::SimulateStepsStream> {
+        let caller = caller(&request)?;
+        // tonic ends a call at its deadline only until the answer's
+        // headers go out; a stream keeps to it here.
+        let deadline = request
+            .metadata()
+            .get("grpc-timeout")
+            .and_then(|v| v.to_str().ok())
+            .and_then(|v| grpc_deadline(v, std::time::Instant::now()));
+        let v1::SimulateStepsRequest {
+            session_id,
+            steps,
+            progress_interval,
+        } = request.into_inner();
+        let interval = check_simulate(steps, progress_interval)?;
+        let session = self.drive(&session_id, &caller, "step")?;
+        let (tx, rx) = mpsc::channel(SIMULATE_EVENTS);
+        let job = Simulate {
+            steps,
+            interval,
+            deadline,
+        };
+        tokio::spawn(session.simulate(job, tx));
+        Ok(Response::new(ReceiverStream::new(rx)))
+    }
+
+    async fn snapshot(&self, request: Request<v1::SessionRef>) -> Reply<v1::SessionSnapshot> {
+        let caller = caller(&request)?;
+        let id = request.into_inner().session_id;
+        let session = self.registry.get(Self::session_id(&id)?)?;
+        session
+            .access
+            .check_owner(&session.id, &caller, "snapshot")?;
+        let payload = session.snapshot().await?;
+        let (step, time) = payload
+            .world
+            .as_ref()
+            .map_or((0, 0.0), |w| (w.step, w.time));
+        let limit = self.snapshot_limit();
+        let data = tokio::task::spawn_blocking(move || encode_snapshot(&payload, limit))
+            .await
+            .map_err(|e| ServiceError::Internal(format!("snapshot encoding failed: {e}")))??;
+        tracing::info!(session = %session.id, step, bytes = data.len(), "snapshot taken");
+        Ok(Response::new(v1::SessionSnapshot {
+            session_id: session.id.clone(),
+            step,
+            time,
+            data,
+        }))
+    }
+
+    async fn restore(&self, request: Request<v1::RestoreRequest>) -> Reply<v1::Session> {
+        let caller = caller(&request)?;
+        let v1::RestoreRequest {
+            data,
+            session_id,
+            observers,
+        } = request.into_inner();
+        // Into an existing session: its access is checked before the blob
+        // is even read.
+        let target = if session_id.is_empty() {
+            None
+        } else {
+            Some(self.drive(&session_id, &caller, "restore a snapshot into")?)
+        };
+        let limit = self.snapshot_limit();
+        let decoded = tokio::task::spawn_blocking(move || Decoded::from_blob(&data, limit))
+            .await
+            .map_err(|e| ServiceError::Internal(format!("snapshot decoding failed: {e}")))??;
+        let session = match target {
+            Some(session) => {
+                session.restore(decoded, self.registry.options()).await?;
+                session
+            }
+            None => {
+                let observers = match observers {
+                    Some(list) => list.principals,
+                    None => decoded.record.observers.clone(),
+                };
+                check_observers(&observers)?;
+                self.registry
+                    .restore(decoded, Access::new(&caller, observers), None)
+                    .await?
+            }
+        };
+        let status = session.status();
+        tracing::info!(
+            session = %session.id,
+            step = status.step,
+            owner = %caller.principal,
+            "snapshot restored"
+        );
+        Ok(Response::new(session.to_proto()))
     }
 }

@@ -159,6 +159,16 @@ impl ServerProcess {
         Ok(within("gRPC connect", Client::connect_as(&self.grpc_url, identity)).await?)
     }
 
+    /// Kills the process with SIGKILL (no shutdown of any kind: a crash)
+    /// and waits for it to be gone.
+    ///
+    /// # Errors
+    /// When the process cannot be killed.
+    pub async fn kill(mut self) -> Result<ExitStatus> {
+        within("server kill", self.child.kill()).await?;
+        Ok(within("server exit after SIGKILL", self.child.wait()).await?)
+    }
+
     /// Sends SIGTERM and waits for the process to exit.
     ///
     /// # Errors

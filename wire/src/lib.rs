@@ -20,6 +20,7 @@ pub mod enums;
 mod error;
 pub mod frame;
 pub mod scene;
+pub mod snapshot;
 
 pub use enums::WireEnum;
 pub use error::WireError;

@@ -11,12 +11,14 @@ mod eos;
 mod particles;
 mod pressure;
 mod reorder;
+mod snapshot;
 mod viscosity;
 mod walls;
 
 pub use eos::Tait;
 pub use particles::{Fluid, FluidParams, FluidState, Invalid};
 pub use pressure::{Dfsph, DfsphParams, Pressure, SolveInfo, Wcsph};
+pub use snapshot::FluidSnapshot;
 pub use viscosity::ViscosityModel;
 pub use walls::BoxWalls;
 

@@ -10,6 +10,7 @@ use super::pressure::SolveInfo;
 use super::{BoxWalls, Tait, ViscosityModel};
 use crate::approx::{Kernel, KernelKind};
 use crate::expression::VectorField;
+use crate::linalg::linop::par_sum;
 use crate::math::{Real, Vector};
 use crate::neighbors::{CandidateSearch, NeighborList, Periodic, UniformGrid};
 use crate::rigid::{BodyState, BoundaryParams, RigidBodies};
@@ -205,21 +206,18 @@ impl Fluid {
     /// Kinetic energy `sum m |v|^2 / 2`, J (per metre of depth in 2D).
     pub fn kinetic_energy(&self) -> Real {
         let m = self.params.mass;
-        self.velocities
-            .par_iter()
-            .map(|v| 0.5 * m * v.norm_squared())
-            .sum()
+        par_sum(self.velocities.len(), |k| {
+            0.5 * m * self.velocities[k].norm_squared()
+        })
     }
 
     /// Potential energy in `gravity`, `-sum m g . x`, J: zero where the
     /// positions are at the origin.
     pub fn potential_energy(&self, gravity: &Vector) -> Real {
         let m = self.params.mass;
-        -self
-            .positions
-            .par_iter()
-            .map(|x| m * gravity.dot(x))
-            .sum::<Real>()
+        -par_sum(self.positions.len(), |k| {
+            m * gravity.dot(&self.positions[k])
+        })
     }
 
     /// The id (index in the scene's order) of the particle in `slot`.

@@ -79,9 +79,9 @@ pub trait Space<E: Element> {
     fn scale_add(y: &mut [E], x: &[E], beta: Real);
 }
 
-/// Every reduction and update split over rayon's threads: the dot
-/// product's sum depends on how rayon splits it, so it is reproducible
-/// only on a fixed thread count.
+/// Every reduction and update split over rayon's threads; the dot
+/// product sums fixed chunks ([`par_sum`]), so it rounds the same
+/// whatever the thread count and scheduling.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Parallel;
 
@@ -91,7 +91,8 @@ pub struct Sequential;
 
 impl<E: Element> Space<E> for Parallel {
     fn dot(a: &[E], b: &[E]) -> Real {
-        a.par_iter().zip(b).map(|(a, b)| a.dot(b)).sum()
+        assert_eq!(a.len(), b.len(), "dot: lengths differ");
+        par_sum(a.len(), |i| a[i].dot(&b[i]))
     }
 
     fn copy(x: &[E], y: &mut [E]) {
@@ -146,5 +147,59 @@ impl<E: Element> Space<E> for Sequential {
         for (y, x) in y.iter_mut().zip(x) {
             *y = *x + *y * beta;
         }
+    }
+}
+
+/// Terms per partial sum of [`par_sum`].
+const SUM_CHUNK: usize = 1024;
+
+/// `sum of term(i) for i in 0..len`, the terms of each fixed chunk of
+/// [`SUM_CHUNK`] indices summed in order on one thread, then the chunks'
+/// sums in order. rayon's own `sum` splits where threads steal work, so
+/// its rounding changes from run to run; this one depends on `len` alone,
+/// which keeps a step bit for bit reproducible (a restored snapshot steps
+/// as the original did).
+pub fn par_sum(len: usize, term: impl Fn(usize) -> Real + Sync) -> Real {
+    let partial: Vec<Real> = (0..len.div_ceil(SUM_CHUNK))
+        .into_par_iter()
+        .map(|chunk| {
+            let start = chunk * SUM_CHUNK;
+            (start..len.min(start + SUM_CHUNK)).map(&term).sum::<Real>()
+        })
+        .collect();
+    partial.iter().sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Terms whose sum rounds differently in different orders.
+    fn term(i: usize) -> Real {
+        let x = (i as Real * 0.618_033_988_749_895).fract();
+        (x - 0.5) * 10f64.powi((i % 17) as i32 - 8)
+    }
+
+    #[test]
+    fn par_sum_rounds_the_same_on_any_thread_count() {
+        let len = 50_000;
+        let on = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("a pool")
+                .install(|| par_sum(len, term))
+        };
+        let one = on(1);
+        for threads in [2, 3, 8] {
+            for _ in 0..5 {
+                assert_eq!(on(threads).to_bits(), one.to_bits(), "{threads} threads");
+            }
+        }
+        // The same terms summed in another order round differently, so
+        // the equality above is not trivial.
+        let reversed: Real = (0..len).rev().map(term).sum();
+        assert_ne!(reversed.to_bits(), one.to_bits());
+        assert!((reversed - one).abs() < 1e-9 * one.abs().max(1.0));
     }
 }

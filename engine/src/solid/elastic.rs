@@ -18,8 +18,8 @@ use std::ops::{Deref, DerefMut};
 /// are the [`Body`]'s, so that only stepping goes through the integrator.
 #[derive(Debug, Clone)]
 pub struct ElasticSolid {
-    body: Body,
-    integrator: Integrator,
+    pub(super) body: Body,
+    pub(super) integrator: Integrator,
 }
 
 impl ElasticSolid {

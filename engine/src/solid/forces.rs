@@ -49,6 +49,7 @@
 use super::body::Body;
 use super::material::{Material, StressState};
 use super::topology::Topology;
+use crate::linalg::linop::par_sum;
 use crate::math::{Real, Vector};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
@@ -287,13 +288,10 @@ impl Model<'_> {
         }
         let t = self.topology;
         let edges = t.gradients.neighbour_indices();
-        (0..edges.len())
-            .into_par_iter()
-            .map(|e| {
-                let (i, j) = (t.owner[e] as usize, edges[e] as usize);
-                0.5 * self.dashpot(i, j, e, v).dot(&(v[j] - v[i]))
-            })
-            .sum()
+        par_sum(edges.len(), |e| {
+            let (i, j) = (t.owner[e] as usize, edges[e] as usize);
+            0.5 * self.dashpot(i, j, e, v).dot(&(v[j] - v[i]))
+        })
     }
 }
 

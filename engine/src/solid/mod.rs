@@ -27,6 +27,7 @@ mod integrate;
 mod material;
 mod params;
 mod plasticity;
+mod snapshot;
 mod topology;
 
 pub use body::{Body, SolidError, SolidState};
@@ -37,3 +38,4 @@ pub use material::{Material, StressState, cofactor, green_strain};
 pub use params::{
     ImplicitParams, ImplicitScheme, Integrator, LinearSolver, Plasticity, SolidParams,
 };
+pub use snapshot::SolidSnapshot;

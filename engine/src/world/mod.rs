@@ -8,11 +8,13 @@
 //! turn (the fluid first, then the solids in scene order), then the clock.
 
 mod build;
+mod state;
 mod system;
 #[cfg(test)]
 mod tests;
 pub mod watch;
 
+pub use state::{StateError, SystemState, WorldState};
 pub use system::RemoveError;
 
 use crate::cancel::Cancel;

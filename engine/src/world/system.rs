@@ -129,6 +129,13 @@ impl RemovalMask {
         Ok(())
     }
 
+    /// The ids marked, in order.
+    pub(crate) fn marked_ids(&self) -> Vec<u32> {
+        (0..self.marked.len() as u32)
+            .filter(|&id| self.marked[id as usize])
+            .collect()
+    }
+
     /// The flags, if anything is marked, leaving the mask empty.
     pub(crate) fn take(&mut self) -> Option<Vec<bool>> {
         (!self.marked.is_empty()).then(|| std::mem::take(&mut self.marked))

@@ -51,6 +51,16 @@ impl EnergyWatch {
         self.start = None;
     }
 
+    /// The start `(E_0, S)`, once measured.
+    pub fn start(&self) -> Option<(Real, Real)> {
+        self.start
+    }
+
+    /// Sets what [`Self::start`] reads (a restored snapshot's).
+    pub fn set_start(&mut self, start: Option<(Real, Real)>) {
+        self.start = start;
+    }
+
     /// Measures the start at the first step after a restart; call before
     /// the step.
     pub fn begin(&mut self, system: &FluidSystem, gravity: &Vector, bounds: &(Vector, Vector)) {

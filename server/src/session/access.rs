@@ -31,6 +31,38 @@ impl Access {
         }
     }
 
+    /// The access of a session restored from a checkpoint: its owner (no
+    /// client instance drives it until one calls) and observers.
+    pub fn restored(owner: &str, observers: Vec<String>) -> Self {
+        Self {
+            owner: owner.into(),
+            observers,
+            controller: Mutex::new(owner.to_owned()),
+        }
+    }
+
+    /// Allows only the owner to `action` session `id`, without taking
+    /// control of it (a snapshot reads the whole state, a drive changes
+    /// it).
+    ///
+    /// # Errors
+    /// [`ServiceError::PermissionDenied`] for anyone but the owner.
+    pub fn check_owner(
+        &self,
+        id: &str,
+        caller: &Caller,
+        action: &'static str,
+    ) -> Result<(), ServiceError> {
+        if caller.principal == self.owner {
+            Ok(())
+        } else {
+            Err(ServiceError::PermissionDenied {
+                session_id: id.to_owned(),
+                action,
+            })
+        }
+    }
+
     /// The owner's principal.
     pub fn owner(&self) -> &str {
         &self.owner

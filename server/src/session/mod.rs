@@ -5,6 +5,8 @@ mod access;
 mod interrupt;
 mod optimize;
 mod publish;
+mod simulate;
+mod snapshot;
 mod worker;
 
 use crate::error::ServiceError;
@@ -21,6 +23,8 @@ use tokio_util::sync::CancellationToken;
 pub use access::{Access, check_observers};
 pub use optimize::{OptimizeJob, Problem};
 pub use publish::Outlet;
+pub use simulate::{Simulate, check_request as check_simulate, grpc_deadline};
+pub use snapshot::{Decoded, Resumed, encode as encode_snapshot};
 pub use worker::RunTarget;
 use worker::{Message, Queued};
 
@@ -58,6 +62,9 @@ pub struct DesignState {
     pub last: Option<Arc<v1::DesignResult>>,
     /// The cancel flag of the optimisation queued or running, if any.
     pub running: Option<Cancel>,
+    /// Counts changes of the constraints and the last design, so that a
+    /// checkpoint knows whether they changed since it was written.
+    pub revision: u64,
 }
 
 type SharedDesign = Arc<Mutex<DesignState>>;
@@ -152,6 +159,25 @@ impl Drop for Pending<'_> {
     }
 }
 
+/// What a session starts from.
+#[derive(Debug)]
+pub enum Origin {
+    /// A world just built from its scene (boxed, as the other: a world
+    /// is hundreds of bytes).
+    Built(Box<World>),
+    /// A snapshot restored.
+    Restored(Box<Resumed>),
+}
+
+impl Origin {
+    fn world(&self) -> &World {
+        match self {
+            Self::Built(world) => world.as_ref(),
+            Self::Restored(resumed) => &resumed.world,
+        }
+    }
+}
+
 /// The handle gRPC handlers hold. Cheap to share; the world itself lives
 /// on the compute thread.
 #[derive(Debug)]
@@ -186,16 +212,17 @@ impl Session {
     pub fn start(
         id: String,
         serial: u64,
-        world: World,
+        origin: Origin,
         options: BuildOptions,
         outlet: Outlet,
         cancel: CancellationToken,
         access: Access,
     ) -> std::io::Result<Arc<Self>> {
+        let world = origin.world();
         let scene = world.scene().clone();
         let scene_echo = scene_echo_to_proto(&scene);
         let particle_count = world.particle_count();
-        let context = design::context(&world);
+        let context = design::context(world);
         let design = SharedDesign::default();
         let initial = v1::SessionStatus {
             session_id: id.clone(),
@@ -233,7 +260,7 @@ impl Session {
 
         let worker = worker::Worker::new(
             id.clone(),
-            world,
+            origin,
             options,
             worker::Outputs {
                 status: status_tx,
@@ -274,6 +301,25 @@ impl Session {
         ServiceError::SessionGone(self.id.clone())
     }
 
+    /// The state a snapshot keeps, handed over by the compute thread
+    /// between two steps.
+    async fn capture(&self) -> Result<snapshot::Captured, ServiceError> {
+        let (out, captured) = oneshot::channel();
+        self.mailbox
+            .send(Message::Capture(out), false)
+            .map_err(|Gone| self.gone())?;
+        captured.await.map_err(|_| self.gone())
+    }
+
+    /// Has the compute thread swap in a restored world.
+    async fn swap(&self, resumed: Resumed) -> Result<v1::SessionStatus, ServiceError> {
+        let (reply, answer) = oneshot::channel();
+        self.mailbox
+            .send(Message::Restore(Box::new(resumed), reply), false)
+            .map_err(|Gone| self.gone())?;
+        answer.await.map_err(|_| self.gone())?
+    }
+
     /// Sends a command to the compute thread and waits for its answer. A
     /// Pause interrupts the step in progress (and any queued before it),
     /// which keeps the last completed step; dropping the future of a
@@ -299,12 +345,18 @@ impl Session {
             .constraints
             .apply(edits, &self.context)
             .map_err(design::DesignError::from)?;
+        design.revision += 1;
         Ok(design.constraints.iter().cloned().collect())
     }
 
     /// The constraints in name order.
     pub fn constraints(&self) -> Vec<Constraint> {
         lock(&self.design).constraints.iter().cloned().collect()
+    }
+
+    /// Changes of the constraints and the last design so far.
+    pub fn design_revision(&self) -> u64 {
+        lock(&self.design).revision
     }
 
     /// The last successful design.

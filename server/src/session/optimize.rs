@@ -10,7 +10,9 @@ use meshless_engine::design::{
 use meshless_engine::math::Vector;
 use meshless_engine::{Cancel, Frame, World};
 use meshless_proto::v1;
-use meshless_wire::design::{info_to_proto, progress_to_proto};
+use meshless_wire::design::{
+    design_params_from_proto, design_settings_to_proto, info_to_proto, progress_to_proto,
+};
 use std::ops::ControlFlow;
 use std::sync::Arc;
 use tokio::sync::{mpsc, oneshot};
@@ -59,6 +61,51 @@ pub struct WarmStart {
     system: usize,
     params: DesignParams,
     displacements: Vec<Vector>,
+}
+
+impl WarmStart {
+    /// Its message, for a snapshot.
+    pub fn to_proto(&self) -> v1::DesignWarmStart {
+        v1::DesignWarmStart {
+            system: u32::try_from(self.system).unwrap_or(u32::MAX),
+            settings: Some(design_settings_to_proto(&self.params)),
+            displacements: flatten(&self.displacements),
+        }
+    }
+
+    /// A snapshot's warm start, checked against `world`: a solid's system
+    /// and one finite displacement per particle of its design
+    /// discretisation.
+    ///
+    /// # Errors
+    /// What does not fit, as text.
+    pub fn from_proto(message: v1::DesignWarmStart, world: &World) -> Result<Self, String> {
+        let v1::DesignWarmStart {
+            system,
+            settings,
+            displacements,
+        } = message;
+        let system = system as usize;
+        let params = design_params_from_proto(settings).map_err(|e| e.to_string())?;
+        // The design's own particles, as the next solve samples them.
+        let target = DesignTarget::new(world, system, &params).map_err(|e| e.to_string())?;
+        let count = target.body().rest().len();
+        if displacements.len() != 3 * count || displacements.iter().any(|d| !d.is_finite()) {
+            return Err(format!(
+                "its warm start holds {} values, not 3 finite values for each of the {count} \
+                 design particles of systems[{system}]",
+                displacements.len()
+            ));
+        }
+        Ok(Self {
+            system,
+            params,
+            displacements: displacements
+                .chunks_exact(3)
+                .map(|c| Vector::new(c[0], c[1], c[2]))
+                .collect(),
+        })
+    }
 }
 
 /// A solved design, ready to keep and to play back.

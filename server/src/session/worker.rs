@@ -7,7 +7,8 @@
 
 use super::interrupt::Interrupts;
 use super::optimize::{self, Channels, OptimizeJob, WarmStart};
-use super::{Command, LatestFrame, Reply, SharedDesign, lock};
+use super::snapshot::{Captured, Resumed, ResumedSession};
+use super::{Command, LatestFrame, Origin, Reply, SharedDesign, lock};
 use crate::error::{ServiceError, state_name};
 use meshless_engine::{BuildOptions, Cancel, Frame, StepError, World};
 use meshless_proto::v1::{SessionState, SessionStatus};
@@ -32,6 +33,11 @@ pub struct RunTarget {
 pub enum Message {
     Command(Command, Reply),
     Optimize(Box<OptimizeJob>, Channels),
+    /// Hands over the state a snapshot keeps, between two steps; a run
+    /// goes on.
+    Capture(tokio::sync::oneshot::Sender<Captured>),
+    /// Swaps in a restored world and the session state around it.
+    Restore(Box<Resumed>, Reply),
     /// Stop and exit; sent on delete and server shutdown.
     Shutdown,
 }
@@ -108,13 +114,20 @@ enum Advance {
 impl Worker {
     pub fn new(
         id: String,
-        world: World,
+        origin: Origin,
         options: BuildOptions,
         out: Outputs,
         design: SharedDesign,
         cancel: CancellationToken,
         interrupts: Arc<Interrupts>,
     ) -> Self {
+        let (world, resumed) = match origin {
+            Origin::Built(world) => (*world, None),
+            Origin::Restored(resumed) => {
+                let Resumed { world, session } = *resumed;
+                (world, Some(session))
+            }
+        };
         let mut worker = Self {
             id,
             world,
@@ -132,7 +145,10 @@ impl Worker {
             interrupts,
             work: Cancel::new(),
         };
-        worker.publish_frame();
+        match resumed {
+            Some(session) => worker.take(session),
+            None => worker.publish_frame(),
+        }
         worker
     }
 
@@ -170,6 +186,16 @@ impl Worker {
                     // On a panic the result channel drops with the closure:
                     // the caller hears that the optimisation ended.
                     let _ = self.guarded(|w| w.optimize(&job, channels));
+                }
+                Some((_, Message::Capture(out))) => {
+                    if let Ok(captured) = self.guarded(|w| w.capture()) {
+                        // The caller may have gone away.
+                        let _ = out.send(captured);
+                    }
+                }
+                Some((_, Message::Restore(resumed, reply))) => {
+                    let result = self.guarded(|w| w.restore(*resumed)).and_then(|r| r);
+                    let _ = reply.send(result);
                 }
                 Some((_, Message::Shutdown)) => break,
                 None if self.cancel.is_cancelled() => break,
@@ -270,7 +296,9 @@ impl Worker {
                 }
             }
             let result = Arc::new(solved.result);
-            lock(&self.design).last = Some(result.clone());
+            let mut design = lock(&self.design);
+            design.last = Some(result.clone());
+            design.revision += 1;
             result
         });
         lock(&self.design).running = None;
@@ -279,6 +307,67 @@ impl Worker {
         }
         // The caller may have gone away.
         let _ = result.send(outcome);
+    }
+
+    /// The state a snapshot keeps. A running session is kept as paused
+    /// with its run, so that a restore resumes it on request only.
+    fn capture(&self) -> Captured {
+        let (state, reason) = if self.state == SessionState::Running {
+            (
+                SessionState::Paused,
+                "running when the snapshot was taken; Resume continues the run".to_owned(),
+            )
+        } else {
+            (self.state, self.reason.clone())
+        };
+        Captured {
+            world: self.world.state(),
+            state,
+            reason,
+            run: self.run,
+            warm: self.warm.clone(),
+        }
+    }
+
+    /// Swaps in a restored world, unless running; a faulted session may
+    /// be restored (as it may be reset).
+    fn restore(&mut self, resumed: Resumed) -> Result<SessionStatus, ServiceError> {
+        if self.state == SessionState::Running {
+            return Err(ServiceError::WrongState {
+                session_id: self.id.clone(),
+                state: state_name(self.state),
+                action: "restore a snapshot into",
+                hint: "pause it first",
+            });
+        }
+        let Resumed { world, session } = resumed;
+        self.world = world;
+        self.take(session);
+        Ok(self.status())
+    }
+
+    /// Takes the session state around a restored world (already in
+    /// place), and publishes its frame.
+    fn take(&mut self, resumed: ResumedSession) {
+        let ResumedSession {
+            state,
+            reason,
+            run,
+            warm,
+            constraints,
+            last,
+        } = resumed;
+        self.run = run;
+        self.pacing = None;
+        self.warm = warm;
+        let last = last.map(|mut design| {
+            design.session_id.clone_from(&self.id);
+            design
+        });
+        lock(&self.design).resume(constraints, last);
+        self.published_step = None;
+        self.publish_frame();
+        self.set_state(state, &reason);
     }
 
     fn refuse(&self, action: &'static str, hint: &'static str) -> ServiceError {
@@ -525,7 +614,7 @@ mod tests {
         let cancel = CancellationToken::new();
         let worker = Worker::new(
             "s".into(),
-            world,
+            Origin::Built(Box::new(world)),
             options,
             out,
             SharedDesign::default(),

@@ -29,6 +29,7 @@ use super::direct::Direct;
 use super::{SolidStep, finish_substep};
 use crate::cancel::{Cancel, Cancelled};
 use crate::linalg::cg::{self, Stopping, Termination};
+use crate::linalg::linop::par_sum;
 use crate::linalg::{LinOp, Parallel, Precond, Space};
 use crate::math::{Real, Vector};
 use rayon::prelude::*;
@@ -61,7 +62,7 @@ pub(in crate::solid) struct Implicit {
     direct: Direct,
     /// Whether [`LinearSolver::Auto`] has switched this body to Cholesky
     /// after CG failed to converge on it.
-    escalated: bool,
+    pub(in crate::solid) escalated: bool,
 }
 
 /// Most particles of a 3D body that [`LinearSolver::Auto`] switches to
@@ -433,12 +434,10 @@ fn objective(
         .zip(v_new)
         .for_each(|((out, x), v)| *out = x + v * dt);
     let potential = forces.evaluate(body, Some(x_new), Some(v_new), true);
-    let kinetic: Real = v_new
-        .par_iter()
-        .zip(&body.velocities)
-        .zip(&body.masses)
-        .map(|((a, b), m)| 0.5 * m * (a - b).norm_squared() - dt * m * gravity.dot(a))
-        .sum();
+    let kinetic = par_sum(v_new.len(), |i| {
+        let (a, b, m) = (&v_new[i], &body.velocities[i], body.masses[i]);
+        0.5 * m * (a - b).norm_squared() - dt * m * gravity.dot(a)
+    });
     kinetic + potential + dt * body.model().dissipation(v_new)
 }
 

@@ -1,0 +1,195 @@
+//! A world's state, for snapshots: the clock and each system's state,
+//! with what the world keeps around a system between steps (particles
+//! marked for removal, the energy the fluid started from). Restoring it
+//! into a world built from the same scene makes that world step on, bit
+//! for bit, as the one it was taken from.
+
+use super::system::System;
+use super::{Clock, World};
+use crate::fluid::FluidSnapshot;
+use crate::math::Real;
+use crate::snapshot::{SnapshotError, check_finite};
+use crate::solid::SolidSnapshot;
+
+/// Everything a world's next steps read from its past.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WorldState {
+    /// Steps completed and simulated time.
+    pub clock: Clock,
+    /// One per particle system, in step order (the fluid first, then the
+    /// solids in scene order).
+    pub systems: Vec<SystemState>,
+}
+
+/// One system's state, with its index in the scene.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SystemState {
+    /// The fluid and its rigid bodies.
+    Fluid {
+        /// Index of the system in the scene.
+        index: usize,
+        /// The particles and bodies.
+        fluid: FluidSnapshot,
+        /// Particle ids marked for removal at the next step.
+        removals: Vec<u32>,
+        /// The energy watch's start `(E_0, scale)`, if measured.
+        energy_start: Option<(Real, Real)>,
+    },
+    /// An elastic solid.
+    Solid {
+        /// Index of the system in the scene.
+        index: usize,
+        /// Its particles.
+        solid: SolidSnapshot,
+    },
+}
+
+impl SystemState {
+    /// Index of the system in the scene.
+    pub fn index(&self) -> usize {
+        match self {
+            Self::Fluid { index, .. } | Self::Solid { index, .. } => *index,
+        }
+    }
+}
+
+/// Why a state cannot be restored into a world.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StateError {
+    /// The systems differ in number, kind or index from the world's.
+    #[error(
+        "the snapshot's systems ({got}) are not the scene's particle systems ({expected}): it \
+         was taken in another scene"
+    )]
+    Systems {
+        /// The world's systems, e.g. "fluid 0, solid 1".
+        expected: String,
+        /// The snapshot's.
+        got: String,
+    },
+    /// The clock's time is not finite.
+    #[error("the snapshot's time is not finite ({time})")]
+    Time {
+        /// The time it holds.
+        time: Real,
+    },
+    /// One system's state does not fit it.
+    #[error("systems[{system}]: {source}")]
+    System {
+        /// Index of the system in the scene.
+        system: usize,
+        /// What does not fit.
+        source: SnapshotError,
+    },
+}
+
+/// "fluid 0, solid 1" for a list of systems.
+fn describe<'a>(systems: impl Iterator<Item = (&'static str, usize)> + 'a) -> String {
+    let names: Vec<String> = systems.map(|(k, i)| format!("{k} {i}")).collect();
+    if names.is_empty() {
+        "none".into()
+    } else {
+        names.join(", ")
+    }
+}
+
+impl World {
+    /// The world's state, for a snapshot (call between steps).
+    pub fn state(&self) -> WorldState {
+        let systems = self
+            .systems
+            .iter()
+            .map(|system| match system {
+                System::Fluid(entry) => SystemState::Fluid {
+                    index: entry.index,
+                    fluid: entry.fluid.snapshot(),
+                    removals: entry.removal.marked_ids(),
+                    energy_start: entry.watch.start(),
+                },
+                System::Solid(entry) => SystemState::Solid {
+                    index: entry.index,
+                    solid: entry.solid.snapshot(),
+                },
+            })
+            .collect();
+        WorldState {
+            clock: self.clock,
+            systems,
+        }
+    }
+
+    /// This world, built from the scene `state` was taken in, moved to
+    /// `state`. Taking the world by value means a state that fails part
+    /// of the way leaves no half-restored world behind.
+    ///
+    /// # Errors
+    /// [`StateError`] when the state is not one of this scene's: other
+    /// systems, counts, ids, or values that are not finite.
+    pub fn restored(mut self, state: &WorldState) -> Result<World, StateError> {
+        let kinds = |s: &System| match s {
+            System::Fluid(f) => ("fluid", f.index),
+            System::Solid(s) => ("solid", s.index),
+        };
+        let state_kinds = |s: &SystemState| match s {
+            SystemState::Fluid { index, .. } => ("fluid", *index),
+            SystemState::Solid { index, .. } => ("solid", *index),
+        };
+        let matches = self.systems.len() == state.systems.len()
+            && self
+                .systems
+                .iter()
+                .zip(&state.systems)
+                .all(|(a, b)| kinds(a) == state_kinds(b));
+        let mismatch = StateError::Systems {
+            expected: describe(self.systems.iter().map(kinds)),
+            got: describe(state.systems.iter().map(state_kinds)),
+        };
+        if !matches {
+            return Err(mismatch);
+        }
+        if !state.clock.time.is_finite() {
+            return Err(StateError::Time {
+                time: state.clock.time,
+            });
+        }
+        for (system, saved) in self.systems.iter_mut().zip(&state.systems) {
+            let at = |source| StateError::System {
+                system: saved.index(),
+                source,
+            };
+            match (system, saved) {
+                (
+                    System::Fluid(entry),
+                    SystemState::Fluid {
+                        fluid,
+                        removals,
+                        energy_start,
+                        ..
+                    },
+                ) => {
+                    entry.fluid.restore_snapshot(fluid).map_err(at)?;
+                    let ids: Vec<usize> = removals.iter().map(|&id| id as usize).collect();
+                    let count = fluid.ids.len();
+                    entry.removal.mark(entry.index, count, &ids).map_err(|_| {
+                        at(SnapshotError::Length {
+                            what: "removals (ids beyond the particle count)",
+                            expected: count,
+                            got: ids.iter().copied().max().map_or(0, |m| m + 1),
+                        })
+                    })?;
+                    if let Some((e0, scale)) = *energy_start {
+                        check_finite("energy start", &[e0, scale]).map_err(at)?;
+                    }
+                    entry.watch.set_start(*energy_start);
+                }
+                (System::Solid(entry), SystemState::Solid { solid, .. }) => {
+                    entry.solid.restore_snapshot(solid).map_err(at)?;
+                }
+                // The kinds were matched above.
+                (System::Fluid(_) | System::Solid(_), _) => return Err(mismatch),
+            }
+        }
+        self.clock = state.clock;
+        Ok(self)
+    }
+}
