@@ -1,10 +1,12 @@
 //! `meshless session …`: one subcommand per gRPC call.
 
 use crate::command::ServerArg;
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Subcommand;
-use meshless_client::v1;
+use indicatif::{ProgressBar, ProgressStyle};
+use meshless_client::{Client, v1};
 use std::path::PathBuf;
+use tokio_stream::StreamExt;
 
 #[derive(Debug, clap::Args)]
 pub struct SessionArgs {
@@ -55,6 +57,35 @@ enum Action {
     Reset { id: String },
     /// Delete a session.
     Delete { id: String },
+    /// Take many steps with a progress bar (SimulateSteps); Ctrl-C stops
+    /// at the last completed step.
+    Simulate {
+        id: String,
+        #[arg(short = 'n', long)]
+        steps: u64,
+        /// Seconds between progress reports.
+        #[arg(long, default_value_t = 0.2)]
+        interval: f64,
+    },
+    /// Save a snapshot of the session's state to a file.
+    Snapshot {
+        id: String,
+        /// Where to write it (replaced whole: written beside it, then
+        /// renamed).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Restore a snapshot file into a new session, or into `--into`.
+    Restore {
+        file: PathBuf,
+        /// An existing session of the same scene to restore into.
+        #[arg(long)]
+        into: Option<String>,
+        /// Who else may see a new session (repeat it; "*" for every
+        /// caller); unset keeps the snapshot's observers.
+        #[arg(long = "observer")]
+        observers: Vec<String>,
+    },
 }
 
 fn state(status: Option<&v1::SessionStatus>) -> String {
@@ -131,6 +162,84 @@ pub async fn session(args: SessionArgs) -> Result<()> {
             client.delete_session(&id).await?;
             outln!("deleted {id}")?;
         }
+        Action::Simulate {
+            id,
+            steps,
+            interval,
+        } => simulate(&client, &id, steps, interval).await?,
+        Action::Snapshot { id, output } => {
+            let snapshot = client.snapshot(&id).await?;
+            write_whole(&output, &snapshot.data)
+                .with_context(|| format!("cannot write {}", output.display()))?;
+            outln!(
+                "{}: snapshot of {id} at step {} (t = {:.4} s), {} bytes",
+                output.display(),
+                snapshot.step,
+                snapshot.time,
+                snapshot.data.len()
+            )?;
+        }
+        Action::Restore {
+            file,
+            into,
+            observers,
+        } => {
+            let data =
+                std::fs::read(&file).with_context(|| format!("cannot read {}", file.display()))?;
+            let observers = (!observers.is_empty()).then_some(observers);
+            let session = client.restore(data, into.as_deref(), observers).await?;
+            print_session(&session)?;
+        }
+    }
+    Ok(())
+}
+
+/// `data` written to `path` whole or not at all: a temporary file beside
+/// it, flushed, then renamed over it.
+fn write_whole(path: &std::path::Path, data: &[u8]) -> std::io::Result<()> {
+    let mut temporary = path.as_os_str().to_owned();
+    temporary.push(".tmp");
+    let temporary = PathBuf::from(temporary);
+    let mut file = std::fs::File::create(&temporary)?;
+    std::io::Write::write_all(&mut file, data)?;
+    file.sync_all()?;
+    std::fs::rename(&temporary, path)
+}
+
+/// Steps with a progress bar; Ctrl-C drops the stream, which stops the
+/// session at its last completed step.
+async fn simulate(client: &Client, id: &str, steps: u64, interval: f64) -> Result<()> {
+    let mut stream = client.simulate_steps(id, steps, interval).await?;
+    let bar = ProgressBar::new(steps).with_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} steps  {msg}  [{elapsed} < {eta}]")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut last = None;
+    loop {
+        let next = tokio::select! {
+            next = stream.next() => next,
+            _ = tokio::signal::ctrl_c() => {
+                bar.abandon_with_message("interrupted");
+                drop(stream);
+                let session = client.get_session(id).await?;
+                return print_session(&session).map_err(Into::into);
+            }
+        };
+        let Some(progress) = next else { break };
+        let progress = progress?;
+        bar.set_position(progress.steps_done);
+        bar.set_message(format!("{:.3}x real time", progress.realtime_factor));
+        last = Some(progress);
+    }
+    bar.finish();
+    let Some(last) = last else {
+        anyhow::bail!("the server ended the call without a report");
+    };
+    if let Some(status) = &last.status {
+        outln!("{} steps; {}", last.steps_done, state(Some(status)))?;
+    }
+    if !last.done {
+        anyhow::bail!("stopped after {} of {steps} steps", last.steps_done);
     }
     Ok(())
 }

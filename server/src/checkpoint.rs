@@ -10,6 +10,7 @@
 //! that has not changed since its last checkpoint is not written again;
 //! a deleted session's checkpoint is removed with it.
 
+use crate::metrics::Metrics;
 use crate::registry::Registry;
 use crate::session::{Access, Decoded, Session, encode_snapshot};
 use std::collections::HashMap;
@@ -54,6 +55,7 @@ pub struct Checkpoints {
     written: Mutex<HashMap<String, Fingerprint>>,
     /// When the last round finished, for the checkpoint-age metric.
     last_round: Mutex<Option<SystemTime>>,
+    metrics: Arc<Metrics>,
     /// Held by the round in progress: the periodic one and the last one
     /// of a shutdown never write the same file at once.
     writing: tokio::sync::Mutex<()>,
@@ -65,7 +67,12 @@ impl Checkpoints {
     ///
     /// # Errors
     /// A directory that cannot be created.
-    pub fn new(dir: &Path, interval: Duration, limit: usize) -> std::io::Result<Self> {
+    pub fn new(
+        dir: &Path,
+        interval: Duration,
+        limit: usize,
+        metrics: Arc<Metrics>,
+    ) -> std::io::Result<Self> {
         std::fs::create_dir_all(dir)?;
         Ok(Self {
             dir: dir.to_owned(),
@@ -73,12 +80,21 @@ impl Checkpoints {
             limit,
             written: Mutex::default(),
             last_round: Mutex::default(),
+            metrics,
             writing: tokio::sync::Mutex::default(),
         })
     }
 
     fn written(&self) -> std::sync::MutexGuard<'_, HashMap<String, Fingerprint>> {
         self.written
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// When the last round finished, if one has.
+    pub fn last_round(&self) -> Option<SystemTime> {
+        *self
+            .last_round
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
@@ -119,6 +135,7 @@ impl Checkpoints {
                             "session restored from its checkpoint"
                         );
                         restored += 1;
+                        self.metrics.restore();
                     }
                     Err(e) => {
                         let aside = path.with_extension(REJECTED);
@@ -173,6 +190,7 @@ impl Checkpoints {
             match self.write(session).await {
                 Ok(bytes) => {
                     tracing::debug!(session = %session.id, bytes, "checkpoint written");
+                    self.metrics.snapshot();
                     self.written().insert(session.id.clone(), print);
                 }
                 Err(e) => tracing::warn!(session = %session.id, "checkpoint not written: {e}"),

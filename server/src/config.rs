@@ -183,6 +183,11 @@ pub struct ServerConfig {
     #[arg(long, env = "MESHLESS_MEMORY_BUDGET_MB")]
     pub memory_budget_mb: Option<u64>,
 
+    /// Address of the Prometheus metrics endpoint (`GET /metrics`); port
+    /// 0 picks a free port. Unset: no endpoint.
+    #[arg(long, env = "MESHLESS_METRICS_ADDR")]
+    pub metrics_addr: Option<SocketAddr>,
+
     /// Largest snapshot blob, in MB: Snapshot refuses to make a larger
     /// one and Restore to read one; the response limit grows to hold one,
     /// while a Restore request must also fit `--max-request-mb`.
@@ -318,6 +323,7 @@ impl ServerConfig {
             mesh_dir: None,
             max_mesh_mb: DEFAULT_MAX_MESH_MB,
             memory_budget_mb: None,
+            metrics_addr: None,
             max_snapshot_mb: DEFAULT_MAX_SNAPSHOT_MB,
             checkpoint_dir: None,
             checkpoint_interval: DEFAULT_CHECKPOINT_INTERVAL,

@@ -12,8 +12,11 @@ mod auth;
 mod checkpoint;
 mod codes;
 pub mod config;
+pub mod config_file;
 mod error;
 mod listener;
+mod metrics;
+mod metrics_layer;
 mod pubsub;
 mod registry;
 mod service;
@@ -54,6 +57,8 @@ pub struct RunningServer {
     pub grpc_addr: SocketAddr,
     /// The zenoh endpoints the server listens on.
     pub zenoh_locators: Vec<String>,
+    /// The bound metrics address, when the server serves metrics.
+    pub metrics_addr: Option<SocketAddr>,
     shutdown: CancellationToken,
     task: tokio::task::JoinHandle<Result<()>>,
 }
@@ -111,6 +116,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
     let shutdown = CancellationToken::new();
     let sessions_stop = CancellationToken::new();
     let sealed = config.seals(tokens.is_some());
+    let metrics = Arc::new(metrics::Metrics::new());
     let registry = Arc::new(Registry::new(
         zenoh.clone(),
         sealed,
@@ -120,6 +126,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         // Cancelled once the last checkpoint round is written (see the
         // serving task), not with `shutdown` itself.
         sessions_stop.clone(),
+        metrics.clone(),
     ));
     let checkpoints = match &config.checkpoint_dir {
         Some(dir) => {
@@ -127,12 +134,18 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
                 dir,
                 config.checkpoint_period(),
                 config.max_snapshot_bytes(),
+                metrics.clone(),
             )
             .with_context(|| format!("cannot create --checkpoint-dir {}", dir.display()))?;
             let restored = checkpoints.restore_all(&registry).await;
             tracing::info!(dir = %dir.display(), restored, "checkpoints");
             Some(Arc::new(checkpoints))
         }
+        None => None,
+    };
+    metrics.watch(&registry, checkpoints.clone());
+    let metrics_addr = match config.metrics_addr {
+        Some(addr) => Some(serve_metrics(addr, metrics.clone(), shutdown.child_token()).await?),
         None => None,
     };
     let info = v1::ServerInfo {
@@ -159,6 +172,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         registry.clone(),
         info,
         checkpoints.clone(),
+        metrics.clone(),
         shutdown.clone(),
     ))
     .max_decoding_message_size(config.max_request_bytes())
@@ -211,6 +225,8 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
     };
     let task = tokio::spawn(async move {
         let served = grpc
+            // Outermost: it sees the codes as recoded below.
+            .layer(metrics_layer::RecordLayer(metrics))
             .layer(tower::util::MapResponseLayer::new(codes::recode))
             .add_service(health)
             .add_service(reflection)
@@ -230,6 +246,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
     Ok(RunningServer {
         grpc_addr,
         zenoh_locators,
+        metrics_addr,
         shutdown,
         task,
     })
@@ -242,14 +259,56 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
 /// See [`start`].
 pub async fn serve_until_signal(config: ServerConfig) -> Result<()> {
     let server = start(config).await?;
+    let metrics = server
+        .metrics_addr
+        .map(|addr| format!(" metrics={addr}"))
+        .unwrap_or_default();
     println!(
-        "meshless-server ready grpc={} zenoh={}",
+        "meshless-server ready grpc={} zenoh={}{metrics}",
         server.grpc_addr,
         server.zenoh_locators.join(",")
     );
     shutdown_signal().await?;
     tracing::info!("shutting down");
     server.stop().await
+}
+
+/// Serves `GET /metrics` on `addr` until `stop`; returns the bound
+/// address.
+async fn serve_metrics(
+    addr: SocketAddr,
+    metrics: Arc<metrics::Metrics>,
+    stop: CancellationToken,
+) -> Result<SocketAddr> {
+    let listener = tokio::net::TcpListener::bind(addr)
+        .await
+        .with_context(|| format!("cannot bind the metrics address {addr}"))?;
+    let bound = listener.local_addr()?;
+    let app = axum::Router::new().route(
+        "/metrics",
+        axum::routing::get(move || {
+            let metrics = metrics.clone();
+            async move {
+                (
+                    [(
+                        axum::http::header::CONTENT_TYPE,
+                        "text/plain; version=0.0.4; charset=utf-8",
+                    )],
+                    metrics.encode(),
+                )
+            }
+        }),
+    );
+    tokio::spawn(async move {
+        let served = axum::serve(listener, app)
+            .with_graceful_shutdown(stop.cancelled_owned())
+            .await;
+        if let Err(e) = served {
+            tracing::error!("metrics endpoint: {e}");
+        }
+    });
+    tracing::info!(%bound, "metrics at /metrics");
+    Ok(bound)
 }
 
 async fn shutdown_signal() -> Result<()> {

@@ -1,6 +1,7 @@
 //! The sessions a server holds, by id, within its limits.
 
 use crate::error::{ServiceError, quote};
+use crate::metrics::Metrics;
 use crate::session::{Access, Decoded, Origin, Outlet, Session};
 use meshless_engine::{BuildOptions, Scene};
 use meshless_proto::seal::Sealer;
@@ -22,6 +23,7 @@ pub struct Registry {
     serial: AtomicU64,
     ids: RandomState,
     cancel: CancellationToken,
+    metrics: Arc<Metrics>,
 }
 
 impl Registry {
@@ -32,6 +34,7 @@ impl Registry {
         max_sessions: u32,
         memory_budget: u64,
         cancel: CancellationToken,
+        metrics: Arc<Metrics>,
     ) -> Self {
         Self {
             sessions: RwLock::default(),
@@ -47,6 +50,7 @@ impl Registry {
             serial: AtomicU64::new(0),
             ids: RandomState::new(),
             cancel,
+            metrics,
         }
     }
 
@@ -168,6 +172,7 @@ impl Registry {
         let outlet = Outlet {
             zenoh: self.zenoh.clone(),
             sealer,
+            metrics: self.metrics.clone(),
         };
         let started = Session::start(
             id.clone(),

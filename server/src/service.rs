@@ -5,6 +5,7 @@
 use crate::auth::{Caller, caller};
 use crate::checkpoint::Checkpoints;
 use crate::error::ServiceError;
+use crate::metrics::Metrics;
 use crate::registry::Registry;
 use crate::session::{
     Access, Command, Decoded, OptimizeJob, Problem, RunTarget, Session, Simulate, check_observers,
@@ -46,6 +47,7 @@ pub struct SimulationService {
     /// Where deleted sessions' checkpoints are removed, when the server
     /// keeps any.
     checkpoints: Option<Arc<Checkpoints>>,
+    metrics: Arc<Metrics>,
     shutdown: CancellationToken,
 }
 
@@ -54,12 +56,14 @@ impl SimulationService {
         registry: Arc<Registry>,
         info: v1::ServerInfo,
         checkpoints: Option<Arc<Checkpoints>>,
+        metrics: Arc<Metrics>,
         shutdown: CancellationToken,
     ) -> Self {
         Self {
             registry,
             info,
             checkpoints,
+            metrics,
             shutdown,
         }
     }
@@ -116,6 +120,25 @@ fn constraint_list(constraints: &[Constraint]) -> v1::ConstraintList {
     v1::ConstraintList {
         constraints: constraints.iter().map(constraint_to_proto).collect(),
     }
+}
+
+/// When the caller stops waiting, from its `grpc-timeout` header.
+fn deadline_of<T>(request: &Request<T>) -> Option<std::time::Instant> {
+    request
+        .metadata()
+        .get("grpc-timeout")
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| grpc_deadline(v, std::time::Instant::now()))
+}
+
+/// When a unary handler answers DEADLINE_EXCEEDED itself: a little before
+/// `deadline`, since tonic's timer on the same header started first and
+/// answers CANCELLED when it fires.
+fn answer_by(deadline: Option<std::time::Instant>) -> Option<std::time::Instant> {
+    const MARGIN: std::time::Duration = std::time::Duration::from_millis(20);
+    let deadline = deadline?;
+    let left = deadline.saturating_duration_since(std::time::Instant::now());
+    Some(deadline - MARGIN.min(left / 2))
 }
 
 /// The engine job of an `Optimize` request.
@@ -228,6 +251,7 @@ impl Simulation for SimulationService {
 
     async fn step(&self, request: Request<v1::StepRequest>) -> Reply<v1::Session> {
         let caller = caller(&request)?;
+        let deadline = deadline_of(&request);
         let v1::StepRequest { session_id, steps } = request.into_inner();
         if steps == 0 || steps > MAX_STEPS_PER_CALL {
             return Err(ServiceError::invalid(
@@ -236,10 +260,20 @@ impl Simulation for SimulationService {
             )
             .into());
         }
-        Ok(Response::new(
-            self.command(&session_id, &caller, "step", Command::Step(steps))
-                .await?,
-        ))
+        // Answered before tonic's own timer, which would say CANCELLED:
+        // dropping the command stops it at its step in progress.
+        let step = self.command(&session_id, &caller, "step", Command::Step(steps));
+        match answer_by(deadline) {
+            Some(at) => match tokio::time::timeout_at(at.into(), step).await {
+                Ok(session) => Ok(Response::new(session?)),
+                Err(_) => Err(Status::deadline_exceeded(
+                    "the call's deadline passed while stepping; the session stopped at its last \
+                     completed step (GetSession has it): give a longer deadline or fewer steps, \
+                     or use SimulateSteps for progress",
+                )),
+            },
+            None => Ok(Response::new(step.await?)),
+        }
     }
 
     async fn run(&self, request: Request<v1::RunRequest>) -> Reply<v1::Session> {
@@ -482,11 +516,7 @@ impl Simulation for SimulationService {
         let caller = caller(&request)?;
         // tonic ends a call at its deadline only until the answer's
         // headers go out; a stream keeps to it here.
-        let deadline = request
-            .metadata()
-            .get("grpc-timeout")
-            .and_then(|v| v.to_str().ok())
-            .and_then(|v| grpc_deadline(v, std::time::Instant::now()));
+        let deadline = deadline_of(&request);
         let v1::SimulateStepsRequest {
             session_id,
             steps,
@@ -521,6 +551,7 @@ impl Simulation for SimulationService {
             .await
             .map_err(|e| ServiceError::Internal(format!("snapshot encoding failed: {e}")))??;
         tracing::info!(session = %session.id, step, bytes = data.len(), "snapshot taken");
+        self.metrics.snapshot();
         Ok(Response::new(v1::SessionSnapshot {
             session_id: session.id.clone(),
             step,
@@ -570,6 +601,7 @@ impl Simulation for SimulationService {
             owner = %caller.principal,
             "snapshot restored"
         );
+        self.metrics.restore();
         Ok(Response::new(session.to_proto()))
     }
 }

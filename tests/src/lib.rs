@@ -80,6 +80,8 @@ pub struct ServerProcess {
     pub grpc_url: String,
     /// The zenoh endpoints it listens on.
     pub zenoh: Vec<String>,
+    /// `http://ADDR/metrics`, when it serves metrics (`--metrics-addr`).
+    pub metrics_url: Option<String>,
 }
 
 impl ServerProcess {
@@ -124,17 +126,21 @@ impl ServerProcess {
         tokio::spawn(async move { while let Ok(Some(_)) = lines.next_line().await {} });
         let mut grpc_url = None;
         let mut zenoh = Vec::new();
+        let mut metrics_url = None;
         for part in ready.split_whitespace() {
             if let Some(addr) = part.strip_prefix("grpc=") {
                 grpc_url = Some(format!("http://{addr}"));
             } else if let Some(endpoints) = part.strip_prefix("zenoh=") {
                 zenoh = endpoints.split(',').map(str::to_owned).collect();
+            } else if let Some(addr) = part.strip_prefix("metrics=") {
+                metrics_url = Some(format!("http://{addr}/metrics"));
             }
         }
         Ok(Self {
             child,
             grpc_url: grpc_url.context("ready line without grpc=")?,
             zenoh,
+            metrics_url,
         })
     }
 

@@ -311,7 +311,8 @@ const MESHLESS_SUBCOMMANDS: &[&str] = &[
 
 /// The actions of `meshless session`.
 const SESSION_ACTIONS: &[&str] = &[
-    "create", "list", "get", "step", "run", "pause", "resume", "reset", "delete",
+    "create", "list", "get", "step", "run", "pause", "resume", "reset", "delete", "simulate",
+    "snapshot", "restore",
 ];
 
 /// Inline code spans (whitespace collapsed) and fenced lines of a Markdown

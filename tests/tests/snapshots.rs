@@ -507,6 +507,30 @@ async fn simulate_steps_reports_progress_and_stops_at_a_completed_step() {
         .expect("stepped");
     assert_eq!(frame(&client, &id).await, frame(&client, &twin).await);
 
+    // A unary Step past its deadline is DEADLINE_EXCEEDED too, and the
+    // session stays at a completed step.
+    let mut grpc = v1::simulation_client::SimulationClient::connect(server.grpc_url.clone())
+        .await
+        .expect("connects");
+    let mut request = tonic::Request::new(v1::StepRequest {
+        session_id: id.clone(),
+        steps: 1_000_000,
+    });
+    request.set_timeout(Duration::from_millis(400));
+    let err = within("a step past its deadline", grpc.step(request))
+        .await
+        .expect_err("past the deadline");
+    assert_eq!(err.code(), Code::DeadlineExceeded, "{}", err.message());
+    let after = within("a step after", client.step(&id, 1))
+        .await
+        .expect("stepped")
+        .status
+        .expect("status");
+    within("step", client.step(&twin, after.step - status.step))
+        .await
+        .expect("stepped");
+    assert_eq!(frame(&client, &id).await, frame(&client, &twin).await);
+
     // Bad numbers are refused up front.
     for (steps, interval) in [(0, 0.0), (5, 0.001), (5, -1.0)] {
         let err = within("simulate", client.simulate_steps(&id, steps, interval))

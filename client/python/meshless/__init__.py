@@ -1,28 +1,66 @@
 """Python client of meshless.
 
-The gRPC messages and stubs of package ``meshless.v1`` are generated from
-``proto/meshless/v1/*.proto`` into ``meshless/v1`` (``scripts/test`` does it
-with ``grpc_tools.protoc -I proto``). Frames arrive over zenoh;
-:func:`decode_frame` turns one into numpy arrays without per-particle
-parsing, and raises ``ValueError`` for any malformed payload.
-:class:`Client` drives a server over gRPC and :class:`Frames` subscribes
-to a session's frames, dropping and counting samples that are malformed or
-name another session, and opening sealed ones with the session's key
-(:class:`Seal`).
+- :class:`Client` (synchronous) and :class:`AsyncClient` (asyncio) wrap
+  every call of the gRPC service ``meshless.v1.Simulation`` with keyword
+  arguments, per-call deadlines, bearer tokens, client instances and TLS;
+  every failure raises :class:`MeshlessError` with the gRPC ``code`` and
+  the server's ``details``.
+- :class:`Frames` (and :class:`AsyncFrames`) subscribe to a session's
+  frames over zenoh: an iterator, a callback, the latest-frame query. Each
+  sample is checked (key, session, sealing) and decoded by
+  :func:`decode_frame` into numpy arrays that view the payload without a
+  copy; a malformed payload raises ``ValueError``.
+- :mod:`meshless.scene` builds scenes from dicts and TOML files;
+  :mod:`meshless.design` builds constraints and design problems.
+
+The protocol's messages and stubs, ``meshless.v1``, are generated from
+``proto/meshless/v1/*.proto`` when the package is built
+(``pip install ./client/python``).
 """
 
-from .frames import Body, Frame, SolidRange, SolidSurface, Surface, decode_frame, frames_key, latest_key, status_key
+from .aio import AsyncClient, AsyncStream
+from .client import Client, Stream, state_name, state_value
+from .design import Design, Problem
+from .errors import MeshlessError
+from .frames import (
+    Body,
+    Frame,
+    SolidRange,
+    SolidSurface,
+    Surface,
+    decode_frame,
+    frames_key,
+    latest_key,
+    status_key,
+)
+from .scene import load_scene, scene_toml
 from .seal import Seal
+from .subscriber import AsyncFrames, Frames
 
+__version__ = "0.1.0"
 
-def __getattr__(name: str):
-    # The client needs the generated modules; import it lazily so that
-    # `decode_frame` works before they are generated.
-    if name in ("Client", "Design", "Frames"):
-        from . import client
-
-        return getattr(client, name)
-    raise AttributeError(name)
-
-
-__all__ = ["Body", "Client", "Design", "Frame", "Frames", "Seal", "SolidRange", "SolidSurface", "Surface", "decode_frame", "frames_key", "latest_key", "status_key"]
+__all__ = [
+    "AsyncClient",
+    "AsyncFrames",
+    "AsyncStream",
+    "Body",
+    "Client",
+    "Design",
+    "Frame",
+    "Frames",
+    "MeshlessError",
+    "Problem",
+    "Seal",
+    "SolidRange",
+    "SolidSurface",
+    "Stream",
+    "Surface",
+    "decode_frame",
+    "frames_key",
+    "latest_key",
+    "load_scene",
+    "scene_toml",
+    "state_name",
+    "state_value",
+    "status_key",
+]

@@ -1,127 +1,137 @@
-"""A small synchronous client: gRPC control and zenoh frames."""
+"""The synchronous client: every call of ``meshless.v1.Simulation`` over
+gRPC, and the session's frames over zenoh."""
 
 from __future__ import annotations
 
-import collections
-import json
-import queue
-import threading
-from collections import Counter
-from dataclasses import dataclass
-from pathlib import Path
-from typing import Callable, Iterable
+from collections.abc import Callable, Collection, Iterable, Iterator
+from typing import Any, Generic, TypeVar
 
 import grpc
-import numpy as np
-import zenoh
 
-from .frames import Frame, decode_frame, frames_key, latest_key, parse_frame, unpack_frame
-from .seal import Seal
+from .connection import (
+    DEFAULT_TARGET,
+    DEFAULT_TIMEOUT,
+    Connection,
+    Pem,
+    Scene,
+    constraint_edits,
+    create_session_request,
+    deadline,
+    restore_request,
+    run_request,
+    session_id_of,
+    simulate_steps_request,
+)
+from .design import Design, optimize_request
+from .errors import MeshlessError, call_error, deadline_at
+from .frames import Frame, decode_frame
+from .subscriber import FrameCallback, Frames
 
-DEFAULT_TIMEOUT = 30.0
+__all__ = ["Client", "Design", "Frames", "Stream", "state_name", "state_value"]
 
+T = TypeVar("T")
+U = TypeVar("U")
 
-@dataclass
-class Design:
-    """A solved design: the design particles' rest positions and their
-    displacements per frame, as numpy arrays (lengths checked)."""
-
-    session_id: str
-    system: int
-    kind: str
-    info: object
-    rest_positions: np.ndarray
-    times: np.ndarray
-    displacements: np.ndarray
-
-    @classmethod
-    def from_proto(cls, result) -> "Design":
-        from .v1 import design_pb2
-
-        rest = np.asarray(result.rest_positions, dtype=np.float64)
-        times = np.asarray(result.times, dtype=np.float64)
-        values = np.asarray(result.displacements, dtype=np.float64)
-        if rest.size % 3 or times.size == 0 or values.size != rest.size * times.size:
-            raise ValueError(
-                f"malformed design: {rest.size} rest coordinates, {times.size} times, "
-                f"{values.size} displacement values"
-            )
-        n = rest.size // 3
-        kind = design_pb2.DesignKind.Name(result.kind).removeprefix("DESIGN_KIND_").lower()
-        return cls(
-            session_id=result.session_id,
-            system=result.system,
-            kind=kind,
-            info=result.info,
-            rest_positions=rest.reshape(n, 3),
-            times=times,
-            displacements=values.reshape(times.size, n, 3),
-        )
-
-    def positions(self, frame: int) -> np.ndarray:
-        """The design particles' positions at ``frame``."""
-        return self.rest_positions + self.displacements[frame]
+# The raw GetLatestFrame call: its answer as bytes, which the frame's
+# arrays then view (decode_frame) instead of a parsed message's copies.
+_LATEST_FRAME = "/meshless.v1.Simulation/GetLatestFrame"
 
 
-class _CallDetails(
-    collections.namedtuple(
-        "_CallDetails",
-        ("method", "timeout", "metadata", "credentials", "wait_for_ready", "compression"),
-    ),
-    grpc.ClientCallDetails,
-):
-    """A call's details with metadata added."""
+def state_name(state: Any) -> str:
+    """A ``SessionState`` (a number, or a ``SessionStatus`` or ``Session``
+    message) as its short name: ``"idle"``, ``"running"``, ``"paused"``,
+    ``"finished"``, ``"faulted"``, ``"closed"``."""
+    from .v1 import simulation_pb2 as pb
+
+    if hasattr(state, "status"):
+        state = state.status
+    if hasattr(state, "state"):
+        state = state.state
+    return pb.SessionState.Name(state).removeprefix("SESSION_STATE_").lower()
 
 
-class _Identity(grpc.UnaryUnaryClientInterceptor, grpc.UnaryStreamClientInterceptor):
-    """Puts the token, client id and take-over flag on every call."""
+def state_value(name: str | int) -> int:
+    """A ``SessionState`` number from its short name (``"finished"``)."""
+    from .v1 import simulation_pb2 as pb
 
-    def __init__(self, metadata: list[tuple[str, str]]):
-        self._metadata = metadata
+    if isinstance(name, int):
+        return name
+    return pb.SessionState.Value("SESSION_STATE_" + name.upper())
 
-    def _details(self, details):
-        return _CallDetails(
-            details.method,
-            details.timeout,
-            list(details.metadata or []) + self._metadata,
-            details.credentials,
-            details.wait_for_ready,
-            details.compression,
-        )
 
-    def intercept_unary_unary(self, continuation, details, request):
-        return continuation(self._details(details), request)
+class Stream(Generic[T]):
+    """A server stream: iterate it for its messages; :meth:`cancel` (or
+    leaving a ``with`` block) stops it, after which iteration ends
+    quietly. A failure raises :class:`MeshlessError`."""
 
-    def intercept_unary_stream(self, continuation, details, request):
-        return continuation(self._details(details), request)
+    def __init__(
+        self,
+        call: Any,
+        convert: Callable[[Any], T] = lambda m: m,
+        ends_at: float | None = None,
+    ):
+        self._call = call
+        self._convert = convert
+        self._ends_at = ends_at
+        self._cancelled = False
+
+    def __iter__(self) -> Iterator[T]:
+        try:
+            for message in self._call:
+                yield self._convert(message)
+        except grpc.RpcError as e:
+            if self._cancelled and e.code() == grpc.StatusCode.CANCELLED:
+                return
+            raise call_error(e, self._ends_at) from None
+
+    def cancel(self) -> None:
+        """Stops the stream (the server sees the call cancelled)."""
+        self._cancelled = True
+        self._call.cancel()
+
+    def __enter__(self) -> "Stream[T]":
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.cancel()
 
 
 class Client:
     """Drives a meshless server over gRPC.
 
+    ``target`` is ``host:port``. ``timeout`` bounds the wait for the
+    connection and is the deadline of each call that takes none of its
+    own (a call's ``timeout=`` keyword); streams (``watch_status``,
+    ``simulate_steps``, ``optimize``) have no deadline unless given one.
     ``token`` is the bearer token of a server with tokens; ``client_id``
     names this client instance (one instance drives a session at a time);
     ``take_over`` takes control of sessions another instance drives.
     ``tls`` speaks TLS to a server started with ``--tls-cert``, checking
-    its certificate against ``tls_ca`` (PEM bytes; default: the system's
-    CAs) and the name ``tls_domain`` (default: the target's host); a
-    server with ``--tls-client-ca`` also wants ``tls_cert`` and
-    ``tls_key`` (PEM bytes). Any ``tls_*`` argument implies ``tls``.
-    Errors surface as ``grpc.RpcError`` with the server's status code and a
-    message that names what to change.
+    its certificate against ``tls_ca`` (default: the system's CAs) and the
+    name ``tls_domain`` (default: the target's host); a server with
+    ``--tls-client-ca`` also wants ``tls_cert`` and ``tls_key``. The PEM
+    values are bytes, text or a file path; any ``tls_*`` argument implies
+    ``tls``.
+
+    Sessions are named by their id or their ``Session`` message. Answers
+    are the protocol's messages (``meshless.v1``), frames a
+    :class:`meshless.Frame` of numpy arrays, designs a
+    :class:`meshless.Design`. Every failure raises
+    :class:`meshless.MeshlessError` with the gRPC code and the server's
+    message, ``UNAVAILABLE`` when no server answers within ``timeout``.
     """
 
     def __init__(
         self,
-        target: str = "127.0.0.1:50051",
+        target: str = DEFAULT_TARGET,
         timeout: float = DEFAULT_TIMEOUT,
         token: str | None = None,
         client_id: str | None = None,
         take_over: bool = False,
         tls: bool = False,
-        tls_ca: bytes | None = None,
-        tls_cert: bytes | None = None,
-        tls_key: bytes | None = None,
+        tls_ca: Pem | None = None,
+        tls_cert: Pem | None = None,
+        tls_key: Pem | None = None,
         tls_domain: str | None = None,
     ):
         from .v1 import simulation_pb2 as pb
@@ -129,309 +139,332 @@ class Client:
 
         self._pb = pb
         self._timeout = timeout
-        if (tls_cert is None) != (tls_key is None):
-            raise ValueError("tls_cert and tls_key go together: give both or neither")
-        if tls or any(x is not None for x in (tls_ca, tls_cert, tls_key, tls_domain)):
-            credentials = grpc.ssl_channel_credentials(
-                root_certificates=tls_ca, private_key=tls_key, certificate_chain=tls_cert
-            )
-            options = [] if tls_domain is None else [("grpc.ssl_target_name_override", tls_domain)]
-            self._channel = grpc.secure_channel(target, credentials, options=options)
+        self._connection = Connection.make(
+            target, token, client_id, take_over, tls, tls_ca, tls_cert, tls_key, tls_domain
+        )
+        c = self._connection
+        if c.credentials is not None:
+            self._channel = grpc.secure_channel(target, c.credentials, options=c.options)
         else:
-            self._channel = grpc.insecure_channel(target)
-        grpc.channel_ready_future(self._channel).result(timeout=timeout)
-        metadata = []
-        if token is not None:
-            metadata.append(("authorization", f"Bearer {token}"))
-        if client_id is not None:
-            metadata.append(("meshless-client", client_id))
-        if take_over:
-            metadata.append(("meshless-take-over", "true"))
-        channel = grpc.intercept_channel(self._channel, _Identity(metadata)) if metadata else self._channel
-        self._stub = simulation_pb2_grpc.SimulationStub(channel)
+            self._channel = grpc.insecure_channel(target, options=c.options)
+        try:
+            grpc.channel_ready_future(self._channel).result(timeout=timeout)
+        except grpc.FutureTimeoutError:
+            self._channel.close()
+            raise MeshlessError(
+                grpc.StatusCode.UNAVAILABLE,
+                f"no server answered at {target} within {timeout} s"
+                + (" (over TLS: is the CA right?)" if c.credentials is not None else ""),
+            ) from None
+        self._stub = simulation_pb2_grpc.SimulationStub(self._channel)
+        self._latest_frame = self._channel.unary_unary(
+            _LATEST_FRAME,
+            request_serializer=pb.SessionRef.SerializeToString,
+            response_deserializer=None,
+        )
+        self._info: Any = None
+
+    @property
+    def stub(self) -> Any:
+        """The generated ``SimulationStub``, for what this class does not
+        wrap; pass ``metadata=client.metadata`` to its calls."""
+        return self._stub
+
+    @property
+    def metadata(self) -> tuple[tuple[str, str], ...]:
+        """The metadata every call carries (token, client id, take-over)."""
+        return self._connection.metadata
 
     def close(self) -> None:
+        """Closes the channel; calls in flight are cancelled."""
         self._channel.close()
 
     def __enter__(self) -> "Client":
         return self
 
-    def __exit__(self, *_exc) -> None:
+    def __exit__(self, *_exc: object) -> None:
         self.close()
 
-    def server_info(self):
-        return self._stub.GetServerInfo(self._pb.GetServerInfoRequest(), timeout=self._timeout)
+    # --- plumbing ------------------------------------------------------------
 
-    def create_session(self, scene: str | Path, observers: Iterable[str] = ()):
-        """Creates a session from a TOML scene: a path or the text itself.
+    def _unary(self, method: Any, request: Any, timeout: float | None) -> Any:
+        timeout = deadline(self._timeout, timeout)
+        ends_at = deadline_at(timeout)
+        try:
+            return method(request, timeout=timeout, metadata=self._connection.metadata)
+        except grpc.RpcError as e:
+            raise call_error(e, ends_at) from None
+
+    def _stream(self, method: Any, request: Any, timeout: float | None) -> Stream[Any]:
+        ends_at = deadline_at(timeout)
+        call = method(request, timeout=timeout, metadata=self._connection.metadata)
+        return Stream(call, ends_at=ends_at)
+
+    def _ref(self, session: Any) -> Any:
+        return self._pb.SessionRef(session_id=session_id_of(session))
+
+    # --- sessions ------------------------------------------------------------
+
+    def server_info(self, *, timeout: float | None = None) -> Any:
+        """The server's ``ServerInfo``: version, limits, zenoh locators."""
+        self._info = self._unary(self._stub.GetServerInfo, self._pb.GetServerInfoRequest(), timeout)
+        return self._info
+
+    def create_session(
+        self, scene: Scene, observers: Iterable[str] = (), *, timeout: float | None = None
+    ) -> Any:
+        """Creates a session and returns its ``Session``. ``scene`` is TOML
+        text (a ``str``), a TOML file (a ``pathlib.Path``; its meshes go
+        inline), a dict (:mod:`meshless.scene`) or a ``SceneSpec`` message.
         ``observers`` names principals that may see it read-only (``"*"``:
-        everyone). Mesh files must come from the server's mesh directory or
-        travel in the scene (``data = { format, base64 }``)."""
-        text = Path(scene).read_text() if isinstance(scene, Path) else scene
-        request = self._pb.CreateSessionRequest(scene_toml=text, observers=list(observers))
-        return self._stub.CreateSession(request, timeout=self._timeout)
+        everyone). The server validates it: ``INVALID_ARGUMENT`` names the
+        bad field, ``RESOURCE_EXHAUSTED`` a limit passed."""
+        request = create_session_request(scene, observers)
+        return self._unary(self._stub.CreateSession, request, timeout)
 
-    def _ref(self, session_id: str):
-        return self._pb.SessionRef(session_id=session_id)
+    def get_session(self, session: Any, *, timeout: float | None = None) -> Any:
+        """The session's ``Session``: status and scene; NOT_FOUND if unknown."""
+        return self._unary(self._stub.GetSession, self._ref(session), timeout)
 
-    def get_session(self, session_id: str):
-        return self._stub.GetSession(self._ref(session_id), timeout=self._timeout)
-
-    def list_sessions(self):
+    def list_sessions(self, *, timeout: float | None = None) -> list[Any]:
         """Every session the caller may see, oldest first, without their
         scenes (``get_session`` has them)."""
-        return list(
-            self._stub.ListSessions(self._pb.ListSessionsRequest(), timeout=self._timeout).sessions
+        answer = self._unary(self._stub.ListSessions, self._pb.ListSessionsRequest(), timeout)
+        return list(answer.sessions)
+
+    def delete_session(self, session: Any, *, timeout: float | None = None) -> None:
+        """Stops and removes the session."""
+        self._unary(self._stub.DeleteSession, self._ref(session), timeout)
+
+    # --- stepping ------------------------------------------------------------
+
+    def step(self, session: Any, steps: int = 1, *, timeout: float | None = None) -> Any:
+        """Takes ``steps`` steps and returns the ``Session`` once done."""
+        request = self._pb.StepRequest(session_id=session_id_of(session), steps=steps)
+        return self._unary(self._stub.Step, request, timeout)
+
+    def run(
+        self,
+        session: Any,
+        *,
+        until: float | None = None,
+        forever: bool = False,
+        realtime_factor: float | None = None,
+        timeout: float | None = None,
+    ) -> Any:
+        """Starts stepping in the background, to simulated time ``until``
+        (then FINISHED) or ``forever`` (until paused); ``realtime_factor``
+        paces it (simulated seconds per second). Returns at once."""
+        request = run_request(session_id_of(session), until, forever, realtime_factor)
+        return self._unary(self._stub.Run, request, timeout)
+
+    def run_until(
+        self, session: Any, until: float, realtime_factor: float | None = None
+    ) -> Any:
+        """``run(session, until=until, realtime_factor=...)``."""
+        return self.run(session, until=until, realtime_factor=realtime_factor)
+
+    def pause(self, session: Any, *, timeout: float | None = None) -> Any:
+        """Pauses a running session."""
+        return self._unary(self._stub.Pause, self._ref(session), timeout)
+
+    def resume(self, session: Any, *, timeout: float | None = None) -> Any:
+        """Continues a paused run."""
+        return self._unary(self._stub.Resume, self._ref(session), timeout)
+
+    def reset(self, session: Any, *, timeout: float | None = None) -> Any:
+        """Rebuilds the world from the session's scene; clears a fault."""
+        return self._unary(self._stub.Reset, self._ref(session), timeout)
+
+    def simulate_steps(
+        self,
+        session: Any,
+        steps: int,
+        *,
+        progress_interval: float | None = None,
+        timeout: float | None = None,
+    ) -> Stream[Any]:
+        """Takes ``steps`` steps, streaming ``SimulateProgress`` messages
+        (at the start, every ``progress_interval`` seconds, at the end,
+        ``done`` set on the last). Cancelling the stream or passing
+        ``timeout`` stops the session at the last completed step, paused."""
+        request = simulate_steps_request(session_id_of(session), steps, progress_interval)
+        return self._stream(self._stub.SimulateSteps, request, timeout)
+
+    def simulate(
+        self,
+        session: Any,
+        steps: int,
+        *,
+        on_progress: Callable[[Any], None] | None = None,
+        progress_interval: float | None = None,
+        timeout: float | None = None,
+    ) -> Any:
+        """:meth:`simulate_steps` to its end, calling ``on_progress`` with
+        each message; returns the last (``done``)."""
+        last = None
+        for progress in self.simulate_steps(
+            session, steps, progress_interval=progress_interval, timeout=timeout
+        ):
+            if on_progress is not None:
+                on_progress(progress)
+            last = progress
+        if last is None:
+            raise MeshlessError(grpc.StatusCode.INTERNAL, "SimulateSteps sent no message")
+        return last
+
+    # --- status and frames ---------------------------------------------------
+
+    def watch_status(self, session: Any, *, timeout: float | None = None) -> Stream[Any]:
+        """The session's ``SessionStatus`` now, then at every change until
+        it is deleted (a last CLOSED): iterate the returned stream, cancel
+        it to stop."""
+        return self._stream(self._stub.WatchStatus, self._ref(session), timeout)
+
+    def wait_for(
+        self,
+        session: Any,
+        states: Collection[str | int] = ("finished", "paused", "faulted", "closed"),
+        *,
+        timeout: float | None = None,
+    ) -> Any:
+        """Watches the session until its state is one of ``states`` (short
+        names or numbers) and returns that ``SessionStatus``;
+        ``DEADLINE_EXCEEDED`` after ``timeout`` seconds (default: the
+        client's)."""
+        wanted = {state_value(s) for s in states}
+        with self.watch_status(session, timeout=deadline(self._timeout, timeout)) as statuses:
+            for status in statuses:
+                if status.state in wanted:
+                    return status
+        raise MeshlessError(grpc.StatusCode.NOT_FOUND, "the status stream ended first")
+
+    def latest_frame(self, session: Any, *, timeout: float | None = None) -> Frame:
+        """The session's latest frame over gRPC (for clients without
+        zenoh), its arrays viewing the answer's bytes."""
+        return decode_frame(self._unary(self._latest_frame, self._ref(session), timeout))
+
+    def frames(
+        self,
+        session: Any,
+        *,
+        callback: FrameCallback | None = None,
+        zenoh_config: str | None = None,
+        endpoints: Iterable[str] | None = None,
+    ) -> Frames:
+        """A zenoh subscription to the session's frames (:class:`Frames`),
+        at the server's ``zenoh_locators`` unless ``endpoints`` are given.
+        Pass the ``Session`` message to open sealed frames."""
+        if endpoints is None:
+            info = self._info if self._info is not None else self.server_info()
+            endpoints = info.zenoh_locators
+        return Frames(
+            list(endpoints),
+            session,
+            zenoh_config=zenoh_config,
+            callback=callback,
+            timeout=self._timeout,
         )
 
-    def delete_session(self, session_id: str) -> None:
-        self._stub.DeleteSession(self._ref(session_id), timeout=self._timeout)
+    # --- design --------------------------------------------------------------
 
-    def step(self, session_id: str, steps: int = 1):
-        request = self._pb.StepRequest(session_id=session_id, steps=steps)
-        return self._stub.Step(request, timeout=self._timeout)
+    def edit_constraints(
+        self,
+        session: Any,
+        edits: Iterable[Any] = (),
+        *,
+        clear: bool = False,
+        remove: Iterable[str] = (),
+        replace: Iterable[Any] = (),
+        add: Iterable[Any] = (),
+        timeout: float | None = None,
+    ) -> list[Any]:
+        """Applies constraint edits all or nothing: ``edits``
+        (``ConstraintEdit`` messages), then ``clear``, ``remove`` (names),
+        ``replace`` and ``add`` (``Constraint`` messages or TOML-form
+        dicts, :func:`meshless.design.constraint`). Returns the
+        constraints in name order; INVALID_ARGUMENT names the bad one."""
+        request = constraint_edits(
+            session_id_of(session), edits, clear=clear, remove=remove, replace=replace, add=add
+        )
+        return list(self._unary(self._stub.EditConstraints, request, timeout).constraints)
 
-    def run_until(self, session_id: str, until: float, realtime_factor: float | None = None):
-        request = self._pb.RunRequest(session_id=session_id, until_time=until)
-        if realtime_factor is not None:
-            request.realtime_factor = realtime_factor
-        return self._stub.Run(request, timeout=self._timeout)
-
-    def pause(self, session_id: str):
-        return self._stub.Pause(self._ref(session_id), timeout=self._timeout)
-
-    def resume(self, session_id: str):
-        return self._stub.Resume(self._ref(session_id), timeout=self._timeout)
-
-    def reset(self, session_id: str):
-        return self._stub.Reset(self._ref(session_id), timeout=self._timeout)
-
-    def latest_frame(self, session_id: str) -> Frame:
-        """The latest frame over gRPC, decoded."""
-        message = self._stub.GetLatestFrame(self._ref(session_id), timeout=self._timeout)
-        return decode_frame(message.SerializeToString())
-
-    def edit_constraints(self, session_id: str, edits: Iterable) -> list:
-        """Applies ``ConstraintEdit`` messages all or nothing; returns the
-        constraints in name order. INVALID_ARGUMENT names the bad one."""
-        from .v1 import design_pb2
-
-        request = design_pb2.EditConstraintsRequest(session_id=session_id, edits=list(edits))
-        return list(self._stub.EditConstraints(request, timeout=self._timeout).constraints)
-
-    def list_constraints(self, session_id: str) -> list:
-        return list(self._stub.ListConstraints(self._ref(session_id), timeout=self._timeout).constraints)
+    def list_constraints(self, session: Any, *, timeout: float | None = None) -> list[Any]:
+        """The session's constraints in name order."""
+        return list(self._unary(self._stub.ListConstraints, self._ref(session), timeout).constraints)
 
     def optimize(
         self,
-        request,
-        on_progress: Callable[[object], None] | None = None,
+        request: Any = None,
+        *,
+        session: Any = None,
+        system: int = 0,
+        problem: str = "shape",
+        design: Any = None,
+        motion: Any = None,
+        playback_rate: float | None = None,
+        playback: bool = False,
+        on_progress: Callable[[Any], None] | None = None,
         timeout: float | None = None,
     ) -> Design:
-        """Runs an ``OptimizeRequest`` to its end, calling ``on_progress``
-        with each ``DesignProgress``; returns the :class:`Design`. Raises
-        ``grpc.RpcError`` (CANCELLED, INVALID_ARGUMENT, ABORTED) on failure."""
-        for event in self._stub.Optimize(request, timeout=timeout):
+        """Optimises a solid of the session against its constraints and
+        returns the :class:`Design`, calling ``on_progress`` with each
+        ``DesignProgress``. Give an ``OptimizeRequest`` or the keywords
+        (:func:`meshless.design.optimize_request`: ``problem`` ``"shape"``
+        or ``"motion"``, ``design``/``motion`` settings as dicts or
+        messages, ``playback`` to publish the result as frames). Raises
+        :class:`MeshlessError` (CANCELLED, INVALID_ARGUMENT, ABORTED)."""
+        if request is None:
+            if session is None:
+                raise ValueError("give an OptimizeRequest or session=")
+            request = optimize_request(
+                session_id_of(session),
+                system=system,
+                problem=problem,
+                design=design,
+                motion=motion,
+                playback_rate=playback_rate,
+                playback=playback,
+            )
+        events = self._stream(self._stub.Optimize, request, timeout)
+        for event in events:
             which = event.WhichOneof("event")
             if which == "progress":
                 if on_progress is not None:
                     on_progress(event.progress)
             elif which == "result":
                 return Design.from_proto(event.result)
-        raise RuntimeError("the optimisation stream ended without a result")
+        raise MeshlessError(grpc.StatusCode.INTERNAL, "the optimisation stream ended without a result")
 
-    def cancel_optimize(self, session_id: str) -> bool:
+    def cancel_optimize(self, session: Any, *, timeout: float | None = None) -> bool:
         """Cancels the running optimisation; whether there was one."""
-        return self._stub.CancelOptimize(self._ref(session_id), timeout=self._timeout).cancelled
+        return self._unary(self._stub.CancelOptimize, self._ref(session), timeout).cancelled
 
-    def get_design(self, session_id: str) -> Design:
+    def get_design(self, session: Any, *, timeout: float | None = None) -> Design:
         """The last successful design; NOT_FOUND before the first."""
-        return Design.from_proto(self._stub.GetDesign(self._ref(session_id), timeout=self._timeout))
+        return Design.from_proto(self._unary(self._stub.GetDesign, self._ref(session), timeout))
 
+    # --- snapshots -----------------------------------------------------------
 
-class _Dropped(Exception):
-    """Why :class:`Frames` refuses a sample: a reason of
-    ``Frames.drop_reasons`` and what was wrong."""
+    def snapshot(self, session: Any, *, timeout: float | None = None) -> Any:
+        """The session's state as a ``SessionSnapshot`` (its ``data`` an
+        opaque, checksummed blob); the owner alone may take one."""
+        return self._unary(self._stub.Snapshot, self._ref(session), timeout)
 
-    def __init__(self, reason: str, why: str):
-        super().__init__(why)
-        self.reason = reason
-        self.why = why
-
-
-def _quote(text: str) -> str:
-    """At most 64 characters of text a peer chose, quoted, so that a hostile
-    sample cannot flood ``last_drop``."""
-    return repr(text if len(text) <= 64 else text[:64] + "…")
-
-
-class Frames:
-    """A session's frames from zenoh, decoded into numpy arrays.
-
-    Opens zenoh in client mode against the given endpoints (the server's
-    ``zenoh_locators`` or a router's). Once constructed, the server knows
-    of the subscription: a latest-frame query has made the round trip, so
-    no frame published afterwards is missed. ``latest`` is the frame that
-    query returned (``None`` when no server answered with a valid one).
-
-    Any zenoh peer can put on a session's key, so each sample is checked in
-    zenoh's callback before it is queued: it must be put on exactly the
-    session's frame key, decode as a ``Frame`` whose header names this
-    session, and pass :func:`decode_frame`'s checks. Anything else is
-    dropped and counted: ``dropped`` (the total), ``drop_reasons`` (by
-    reason: ``wrong_key``, ``undecodable``, ``malformed``,
-    ``wrong_session``, and for sealed frames ``not_authentic`` and
-    ``replayed``) and ``last_drop`` (the last reason and what was
-    wrong). Unsealed (below), a peer that puts a well-formed frame naming
-    this session is not caught here: the server's zenoh access control
-    refuses it (its default), or a router's.
-
-    ``session`` is the ``Session`` message the server answered with
-    (``Client.create_session``, ``get_session``), or a session id. A server
-    with tokens seals what it puts on zenoh with a key of each session
-    (``ServerInfo.zenoh_sealed``) that only callers who may see the session
-    receive (``Session.seal_key``); given the message, or ``seal_key``,
-    frames are opened with it (:class:`Seal`), and a payload that does not
-    open (``not_authentic``) or was sealed before the last one taken
-    (``replayed``) is dropped too.
-
-    ``zenoh_config`` names a zenoh configuration file (JSON5) to start
-    from: the CA of ``tls/`` endpoints, a client certificate.
-    """
-
-    def __init__(
+    def restore(
         self,
-        endpoints: list[str],
-        session,
-        zenoh_config: str | None = None,
-        seal_key: bytes | None = None,
-    ):
-        if isinstance(session, str):
-            session_id, key = session, b""
-        else:
-            session_id, key = session.id, session.seal_key
-        if seal_key is not None:
-            key = seal_key
-        self._seal = Seal(key) if key else None
-        config = zenoh.Config() if zenoh_config is None else zenoh.Config.from_file(zenoh_config)
-        config.insert_json5("mode", '"client"')
-        config.insert_json5("connect/endpoints", json.dumps(list(endpoints)))
-        config.insert_json5("scouting/multicast/enabled", "false")
-        self._session_id = session_id
-        self._key = frames_key(session_id)
-        self._newest = 0
-        self._lock = threading.Lock()
-        self._drop_reasons: Counter[str] = Counter()
-        self._last_drop: tuple[str, str] | None = None
-        self._session = zenoh.open(config)
-        self._queue: queue.Queue[Frame] = queue.Queue()
-        self._subscriber = self._session.declare_subscriber(self._key, self._on_sample)
-        self.latest = self._latest()
-
-    # zenoh's thread counts while the caller's reads: copies under a lock.
-    @property
-    def dropped(self) -> int:
-        """Samples dropped so far, for any reason."""
-        with self._lock:
-            return sum(self._drop_reasons.values())
-
-    @property
-    def drop_reasons(self) -> Counter[str]:
-        """Samples dropped so far, by reason."""
-        with self._lock:
-            return Counter(self._drop_reasons)
-
-    @property
-    def last_drop(self) -> tuple[str, str] | None:
-        """The last drop's reason and what was wrong, if any."""
-        with self._lock:
-            return self._last_drop
-
-    def _admit(self, key: str, data: bytes, expected_key: str, replay: bool = True) -> Frame:
-        """The frame of a sample on ``key``, or ``_Dropped`` saying why not.
-        ``replay``: refuse a sealed payload sealed before the last one taken
-        (a subscription's; a query's replies are each new)."""
-        if key != expected_key:
-            raise _Dropped("wrong_key", f"put on {_quote(key)}, not {expected_key}")
-        if self._seal is not None:
-            try:
-                counter, data = self._seal.open(key, data)
-            except ValueError as e:
-                raise _Dropped("not_authentic", str(e)) from e
-            if replay:
-                if counter <= self._newest:
-                    raise _Dropped(
-                        "replayed", f"sealed as number {counter}, after number {self._newest}"
-                    )
-                self._newest = counter
-        try:
-            message = parse_frame(data)
-        except ValueError as e:
-            raise _Dropped("undecodable", str(e)) from e
-        if not message.HasField("header"):
-            raise _Dropped("malformed", "frame without a header")
-        session_id = message.header.session_id
-        if session_id != self._session_id:
-            raise _Dropped(
-                "wrong_session", f"names session {_quote(session_id)}, not {self._session_id!r}"
-            )
-        try:
-            return unpack_frame(message)
-        except ValueError as e:
-            raise _Dropped("malformed", str(e)) from e
-
-    def _on_sample(self, sample) -> None:
-        # Runs on zenoh's thread, where an exception would be logged and the
-        # sample lost uncounted: every failure is a counted drop instead.
-        try:
-            frame = self._admit(str(sample.key_expr), sample.payload.to_bytes(), self._key)
-        except _Dropped as e:
-            self._drop(e.reason, e.why)
-        except Exception as e:
-            # A check that fails in a way decode_frame does not foresee.
-            self._drop("malformed", f"{type(e).__name__}: {e}")
-        else:
-            self._queue.put(frame)
-
-    def _drop(self, reason: str, why: str) -> None:
-        with self._lock:
-            self._drop_reasons[reason] += 1
-            self._last_drop = (reason, why)
-
-    def _latest(self) -> Frame | None:
-        """The session's latest frame from its ``latest`` queryable: the last
-        reply that passes the checks, the others skipped. Every queryable is
-        asked and every reply kept (by default zenoh asks only a queryable
-        declared complete when there is one, and keeps one reply per key,
-        so another peer could answer in the server's place)."""
-        key = latest_key(self._session_id)
-        latest = None
-        for reply in self._session.get(
-            key, target=zenoh.QueryTarget.ALL, consolidation=zenoh.ConsolidationMode.NONE
-        ):
-            if reply.ok is None:
-                continue
-            try:
-                latest = self._admit(
-                    str(reply.ok.key_expr), reply.ok.payload.to_bytes(), key, replay=False
-                )
-            except Exception:
-                # Skipped as the subscriber drops it, but not counted: the
-                # counts are of the subscription.
-                continue
-        return latest
-
-    def next(self, timeout: float = DEFAULT_TIMEOUT) -> Frame:
-        """The next frame that passed the checks; raises ``queue.Empty``
-        after ``timeout`` seconds."""
-        return self._queue.get(timeout=timeout)
-
-    def close(self) -> None:
-        self._subscriber.undeclare()
-        self._session.close()
-
-    def __enter__(self) -> "Frames":
-        return self
-
-    def __exit__(self, *_exc) -> None:
-        self.close()
+        snapshot: Any,
+        *,
+        session: Any = None,
+        observers: Iterable[str] | None = None,
+        timeout: float | None = None,
+    ) -> Any:
+        """Restores a snapshot (a ``SessionSnapshot`` or its ``data``) into a
+        new session, or into ``session`` (same scene, not running), and
+        returns that ``Session``. ``observers`` replaces a new session's
+        (default: the snapshot's). INVALID_ARGUMENT for a blob of another
+        build, truncated or corrupted; nothing changes then."""
+        request = restore_request(
+            snapshot, "" if session is None else session_id_of(session), observers
+        )
+        return self._unary(self._stub.Restore, request, timeout)

@@ -15,6 +15,8 @@ import pytest
 TIMEOUT = 30.0
 
 ROOT = Path(__file__).resolve().parents[3]
+PACKAGE = ROOT / "client" / "python"
+EXAMPLES = PACKAGE / "examples"
 
 
 def fixture(name: str) -> str:
@@ -80,4 +82,12 @@ def open_server():
     """A server that lets any zenoh peer publish on its session keys (no
     access control), so that the subscribers' own checks meet forgeries."""
     with running_server("--zenoh-publishers", "any") as running:
+        yield running
+
+
+@pytest.fixture(scope="module")
+def shared_server():
+    """One server for a module's tests (each makes its own sessions), so
+    that they do not each pay for a server's start."""
+    with running_server() as running:
         yield running

@@ -9,7 +9,7 @@ import grpc
 import pytest
 from conftest import fixture, running_server
 
-from meshless import Client
+from meshless import Client, MeshlessError
 
 ALICE = "alice-token-0123456789"
 BOB = "bob-token-0123456789ab"
@@ -25,9 +25,9 @@ def guarded(tmp_path):
 
 
 def code_of(call) -> grpc.StatusCode:
-    with pytest.raises(grpc.RpcError) as refused:
+    with pytest.raises(MeshlessError) as refused:
         call()
-    return refused.value.code()
+    return refused.value.code
 
 
 def test_tokens_owners_observers_and_one_controller(guarded):
@@ -55,10 +55,10 @@ def test_tokens_owners_observers_and_one_controller(guarded):
         assert carol.list_sessions() == []
 
         with Client(target, token=ALICE, client_id="notebook") as notebook:
-            with pytest.raises(grpc.RpcError) as refused:
+            with pytest.raises(MeshlessError) as refused:
                 notebook.step(session.id)
-            assert refused.value.code() == grpc.StatusCode.ABORTED
-            assert "alice/laptop" in refused.value.details()
+            assert refused.value.code == grpc.StatusCode.ABORTED
+            assert "alice/laptop" in refused.value.details
         with Client(target, token=ALICE, client_id="notebook", take_over=True) as taking:
             assert taking.step(session.id).status.step == 2
         assert code_of(lambda: alice.step(session.id)) == grpc.StatusCode.ABORTED

@@ -34,6 +34,9 @@ def test_generated_code_imports_as_meshless_v1():
     assert frame_pb2.Frame.DESCRIPTOR.full_name == "meshless.v1.Frame"
     assert scene_pb2.FieldKind.Value("FIELD_KIND_DENSITY") == 3
     assert hasattr(simulation_pb2_grpc, "SimulationStub")
+    # Every RPC of the service, the snapshot calls included.
+    methods = {m.name for m in simulation_pb2.DESCRIPTOR.services_by_name["Simulation"].methods}
+    assert {"SimulateSteps", "Snapshot", "Restore", "Optimize"} <= methods
 
 
 def test_steps_stream_frames_that_numpy_reads(server):
@@ -115,7 +118,7 @@ def test_an_undecodable_request_is_invalid_argument(server):
 
 
 def test_the_client_wrapper_drives_a_session(server):
-    from meshless import Client, Frames
+    from meshless import Client, Frames, MeshlessError
 
     with Client(server.grpc_target) as client:
         info = client.server_info()
@@ -133,9 +136,9 @@ def test_the_client_wrapper_drives_a_session(server):
         client.reset(session.id)
         assert client.get_session(session.id).status.step == 0
         client.delete_session(session.id)
-        with pytest.raises(grpc.RpcError) as error:
+        with pytest.raises(MeshlessError) as error:
             client.get_session(session.id)
-        assert error.value.code() == grpc.StatusCode.NOT_FOUND
+        assert error.value.code == grpc.StatusCode.NOT_FOUND
 
 
 def test_frames_carry_the_surface_the_scene_asks_for(server):
@@ -307,7 +310,7 @@ def test_constraints_and_a_shape_optimisation(server):
     """Constraint edits are atomic and name the bad constraint; a shape
     optimisation reports progress and returns the design as numpy arrays,
     the column's top lifted by its handle."""
-    from meshless import Client
+    from meshless import Client, MeshlessError
     from meshless.v1 import design_pb2 as d
     from meshless.v1 import scene_pb2 as sc
 
@@ -340,15 +343,15 @@ def test_constraints_and_a_shape_optimisation(server):
                 ),
             )
         )
-        with pytest.raises(grpc.RpcError) as error:
+        with pytest.raises(MeshlessError) as error:
             client.edit_constraints(session.id, [d.ConstraintEdit(remove="top"), bad])
-        assert error.value.code() == grpc.StatusCode.INVALID_ARGUMENT
-        assert "far" in error.value.details()
+        assert error.value.code == grpc.StatusCode.INVALID_ARGUMENT
+        assert "far" in error.value.details
         assert [c.name for c in client.list_constraints(session.id)] == ["bottom", "top"]
 
-        with pytest.raises(grpc.RpcError) as error:
+        with pytest.raises(MeshlessError) as error:
             client.get_design(session.id)
-        assert error.value.code() == grpc.StatusCode.NOT_FOUND
+        assert error.value.code == grpc.StatusCode.NOT_FOUND
 
         progress = []
         request = d.OptimizeRequest(

@@ -154,7 +154,7 @@ impl<E: Element> Space<E> for Sequential {
 const SUM_CHUNK: usize = 1024;
 
 /// `sum of term(i) for i in 0..len`, the terms of each fixed chunk of
-/// [`SUM_CHUNK`] indices summed in order on one thread, then the chunks'
+/// `SUM_CHUNK` (1,024) indices summed in order on one thread, then the chunks'
 /// sums in order. rayon's own `sum` splits where threads steal work, so
 /// its rounding changes from run to run; this one depends on `len` alone,
 /// which keeps a step bit for bit reproducible (a restored snapshot steps

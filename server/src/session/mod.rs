@@ -16,6 +16,7 @@ use meshless_engine::design::{self, Constraint, ConstraintSet, Context, Edit};
 use meshless_engine::{BuildOptions, Frame, Scene, World};
 use meshless_proto::{keys, v1};
 use meshless_wire::scene::scene_echo_to_proto;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use tokio_util::sync::CancellationToken;
@@ -204,6 +205,9 @@ pub struct Session {
     /// The key of the session's sealed payloads, for the callers that may
     /// read it; empty when the server does not seal.
     seal_key: Vec<u8>,
+    /// Simulated seconds per wall-clock second of the last step (`f64`
+    /// bits), written by the compute thread, read by the metrics.
+    realtime_factor: Arc<AtomicU64>,
 }
 
 impl Session {
@@ -238,6 +242,8 @@ impl Session {
         let (frames_tx, frames_rx) = mpsc::channel(FRAME_QUEUE);
         let (commands, commands_rx) = std::sync::mpsc::channel();
         let interrupts = Arc::new(Interrupts::default());
+        let realtime_factor = Arc::new(AtomicU64::new(0f64.to_bits()));
+        let metrics = outlet.metrics.clone();
 
         let seal_key = outlet
             .sealer
@@ -267,14 +273,18 @@ impl Session {
                 events: events.clone(),
                 frames: frames_tx,
                 latest: latest.clone(),
+                metrics,
+                realtime_factor: realtime_factor.clone(),
             },
             design.clone(),
             cancel.clone(),
             interrupts.clone(),
         );
+        // Every line the compute thread logs names its session.
+        let span = tracing::info_span!("session", id = %id);
         let thread = std::thread::Builder::new()
             .name(format!("session-{id}"))
-            .spawn(move || worker.run(commands_rx))?;
+            .spawn(move || span.in_scope(|| worker.run(commands_rx)))?;
         Ok(Arc::new(Self {
             id,
             scene,
@@ -294,7 +304,13 @@ impl Session {
             context,
             design,
             seal_key,
+            realtime_factor,
         }))
+    }
+
+    /// Simulated seconds per wall-clock second of the last step.
+    pub fn realtime_factor(&self) -> f64 {
+        f64::from_bits(self.realtime_factor.load(Ordering::Relaxed))
     }
 
     fn gone(&self) -> ServiceError {

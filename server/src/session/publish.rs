@@ -3,6 +3,7 @@
 //! the latest frame. The compute thread only hands them data.
 
 use super::LatestFrame;
+use crate::metrics::Metrics;
 use meshless_engine::Frame;
 use meshless_proto::seal::Sealer;
 use meshless_proto::{keys, v1};
@@ -19,16 +20,20 @@ use zenoh::qos::{CongestionControl, Priority};
 pub struct Outlet {
     pub zenoh: zenoh::Session,
     pub sealer: Option<Arc<Sealer>>,
+    /// Where the bytes and frames put are counted.
+    pub metrics: Arc<Metrics>,
 }
 
 impl Outlet {
     /// `message` as it is put on `key`: encoded, and sealed for `key` when
     /// the session seals.
     fn payload(&self, key: &str, message: &impl Message) -> Vec<u8> {
-        match &self.sealer {
+        let bytes = match &self.sealer {
             Some(sealer) => sealer.seal(key, message),
             None => message.encode_to_vec(),
-        }
+        };
+        self.metrics.sent(bytes.len());
+        bytes
     }
 }
 
@@ -51,8 +56,11 @@ pub fn spawn_frames(outlet: Outlet, id: String, mut frames: mpsc::Receiver<Arc<F
         };
         while let Some(frame) = frames.recv().await {
             let bytes = outlet.payload(&key, &frame_to_proto(&id, &frame));
-            if let Err(e) = publisher.put(bytes).await {
-                tracing::warn!(session = %id, step = frame.step, "frame not published: {e}");
+            match publisher.put(bytes).await {
+                Ok(()) => outlet.metrics.frame_published(),
+                Err(e) => {
+                    tracing::warn!(session = %id, step = frame.step, "frame not published: {e}");
+                }
             }
         }
     });

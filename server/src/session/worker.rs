@@ -10,6 +10,7 @@ use super::optimize::{self, Channels, OptimizeJob, WarmStart};
 use super::snapshot::{Captured, Resumed, ResumedSession};
 use super::{Command, LatestFrame, Origin, Reply, SharedDesign, lock};
 use crate::error::{ServiceError, state_name};
+use crate::metrics::Metrics;
 use meshless_engine::{BuildOptions, Cancel, Frame, StepError, World};
 use meshless_proto::v1::{SessionState, SessionStatus};
 use std::panic::AssertUnwindSafe;
@@ -52,6 +53,9 @@ pub struct Outputs {
     pub events: broadcast::Sender<SessionStatus>,
     pub frames: mpsc::Sender<Arc<Frame>>,
     pub latest: LatestFrame,
+    pub metrics: Arc<Metrics>,
+    /// The last step's real-time factor, as `f64` bits.
+    pub realtime_factor: Arc<std::sync::atomic::AtomicU64>,
 }
 
 /// Wall-clock pacing of a run with a real-time factor.
@@ -230,6 +234,7 @@ impl Worker {
             .or_else(|| payload.downcast_ref::<String>().cloned())
             .unwrap_or_else(|| "a panic without a message".into());
         tracing::error!(session = %self.id, "session faulted by a panic: {message}");
+        self.out.metrics.fault(None);
         lock(&self.design).running = None;
         self.run = None;
         self.pacing = None;
@@ -293,6 +298,7 @@ impl Worker {
                 // frames are few and each one matters.
                 if self.out.frames.blocking_send(Arc::new(frame)).is_err() {
                     self.dropped_frames += 1;
+                    self.out.metrics.frame_dropped();
                 }
             }
             let result = Arc::new(solved.result);
@@ -501,8 +507,19 @@ impl Worker {
     /// failure the session faults, keeping the last good frame; an
     /// interrupted step is undone and changes nothing.
     fn advance(&mut self) -> Advance {
+        let before = self.world.stages().clone();
+        let started = Instant::now();
         match self.world.step_cancellable(&self.work) {
-            Ok(_) => {
+            Ok(info) => {
+                let wall = started.elapsed();
+                let dt = self.world.scene().time.dt;
+                self.out
+                    .metrics
+                    .step(&info, dt, wall, &before, self.world.stages());
+                let factor = dt / wall.as_secs_f64().max(1e-9);
+                self.out
+                    .realtime_factor
+                    .store(factor.to_bits(), std::sync::atomic::Ordering::Relaxed);
                 let clock = self.world.clock();
                 self.out.status.send_modify(|s| {
                     s.step = clock.step;
@@ -515,6 +532,7 @@ impl Worker {
             }
             Err(StepError::Cancelled { .. }) => Advance::Interrupted,
             Err(e) => {
+                self.out.metrics.fault(Some(&e));
                 tracing::warn!(session = %self.id, "session faulted: {e}");
                 self.run = None;
                 self.set_state(SessionState::Faulted, &e.to_string());
@@ -540,6 +558,7 @@ impl Worker {
             .unwrap_or_else(std::sync::PoisonError::into_inner) = frame.clone();
         if self.out.frames.try_send(frame).is_err() {
             self.dropped_frames += 1;
+            self.out.metrics.frame_dropped();
         }
         self.published_step = Some(self.world.clock().step);
     }
@@ -610,6 +629,8 @@ mod tests {
             events,
             frames,
             latest: Arc::new(std::sync::Mutex::new(Arc::new(world.frame()))),
+            metrics: Arc::new(Metrics::new()),
+            realtime_factor: Arc::default(),
         };
         let cancel = CancellationToken::new();
         let worker = Worker::new(
