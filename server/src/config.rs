@@ -68,8 +68,8 @@ pub const DEFAULT_MAX_REQUEST_MB: u32 = 64;
 /// triangles, far more than a body's sampling uses.
 pub const DEFAULT_MAX_MESH_MB: u32 = 16;
 
-/// Default of `--max-snapshot-mb`: a fluid of about 800,000 particles
-/// (a 150,000-particle one takes about 12 MB).
+/// Default of `--max-snapshot-mb`: a fluid of about 900,000 particles
+/// (a 149,000-particle one takes 11 MB: docs/performance.md).
 pub const DEFAULT_MAX_SNAPSHOT_MB: u32 = 64;
 /// Default of `--checkpoint-interval`, seconds.
 pub const DEFAULT_CHECKPOINT_INTERVAL: f64 = 60.0;
