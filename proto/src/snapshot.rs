@@ -31,6 +31,9 @@ pub const MAGIC: &[u8; 8] = b"MESHSNAP";
 pub const FORMAT: u32 = 1;
 /// Longest build string a blob may carry.
 pub const MAX_BUILD_LEN: usize = 128;
+/// Most bytes of a blob's build string an error quotes (the protocol's
+/// quoting rule: at most a 64-character prefix of any input).
+const MAX_QUOTE_LEN: usize = 48;
 /// Bytes of the SHA-256 digest.
 const DIGEST_LEN: usize = 32;
 
@@ -86,8 +89,8 @@ pub enum BlobError {
         build()
     )]
     Build {
-        /// Its build string (at most [`MAX_BUILD_LEN`] bytes, lossily
-        /// decoded).
+        /// The start of its build string (at most 48 bytes, lossily
+        /// decoded: an error quotes a short prefix of any input).
         got: String,
     },
     /// Bytes after the payload.
@@ -170,8 +173,10 @@ pub fn decode(blob: &[u8], limit: usize) -> Result<SnapshotPayload, BlobError> {
     let build_len = word(take(blob, &mut at, 2)?) as usize;
     let theirs = take(blob, &mut at, build_len.min(MAX_BUILD_LEN))?;
     if build_len > MAX_BUILD_LEN || theirs != build().as_bytes() {
+        // Quoted as any input is: a short prefix, never all of it.
+        let quoted = &theirs[..theirs.len().min(MAX_QUOTE_LEN)];
         return Err(BlobError::Build {
-            got: String::from_utf8_lossy(theirs).into_owned(),
+            got: String::from_utf8_lossy(quoted).into_owned(),
         });
     }
     let len = usize::try_from(word(take(blob, &mut at, 8)?)).unwrap_or(usize::MAX);
@@ -285,6 +290,6 @@ mod tests {
         let BlobError::Build { got } = err else {
             panic!("{err}")
         };
-        assert_eq!(got.len(), MAX_BUILD_LEN, "never echoed beyond the limit");
+        assert_eq!(got.len(), MAX_QUOTE_LEN, "a short prefix, never all of it");
     }
 }

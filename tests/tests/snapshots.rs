@@ -351,6 +351,16 @@ async fn bad_blobs_are_refused_and_change_nothing() {
         before,
         "the session is unchanged"
     );
+    // Another server of the same build takes it, to the same state.
+    let other = ServerProcess::spawn(&[]).await.expect("another server");
+    let elsewhere = other.client().await.expect("client");
+    let moved = within("restore elsewhere", elsewhere.restore(good.clone(), None, None))
+        .await
+        .expect("restored on another server");
+    within("step", elsewhere.step(&moved.id, 3)).await.expect("stepped");
+    let there = frame(&elsewhere, &moved.id).await;
+    assert_eq!((there.step, &there.fields), (before.step, &before.fields));
+
     // The good blob goes back into the session: back at step 4.
     let status = within("restore", client.restore(good, Some(&id), None))
         .await
