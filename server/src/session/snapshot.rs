@@ -213,13 +213,11 @@ impl Decoded {
             until: r.until_time,
             realtime_factor: r.realtime_factor,
         });
+        // The blob's reason is input like any other: quoted short.
         let reason = format!(
-            "restored at step {} ({})",
+            "restored at step {}; it was {}",
             world.clock().step,
-            crate::error::truncate_message(&self.record.reason)
-                .chars()
-                .take(200)
-                .collect::<String>()
+            crate::error::quote(&self.record.reason)
         );
         Ok(Resumed {
             world,
