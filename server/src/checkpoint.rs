@@ -27,6 +27,9 @@ const TEMPORARY: &str = "tmp";
 /// whoever wants to look at it.
 const REJECTED: &str = "rejected";
 
+/// Shortest wait for one session's snapshot in a round.
+const MIN_WAIT: Duration = Duration::from_secs(1);
+
 /// What identifies a session's state: unchanged, no new checkpoint.
 #[derive(Debug, Clone, PartialEq)]
 struct Fingerprint {
@@ -187,7 +190,17 @@ impl Checkpoints {
             if self.written().get(&session.id) == Some(&print) {
                 continue;
             }
-            match self.write(session).await {
+            // A session busy with a long `Step` answers only after it: it
+            // waits for the next round rather than holding up the others.
+            let written = tokio::time::timeout(self.interval.max(MIN_WAIT), self.write(session))
+                .await
+                .unwrap_or_else(|_| {
+                    Err(anyhow::anyhow!(
+                        "the session did not answer within an interval (a long Step?); the \
+                         next round tries again"
+                    ))
+                });
+            match written {
                 Ok(bytes) => {
                     tracing::debug!(session = %session.id, bytes, "checkpoint written");
                     self.metrics.snapshot();

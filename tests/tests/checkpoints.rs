@@ -222,6 +222,11 @@ async fn a_killed_server_comes_back_with_its_sessions() {
         .await
         .expect_err("not hers");
     assert_eq!(err.code(), Some(tonic::Code::PermissionDenied), "{err}");
+    // Nor take its snapshot: that is the owner's.
+    let err = within("alice snapshots", alice.snapshot(&solid))
+        .await
+        .expect_err("not hers");
+    assert_eq!(err.code(), Some(tonic::Code::PermissionDenied), "{err}");
 
     let sessions = within("list", bob.list_sessions()).await.expect("listed");
     let alices = within("list", alice.list_sessions()).await.expect("listed");

@@ -6,7 +6,8 @@
 //! 150,000 particles, stepped once so that its warm start is real.
 //!
 //! `cargo bench -p meshless-wire --bench snapshot`; with
-//! `MESHLESS_BENCH_SMOKE=1` the same stages on about 1,000 particles.
+//! `MESHLESS_BENCH_SMOKE=1`, or under `cargo test` (which builds and runs
+//! it with the tests), the same stages on about 1,000 particles.
 
 #[path = "../../engine/benches/common/smoke.rs"]
 mod smoke;
@@ -32,10 +33,21 @@ fn stage<T>(name: &str, runs: usize, mut work: impl FnMut() -> T) -> T {
     out.expect("at least one run")
 }
 
+/// `normal` under `cargo bench` (which passes `--bench`) unless in smoke
+/// mode, else `small`.
+fn pick<T>(normal: T, small: T) -> T {
+    let benched = std::env::args().any(|a| a == "--bench");
+    if benched {
+        smoke::pick(normal, small)
+    } else {
+        small
+    }
+}
+
 fn main() {
-    let spacing = smoke::pick(0.01, 0.05);
-    let side = smoke::pick(0.53, 0.5);
-    let runs = smoke::pick(3, 1);
+    let spacing = pick(0.01, 0.05);
+    let side = pick(0.53, 0.5);
+    let runs = pick(3, 1);
     let scene = Scene::from_toml_str(&format!(
         r#"
         [domain]
