@@ -39,6 +39,10 @@ enum Command {
     Session(session::SessionArgs),
     /// Print frame rates and particle counts of a session's zenoh stream.
     Watch(watch::WatchArgs),
+    /// Ask the server's gRPC health service whether it serves: prints
+    /// SERVING and exits 0, or says why not and exits 1 (a container's
+    /// health check).
+    Health(ServerArg),
 }
 
 /// Runs the parsed command.
@@ -57,6 +61,14 @@ pub async fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Study(args) => study::study(args),
         Command::Session(args) => session::session(args).await,
         Command::Watch(args) => watch::watch(args).await,
+        Command::Health(server) => {
+            if server.connect().await?.health().await? {
+                outln!("SERVING")?;
+                Ok(())
+            } else {
+                anyhow::bail!("{} is not serving", server.server)
+            }
+        }
     }
 }
 

@@ -6,6 +6,8 @@ use tokio_stream::{Stream, StreamExt};
 use tonic::metadata::{AsciiMetadataValue, MetadataKey};
 use tonic::service::interceptor::InterceptedService;
 use tonic::transport::{Certificate, Channel, ClientTlsConfig, Endpoint};
+use tonic_health::pb::health_check_response::ServingStatus;
+use tonic_health::pb::{HealthCheckRequest, health_client::HealthClient};
 
 /// Who a client is to the server, sent with every call.
 #[derive(Clone, Default, PartialEq, Eq)]
@@ -135,6 +137,8 @@ type Grpc = SimulationClient<InterceptedService<Channel, Stamp>>;
 #[derive(Debug, Clone)]
 pub struct Client {
     grpc: Grpc,
+    /// The gRPC health service beside it (open: no token needed).
+    health: HealthClient<Channel>,
 }
 
 type Result<T> = std::result::Result<T, ClientError>;
@@ -207,16 +211,35 @@ impl Client {
             });
         }
         let channel = endpoint.connect().await.map_err(connect_error)?;
+        let health = HealthClient::new(channel.clone());
         let grpc = SimulationClient::with_interceptor(channel, stamp)
             .max_decoding_message_size(usize::MAX)
             // A Restore request carries a whole snapshot; the server has
             // its own limit (`ServerInfo.max_snapshot_bytes`).
             .max_encoding_message_size(usize::MAX);
-        Ok(Self { grpc })
+        Ok(Self { grpc, health })
     }
 
     fn grpc(&self) -> Grpc {
         self.grpc.clone()
+    }
+
+    /// Whether the server's `meshless.v1.Simulation` service is serving,
+    /// by the gRPC health service (what probes and container health
+    /// checks ask).
+    ///
+    /// # Errors
+    /// [`ClientError::Rpc`] when the health service does not answer.
+    pub async fn health(&self) -> Result<bool> {
+        let reply = self
+            .health
+            .clone()
+            .check(HealthCheckRequest {
+                service: "meshless.v1.Simulation".into(),
+            })
+            .await?
+            .into_inner();
+        Ok(reply.status == ServingStatus::Serving as i32)
     }
 
     /// Version, limits and zenoh endpoints of the server.

@@ -306,7 +306,7 @@ const COVERS: &str = "# covers:";
 /// The words that may follow `meshless` in a command (`import` is listed
 /// to be recognised and skipped: it is Python).
 const MESHLESS_SUBCOMMANDS: &[&str] = &[
-    "run", "demo", "study", "optimise", "session", "watch", "server", "import",
+    "run", "demo", "study", "optimise", "session", "watch", "server", "import", "health",
 ];
 
 /// The actions of `meshless session`.

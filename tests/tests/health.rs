@@ -57,3 +57,40 @@ async fn health_and_reflection_are_served() {
     let names: Vec<_> = list.service.iter().map(|s| s.name.as_str()).collect();
     assert!(names.contains(&"meshless.v1.Simulation"), "{names:?}");
 }
+
+/// `meshless health`, what a container's health check runs: SERVING and
+/// exit 0 against a server, a failure naming the address without one.
+#[tokio::test]
+async fn meshless_health_probes_the_health_service() {
+    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let meshless = meshless_tests::binary("meshless").expect("built");
+    let probe = |url: String| {
+        let meshless = meshless.clone();
+        async move {
+            within(
+                "meshless health",
+                tokio::process::Command::new(meshless)
+                    .args(["health", "--server", &url])
+                    .output(),
+            )
+            .await
+            .expect("it runs")
+        }
+    };
+    let up = probe(server.grpc_url.clone()).await;
+    assert!(
+        up.status.success(),
+        "{}",
+        String::from_utf8_lossy(&up.stderr)
+    );
+    assert_eq!(String::from_utf8_lossy(&up.stdout).trim(), "SERVING");
+    drop(server);
+    // Nothing listens on port 1 of loopback.
+    let down = probe("http://127.0.0.1:1".into()).await;
+    assert!(!down.status.success());
+    assert!(
+        String::from_utf8_lossy(&down.stderr).contains("127.0.0.1:1"),
+        "{}",
+        String::from_utf8_lossy(&down.stderr)
+    );
+}
