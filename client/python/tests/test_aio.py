@@ -44,8 +44,12 @@ def test_sessions_steps_status_and_errors(shared_server):
             session = sessions[0]
             seen = []
             async with client.watch_status(session) as statuses:
+                # The current status first, so the watch is in place before
+                # the run starts (the call goes out when first awaited).
+                updates = aiter(statuses)
+                seen.append(state_name(await anext(updates)))
                 await client.run(session, until=0.05)
-                async for status in statuses:
+                async for status in updates:
                     seen.append(state_name(status))
                     if seen[-1] == "finished":
                         break
