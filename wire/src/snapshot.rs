@@ -234,11 +234,16 @@ fn body_from_proto(message: v1::RigidBodySnapshot, field: &str) -> Result<BodySt
     })
 }
 
-fn flatten(values: &[Vector]) -> Vec<Real> {
+/// Vectors as the protocol's flat arrays: `x y z` per vector.
+pub fn flatten(values: &[Vector]) -> Vec<Real> {
     values.iter().flat_map(|v| [v.x, v.y, v.z]).collect()
 }
 
-fn vectors(values: Vec<Real>, field: &str) -> Result<Vec<Vector>> {
+/// A flat `x y z` array as vectors.
+///
+/// # Errors
+/// [`WireError`] naming `field` when the length is no multiple of 3.
+pub fn vectors(values: Vec<Real>, field: &str) -> Result<Vec<Vector>> {
     if !values.len().is_multiple_of(3) {
         return Err(WireError::new(
             field,

@@ -13,6 +13,7 @@ use meshless_proto::v1;
 use meshless_wire::design::{
     design_params_from_proto, design_settings_to_proto, info_to_proto, progress_to_proto,
 };
+use meshless_wire::snapshot::{flatten, vectors};
 use std::ops::ControlFlow;
 use std::sync::Arc;
 use tokio::sync::{mpsc, oneshot};
@@ -100,10 +101,8 @@ impl WarmStart {
         Ok(Self {
             system,
             params,
-            displacements: displacements
-                .chunks_exact(3)
-                .map(|c| Vector::new(c[0], c[1], c[2]))
-                .collect(),
+            displacements: vectors(displacements, "warm_start.displacements")
+                .map_err(|e| e.to_string())?,
         })
     }
 }
@@ -227,8 +226,4 @@ pub fn solve(
         warm,
         playback,
     })
-}
-
-fn flatten(vectors: &[Vector]) -> Vec<f64> {
-    vectors.iter().flat_map(|v| [v.x, v.y, v.z]).collect()
 }
