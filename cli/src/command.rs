@@ -83,6 +83,13 @@ pub struct ServerArg {
         default_value = "http://127.0.0.1:50051"
     )]
     pub server: String,
+    /// Where calls that name a session go, when sessions live on several
+    /// replicas: a URL template whose `{server}` becomes the server name
+    /// the session id starts with (`--server-name` of the server), e.g.
+    /// `https://{server}.meshless-replicas:50051`. Calls that name no
+    /// session (create, list, restore) still go to `--server`.
+    #[arg(long, global = true, env = "MESHLESS_ROUTE")]
+    pub route: Option<String>,
     /// Bearer token for a server with tokens (prefer the environment
     /// variable: a flag shows in the process list).
     #[arg(long, global = true, env = "MESHLESS_TOKEN", hide_env_values = true)]
@@ -117,6 +124,25 @@ impl ServerArg {
     /// An unreadable TLS file, or as
     /// [`meshless_client::Client::connect_with`].
     pub async fn connect(&self) -> anyhow::Result<meshless_client::Client> {
+        self.connect_to(&self.server).await
+    }
+
+    /// Connects to the replica that holds `session_id` by `--route`, or
+    /// to `--server` without one.
+    ///
+    /// # Errors
+    /// A route that cannot place the id, or as [`Self::connect`].
+    pub async fn connect_for(&self, session_id: &str) -> anyhow::Result<meshless_client::Client> {
+        match &self.route {
+            Some(template) => {
+                let url = meshless_client::Route::new(template)?.url_for(session_id)?;
+                self.connect_to(&url).await
+            }
+            None => self.connect().await,
+        }
+    }
+
+    async fn connect_to(&self, url: &str) -> anyhow::Result<meshless_client::Client> {
         let read = |path: &std::path::Path, flag: &str| {
             std::fs::read(path).map_err(|e| anyhow::anyhow!("{flag} {}: {e}", path.display()))
         };
@@ -139,7 +165,7 @@ impl ServerArg {
             client_id: self.client_id.clone(),
             take_over: self.take_over,
         };
-        Ok(meshless_client::Client::connect_with(&self.server, &identity, &tls).await?)
+        Ok(meshless_client::Client::connect_with(url, &identity, &tls).await?)
     }
 }
 

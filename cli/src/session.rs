@@ -119,8 +119,30 @@ fn print_session(session: &v1::Session) -> std::io::Result<()> {
     Ok(())
 }
 
+impl Action {
+    /// The session the action names, which `--route` routes by.
+    fn session_id(&self) -> Option<&str> {
+        match self {
+            Self::Create { .. } | Self::List | Self::Restore { into: None, .. } => None,
+            Self::Restore { into: Some(id), .. }
+            | Self::Get { id }
+            | Self::Step { id, .. }
+            | Self::Run { id, .. }
+            | Self::Pause { id }
+            | Self::Resume { id }
+            | Self::Reset { id }
+            | Self::Delete { id }
+            | Self::Simulate { id, .. }
+            | Self::Snapshot { id, .. } => Some(id),
+        }
+    }
+}
+
 pub async fn session(args: SessionArgs) -> Result<()> {
-    let client = args.server.connect().await?;
+    let client = match args.action.session_id() {
+        Some(id) => args.server.connect_for(id).await?,
+        None => args.server.connect().await?,
+    };
     match args.action {
         Action::Create { scene, observers } => {
             // Mesh files the scene names travel inline: the server reads

@@ -31,7 +31,7 @@ pub struct WatchArgs {
 pub async fn watch(args: WatchArgs) -> Result<()> {
     // The session from the server: it checks that the caller may see it,
     // and holds the key of its sealed frames.
-    let client = args.server.connect().await?;
+    let client = args.server.connect_for(&args.session).await?;
     let session = client.get_session(&args.session).await?;
     let endpoints = if args.zenoh.is_empty() {
         client.server_info().await?.zenoh_locators

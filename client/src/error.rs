@@ -32,6 +32,10 @@ pub enum ClientError {
     /// parsed; the message names the file.
     #[error("{0}")]
     Scene(String),
+    /// A session id or a route template that cannot route a call to a
+    /// replica ([`crate::Route`]); the message says what to change.
+    #[error("{0}")]
+    Route(String),
     /// A stream ended before its result: the zenoh session closed, or an
     /// optimisation stream ended without a design.
     #[error("the server closed the stream")]

@@ -29,6 +29,7 @@ mod design;
 mod error;
 mod frame;
 mod link;
+mod route;
 mod scene_file;
 
 pub use client::{Client, Identity, Tls};
@@ -37,4 +38,5 @@ pub use error::ClientError;
 pub use frame::{FieldView, FrameView, SolidSurfaceView, SurfaceView};
 pub use link::{DropReason, Dropped, Frames, Statuses, Watched, ZenohLink};
 pub use meshless_proto::v1;
+pub use route::{Route, server_of};
 pub use scene_file::{inline_meshes, read_scene_file};

@@ -6,6 +6,10 @@
 //!   change (reliable),
 //! - `meshless/v1/sessions/{id}/latest`: a queryable answering with the most
 //!   recent frame, for late joiners.
+//!
+//! And one per named server: a liveliness token on
+//! `meshless/v1/servers/{name}`, alive while the server's zenoh session
+//! reaches the subscriber (a partition or a stop withdraws it).
 
 /// Root of every key expression the server publishes.
 pub const ROOT: &str = "meshless/v1/sessions";
@@ -33,6 +37,17 @@ pub fn latest(session_id: &str) -> String {
 /// Frames of every session, for a subscriber that watches them all.
 pub const ALL_FRAMES: &str = "meshless/v1/sessions/*/frames";
 
+/// Root of the servers' liveliness tokens.
+pub const SERVERS: &str = "meshless/v1/servers";
+
+/// The liveliness token a server named `name` declares.
+pub fn server(name: &str) -> String {
+    format!("{SERVERS}/{name}")
+}
+
+/// Every server's liveliness token, for a liveliness subscriber.
+pub const ALL_SERVERS: &str = "meshless/v1/servers/*";
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -43,6 +58,7 @@ mod tests {
     fn key_expressions_follow_the_documented_layout() {
         assert_eq!(frames("abc"), "meshless/v1/sessions/abc/frames");
         assert_eq!(status("abc"), "meshless/v1/sessions/abc/status");
+        assert_eq!(server("meshless-0"), "meshless/v1/servers/meshless-0");
         assert_eq!(latest("abc"), "meshless/v1/sessions/abc/latest");
         assert_eq!(session_prefix("abc"), "meshless/v1/sessions/abc");
     }

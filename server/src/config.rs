@@ -81,6 +81,16 @@ pub struct ServerConfig {
     #[arg(long, env = "MESHLESS_GRPC_ADDR", default_value = "127.0.0.1:50051")]
     pub grpc_addr: SocketAddr,
 
+    /// This server's name among its replicas: 1 to 40 lowercase letters,
+    /// digits and `-`, starting with a letter (a DNS label, so that it can
+    /// be the host name clients reach it by). Session ids it makes start
+    /// with `NAME-`, so a client routes each call to the replica that holds
+    /// the session, and the server announces itself by a zenoh liveliness
+    /// token on `meshless/v1/servers/NAME`. Unset: plain ids, no token
+    /// (a single server).
+    #[arg(long, env = "MESHLESS_SERVER_NAME", value_parser = parse_server_name)]
+    pub server_name: Option<String>,
+
     /// Zenoh mode of the server's session.
     #[arg(long, env = "MESHLESS_ZENOH_MODE", value_enum, default_value = "peer")]
     pub zenoh_mode: ZenohMode,
@@ -206,6 +216,32 @@ pub struct ServerConfig {
     pub checkpoint_interval: f64,
 }
 
+/// Longest `--server-name`: with `-` and the 16 hex digits of a session's
+/// own part, an id stays within the 64 characters ids may have.
+pub const MAX_SERVER_NAME_LEN: usize = 40;
+
+/// Checks a `--server-name`: a DNS label of at most
+/// [`MAX_SERVER_NAME_LEN`] characters that starts with a letter.
+///
+/// # Errors
+/// A message saying what the name may hold.
+pub fn parse_server_name(name: &str) -> Result<String, String> {
+    let fine = name.len() <= MAX_SERVER_NAME_LEN
+        && name.starts_with(|c: char| c.is_ascii_lowercase())
+        && !name.ends_with('-')
+        && name
+            .chars()
+            .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-');
+    if fine {
+        Ok(name.to_owned())
+    } else {
+        Err(format!(
+            "a server name is 1 to {MAX_SERVER_NAME_LEN} lowercase letters, digits and '-', \
+             starting with a letter and not ending with '-' (a DNS label)"
+        ))
+    }
+}
+
 /// The budget when physical memory cannot be read (not Linux).
 const FALLBACK_BUDGET_BYTES: u64 = 4 << 30;
 
@@ -306,6 +342,7 @@ impl ServerConfig {
     pub fn ephemeral() -> Self {
         Self {
             grpc_addr: SocketAddr::from(([127, 0, 0, 1], 0)),
+            server_name: None,
             zenoh_mode: ZenohMode::Peer,
             zenoh_listen: vec!["tcp/127.0.0.1:0".into()],
             zenoh_connect: Vec::new(),
@@ -374,5 +411,36 @@ impl ServerConfig {
             return Err("--memory-budget-mb must be at least 1".into());
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn server_names_are_dns_labels_that_fit_in_an_id() {
+        for fine in [
+            "a",
+            "meshless-0",
+            "server-2b",
+            &"s".repeat(MAX_SERVER_NAME_LEN),
+        ] {
+            assert_eq!(parse_server_name(fine).as_deref(), Ok(fine));
+        }
+        for bad in [
+            "",
+            "0server",
+            "-a",
+            "a-",
+            "Server",
+            "a_b",
+            "a.b",
+            "a/b",
+            &"s".repeat(MAX_SERVER_NAME_LEN + 1),
+        ] {
+            let error = parse_server_name(bad).expect_err(bad);
+            assert!(error.contains("DNS label"), "{error}");
+        }
     }
 }

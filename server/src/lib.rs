@@ -117,17 +117,20 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
     let sessions_stop = CancellationToken::new();
     let sealed = config.seals(tokens.is_some());
     let metrics = Arc::new(metrics::Metrics::new());
-    let registry = Arc::new(Registry::new(
-        zenoh.clone(),
-        sealed,
-        config.build_options(),
-        config.max_sessions,
-        config.memory_budget_bytes(),
-        // Cancelled once the last checkpoint round is written (see the
-        // serving task), not with `shutdown` itself.
-        sessions_stop.clone(),
-        metrics.clone(),
-    ));
+    let registry = Arc::new(
+        Registry::new(
+            zenoh.clone(),
+            sealed,
+            config.build_options(),
+            config.max_sessions,
+            config.memory_budget_bytes(),
+            // Cancelled once the last checkpoint round is written (see the
+            // serving task), not with `shutdown` itself.
+            sessions_stop.clone(),
+            metrics.clone(),
+        )
+        .named(config.server_name.as_deref()),
+    );
     let checkpoints = match &config.checkpoint_dir {
         Some(dir) => {
             let checkpoints = checkpoint::Checkpoints::new(
@@ -161,6 +164,20 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         } else {
             0.0
         },
+        server_name: config.server_name.clone().unwrap_or_default(),
+        zenoh_routers: 0,
+    };
+    // Dropped when the serving task ends: the server's presence for
+    // anyone watching `meshless/v1/servers/*`.
+    let presence = match &config.server_name {
+        Some(name) => Some(
+            zenoh
+                .liveliness()
+                .declare_token(meshless_proto::keys::server(name))
+                .await
+                .map_err(|e| anyhow::anyhow!("zenoh liveliness token: {e}"))?,
+        ),
+        None => None,
     };
     // A Snapshot answer carries a whole snapshot. A Restore request does
     // too, within `--max-request-mb` like every request: the request
@@ -237,6 +254,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
             let _ = checkpointer.await;
         }
         registry.shut_down_all().await;
+        drop(presence);
         if let Err(e) = zenoh.close().await {
             tracing::warn!("closing zenoh: {e}");
         }

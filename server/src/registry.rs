@@ -22,6 +22,9 @@ pub struct Registry {
     memory: Mutex<Memory>,
     serial: AtomicU64,
     ids: RandomState,
+    /// What every id this server makes starts with: `NAME-` with a
+    /// `--server-name`, else nothing.
+    id_prefix: String,
     cancel: CancellationToken,
     metrics: Arc<Metrics>,
 }
@@ -49,9 +52,18 @@ impl Registry {
             }),
             serial: AtomicU64::new(0),
             ids: RandomState::new(),
+            id_prefix: String::new(),
             cancel,
             metrics,
         }
+    }
+
+    /// Makes every new session id start with `name-`, so that clients can
+    /// tell which replica holds a session from its id alone.
+    #[must_use]
+    pub fn named(mut self, name: Option<&str>) -> Self {
+        self.id_prefix = name.map(|n| format!("{n}-")).unwrap_or_default();
+        self
     }
 
     fn memory(&self) -> std::sync::MutexGuard<'_, Memory> {
@@ -70,6 +82,11 @@ impl Registry {
         self.sessions
             .write()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// The zenoh session every session publishes through.
+    pub fn zenoh(&self) -> &zenoh::Session {
+        &self.zenoh
     }
 
     /// The limits and the mesh-file policy sessions are built with.
@@ -136,7 +153,8 @@ impl Registry {
         let serial = self.serial.fetch_add(1, Ordering::Relaxed);
         let id = id.unwrap_or_else(|| {
             format!(
-                "{:016x}",
+                "{}{:016x}",
+                self.id_prefix,
                 self.ids.hash_one((serial, std::time::SystemTime::now()))
             )
         });

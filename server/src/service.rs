@@ -181,7 +181,11 @@ fn optimize_job(
 #[tonic::async_trait]
 impl Simulation for SimulationService {
     async fn get_server_info(&self, _: Request<v1::GetServerInfoRequest>) -> Reply<v1::ServerInfo> {
-        Ok(Response::new(self.info.clone()))
+        let routers = self.registry.zenoh().info().routers_zid().await.count();
+        Ok(Response::new(v1::ServerInfo {
+            zenoh_routers: u32::try_from(routers).unwrap_or(u32::MAX),
+            ..self.info.clone()
+        }))
     }
 
     async fn create_session(

@@ -381,6 +381,52 @@ async fn session_commands_drive_a_server() {
     );
 }
 
+/// `--route` sends a call that names a session to the server its id
+/// names: a server named `localhost` reached through the template
+/// `http://{server}:PORT`; an id that names no server is refused before
+/// any call, saying what to do instead.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn route_reaches_the_server_a_session_id_names() {
+    let server = ServerProcess::spawn(&["--server-name", "localhost"])
+        .await
+        .expect("server starts");
+    let client = server.client().await.expect("client");
+    let info = within("server info", client.server_info())
+        .await
+        .expect("info");
+    assert_eq!(info.server_name, "localhost");
+    assert_eq!(info.zenoh_routers, 0, "a peer with no router");
+    let session = within("create", client.create_session_toml(&small_scene()))
+        .await
+        .expect("created");
+    assert_eq!(
+        meshless_client::server_of(&session.id),
+        Some("localhost"),
+        "{}",
+        session.id
+    );
+    let port = server.grpc_url.rsplit(':').next().expect("a port");
+    let route = format!("http://{{server}}:{port}");
+    let stepped = meshless_ok(&[
+        "session",
+        "step",
+        &session.id,
+        "-n",
+        "2",
+        "--route",
+        &route,
+        "--server",
+        "http://127.0.0.1:9",
+    ])
+    .await;
+    assert!(stepped.contains("paused at step 2"), "{stepped}");
+
+    let unnamed = meshless(&["session", "get", "0123456789abcdef", "--route", &route]).await;
+    assert!(!unnamed.status.success());
+    let stderr = String::from_utf8_lossy(&unnamed.stderr);
+    assert!(stderr.contains("names no server"), "{stderr}");
+}
+
 /// `meshless watch` finds the zenoh endpoint through the server, counts
 /// the frames it receives and stops after `--frames`.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -411,7 +411,7 @@ fn command_key(text: &str) -> Option<String> {
         .find_map(|dir| program.strip_prefix(dir))
         .unwrap_or(program);
     let script = |path: &str| {
-        (path.starts_with("scripts/")
+        ((path.starts_with("scripts/") || is_executable_in_deploy(path))
             && !path.ends_with('/')
             && !path.split('/').any(is_placeholder))
         .then(|| path.to_owned())
@@ -444,8 +444,21 @@ fn command_key(text: &str) -> Option<String> {
         "python" | "python3" => script(rest.first()?),
         "meshless" => meshless_key(rest),
         "meshless-server" => Some(program.to_owned()),
+        // Compose's two spellings, the plugin and the standalone tool.
+        "docker-compose" => Some("docker-compose".into()),
+        "docker" if rest.first() == Some(&"compose") => Some("docker-compose".into()),
         _ => script(program),
     }
+}
+
+/// Whether `path` is an executable file under `deploy/` (a script there,
+/// such as `deploy/base-images`, beside Dockerfiles and configs that are
+/// not commands).
+fn is_executable_in_deploy(path: &str) -> bool {
+    use std::os::unix::fs::PermissionsExt;
+    path.starts_with("deploy/")
+        && std::fs::metadata(root().join(path))
+            .is_ok_and(|m| m.is_file() && m.permissions().mode() & 0o111 != 0)
 }
 
 /// Every `(key, document)` the documents cite, sorted, without repeats.
@@ -499,6 +512,8 @@ target/release/meshless-server --grpc-addr 127.0.0.1:50051
 target/release/meshless session run ID --until 2.0   # a comment
 python scripts/plot_frames.py out/ply -o a.png
 scripts/bench-peers --warmup 24
+docker compose -f deploy/compose.yaml up --build --exit-code-from harness harness
+deploy/base-images --rebuild
 ```
 
 ```python
@@ -518,6 +533,8 @@ meshless demo: dam break
         keys,
         [
             "cargo bench -p meshless-engine --bench embedded",
+            "deploy/base-images",
+            "docker-compose",
             "meshless demo",
             "meshless session run",
             "meshless study",

@@ -10,6 +10,7 @@
   sample is checked (key, session, sealing) and decoded by
   :func:`decode_frame` into numpy arrays that view the payload without a
   copy; a malformed payload raises ``ValueError``.
+- :func:`route` picks the replica that holds a session from its id.
 - :mod:`meshless.scene` builds scenes from dicts and TOML files;
   :mod:`meshless.design` builds constraints and design problems.
 
@@ -33,6 +34,7 @@ from .frames import (
     latest_key,
     status_key,
 )
+from .route import route, server_of
 from .scene import load_scene, scene_toml
 from .seal import Seal
 from .subscriber import AsyncFrames, Frames
@@ -59,7 +61,9 @@ __all__ = [
     "frames_key",
     "latest_key",
     "load_scene",
+    "route",
     "scene_toml",
+    "server_of",
     "state_name",
     "state_value",
     "status_key",

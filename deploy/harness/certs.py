@@ -1,0 +1,36 @@
+"""Throwaway credentials for the compose harness, written to a volume
+before the servers start: a CA, one server certificate naming every
+replica (and 127.0.0.1, for the containers' own health checks), a tokens
+file for the servers and the harness's token.
+
+    python3 deploy/harness/certs.py DIR NAME...
+
+Files: ca.pem, server.pem, server.key, tokens, harness.token. Never for
+production: operators bring their own PKI (docs/operations.md).
+"""
+
+import secrets
+import sys
+from pathlib import Path
+
+import trustme
+
+
+def main() -> None:
+    out, names = Path(sys.argv[1]), sys.argv[2:]
+    if not names:
+        raise SystemExit("usage: certs.py DIR NAME...")
+    out.mkdir(parents=True, exist_ok=True)
+    ca = trustme.CA()
+    cert = ca.issue_cert(*names, "localhost", "127.0.0.1")
+    ca.cert_pem.write_to_path(str(out / "ca.pem"))
+    cert.cert_chain_pems[0].write_to_path(str(out / "server.pem"))
+    cert.private_key_pem.write_to_path(str(out / "server.key"))
+    token = secrets.token_hex(16)
+    (out / "tokens").write_text(f"harness {token}\n")
+    (out / "harness.token").write_text(token + "\n")
+    print(f"certs.py: CA, a certificate for {', '.join(names)} and a token in {out}")
+
+
+if __name__ == "__main__":
+    main()

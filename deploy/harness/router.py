@@ -1,0 +1,30 @@
+"""A zenoh router for the local topology: zenoh's own router (the same
+routing code as zenohd, from the eclipse-zenoh package) listening on the
+endpoint given, with deploy/config/zenohd.json5's settings, until SIGTERM.
+
+    python deploy/harness/router.py tcp/127.0.0.1:7447
+"""
+
+import json
+import signal
+import sys
+import threading
+from pathlib import Path
+
+import zenoh
+
+CONFIG = Path(__file__).resolve().parents[1] / "config" / "zenohd.json5"
+
+
+def main() -> None:
+    config = zenoh.Config.from_file(str(CONFIG))
+    config.insert_json5("listen/endpoints", json.dumps(sys.argv[1:]))
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    with zenoh.open(config):
+        stop.wait()
+
+
+if __name__ == "__main__":
+    main()

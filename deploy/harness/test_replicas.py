@@ -1,0 +1,279 @@
+"""Two replicas behind one zenoh router, seen by clients that know the
+servers' gRPC targets and the router alone: frames from both, a server
+stopped, the router restarted, a server cut off from the router and
+healed, a server killed and restored from its checkpoints, calls routed
+by session id. The Python client drives; the ``meshless`` command line
+(the Rust client) checks routing and watches frames through the router.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import threading
+import time
+
+import pytest
+import zenoh
+
+import meshless
+from topology import HERE, NAMES, TIMEOUT, Topology, connect, eventually
+
+#: 96 particles that run for minutes without faulting.
+SCENE = (HERE / "tank.toml").read_text()
+
+#: Paced to real time, so frames keep coming for as long as a test needs.
+REALTIME = 1.0
+
+
+def _zenoh(topology: Topology) -> zenoh.Session:
+    config = zenoh.Config()
+    config.insert_json5("mode", '"client"')
+    config.insert_json5("connect/endpoints", json.dumps([topology.router]))
+    config.insert_json5("scouting/multicast/enabled", "false")
+    return zenoh.open(config)
+
+
+class Presence:
+    """Liveliness of the servers (``meshless/v1/servers/*``) through the
+    router: which replicas the router reaches now."""
+
+    def __init__(self, topology: Topology):
+        self._session = _zenoh(topology)
+        self._changed = threading.Condition()
+        self._state: dict[str, str] = {}
+        self.history: list[tuple[str, str]] = []
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            name = str(sample.key_expr).rsplit("/", 1)[-1]
+            state = "gone" if sample.kind == zenoh.SampleKind.DELETE else "alive"
+            with self._changed:
+                self._state[name] = state
+                self.history.append((state, name))
+                self._changed.notify_all()
+
+        self._subscriber = self._session.liveliness().declare_subscriber(
+            "meshless/v1/servers/*", on_sample, history=True
+        )
+
+    def expect(self, state: str, name: str) -> None:
+        """Waits until ``name``'s token is ``state`` (alive or gone)."""
+        with self._changed:
+            reached = self._changed.wait_for(lambda: self._state.get(name) == state, TIMEOUT)
+            if not reached:
+                raise AssertionError(
+                    f"{name}'s liveliness not {state} within {TIMEOUT} s; saw {self.history}"
+                )
+
+    def close(self) -> None:
+        self._subscriber.undeclare()
+        self._session.close()
+
+
+def _frames(topology: Topology, session) -> meshless.Frames:
+    return meshless.Frames([topology.router], session, timeout=TIMEOUT)
+
+
+def _next_step_after(frames: meshless.Frames, step: int) -> int:
+    """The step of the first frame past ``step`` (older ones still queued
+    are skipped)."""
+    while True:
+        frame = frames.next(timeout=TIMEOUT)
+        if frame.step > step:
+            return frame.step
+
+
+def _routers(client: meshless.Client) -> int:
+    return client.server_info().zenoh_routers
+
+
+def _cli(topology: Topology, cli: str, *args: str, server: str | None = None) -> str:
+    c = topology.credentials
+    flags = ["--tls-ca", str(c.ca)]
+    if c.domain:
+        flags += ["--tls-domain", c.domain]
+    if server is not None:
+        flags += ["--server", f"https://{server}"]
+    elif topology.route_template is not None:
+        flags += ["--route", topology.route_template]
+    done = subprocess.run(
+        [cli, *args, *flags],
+        env={**os.environ, "MESHLESS_TOKEN": c.token},
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT,
+    )
+    assert done.returncode == 0, f"meshless {' '.join(args)}: {done.stderr}"
+    return done.stdout
+
+
+def _target(topology: Topology, name: str) -> str:
+    return next(s.target for s in topology.servers if s.name == name)
+
+
+def test_ids_name_their_server_and_calls_are_routed_to_it(topology, clients, cli):
+    for name, client in clients.items():
+        info = client.server_info()
+        assert info.server_name == name
+        eventually(f"{name} to reach the router", lambda c=client: _routers(c) == 1)
+        session = client.create_session(SCENE)
+        assert meshless.server_of(session.id) == name
+        # The other replica does not hold it: a client must be routed.
+        other = clients[next(n for n in NAMES if n != name)]
+        with pytest.raises(meshless.MeshlessError) as missing:
+            other.get_session(session)
+        assert missing.value.code.name == "NOT_FOUND"
+        if topology.route_template is not None:
+            target = meshless.route(topology.route_template.removeprefix("https://"), session.id)
+            assert target == _target(topology, name)
+            shown = _cli(topology, cli, "session", "step", session.id, "-n", "3")
+        else:
+            shown = _cli(
+                topology, cli, "session", "step", session.id, "-n", "3",
+                server=_target(topology, name).replace("127.0.0.1", "localhost"),
+            )
+        assert session.id in shown and "step 3" in shown, shown
+
+
+def test_a_client_that_knows_only_the_router_gets_frames_from_both(topology, clients, cli):
+    presence = Presence(topology)
+    try:
+        for name in NAMES:
+            presence.expect("alive", name)
+    finally:
+        presence.close()
+    sessions = {name: c.create_session(SCENE) for name, c in clients.items()}
+    streams = {name: _frames(topology, s) for name, s in sessions.items()}
+    try:
+        for name, client in clients.items():
+            client.run(sessions[name], forever=True, realtime_factor=REALTIME)
+        for name, frames in streams.items():
+            frame = frames.next(timeout=TIMEOUT)
+            assert frame.session_id == sessions[name].id
+            assert frame.particle_count == 96
+        # The Rust client through the router alone.
+        for name, session in sessions.items():
+            flags = ["watch", session.id, "--zenoh", topology.router, "--frames", "3"]
+            if topology.route_template is None:
+                server = _target(topology, name).replace("127.0.0.1", "localhost")
+                shown = _cli(topology, cli, *flags, server=server)
+            else:
+                shown = _cli(topology, cli, *flags)
+            assert f"watching {session.id} through {topology.router}" in shown, shown
+    finally:
+        for frames in streams.values():
+            frames.close()
+
+
+def test_stopping_one_server_leaves_the_other_untouched(topology, clients):
+    first, second = NAMES
+    a = clients[first].create_session(SCENE)
+    b = clients[second].create_session(SCENE)
+    presence = Presence(topology)
+    frames = _frames(topology, a)
+    try:
+        presence.expect("alive", second)
+        clients[first].run(a, forever=True, realtime_factor=REALTIME)
+        clients[second].run(b, forever=True, realtime_factor=REALTIME)
+        step = frames.next(timeout=TIMEOUT).step
+        topology.stop(second)
+        presence.expect("gone", second)
+        # The first server's stream goes on, frame after frame.
+        for _ in range(5):
+            step = _next_step_after(frames, step)
+        assert meshless.state_name(clients[first].get_session(a).status.state) == "running"
+        topology.start(second)
+        presence.expect("alive", second)
+        # Its session came back from its checkpoints, paused where it was.
+        restarted = connect(topology, second)
+        try:
+            back = restarted.get_session(b)
+            assert meshless.state_name(back.status.state) == "paused"
+        finally:
+            restarted.close()
+        step = _next_step_after(frames, step)
+    finally:
+        frames.close()
+        presence.close()
+
+
+def test_streams_resume_after_the_router_restarts(topology, clients):
+    first = NAMES[0]
+    session = clients[first].create_session(SCENE)
+    frames = _frames(topology, session)
+    try:
+        clients[first].run(session, forever=True, realtime_factor=REALTIME)
+        step = frames.next(timeout=TIMEOUT).step
+        topology.restart_router()
+        # Same subscriber, same servers: both reconnect on their own.
+        step = _next_step_after(frames, step)
+        _next_step_after(frames, step)
+        eventually("the server to reach the router again", lambda: _routers(clients[first]) == 1)
+    finally:
+        frames.close()
+
+
+def test_a_partition_is_detected_and_heals(topology, clients):
+    first = NAMES[0]
+    client = clients[first]
+    session = client.create_session(SCENE)
+    presence = Presence(topology)
+    frames = _frames(topology, session)
+    try:
+        presence.expect("alive", first)
+        client.run(session, forever=True, realtime_factor=REALTIME)
+        step = frames.next(timeout=TIMEOUT).step
+        topology.partition(first)
+        presence.expect("gone", first)
+        eventually("the server to report no router", lambda: _routers(client) == 0)
+        # gRPC still reaches it, and the session runs on unseen.
+        running = client.get_session(session).status
+        assert meshless.state_name(running.state) == "running"
+        topology.heal(first)
+        presence.expect("alive", first)
+        eventually("the server to report its router", lambda: _routers(client) == 1)
+        resumed = _next_step_after(frames, max(step, running.step))
+        assert resumed > running.step
+    finally:
+        frames.close()
+        presence.close()
+
+
+def _metric(url: str, name: str) -> float | None:
+    import urllib.request
+
+    with urllib.request.urlopen(url, timeout=10) as answer:
+        for line in answer.read().decode().splitlines():
+            if line.startswith(name + " "):
+                return float(line.split()[1])
+    return None
+
+
+def test_a_killed_server_restores_its_sessions_from_checkpoints(topology, clients):
+    second = NAMES[1]
+    metrics = next(s.metrics_url for s in topology.servers if s.name == second)
+    session = clients[second].create_session(SCENE)
+    stepped = clients[second].step(session, 7)
+    before = clients[second].latest_frame(session)
+    done_at = time.time()
+    # A round that finishes more than an interval (0.5 s) after the step
+    # began after it, so the checkpoint on disk holds step 7.
+    eventually(
+        "a checkpoint round after the step",
+        lambda: (age := _metric(metrics, "meshless_checkpoint_age_seconds")) is not None
+        and time.time() - age > done_at + 0.75,
+    )
+    topology.kill(second)
+    topology.start(second)
+    restarted = connect(topology, second)
+    try:
+        back = restarted.get_session(session)
+        assert back.id == session.id
+        assert back.status.step == stepped.status.step == 7
+        after = restarted.latest_frame(session)
+        assert after.step == before.step
+        assert (after.positions == before.positions).all()
+        restarted.step(session, 1)
+    finally:
+        restarted.close()

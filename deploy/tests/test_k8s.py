@@ -1,0 +1,488 @@
+"""Checks of the Kubernetes manifests in deploy/k8s.
+
+Every object the kustomization lists is validated, strictly (an unknown
+field is an error), against the OpenAPI schemas of one Kubernetes version
+that kubernetes-validate ships inside its package: no network, no cluster.
+Then what a schema cannot see: that services select pods, mounts name
+volumes, volumes name objects that exist, settings are ones the server reads.
+
+Each cross-reference check is a function returning its problems, run on the
+real manifests (no problem) and on broken copies in memory (a problem), so
+that every check is shown to bite.
+
+    python -m pytest -q deploy/tests
+"""
+
+import copy
+import re
+from pathlib import Path
+
+import kubernetes_validate
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[2]
+K8S = ROOT / "deploy" / "k8s"
+ZENOHD_CONFIG = ROOT / "deploy" / "config" / "zenohd.json5"
+SERVER_CONFIG = ROOT / "server" / "src" / "config.rs"
+
+# The Kubernetes version whose schemas the manifests must pass.
+KUBERNETES_VERSION = "1.33"
+
+# Created by hand (deploy/k8s/README.md), never committed: name -> keys.
+DOCUMENTED_SECRETS = {
+    "meshless-tokens": {"tokens"},
+    "meshless-tls": {"tls.crt", "tls.key", "ca.crt"},
+}
+
+WORKLOAD_KINDS = {"Deployment", "StatefulSet", "DaemonSet", "ReplicaSet", "Job"}
+
+
+def kustomization():
+    return yaml.safe_load((K8S / "kustomization.yaml").read_text())
+
+
+def load_manifests():
+    """[(file name, object)] for every object of every listed file."""
+    out = []
+    for name in kustomization().get("resources", []):
+        for obj in yaml.safe_load_all((K8S / name).read_text()):
+            if obj is not None:
+                out.append((name, obj))
+    return out
+
+
+MANIFESTS = load_manifests()
+
+
+def objects():
+    return [copy.deepcopy(obj) for _, obj in MANIFESTS]
+
+
+def find(objs, kind, name):
+    for obj in objs:
+        if obj["kind"] == kind and obj["metadata"]["name"] == name:
+            return obj
+    raise KeyError(f"{kind}/{name}")
+
+
+def ident(obj):
+    return f"{obj['kind']}/{obj['metadata']['name']}"
+
+
+def workloads(objs):
+    return [o for o in objs if o["kind"] in WORKLOAD_KINDS]
+
+
+def pod_spec(workload):
+    return workload["spec"]["template"]["spec"]
+
+
+def pod_labels(workload):
+    return workload["spec"]["template"]["metadata"].get("labels") or {}
+
+
+def containers(workload):
+    spec = pod_spec(workload)
+    return spec.get("initContainers", []) + spec["containers"]
+
+
+def selects(selector, labels):
+    return bool(selector) and all(labels.get(k) == v for k, v in selector.items())
+
+
+def env_value(container, name):
+    for var in container.get("env", []):
+        if var["name"] == name:
+            return var.get("value")
+    raise KeyError(name)
+
+
+def quantity_bytes(text):
+    """A Kubernetes memory quantity ("8Gi", "512M", "1e3") in bytes."""
+    units = {"Ki": 2**10, "Mi": 2**20, "Gi": 2**30, "Ti": 2**40, "Pi": 2**50,
+             "k": 10**3, "M": 10**6, "G": 10**9, "T": 10**12, "P": 10**15}
+    match = re.fullmatch(r"([0-9.eE+-]+?)(Ki|Mi|Gi|Ti|Pi|k|M|G|T|P)?", str(text))
+    assert match, f"not a quantity: {text!r}"
+    return float(match.group(1)) * units.get(match.group(2), 1)
+
+
+# ---------------------------------------------------------------- schemas
+
+
+def schema_problems(obj):
+    try:
+        version = kubernetes_validate.validate(obj, KUBERNETES_VERSION, strict=True)
+    except kubernetes_validate.ValidationError as e:
+        path = ".".join(str(p) for p in e.path)
+        return [f"{ident(obj)}: {path}: {e.message}"]
+    except kubernetes_validate.SchemaNotFoundError as e:
+        # The command line only warns of this; here an object no schema
+        # covers is an error.
+        return [f"{ident(obj)}: {e.message}"]
+    assert version == KUBERNETES_VERSION, f"validated against {version}"
+    return []
+
+
+@pytest.mark.parametrize(
+    "obj", [obj for _, obj in MANIFESTS], ids=[f"{f}:{ident(o)}" for f, o in MANIFESTS]
+)
+def test_schema(obj):
+    assert schema_problems(obj) == []
+
+
+@pytest.mark.parametrize(
+    "breakage",
+    [
+        lambda o: o["spec"]["template"]["spec"]["containers"][0].update(imagePullPolicyy="Always"),
+        lambda o: o["metadata"].update(namespce="x"),
+        lambda o: o["spec"].update(replicas="2"),
+        lambda o: o["spec"]["template"]["spec"]["containers"][0]["env"].append(
+            {"name": "MESHLESS_MAX_SESSIONS", "value": 64}
+        ),
+        lambda o: o["spec"]["template"]["spec"]["containers"][0]["ports"][0].update(
+            containerPort="grpc"
+        ),
+    ],
+    ids=["unknown-container-field", "unknown-metadata-field", "replicas-string",
+         "env-value-integer", "port-string"],
+)
+def test_validator_rejects_a_broken_statefulset(breakage):
+    obj = find(objects(), "StatefulSet", "meshless")
+    breakage(obj)
+    assert schema_problems(obj) != []
+
+
+def test_validator_rejects_an_object_it_has_no_schema_for():
+    obj = find(objects(), "Service", "meshless")
+    obj["apiVersion"] = "v2"
+    assert schema_problems(obj) != []
+
+
+# ---------------------------------------------------------- kustomization
+
+
+def test_kustomization_lists_every_manifest():
+    listed = kustomization().get("resources", [])
+    assert len(listed) == len(set(listed)), "a file listed twice"
+    present = {p.name for p in K8S.iterdir() if p.suffix in (".yaml", ".yml")}
+    present.discard("kustomization.yaml")
+    assert set(listed) == present
+
+
+def test_kustomization_is_namespace_agnostic_and_holds_no_secret():
+    assert "namespace" not in kustomization()
+    for obj in objects():
+        assert "namespace" not in obj["metadata"], ident(obj)
+        assert obj["kind"] != "Secret", f"{ident(obj)}: secret values are never committed"
+
+
+def test_object_names_are_unique():
+    names = [ident(o) for o in objects()]
+    assert len(names) == len(set(names))
+
+
+# ------------------------------------------------------- cross-references
+
+
+def selector_problems(objs):
+    problems = []
+    for w in workloads(objs):
+        match = w["spec"]["selector"]["matchLabels"]
+        if not selects(match, pod_labels(w)):
+            problems.append(f"{ident(w)}: selector does not select its own pods")
+    for svc in (o for o in objs if o["kind"] == "Service"):
+        selected = [w for w in workloads(objs) if selects(svc["spec"].get("selector"), pod_labels(w))]
+        if not selected:
+            problems.append(f"{ident(svc)}: selects no workload's pods")
+        named_ports = {
+            p["name"] for w in selected for c in containers(w) for p in c.get("ports", []) if "name" in p
+        }
+        numbered = {
+            p["containerPort"] for w in selected for c in containers(w) for p in c.get("ports", [])
+        }
+        for port in svc["spec"]["ports"]:
+            target = port.get("targetPort", port["port"])
+            if target not in (named_ports if isinstance(target, str) else numbered):
+                problems.append(f"{ident(svc)}: targetPort {target} is no container port")
+    for pdb in (o for o in objs if o["kind"] == "PodDisruptionBudget"):
+        match = pdb["spec"]["selector"]["matchLabels"]
+        if not any(selects(match, pod_labels(w)) for w in workloads(objs)):
+            problems.append(f"{ident(pdb)}: selects no workload's pods")
+    return problems
+
+
+def test_selectors():
+    assert selector_problems(objects()) == []
+
+
+def test_selectors_bite():
+    objs = objects()
+    find(objs, "Service", "meshless")["spec"]["selector"] = {"app.kubernetes.io/name": "meshles"}
+    assert selector_problems(objs) != []
+    objs = objects()
+    find(objs, "Service", "zenohd")["spec"]["ports"][0]["targetPort"] = "zenohd"
+    assert selector_problems(objs) != []
+    objs = objects()
+    find(objs, "StatefulSet", "meshless")["spec"]["template"]["metadata"]["labels"] = {"app": "x"}
+    assert selector_problems(objs) != []
+
+
+def service_name_problems(objs):
+    problems = []
+    for sts in (o for o in objs if o["kind"] == "StatefulSet"):
+        try:
+            svc = find(objs, "Service", sts["spec"]["serviceName"])
+        except KeyError:
+            problems.append(f"{ident(sts)}: serviceName names no Service")
+            continue
+        if svc["spec"].get("clusterIP") != "None":
+            problems.append(f"{ident(sts)}: {ident(svc)} is not headless")
+        if not selects(svc["spec"].get("selector"), pod_labels(sts)):
+            problems.append(f"{ident(sts)}: {ident(svc)} does not select its pods")
+        if svc["spec"].get("publishNotReadyAddresses", False):
+            problems.append(f"{ident(svc)}: routes to replicas not ready")
+    return problems
+
+
+def test_statefulset_service_name():
+    assert service_name_problems(objects()) == []
+
+
+def test_statefulset_service_name_bites():
+    objs = objects()
+    find(objs, "StatefulSet", "meshless")["spec"]["serviceName"] = "meshless"
+    assert service_name_problems(objs) != []
+
+
+def volume_problems(objs):
+    problems = []
+    configmaps = {o["metadata"]["name"]: o for o in objs if o["kind"] == "ConfigMap"}
+    secrets = {o["metadata"]["name"]: set(o.get("data", {})) | set(o.get("stringData", {}))
+               for o in objs if o["kind"] == "Secret"}
+    secrets.update(DOCUMENTED_SECRETS)
+    for w in workloads(objs):
+        volumes = {v["name"]: v for v in pod_spec(w).get("volumes", [])}
+        claims = {c["metadata"]["name"] for c in w["spec"].get("volumeClaimTemplates", [])}
+        for c in containers(w):
+            for mount in c.get("volumeMounts", []):
+                if mount["name"] not in volumes and mount["name"] not in claims:
+                    problems.append(f"{ident(w)}: mount {mount['name']} names no volume")
+        for v in volumes.values():
+            if "configMap" in v:
+                name = v["configMap"]["name"]
+                if name not in configmaps:
+                    problems.append(f"{ident(w)}: volume {v['name']}: no ConfigMap {name}")
+                    continue
+                keys = set(configmaps[name].get("data", {}))
+                items = v["configMap"].get("items", [])
+            elif "secret" in v:
+                name = v["secret"]["secretName"]
+                if name not in secrets:
+                    problems.append(f"{ident(w)}: volume {v['name']}: no Secret {name}")
+                    continue
+                keys = secrets[name]
+                items = v["secret"].get("items", [])
+            else:
+                continue
+            for item in items:
+                if item["key"] not in keys:
+                    problems.append(f"{ident(w)}: volume {v['name']}: {name} has no key {item['key']}")
+    return problems
+
+
+def test_volumes():
+    assert volume_problems(objects()) == []
+
+
+def test_volumes_bite():
+    objs = objects()
+    sts = find(objs, "StatefulSet", "meshless")
+    pod_spec(sts)["containers"][0]["volumeMounts"][0]["name"] = "token"
+    assert volume_problems(objs) != []
+    objs = objects()
+    sts = find(objs, "StatefulSet", "meshless")
+    pod_spec(sts)["volumes"][1]["secret"]["secretName"] = "meshless-certs"
+    assert volume_problems(objs) != []
+    objs = objects()
+    sts = find(objs, "StatefulSet", "meshless")
+    pod_spec(sts)["volumes"][1]["secret"]["items"][2]["key"] = "ca.pem"
+    assert volume_problems(objs) != []
+    objs = objects()
+    pod_spec(find(objs, "Deployment", "zenohd"))["volumes"][0]["configMap"]["name"] = "zenohd"
+    assert volume_problems(objs) != []
+
+
+def mounted_files(workload, container):
+    """Paths of the files a container sees through its secret and configMap
+    volumes (with items: those paths; without: every key)."""
+    volumes = {v["name"]: v for v in pod_spec(workload).get("volumes", [])}
+    objs = {o["metadata"]["name"]: o for o in objects() if o["kind"] == "ConfigMap"}
+    files = set()
+    for mount in container.get("volumeMounts", []):
+        v = volumes.get(mount["name"], {})
+        source = v.get("secret") or v.get("configMap")
+        if source is None:
+            continue
+        if "items" in source:
+            paths = [i["path"] for i in source["items"]]
+        elif "secretName" in source:
+            paths = DOCUMENTED_SECRETS.get(source["secretName"], ())
+        else:
+            paths = objs.get(source["name"], {}).get("data", {})
+        files.update(f"{mount['mountPath'].rstrip('/')}/{p}" for p in paths)
+    return files
+
+
+def test_files_the_server_and_probes_read_are_mounted():
+    sts = find(objects(), "StatefulSet", "meshless")
+    server = pod_spec(sts)["containers"][0]
+    files = mounted_files(sts, server)
+    for name in ("MESHLESS_TOKENS_FILE", "MESHLESS_TLS_CERT", "MESHLESS_TLS_KEY"):
+        assert env_value(server, name) in files, name
+    for probe in ("readinessProbe", "livenessProbe", "startupProbe"):
+        command = server[probe]["exec"]["command"]
+        assert command[command.index("--tls-ca") + 1] in files, probe
+    mounts = {m["mountPath"] for m in server["volumeMounts"]}
+    assert env_value(server, "MESHLESS_CHECKPOINT_DIR") in mounts
+
+    zenohd = find(objects(), "Deployment", "zenohd")
+    router = pod_spec(zenohd)["containers"][0]
+    assert router["command"][-1] in mounted_files(zenohd, router)
+
+
+def test_zenohd_config_is_the_repository_file_byte_for_byte():
+    cm = find(objects(), "ConfigMap", "zenohd-config")
+    assert cm["data"]["zenohd.json5"].encode() == ZENOHD_CONFIG.read_bytes()
+
+
+def test_servers_connect_to_the_router_service():
+    sts = find(objects(), "StatefulSet", "meshless")
+    server = pod_spec(sts)["containers"][0]
+    assert env_value(server, "MESHLESS_ZENOH_MODE") == "client"
+    for endpoint in env_value(server, "MESHLESS_ZENOH_CONNECT").split(","):
+        match = re.fullmatch(r"tcp/([a-z0-9-]+):(\d+)", endpoint)
+        assert match, endpoint
+        svc = find(objects(), "Service", match.group(1))
+        assert int(match.group(2)) in {p["port"] for p in svc["spec"]["ports"]}
+
+
+def probe_problems(objs):
+    problems = []
+    for w in workloads(objs):
+        for c in containers(w):
+            for kind in ("readinessProbe", "livenessProbe", "startupProbe"):
+                probe = c.get(kind)
+                if probe and "exec" in probe and probe["exec"]["command"][:2] != ["meshless", "health"]:
+                    problems.append(f"{ident(w)}: {c['name']} {kind} is not `meshless health`")
+                if probe and "grpc" in probe:
+                    problems.append(f"{ident(w)}: {c['name']} {kind}: a grpc probe cannot speak TLS")
+    return problems
+
+
+def test_probes():
+    objs = objects()
+    assert probe_problems(objs) == []
+    server = pod_spec(find(objs, "StatefulSet", "meshless"))["containers"][0]
+    for kind in ("readinessProbe", "livenessProbe", "startupProbe"):
+        assert "exec" in server[kind], kind
+    startup = server["startupProbe"]
+    assert startup["periodSeconds"] * startup["failureThreshold"] >= 300
+
+
+def test_probes_bite():
+    objs = objects()
+    server = pod_spec(find(objs, "StatefulSet", "meshless"))["containers"][0]
+    server["livenessProbe"]["exec"]["command"] = ["meshless", "ls"]
+    assert probe_problems(objs) != []
+    objs = objects()
+    server = pod_spec(find(objs, "StatefulSet", "meshless"))["containers"][0]
+    server["readinessProbe"] = {"grpc": {"port": 50051}}
+    assert probe_problems(objs) != []
+
+
+def server_env_names():
+    return set(re.findall(r'\benv\s*=\s*"([A-Z0-9_]+)"', SERVER_CONFIG.read_text()))
+
+
+def env_problems(objs, known):
+    problems = []
+    for w in workloads(objs):
+        for c in containers(w):
+            for var in c.get("env", []):
+                if var["name"].startswith("MESHLESS_") and var["name"] not in known:
+                    problems.append(f"{ident(w)}: {var['name']} is not in server/src/config.rs")
+    return problems
+
+
+def test_env_names_are_server_settings():
+    assert env_problems(objects(), server_env_names()) == []
+
+
+def test_env_names_bite():
+    objs = objects()
+    server = pod_spec(find(objs, "StatefulSet", "meshless"))["containers"][0]
+    server["env"].append({"name": "MESHLESS_GRPC_ADRESS", "value": "0.0.0.0:50051"})
+    assert env_problems(objs, server_env_names()) != []
+
+
+def test_service_links_stay_out_of_the_server_settings():
+    # Service `meshless` would inject MESHLESS_SERVICE_HOST, MESHLESS_PORT...
+    assert pod_spec(find(objects(), "StatefulSet", "meshless"))["enableServiceLinks"] is False
+
+
+def memory_problems(objs):
+    problems = []
+    for w in workloads(objs):
+        for c in containers(w):
+            names = {v["name"] for v in c.get("env", [])}
+            if "MESHLESS_MEMORY_BUDGET_MB" not in names:
+                continue
+            budget = int(env_value(c, "MESHLESS_MEMORY_BUDGET_MB")) * 2**20
+            limit = c.get("resources", {}).get("limits", {}).get("memory")
+            if limit is None or quantity_bytes(limit) <= budget:
+                problems.append(f"{ident(w)}: memory limit {limit} not above the budget")
+    return problems
+
+
+def test_memory_limit_is_above_the_server_budget():
+    objs = objects()
+    assert memory_problems(objs) == []
+    server = pod_spec(find(objs, "StatefulSet", "meshless"))["containers"][0]
+    assert "MESHLESS_MEMORY_BUDGET_MB" in {v["name"] for v in server["env"]}
+
+
+def test_memory_limit_bites():
+    objs = objects()
+    server = pod_spec(find(objs, "StatefulSet", "meshless"))["containers"][0]
+    server["resources"]["limits"]["memory"] = "6Gi"
+    assert memory_problems(objs) != []
+
+
+def test_quantities():
+    assert quantity_bytes("8Gi") == 8 * 2**30
+    assert quantity_bytes("512Mi") == 512 * 2**20
+    assert quantity_bytes("6G") == 6 * 10**9
+    assert quantity_bytes("1024") == 1024
+
+
+def test_containers_run_locked_down():
+    for w in workloads(objects()):
+        pod = pod_spec(w).get("securityContext", {})
+        assert pod.get("runAsNonRoot") is True, ident(w)
+        assert pod.get("runAsUser") == 10001, ident(w)
+        for c in containers(w):
+            sc = c.get("securityContext", {})
+            assert sc.get("allowPrivilegeEscalation") is False, ident(w)
+            assert sc.get("readOnlyRootFilesystem") is True, ident(w)
+            assert sc.get("capabilities", {}).get("drop") == ["ALL"], ident(w)
+            assert {"requests", "limits"} <= set(c.get("resources", {})), ident(w)
+
+
+def test_no_disruption_budget_for_a_single_replica():
+    # minAvailable 1 on one replica would block node drains forever.
+    objs = objects()
+    for pdb in (o for o in objs if o["kind"] == "PodDisruptionBudget"):
+        for w in workloads(objs):
+            if selects(pdb["spec"]["selector"]["matchLabels"], pod_labels(w)):
+                assert w["spec"].get("replicas", 1) > 1, f"{ident(pdb)} on {ident(w)}"

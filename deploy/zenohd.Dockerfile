@@ -1,0 +1,28 @@
+# The zenoh router, zenohd, at the version of the zenoh crate meshless is
+# built with (Cargo.lock), compiled from crates.io in a Rust stage:
+#
+#   docker build -f deploy/zenohd.Dockerfile -t meshless-zenohd:1.10.2 deploy
+#
+# Its configuration is mounted (deploy/config/zenohd.json5 in compose, a
+# ConfigMap in deploy/k8s). That configuration loads no plugin, so none is
+# built: the REST and storage plugins are separate libraries. Without a
+# container registry, deploy/base-images first creates the base images.
+ARG RUST_IMAGE=rust:bookworm
+ARG RUNTIME_IMAGE=debian:bookworm-slim
+
+FROM ${RUST_IMAGE} AS build
+ARG ZENOHD_VERSION=1.10.2
+RUN cargo install zenohd --version "=${ZENOHD_VERSION}" --locked --root /out
+
+FROM ${RUNTIME_IMAGE}
+RUN useradd --system --uid 10001 --user-group --no-create-home zenohd
+COPY --from=build /out/bin/zenohd /usr/local/bin/zenohd
+COPY config/zenohd.json5 /etc/zenohd/zenohd.json5
+USER zenohd
+# 7447: zenoh (TCP), for servers and subscribers alike.
+EXPOSE 7447
+# No plugin, so no HTTP endpoint to ask: the router is healthy when its
+# port accepts a connection (bash's /dev/tcp, nothing to install).
+HEALTHCHECK --interval=5s --timeout=3s --start-period=5s --retries=5 \
+  CMD ["bash", "-c", "exec 3<>/dev/tcp/127.0.0.1/7447"]
+ENTRYPOINT ["zenohd", "-c", "/etc/zenohd/zenohd.json5"]
