@@ -1,12 +1,14 @@
 """Throwaway credentials for the compose harness, written to a volume
-before the servers start: a CA, one server certificate naming every
-replica (and 127.0.0.1, for the containers' own health checks), a tokens
-file for the servers and the harness's token.
+before the router and the servers start: a CA, one certificate naming
+every host given (the router and the replicas, and 127.0.0.1 for the
+containers' own health checks), a tokens file for the servers and the
+harness's token.
 
     python3 deploy/harness/certs.py DIR NAME...
 
-Files: ca.pem, server.pem, server.key, tokens, harness.token. Never for
-production: operators bring their own PKI (docs/operations.md).
+Files, named as Kubernetes secrets name them: ca.crt, tls.crt, tls.key,
+tokens, harness.token. Never for production: operators bring their own
+PKI (docs/deploy.md).
 """
 
 import secrets
@@ -23,9 +25,9 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     ca = trustme.CA()
     cert = ca.issue_cert(*names, "localhost", "127.0.0.1")
-    ca.cert_pem.write_to_path(str(out / "ca.pem"))
-    cert.cert_chain_pems[0].write_to_path(str(out / "server.pem"))
-    cert.private_key_pem.write_to_path(str(out / "server.key"))
+    ca.cert_pem.write_to_path(str(out / "ca.crt"))
+    cert.cert_chain_pems[0].write_to_path(str(out / "tls.crt"))
+    cert.private_key_pem.write_to_path(str(out / "tls.key"))
     token = secrets.token_hex(16)
     (out / "tokens").write_text(f"harness {token}\n")
     (out / "harness.token").write_text(token + "\n")

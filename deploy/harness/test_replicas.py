@@ -28,7 +28,7 @@ REALTIME = 1.0
 
 
 def _zenoh(topology: Topology) -> zenoh.Session:
-    config = zenoh.Config()
+    config = zenoh.Config.from_file(str(topology.zenoh_config))
     config.insert_json5("mode", '"client"')
     config.insert_json5("connect/endpoints", json.dumps([topology.router]))
     config.insert_json5("scouting/multicast/enabled", "false")
@@ -72,7 +72,9 @@ class Presence:
 
 
 def _frames(topology: Topology, session) -> meshless.Frames:
-    return meshless.Frames([topology.router], session, timeout=TIMEOUT)
+    return meshless.Frames(
+        [topology.router], session, zenoh_config=str(topology.zenoh_config), timeout=TIMEOUT
+    )
 
 
 def _next_step_after(frames: meshless.Frames, step: int) -> int:
@@ -155,6 +157,7 @@ def test_a_client_that_knows_only_the_router_gets_frames_from_both(topology, cli
         # The Rust client through the router alone.
         for name, session in sessions.items():
             flags = ["watch", session.id, "--zenoh", topology.router, "--frames", "3"]
+            flags += ["--zenoh-config", str(topology.zenoh_config)]
             if topology.route_template is None:
                 server = _target(topology, name).replace("127.0.0.1", "localhost")
                 shown = _cli(topology, cli, *flags, server=server)

@@ -12,13 +12,14 @@ Two topologies run the same tests (``test_replicas.py``):
   the router a TCP relay that a partition cuts (the server's link drops
   and no new one connects), so the server sees what a cut network shows.
 
-Both speak gRPC over TLS with tokens to the servers, and zenoh to the
-router only: the suite knows the servers' gRPC targets and the router's
-endpoint, nothing else.
+Both speak gRPC over TLS with tokens to the servers, and zenoh over TLS
+to the router only: the suite knows the servers' gRPC targets and the
+router's endpoint, nothing else.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import socket
 import subprocess
@@ -73,10 +74,21 @@ class Credentials:
     domain: str | None = None
 
 
+def zenoh_client_config(path: Path, ca: Path) -> Path:
+    """Writes, to ``path``, a zenoh configuration that trusts ``ca`` for
+    ``tls/`` endpoints (what deploy/config/zenoh-client.json5 gives the
+    servers), and returns ``path``."""
+    path.write_text(json.dumps({"transport": {"link": {"tls": {"root_ca_certificate": str(ca)}}}}))
+    return path
+
+
 class Topology(Protocol):
     servers: list[Server]
-    #: The router's zenoh endpoint, the only one the suite's subscribers know.
+    #: The router's zenoh endpoint (``tls/``), the only one the suite's
+    #: subscribers know.
     router: str
+    #: The zenoh configuration file subscribers connect with (the CA).
+    zenoh_config: Path
     credentials: Credentials
     #: A ``meshless --route`` template that reaches every replica by name,
     #: or ``None`` where names do not resolve (local processes).
@@ -216,6 +228,7 @@ class LocalTopology:
     server_bin: str
     servers: list[Server] = field(default_factory=list)
     router: str = ""
+    zenoh_config: Path = Path()
     credentials: Credentials | None = None  # type: ignore[assignment]
     route_template: str | None = None
     _processes: dict[str, _Process] = field(default_factory=dict)
@@ -239,11 +252,13 @@ class LocalTopology:
         tokens = workdir / "tokens"
         tokens.write_text(f"harness {token}\n")
         top.credentials = Credentials(ca=ca_path, token=token, domain="localhost")
+        top.zenoh_config = zenoh_client_config(workdir / "zenoh-client.json", ca_path)
 
         top._router_port = free_port()
-        top.router = f"tcp/127.0.0.1:{top._router_port}"
+        top.router = f"tls/127.0.0.1:{top._router_port}"
         top._router = _Process(
-            [sys.executable, str(HERE / "router.py"), top.router], dict(os.environ)
+            [sys.executable, str(HERE / "router.py"), top.router, str(cert_path), str(key_path)],
+            dict(os.environ),
         )
         top._start_router()
         for name in names:
@@ -257,7 +272,8 @@ class LocalTopology:
                 "--grpc-addr", f"127.0.0.1:{grpc}",
                 "--metrics-addr", f"127.0.0.1:{metrics}",
                 "--zenoh-mode", "client",
-                "--zenoh-connect", f"tcp/127.0.0.1:{relay.port}",
+                "--zenoh-connect", f"tls/127.0.0.1:{relay.port}",
+                "--zenoh-config", str(top.zenoh_config),
                 "--tokens-file", str(tokens),
                 "--tls-cert", str(cert_path),
                 "--tls-key", str(key_path),
@@ -322,12 +338,13 @@ class ComposeTopology:
         self._project = me.labels["com.docker.compose.project"]
         certs = Path(os.environ.get("MESHLESS_HARNESS_CERTS", "/certs"))
         self.credentials = Credentials(
-            ca=certs / "ca.pem", token=(certs / "harness.token").read_text().strip()
+            ca=certs / "ca.crt", token=(certs / "harness.token").read_text().strip()
         )
+        self.zenoh_config = zenoh_client_config(Path("/tmp/zenoh-client.json"), certs / "ca.crt")
         self.servers = [
             Server(name, f"{name}:50051", f"http://{name}:9464/metrics") for name in names
         ]
-        self.router = os.environ.get("MESHLESS_HARNESS_ROUTER", "tcp/zenohd:7447")
+        self.router = os.environ.get("MESHLESS_HARNESS_ROUTER", "tls/zenohd:7447")
         self.route_template = "https://{server}:50051"
         self._zenoh_network = self._docker.networks.get(f"{self._project}_zenoh")
 

@@ -4,7 +4,9 @@ Every object the kustomization lists is validated, strictly (an unknown
 field is an error), against the OpenAPI schemas of one Kubernetes version
 that kubernetes-validate ships inside its package: no network, no cluster.
 Then what a schema cannot see: that services select pods, mounts name
-volumes, volumes name objects that exist, settings are ones the server reads.
+volumes, volumes name objects that exist, settings are ones the server reads,
+ConfigMaps copy deploy/config byte for byte, and the certificate files the
+zenoh configs name are mounted where they are read.
 
 Each cross-reference check is a function returning its problems, run on the
 real manifests (no problem) and on broken copies in memory (a problem), so
@@ -23,7 +25,8 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[2]
 K8S = ROOT / "deploy" / "k8s"
-ZENOHD_CONFIG = ROOT / "deploy" / "config" / "zenohd.json5"
+# Every ConfigMap key is a copy of the file of that name here.
+CONFIG_DIR = ROOT / "deploy" / "config"
 SERVER_CONFIG = ROOT / "server" / "src" / "config.rs"
 
 # The Kubernetes version whose schemas the manifests must pass.
@@ -33,6 +36,7 @@ KUBERNETES_VERSION = "1.33"
 DOCUMENTED_SECRETS = {
     "meshless-tokens": {"tokens"},
     "meshless-tls": {"tls.crt", "tls.key", "ca.crt"},
+    "zenohd-tls": {"tls.crt", "tls.key"},
 }
 
 WORKLOAD_KINDS = {"Deployment", "StatefulSet", "DaemonSet", "ReplicaSet", "Job"}
@@ -311,27 +315,50 @@ def test_volumes_bite():
     objs = objects()
     pod_spec(find(objs, "Deployment", "zenohd"))["volumes"][0]["configMap"]["name"] = "zenohd"
     assert volume_problems(objs) != []
+    objs = objects()
+    pod_spec(find(objs, "Deployment", "zenohd"))["volumes"][1]["secret"]["secretName"] = "zenoh-tls"
+    assert volume_problems(objs) != []
 
 
-def mounted_files(workload, container):
-    """Paths of the files a container sees through its secret and configMap
-    volumes (with items: those paths; without: every key)."""
+def mounted_sources(workload, container, objs=None):
+    """{path: (kind, object name, key)} for the files a container sees
+    through its secret and configMap volumes (with items: those paths;
+    without: every key)."""
+    objs = objects() if objs is None else objs
     volumes = {v["name"]: v for v in pod_spec(workload).get("volumes", [])}
-    objs = {o["metadata"]["name"]: o for o in objects() if o["kind"] == "ConfigMap"}
-    files = set()
+    configmaps = {o["metadata"]["name"]: o for o in objs if o["kind"] == "ConfigMap"}
+    files = {}
     for mount in container.get("volumeMounts", []):
         v = volumes.get(mount["name"], {})
-        source = v.get("secret") or v.get("configMap")
-        if source is None:
-            continue
-        if "items" in source:
-            paths = [i["path"] for i in source["items"]]
-        elif "secretName" in source:
-            paths = DOCUMENTED_SECRETS.get(source["secretName"], ())
+        if "secret" in v:
+            kind, source = "Secret", v["secret"]
+            name = source["secretName"]
+            keys = DOCUMENTED_SECRETS.get(name, ())
+        elif "configMap" in v:
+            kind, source = "ConfigMap", v["configMap"]
+            name = source["name"]
+            keys = configmaps.get(name, {}).get("data", {})
         else:
-            paths = objs.get(source["name"], {}).get("data", {})
-        files.update(f"{mount['mountPath'].rstrip('/')}/{p}" for p in paths)
+            continue
+        items = source.get("items") or [{"key": k, "path": k} for k in keys]
+        for item in items:
+            files[f"{mount['mountPath'].rstrip('/')}/{item['path']}"] = (kind, name, item["key"])
     return files
+
+
+def mounted_files(workload, container, objs=None):
+    return set(mounted_sources(workload, container, objs))
+
+
+def mounted_config(objs, workload, container, path):
+    """The text of the ConfigMap key mounted at path, or None."""
+    kind, name, key = mounted_sources(workload, container, objs).get(path, (None, None, None))
+    if kind != "ConfigMap":
+        return None
+    try:
+        return find(objs, "ConfigMap", name).get("data", {}).get(key)
+    except KeyError:
+        return None
 
 
 def test_files_the_server_and_probes_read_are_mounted():
@@ -351,20 +378,181 @@ def test_files_the_server_and_probes_read_are_mounted():
     assert router["command"][-1] in mounted_files(zenohd, router)
 
 
-def test_zenohd_config_is_the_repository_file_byte_for_byte():
-    cm = find(objects(), "ConfigMap", "zenohd-config")
-    assert cm["data"]["zenohd.json5"].encode() == ZENOHD_CONFIG.read_bytes()
+def config_copy_problems(objs):
+    problems = []
+    for cm in (o for o in objs if o["kind"] == "ConfigMap"):
+        for key, text in cm.get("data", {}).items():
+            source = CONFIG_DIR / key
+            if not source.is_file():
+                problems.append(f"{ident(cm)}: {key}: no deploy/config/{key}")
+            elif text.encode() != source.read_bytes():
+                problems.append(f"{ident(cm)}: {key} differs from deploy/config/{key}")
+    return problems
 
 
-def test_servers_connect_to_the_router_service():
-    sts = find(objects(), "StatefulSet", "meshless")
+def test_configmaps_are_the_repository_files_byte_for_byte():
+    objs = objects()
+    assert config_copy_problems(objs) == []
+    copied = {(o["metadata"]["name"], k) for o in objs if o["kind"] == "ConfigMap" for k in o["data"]}
+    assert copied == {("zenohd-config", "zenohd.json5"), ("meshless-zenoh", "zenoh-client.json5")}
+
+
+def test_configmap_copies_bite():
+    objs = objects()
+    data = find(objs, "ConfigMap", "meshless-zenoh")["data"]
+    data["zenoh-client.json5"] = data["zenoh-client.json5"].replace("ca.crt", "ca.pem")
+    assert config_copy_problems(objs) != []
+    objs = objects()
+    data = find(objs, "ConfigMap", "zenohd-config")["data"]
+    data["zenohd.json5"] += "\n"
+    assert config_copy_problems(objs) != []
+    objs = objects()
+    data = find(objs, "ConfigMap", "zenohd-config")["data"]
+    data["router.json5"] = data.pop("zenohd.json5")
+    assert config_copy_problems(objs) != []
+
+
+def zenoh_link_problems(objs):
+    """The servers dial the router Service over TLS, with a zenoh config
+    that a mounted ConfigMap key holds."""
+    problems = []
+    sts = find(objs, "StatefulSet", "meshless")
     server = pod_spec(sts)["containers"][0]
-    assert env_value(server, "MESHLESS_ZENOH_MODE") == "client"
+    if env_value(server, "MESHLESS_ZENOH_MODE") != "client":
+        problems.append("MESHLESS_ZENOH_MODE is not client")
     for endpoint in env_value(server, "MESHLESS_ZENOH_CONNECT").split(","):
-        match = re.fullmatch(r"tcp/([a-z0-9-]+):(\d+)", endpoint)
-        assert match, endpoint
-        svc = find(objects(), "Service", match.group(1))
-        assert int(match.group(2)) in {p["port"] for p in svc["spec"]["ports"]}
+        match = re.fullmatch(r"tls/([a-z0-9-]+):(\d+)", endpoint)
+        if not match:
+            problems.append(f"MESHLESS_ZENOH_CONNECT {endpoint}: not tls/SERVICE:PORT")
+            continue
+        try:
+            svc = find(objs, "Service", match.group(1))
+        except KeyError:
+            problems.append(f"MESHLESS_ZENOH_CONNECT {endpoint}: no such Service")
+            continue
+        if int(match.group(2)) not in {p["port"] for p in svc["spec"]["ports"]}:
+            problems.append(f"MESHLESS_ZENOH_CONNECT {endpoint}: {ident(svc)} has no such port")
+    path = env_value(server, "MESHLESS_ZENOH_CONFIG")
+    if mounted_config(objs, sts, server, path) is None:
+        problems.append(f"MESHLESS_ZENOH_CONFIG {path}: no mounted ConfigMap key")
+    return problems
+
+
+def test_servers_connect_to_the_router_over_tls():
+    assert zenoh_link_problems(objects()) == []
+
+
+def test_zenoh_link_bites():
+    def server(objs):
+        return pod_spec(find(objs, "StatefulSet", "meshless"))["containers"][0]
+
+    def set_env(objs, name, value):
+        for var in server(objs)["env"]:
+            if var["name"] == name:
+                var["value"] = value
+
+    objs = objects()
+    set_env(objs, "MESHLESS_ZENOH_CONNECT", "tcp/zenohd:7447")
+    assert zenoh_link_problems(objs) != []
+    objs = objects()
+    set_env(objs, "MESHLESS_ZENOH_CONNECT", "tls/zenoh:7447")
+    assert zenoh_link_problems(objs) != []
+    objs = objects()
+    set_env(objs, "MESHLESS_ZENOH_CONFIG", "/etc/meshless/zenoh-client.json5")
+    assert zenoh_link_problems(objs) != []
+    objs = objects()
+    data = find(objs, "ConfigMap", "meshless-zenoh")["data"]
+    data["zenoh.json5"] = data.pop("zenoh-client.json5")
+    assert zenoh_link_problems(objs) != []
+
+
+def json5_strings(text, key):
+    """The quoted values of `key: "..."` in a JSON5 text, comment lines
+    left out: enough for these files, no JSON5 parser."""
+    code = "\n".join(l for l in text.splitlines() if not l.lstrip().startswith("//"))
+    return re.findall(rf"""["']?\b{re.escape(key)}\b["']?\s*:\s*["']([^"']+)["']""", code)
+
+
+def tls_file_problems(objs):
+    """The certificate files the zenoh configs name are mounted where the
+    config is read: the client's root CA in the servers, the router's
+    certificate and key in the router."""
+    problems = []
+    wanted = [
+        ("StatefulSet", "meshless", lambda c: env_value(c, "MESHLESS_ZENOH_CONFIG"),
+         ["root_ca_certificate"]),
+        ("Deployment", "zenohd", lambda c: c["command"][c["command"].index("-c") + 1],
+         ["listen_certificate", "listen_private_key"]),
+    ]
+    for kind, name, config_path, keys in wanted:
+        w = find(objs, kind, name)
+        c = pod_spec(w)["containers"][0]
+        text = mounted_config(objs, w, c, config_path(c))
+        if text is None:
+            problems.append(f"{kind}/{name}: its zenoh config is not mounted")
+            continue
+        files = mounted_files(w, c, objs)
+        for key in keys:
+            paths = json5_strings(text, key)
+            if not paths:
+                problems.append(f"{kind}/{name}: its zenoh config sets no {key}")
+            for path in paths:
+                if path not in files:
+                    problems.append(f"{kind}/{name}: {key} {path} is not mounted")
+    return problems
+
+
+def test_zenoh_tls_files_are_mounted():
+    assert tls_file_problems(objects()) == []
+
+
+def test_zenoh_tls_files_bite():
+    objs = objects()
+    data = find(objs, "ConfigMap", "meshless-zenoh")["data"]
+    data["zenoh-client.json5"] = data["zenoh-client.json5"].replace("/tls/ca.crt", "/tls/ca.pem")
+    assert tls_file_problems(objs) != []
+    objs = objects()
+    data = find(objs, "ConfigMap", "meshless-zenoh")["data"]
+    data["zenoh-client.json5"] = data["zenoh-client.json5"].replace("root_ca_certificate", "root_ca")
+    assert tls_file_problems(objs) != []
+    objs = objects()
+    router = pod_spec(find(objs, "Deployment", "zenohd"))["containers"][0]
+    router["volumeMounts"][1]["mountPath"] = "/etc/zenohd/certs"
+    assert tls_file_problems(objs) != []
+    objs = objects()
+    items = pod_spec(find(objs, "Deployment", "zenohd"))["volumes"][1]["secret"]["items"]
+    items[1]["path"] = "tls.pem"
+    assert tls_file_problems(objs) != []
+
+
+def test_json5_strings():
+    text = '{\n  // listen_certificate: "no",\n  tls: { listen_certificate: "/a.crt", "root_ca_certificate": \'/b\' },\n}'
+    assert json5_strings(text, "listen_certificate") == ["/a.crt"]
+    assert json5_strings(text, "root_ca_certificate") == ["/b"]
+    assert json5_strings(text, "listen_private_key") == []
+
+
+def secret_mode_problems(objs):
+    """A secret volume not readable by all needs the pod's fsGroup, or the
+    non-root user cannot read it."""
+    problems = []
+    for w in workloads(objs):
+        pod = pod_spec(w).get("securityContext", {})
+        for v in pod_spec(w).get("volumes", []):
+            mode = v.get("secret", {}).get("defaultMode", 0o644)
+            if "secret" in v and not mode & 0o004 and pod.get("fsGroup") is None:
+                problems.append(f"{ident(w)}: volume {v['name']}: mode {mode:o} and no fsGroup")
+    return problems
+
+
+def test_non_root_users_can_read_their_secrets():
+    assert secret_mode_problems(objects()) == []
+
+
+def test_secret_modes_bite():
+    objs = objects()
+    del pod_spec(find(objs, "Deployment", "zenohd"))["securityContext"]["fsGroup"]
+    assert secret_mode_problems(objs) != []
 
 
 def probe_problems(objs):
