@@ -34,6 +34,6 @@ WORKDIR /src
 FROM ${MESHLESS_IMAGE} AS meshless
 
 FROM tools AS harness
-COPY --from=meshless /usr/local/bin/meshless /usr/local/bin/meshless
+COPY --from=meshless /opt/meshless/meshless /usr/local/bin/meshless
 ENV MESHLESS_HARNESS=compose
 ENTRYPOINT ["python3", "-m", "pytest", "-p", "no:cacheprovider", "-v", "deploy/harness"]
