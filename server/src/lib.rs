@@ -165,6 +165,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
             0.0
         },
         server_name: config.server_name.clone().unwrap_or_default(),
+        // Read afresh by each GetServerInfo.
         zenoh_routers: 0,
     };
     // Dropped when the serving task ends: the server's presence for

@@ -118,6 +118,15 @@ impl Registry {
     ) -> Result<Arc<Session>, ServiceError> {
         if let Some(id) = &id {
             check_id(id)?;
+            if !self.id_prefix.is_empty() && !id.starts_with(&self.id_prefix) {
+                // Clients route by the id's prefix, which names another
+                // replica: its checkpoint volume was moved here.
+                tracing::warn!(
+                    session = %id,
+                    "restored a session whose id names another server; clients routing by id \
+                     will look for it there"
+                );
+            }
             if self.read().contains_key(id) {
                 return Err(ServiceError::invalid(
                     "session_id",
