@@ -9,7 +9,7 @@
 # is built with the transports meshless speaks, TCP and TLS, and user and
 # password authentication: QUIC, WebSocket, UDP, Unix sockets, public-key
 # authentication and compression stay out (ZENOHD_FEATURES adds them
-# back), which roughly halves the build. Without a container registry,
+# back), which also shortens the build. Without a container registry,
 # deploy/base-images first creates the base images.
 ARG RUST_IMAGE=rust:bookworm
 ARG RUNTIME_IMAGE=debian:bookworm-slim

@@ -8,16 +8,17 @@ by session id. The Python client drives; the ``meshless`` command line
 
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import threading
 import time
+import urllib.request
 
 import pytest
 import zenoh
 
 import meshless
+from meshless.subscriber import zenoh_client_config
 from topology import HERE, NAMES, TIMEOUT, Topology, connect, eventually
 
 #: 96 particles that run for minutes without faulting.
@@ -27,20 +28,14 @@ SCENE = (HERE / "tank.toml").read_text()
 REALTIME = 1.0
 
 
-def _zenoh(topology: Topology) -> zenoh.Session:
-    config = zenoh.Config.from_file(str(topology.zenoh_config))
-    config.insert_json5("mode", '"client"')
-    config.insert_json5("connect/endpoints", json.dumps([topology.router]))
-    config.insert_json5("scouting/multicast/enabled", "false")
-    return zenoh.open(config)
-
-
 class Presence:
     """Liveliness of the servers (``meshless/v1/servers/*``) through the
     router: which replicas the router reaches now."""
 
     def __init__(self, topology: Topology):
-        self._session = _zenoh(topology)
+        self._session = zenoh.open(
+            zenoh_client_config([topology.router], str(topology.zenoh_config))
+        )
         self._changed = threading.Condition()
         self._state: dict[str, str] = {}
         self.history: list[tuple[str, str]] = []
@@ -90,15 +85,17 @@ def _routers(client: meshless.Client) -> int:
     return client.server_info().zenoh_routers
 
 
-def _cli(topology: Topology, cli: str, *args: str, server: str | None = None) -> str:
+def _cli(topology: Topology, cli: str, name: str, *args: str) -> str:
+    """Runs ``meshless ARGS`` against replica ``name``: by ``--route`` where
+    replica names resolve, else by its ``--server`` address."""
     c = topology.credentials
     flags = ["--tls-ca", str(c.ca)]
     if c.domain:
         flags += ["--tls-domain", c.domain]
-    if server is not None:
-        flags += ["--server", f"https://{server}"]
-    elif topology.route_template is not None:
+    if topology.route_template is not None:
         flags += ["--route", topology.route_template]
+    else:
+        flags += ["--server", f"https://{topology.servers[name].target}"]
     done = subprocess.run(
         [cli, *args, *flags],
         env={**os.environ, "MESHLESS_TOKEN": c.token},
@@ -108,10 +105,6 @@ def _cli(topology: Topology, cli: str, *args: str, server: str | None = None) ->
     )
     assert done.returncode == 0, f"meshless {' '.join(args)}: {done.stderr}"
     return done.stdout
-
-
-def _target(topology: Topology, name: str) -> str:
-    return next(s.target for s in topology.servers if s.name == name)
 
 
 def test_ids_name_their_server_and_calls_are_routed_to_it(topology, clients, cli):
@@ -128,13 +121,8 @@ def test_ids_name_their_server_and_calls_are_routed_to_it(topology, clients, cli
         assert missing.value.code.name == "NOT_FOUND"
         if topology.route_template is not None:
             target = meshless.route(topology.route_template.removeprefix("https://"), session.id)
-            assert target == _target(topology, name)
-            shown = _cli(topology, cli, "session", "step", session.id, "-n", "3")
-        else:
-            shown = _cli(
-                topology, cli, "session", "step", session.id, "-n", "3",
-                server=_target(topology, name).replace("127.0.0.1", "localhost"),
-            )
+            assert target == topology.servers[name].target
+        shown = _cli(topology, cli, name, "session", "step", session.id, "-n", "3")
         assert session.id in shown and "step 3" in shown, shown
 
 
@@ -156,13 +144,11 @@ def test_a_client_that_knows_only_the_router_gets_frames_from_both(topology, cli
             assert frame.particle_count == 96
         # The Rust client through the router alone.
         for name, session in sessions.items():
-            flags = ["watch", session.id, "--zenoh", topology.router, "--frames", "3"]
-            flags += ["--zenoh-config", str(topology.zenoh_config)]
-            if topology.route_template is None:
-                server = _target(topology, name).replace("127.0.0.1", "localhost")
-                shown = _cli(topology, cli, *flags, server=server)
-            else:
-                shown = _cli(topology, cli, *flags)
+            shown = _cli(
+                topology, cli, name,
+                "watch", session.id, "--zenoh", topology.router, "--frames", "3",
+                "--zenoh-config", str(topology.zenoh_config),
+            )
             assert f"watching {session.id} through {topology.router}" in shown, shown
     finally:
         for frames in streams.values():
@@ -195,7 +181,7 @@ def test_stopping_one_server_leaves_the_other_untouched(topology, clients):
             assert meshless.state_name(back.status.state) == "paused"
         finally:
             restarted.close()
-        step = _next_step_after(frames, step)
+        _next_step_after(frames, step)
     finally:
         frames.close()
         presence.close()
@@ -244,8 +230,6 @@ def test_a_partition_is_detected_and_heals(topology, clients):
 
 
 def _metric(url: str, name: str) -> float | None:
-    import urllib.request
-
     with urllib.request.urlopen(url, timeout=10) as answer:
         for line in answer.read().decode().splitlines():
             if line.startswith(name + " "):
@@ -255,7 +239,7 @@ def _metric(url: str, name: str) -> float | None:
 
 def test_a_killed_server_restores_its_sessions_from_checkpoints(topology, clients):
     second = NAMES[1]
-    metrics = next(s.metrics_url for s in topology.servers if s.name == second)
+    metrics = topology.servers[second].metrics_url
     session = clients[second].create_session(SCENE)
     stepped = clients[second].step(session, 7)
     before = clients[second].latest_frame(session)

@@ -74,7 +74,7 @@ class Credentials:
     domain: str | None = None
 
 
-def zenoh_client_config(path: Path, ca: Path) -> Path:
+def write_zenoh_ca_config(path: Path, ca: Path) -> Path:
     """Writes, to ``path``, a zenoh configuration that trusts ``ca`` for
     ``tls/`` endpoints (what deploy/config/zenoh-client.json5 gives the
     servers), and returns ``path``."""
@@ -83,7 +83,8 @@ def zenoh_client_config(path: Path, ca: Path) -> Path:
 
 
 class Topology(Protocol):
-    servers: list[Server]
+    #: The replicas by server name.
+    servers: dict[str, Server]
     #: The router's zenoh endpoint (``tls/``), the only one the suite's
     #: subscribers know.
     router: str
@@ -108,11 +109,9 @@ def connect(topology: Topology, name: str):
     token."""
     import meshless
 
-    server = next(s for s in topology.servers if s.name == name)
     c = topology.credentials
-    return meshless.Client(
-        server.target, token=c.token, tls_ca=c.ca, tls_domain=c.domain, timeout=30.0
-    )
+    target = topology.servers[name].target
+    return meshless.Client(target, token=c.token, tls_ca=c.ca, tls_domain=c.domain, timeout=30.0)
 
 
 def free_port() -> int:
@@ -226,7 +225,7 @@ class LocalTopology:
 
     workdir: Path
     server_bin: str
-    servers: list[Server] = field(default_factory=list)
+    servers: dict[str, Server] = field(default_factory=dict)
     router: str = ""
     zenoh_config: Path = Path()
     credentials: Credentials | None = None  # type: ignore[assignment]
@@ -238,26 +237,18 @@ class LocalTopology:
 
     @classmethod
     def launch(cls, workdir: Path, server_bin: str, names: list[str]) -> "LocalTopology":
-        import trustme
+        from certs import write_credentials
 
         top = cls(workdir=workdir, server_bin=server_bin)
-        ca = trustme.CA()
-        cert = ca.issue_cert("localhost", "127.0.0.1")
-        ca_path = workdir / "ca.pem"
-        ca.cert_pem.write_to_path(str(ca_path))
-        cert_path, key_path = workdir / "server.pem", workdir / "server.key"
-        cert.private_key_pem.write_to_path(str(key_path))
-        cert.cert_chain_pems[0].write_to_path(str(cert_path))
-        token = "harness-" + os.urandom(16).hex()
-        tokens = workdir / "tokens"
-        tokens.write_text(f"harness {token}\n")
-        top.credentials = Credentials(ca=ca_path, token=token, domain="localhost")
-        top.zenoh_config = zenoh_client_config(workdir / "zenoh-client.json", ca_path)
+        token = write_credentials(workdir, [])
+        ca, cert, key = workdir / "ca.crt", workdir / "tls.crt", workdir / "tls.key"
+        top.credentials = Credentials(ca=ca, token=token, domain="localhost")
+        top.zenoh_config = write_zenoh_ca_config(workdir / "zenoh-client.json", ca)
 
         top._router_port = free_port()
         top.router = f"tls/127.0.0.1:{top._router_port}"
         top._router = _Process(
-            [sys.executable, str(HERE / "router.py"), top.router, str(cert_path), str(key_path)],
+            [sys.executable, str(HERE / "router.py"), top.router, str(cert), str(key)],
             dict(os.environ),
         )
         top._start_router()
@@ -274,22 +265,19 @@ class LocalTopology:
                 "--zenoh-mode", "client",
                 "--zenoh-connect", f"tls/127.0.0.1:{relay.port}",
                 "--zenoh-config", str(top.zenoh_config),
-                "--tokens-file", str(tokens),
-                "--tls-cert", str(cert_path),
-                "--tls-key", str(key_path),
+                "--tokens-file", str(workdir / "tokens"),
+                "--tls-cert", str(cert),
+                "--tls-key", str(key),
                 "--checkpoint-dir", str(checkpoints),
                 "--checkpoint-interval", "0.5",
             ]
             top._processes[name] = _Process(args, {**os.environ, "MESHLESS_LOG": "warn"})
             top._relays[name] = relay
-            top.servers.append(
-                Server(name, f"127.0.0.1:{grpc}", f"http://127.0.0.1:{metrics}/metrics")
+            top.servers[name] = Server(
+                name, f"127.0.0.1:{grpc}", f"http://127.0.0.1:{metrics}/metrics"
             )
             top.start(name)
         return top
-
-    def _server(self, name: str) -> Server:
-        return next(s for s in self.servers if s.name == name)
 
     def _start_router(self) -> None:
         assert self._router is not None
@@ -298,7 +286,7 @@ class LocalTopology:
 
     def start(self, name: str) -> None:
         self._processes[name].start()
-        host, port = self._server(name).target.rsplit(":", 1)
+        host, port = self.servers[name].target.rsplit(":", 1)
         eventually(f"{name} to listen", lambda: port_open(host, int(port)))
 
     def stop(self, name: str) -> None:
@@ -340,10 +328,10 @@ class ComposeTopology:
         self.credentials = Credentials(
             ca=certs / "ca.crt", token=(certs / "harness.token").read_text().strip()
         )
-        self.zenoh_config = zenoh_client_config(Path("/tmp/zenoh-client.json"), certs / "ca.crt")
-        self.servers = [
-            Server(name, f"{name}:50051", f"http://{name}:9464/metrics") for name in names
-        ]
+        self.zenoh_config = write_zenoh_ca_config(Path("/tmp/zenoh-client.json"), certs / "ca.crt")
+        self.servers = {
+            name: Server(name, f"{name}:50051", f"http://{name}:9464/metrics") for name in names
+        }
         self.router = os.environ.get("MESHLESS_HARNESS_ROUTER", "tls/zenohd:7447")
         self.route_template = "https://{server}:50051"
         self._zenoh_network = self._docker.networks.get(f"{self._project}_zenoh")

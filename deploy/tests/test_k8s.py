@@ -95,6 +95,27 @@ def selects(selector, labels):
     return bool(selector) and all(labels.get(k) == v for k, v in selector.items())
 
 
+def server_container(objs):
+    """The meshless-server container of the StatefulSet in objs."""
+    return pod_spec(find(objs, "StatefulSet", "meshless"))["containers"][0]
+
+
+def router_container(objs):
+    """The zenohd container of its Deployment in objs."""
+    return pod_spec(find(objs, "Deployment", "zenohd"))["containers"][0]
+
+
+def put(mapping, key, value):
+    """mapping[key] = value, as an expression (for the breakages below)."""
+    mapping[key] = value
+
+
+def set_env(container, name, value):
+    for var in container["env"]:
+        if var["name"] == name:
+            var["value"] = value
+
+
 def env_value(container, name):
     for var in container.get("env", []):
         if var["name"] == name:
@@ -220,18 +241,6 @@ def test_selectors():
     assert selector_problems(objects()) == []
 
 
-def test_selectors_bite():
-    objs = objects()
-    find(objs, "Service", "meshless")["spec"]["selector"] = {"app.kubernetes.io/name": "meshles"}
-    assert selector_problems(objs) != []
-    objs = objects()
-    find(objs, "Service", "zenohd")["spec"]["ports"][0]["targetPort"] = "zenohd"
-    assert selector_problems(objs) != []
-    objs = objects()
-    find(objs, "StatefulSet", "meshless")["spec"]["template"]["metadata"]["labels"] = {"app": "x"}
-    assert selector_problems(objs) != []
-
-
 def service_name_problems(objs):
     problems = []
     for sts in (o for o in objs if o["kind"] == "StatefulSet"):
@@ -251,12 +260,6 @@ def service_name_problems(objs):
 
 def test_statefulset_service_name():
     assert service_name_problems(objects()) == []
-
-
-def test_statefulset_service_name_bites():
-    objs = objects()
-    find(objs, "StatefulSet", "meshless")["spec"]["serviceName"] = "meshless"
-    assert service_name_problems(objs) != []
 
 
 def volume_problems(objs):
@@ -297,27 +300,6 @@ def volume_problems(objs):
 
 def test_volumes():
     assert volume_problems(objects()) == []
-
-
-def test_volumes_bite():
-    objs = objects()
-    sts = find(objs, "StatefulSet", "meshless")
-    pod_spec(sts)["containers"][0]["volumeMounts"][0]["name"] = "token"
-    assert volume_problems(objs) != []
-    objs = objects()
-    sts = find(objs, "StatefulSet", "meshless")
-    pod_spec(sts)["volumes"][1]["secret"]["secretName"] = "meshless-certs"
-    assert volume_problems(objs) != []
-    objs = objects()
-    sts = find(objs, "StatefulSet", "meshless")
-    pod_spec(sts)["volumes"][1]["secret"]["items"][2]["key"] = "ca.pem"
-    assert volume_problems(objs) != []
-    objs = objects()
-    pod_spec(find(objs, "Deployment", "zenohd"))["volumes"][0]["configMap"]["name"] = "zenohd"
-    assert volume_problems(objs) != []
-    objs = objects()
-    pod_spec(find(objs, "Deployment", "zenohd"))["volumes"][1]["secret"]["secretName"] = "zenoh-tls"
-    assert volume_problems(objs) != []
 
 
 def mounted_sources(workload, container, objs=None):
@@ -397,21 +379,6 @@ def test_configmaps_are_the_repository_files_byte_for_byte():
     assert copied == {("zenohd-config", "zenohd.json5"), ("meshless-zenoh", "zenoh-client.json5")}
 
 
-def test_configmap_copies_bite():
-    objs = objects()
-    data = find(objs, "ConfigMap", "meshless-zenoh")["data"]
-    data["zenoh-client.json5"] = data["zenoh-client.json5"].replace("ca.crt", "ca.pem")
-    assert config_copy_problems(objs) != []
-    objs = objects()
-    data = find(objs, "ConfigMap", "zenohd-config")["data"]
-    data["zenohd.json5"] += "\n"
-    assert config_copy_problems(objs) != []
-    objs = objects()
-    data = find(objs, "ConfigMap", "zenohd-config")["data"]
-    data["router.json5"] = data.pop("zenohd.json5")
-    assert config_copy_problems(objs) != []
-
-
 def zenoh_link_problems(objs):
     """The servers dial the router Service over TLS, with a zenoh config
     that a mounted ConfigMap key holds."""
@@ -440,30 +407,6 @@ def zenoh_link_problems(objs):
 
 def test_servers_connect_to_the_router_over_tls():
     assert zenoh_link_problems(objects()) == []
-
-
-def test_zenoh_link_bites():
-    def server(objs):
-        return pod_spec(find(objs, "StatefulSet", "meshless"))["containers"][0]
-
-    def set_env(objs, name, value):
-        for var in server(objs)["env"]:
-            if var["name"] == name:
-                var["value"] = value
-
-    objs = objects()
-    set_env(objs, "MESHLESS_ZENOH_CONNECT", "tcp/zenohd:7447")
-    assert zenoh_link_problems(objs) != []
-    objs = objects()
-    set_env(objs, "MESHLESS_ZENOH_CONNECT", "tls/zenoh:7447")
-    assert zenoh_link_problems(objs) != []
-    objs = objects()
-    set_env(objs, "MESHLESS_ZENOH_CONFIG", "/etc/meshless/zenoh-client.json5")
-    assert zenoh_link_problems(objs) != []
-    objs = objects()
-    data = find(objs, "ConfigMap", "meshless-zenoh")["data"]
-    data["zenoh.json5"] = data.pop("zenoh-client.json5")
-    assert zenoh_link_problems(objs) != []
 
 
 def json5_strings(text, key):
@@ -506,25 +449,6 @@ def test_zenoh_tls_files_are_mounted():
     assert tls_file_problems(objects()) == []
 
 
-def test_zenoh_tls_files_bite():
-    objs = objects()
-    data = find(objs, "ConfigMap", "meshless-zenoh")["data"]
-    data["zenoh-client.json5"] = data["zenoh-client.json5"].replace("/tls/ca.crt", "/tls/ca.pem")
-    assert tls_file_problems(objs) != []
-    objs = objects()
-    data = find(objs, "ConfigMap", "meshless-zenoh")["data"]
-    data["zenoh-client.json5"] = data["zenoh-client.json5"].replace("root_ca_certificate", "root_ca")
-    assert tls_file_problems(objs) != []
-    objs = objects()
-    router = pod_spec(find(objs, "Deployment", "zenohd"))["containers"][0]
-    router["volumeMounts"][1]["mountPath"] = "/etc/zenohd/certs"
-    assert tls_file_problems(objs) != []
-    objs = objects()
-    items = pod_spec(find(objs, "Deployment", "zenohd"))["volumes"][1]["secret"]["items"]
-    items[1]["path"] = "tls.pem"
-    assert tls_file_problems(objs) != []
-
-
 def test_json5_strings():
     text = '{\n  // listen_certificate: "no",\n  tls: { listen_certificate: "/a.crt", "root_ca_certificate": \'/b\' },\n}'
     assert json5_strings(text, "listen_certificate") == ["/a.crt"]
@@ -549,12 +473,6 @@ def test_non_root_users_can_read_their_secrets():
     assert secret_mode_problems(objects()) == []
 
 
-def test_secret_modes_bite():
-    objs = objects()
-    del pod_spec(find(objs, "Deployment", "zenohd"))["securityContext"]["fsGroup"]
-    assert secret_mode_problems(objs) != []
-
-
 def probe_problems(objs):
     problems = []
     for w in workloads(objs):
@@ -571,22 +489,11 @@ def probe_problems(objs):
 def test_probes():
     objs = objects()
     assert probe_problems(objs) == []
-    server = pod_spec(find(objs, "StatefulSet", "meshless"))["containers"][0]
+    server = server_container(objs)
     for kind in ("readinessProbe", "livenessProbe", "startupProbe"):
         assert "exec" in server[kind], kind
     startup = server["startupProbe"]
     assert startup["periodSeconds"] * startup["failureThreshold"] >= 300
-
-
-def test_probes_bite():
-    objs = objects()
-    server = pod_spec(find(objs, "StatefulSet", "meshless"))["containers"][0]
-    server["livenessProbe"]["exec"]["command"] = ["meshless", "ls"]
-    assert probe_problems(objs) != []
-    objs = objects()
-    server = pod_spec(find(objs, "StatefulSet", "meshless"))["containers"][0]
-    server["readinessProbe"] = {"grpc": {"port": 50051}}
-    assert probe_problems(objs) != []
 
 
 def server_env_names():
@@ -605,13 +512,6 @@ def env_problems(objs, known):
 
 def test_env_names_are_server_settings():
     assert env_problems(objects(), server_env_names()) == []
-
-
-def test_env_names_bite():
-    objs = objects()
-    server = pod_spec(find(objs, "StatefulSet", "meshless"))["containers"][0]
-    server["env"].append({"name": "MESHLESS_GRPC_ADRESS", "value": "0.0.0.0:50051"})
-    assert env_problems(objs, server_env_names()) != []
 
 
 def test_service_links_stay_out_of_the_server_settings():
@@ -636,15 +536,8 @@ def memory_problems(objs):
 def test_memory_limit_is_above_the_server_budget():
     objs = objects()
     assert memory_problems(objs) == []
-    server = pod_spec(find(objs, "StatefulSet", "meshless"))["containers"][0]
+    server = server_container(objs)
     assert "MESHLESS_MEMORY_BUDGET_MB" in {v["name"] for v in server["env"]}
-
-
-def test_memory_limit_bites():
-    objs = objects()
-    server = pod_spec(find(objs, "StatefulSet", "meshless"))["containers"][0]
-    server["resources"]["limits"]["memory"] = "6Gi"
-    assert memory_problems(objs) != []
 
 
 def test_quantities():
@@ -674,3 +567,88 @@ def test_no_disruption_budget_for_a_single_replica():
         for w in workloads(objs):
             if selects(pdb["spec"]["selector"]["matchLabels"], pod_labels(w)):
                 assert w["spec"].get("replicas", 1) > 1, f"{ident(pdb)} on {ident(w)}"
+
+
+# ------------------------------------------------------- every check bites
+
+
+def known_env_problems(objs):
+    return env_problems(objs, server_env_names())
+
+
+def renamed_key(objs, configmap, old, new):
+    data = find(objs, "ConfigMap", configmap)["data"]
+    data[new] = data.pop(old)
+
+
+def edited_key(objs, configmap, key, old, new):
+    data = find(objs, "ConfigMap", configmap)["data"]
+    data[key] = data[key].replace(old, new)
+
+
+# (check, breakage): each breakage, applied to its own copy of the
+# manifests, must make its check report a problem.
+BREAKAGES = {
+    "selector-names-no-pods": (selector_problems, lambda o: put(
+        find(o, "Service", "meshless")["spec"], "selector", {"app.kubernetes.io/name": "meshles"})),
+    "target-port-no-container-port": (selector_problems, lambda o: put(
+        find(o, "Service", "zenohd")["spec"]["ports"][0], "targetPort", "zenohd")),
+    "pods-not-selected-by-own-workload": (selector_problems, lambda o: put(
+        find(o, "StatefulSet", "meshless")["spec"]["template"]["metadata"], "labels", {"app": "x"})),
+    "service-name-not-headless": (service_name_problems, lambda o: put(
+        find(o, "StatefulSet", "meshless")["spec"], "serviceName", "meshless")),
+    "mount-names-no-volume": (volume_problems, lambda o: put(
+        server_container(o)["volumeMounts"][0], "name", "token")),
+    "secret-not-documented": (volume_problems, lambda o: put(
+        pod_spec(find(o, "StatefulSet", "meshless"))["volumes"][1]["secret"], "secretName",
+        "meshless-certs")),
+    "secret-key-missing": (volume_problems, lambda o: put(
+        pod_spec(find(o, "StatefulSet", "meshless"))["volumes"][1]["secret"]["items"][2], "key",
+        "ca.pem")),
+    "configmap-missing": (volume_problems, lambda o: put(
+        pod_spec(find(o, "Deployment", "zenohd"))["volumes"][0]["configMap"], "name", "zenohd")),
+    "router-secret-not-documented": (volume_problems, lambda o: put(
+        pod_spec(find(o, "Deployment", "zenohd"))["volumes"][1]["secret"], "secretName",
+        "zenoh-tls")),
+    "configmap-copy-edited": (config_copy_problems, lambda o: edited_key(
+        o, "meshless-zenoh", "zenoh-client.json5", "ca.crt", "ca.pem")),
+    "configmap-copy-one-byte-longer": (config_copy_problems, lambda o: edited_key(
+        o, "zenohd-config", "zenohd.json5", "}\n", "}\n\n")),
+    "configmap-key-no-config-file": (config_copy_problems, lambda o: renamed_key(
+        o, "zenohd-config", "zenohd.json5", "router.json5")),
+    "zenoh-over-tcp": (zenoh_link_problems, lambda o: set_env(
+        server_container(o), "MESHLESS_ZENOH_CONNECT", "tcp/zenohd:7447")),
+    "zenoh-to-no-service": (zenoh_link_problems, lambda o: set_env(
+        server_container(o), "MESHLESS_ZENOH_CONNECT", "tls/zenoh:7447")),
+    "zenoh-config-not-mounted": (zenoh_link_problems, lambda o: set_env(
+        server_container(o), "MESHLESS_ZENOH_CONFIG", "/etc/meshless/zenoh-client.json5")),
+    "zenoh-config-key-renamed": (zenoh_link_problems, lambda o: renamed_key(
+        o, "meshless-zenoh", "zenoh-client.json5", "zenoh.json5")),
+    "root-ca-not-mounted": (tls_file_problems, lambda o: edited_key(
+        o, "meshless-zenoh", "zenoh-client.json5", "/tls/ca.crt", "/tls/ca.pem")),
+    "root-ca-not-set": (tls_file_problems, lambda o: edited_key(
+        o, "meshless-zenoh", "zenoh-client.json5", "root_ca_certificate", "root_ca")),
+    "router-certificate-mounted-elsewhere": (tls_file_problems, lambda o: put(
+        router_container(o)["volumeMounts"][1], "mountPath", "/etc/zenohd/certs")),
+    "router-certificate-file-renamed": (tls_file_problems, lambda o: put(
+        pod_spec(find(o, "Deployment", "zenohd"))["volumes"][1]["secret"]["items"][1], "path",
+        "tls.pem")),
+    "secret-unreadable-without-fsgroup": (secret_mode_problems, lambda o: pod_spec(
+        find(o, "Deployment", "zenohd"))["securityContext"].pop("fsGroup")),
+    "probe-not-meshless-health": (probe_problems, lambda o: put(
+        server_container(o)["livenessProbe"]["exec"], "command", ["meshless", "ls"])),
+    "grpc-probe": (probe_problems, lambda o: put(
+        server_container(o), "readinessProbe", {"grpc": {"port": 50051}})),
+    "env-not-a-server-setting": (known_env_problems, lambda o: server_container(o)["env"].append(
+        {"name": "MESHLESS_GRPC_ADRESS", "value": "0.0.0.0:50051"})),
+    "memory-limit-below-budget": (memory_problems, lambda o: put(
+        server_container(o)["resources"]["limits"], "memory", "6Gi")),
+}
+
+
+@pytest.mark.parametrize("check, breakage", BREAKAGES.values(), ids=BREAKAGES.keys())
+def test_every_check_bites(check, breakage):
+    objs = objects()
+    assert check(objs) == [], "the real manifests pass"
+    breakage(objs)
+    assert check(objs) != []

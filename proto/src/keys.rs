@@ -45,9 +45,6 @@ pub fn server(name: &str) -> String {
     format!("{SERVERS}/{name}")
 }
 
-/// Every server's liveliness token, for a liveliness subscriber.
-pub const ALL_SERVERS: &str = "meshless/v1/servers/*";
-
 #[cfg(test)]
 mod tests {
     use super::*;
