@@ -13,6 +13,7 @@
 pub mod approx;
 pub mod cancel;
 pub mod design;
+pub mod efg;
 pub mod expression;
 pub mod fluid;
 pub mod frame;
@@ -20,6 +21,7 @@ pub mod geometry;
 pub mod io;
 pub mod linalg;
 pub mod math;
+pub mod modal;
 pub mod neighbors;
 pub mod rigid;
 pub mod scene;

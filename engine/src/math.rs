@@ -17,7 +17,7 @@ pub fn vector(v: [Real; 3]) -> Vector {
 /// 1e300 became a 301-character message that repeated its input's digits
 /// (found by the `scene_toml` fuzz target). The server's messages use it
 /// too.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Brief(pub Real);
 
 impl std::fmt::Display for Brief {

@@ -6,9 +6,12 @@
 mod bvh;
 mod closest;
 mod error;
+mod implicit;
 mod mesh;
 mod mesh_shapes;
 mod mesh_solid;
+pub mod octree;
+mod points_implicit;
 pub mod read;
 mod sampling;
 mod sdf;
@@ -16,9 +19,15 @@ mod shape;
 mod topology;
 
 pub use error::MeshError;
+pub use implicit::ImplicitSurface;
 pub use mesh::TriMesh;
 pub use mesh_solid::MeshSolid;
-pub use read::LoadedMesh;
+pub use octree::{Octree, OctreeError, OctreeParams};
+pub use points_implicit::{
+    MAX_NEIGHBOURS, MAX_POINTS, MAX_SUPPORT, MIN_POINTS, PointCloudError, PointSurface,
+    PointSurfaceParams, SPACING_CLAMP,
+};
+pub use read::{LoadedMesh, OrientedPoints};
 pub use sampling::{MAX_SAMPLES, sample_surface, sample_volume, surface_candidates};
 pub use sdf::{Closest, MeshSdf};
 pub use shape::Shape;

@@ -9,13 +9,14 @@
 //!   caller-owned [`cg::Workspace`];
 //! - `sparse.rs`: [`BlockPattern`] (sparsity, symbolic analysis,
 //!   assembly by block columns) and [`SparseCholesky`];
-//! - `dense.rs`: Cholesky of small dense blocks.
-//!
-//! The partial eigensolver for modal analysis (faer's) goes in
-//! `eigen.rs` when the modal work arrives.
+//! - `dense.rs`: Cholesky of small dense blocks;
+//! - `eigen.rs`: the lowest modes of `K x = lambda M x` for modal
+//!   analysis ([`eigen::lowest_modes`]), by shift-invert around one
+//!   sparse Cholesky factorisation and faer's Krylov–Schur.
 
 pub mod cg;
 pub mod dense;
+pub mod eigen;
 pub mod linop;
 pub mod sparse;
 

@@ -10,16 +10,27 @@
 //! so that each block column is one contiguous slice and columns assemble
 //! in parallel without locks. The pattern and its fill-reducing ordering
 //! (approximate minimum degree) are computed once and reused for every
-//! matrix with that sparsity.
+//! matrix with that sparsity. A `Factor` keeps one numeric
+//! factorisation for many solves, its two triangular halves apart (the
+//! modal eigensolver, `eigen.rs`, needs each on its own).
 
 use crate::math::Real;
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
+use faer::linalg::{temp_mat_scratch, temp_mat_zeroed};
+use faer::mat::AsMatMut;
+use faer::perm::permute_rows;
+use faer::prelude::{Reborrow, ReborrowMut};
+use faer::sparse::linalg::cholesky::supernodal::SupernodalLltRef;
 use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
+    factorize_symbolic_cholesky,
+};
+use faer::sparse::linalg::triangular_solve::{
+    solve_lower_triangular_in_place, solve_lower_triangular_transpose_in_place,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{Conj, MatMut, Side};
+use faer::{Conj, MatMut, MatRef, Par, Side};
 use rayon::prelude::*;
 
 /// The sparsity of a symmetric block matrix and its symbolic
@@ -118,23 +129,214 @@ impl BlockPattern {
         });
     }
 
+    /// Scalar values a matrix over this pattern has (the length of the
+    /// `values` that [`Self::assemble`] fills).
+    pub(crate) fn nnz(&self) -> usize {
+        self.row_idx.len()
+    }
+
+    /// The place of each scalar diagonal entry `A_ii` in the values, in
+    /// order of `i`: every scalar column starts with its diagonal block,
+    /// so `A_ii` is entry `i mod dim` of column `i`. For traces, diagonal
+    /// checks and adding a diagonal matrix without assembling.
+    pub(crate) fn diagonal(&self) -> impl Iterator<Item = usize> + '_ {
+        let dim = self.dim;
+        self.col_ptr[..self.size()]
+            .iter()
+            .enumerate()
+            .map(move |(i, &start)| start as usize + i % dim)
+    }
+
+    /// `y = A x`, column by column, from the stored lower triangle. One
+    /// thread: each stored entry adds to two rows of `y`, which a
+    /// parallel loop over columns could not do without locks, and the
+    /// product is cheap beside the factorisations and solves it sits
+    /// between.
+    pub(crate) fn multiply(&self, values: &[Real], x: MatRef<'_, Real>, mut y: MatMut<'_, Real>) {
+        y.fill(0.0);
+        for j in 0..x.ncols() {
+            let x = x.col(j);
+            let mut y = y.rb_mut().col_mut(j);
+            for col in 0..self.size() {
+                let range = self.col_ptr[col] as usize..self.col_ptr[col + 1] as usize;
+                let mut sum = 0.0;
+                for (&row, &v) in self.row_idx[range.clone()].iter().zip(&values[range]) {
+                    let row = row as usize;
+                    if row > col {
+                        y[row] += v * x[col];
+                        sum += v * x[row];
+                    } else if row == col {
+                        sum += v * x[col];
+                    }
+                }
+                y[col] += sum;
+            }
+        }
+    }
+
     /// `y = A x` from the stored lower triangle, to check an assembly.
     #[cfg(test)]
     pub(crate) fn product(&self, values: &[Real], x: &[Real]) -> Vec<Real> {
         let mut y = vec![0.0; x.len()];
-        for col in 0..x.len() {
-            let range = self.col_ptr[col] as usize..self.col_ptr[col + 1] as usize;
-            for (&row, &v) in self.row_idx[range.clone()].iter().zip(&values[range]) {
-                let row = row as usize;
-                if row > col {
-                    y[row] += v * x[col];
-                    y[col] += v * x[row];
-                } else if row == col {
-                    y[row] += v * x[col];
-                }
+        self.multiply(
+            values,
+            MatRef::from_column_major_slice(x, x.len(), 1),
+            MatMut::from_column_major_slice_mut(&mut y, x.len(), 1),
+        );
+        y
+    }
+
+    /// Writes into `factor` the Cholesky factor of the matrix with
+    /// `values` (in this pattern's order), reusing its allocation.
+    fn factorize_into(
+        &self,
+        values: &[Real],
+        factor: &mut Vec<Real>,
+        par: Par,
+    ) -> Result<(), FactorError> {
+        let symbolic = &self.symbolic;
+        // The factor is the largest array: its allocation failing is an
+        // error to report, not an abort.
+        factor
+            .try_reserve(symbolic.len_val().saturating_sub(factor.len()))
+            .map_err(|_| FactorError::OutOfMemory)?;
+        factor.resize(symbolic.len_val(), 0.0);
+        let mut memory = MemBuffer::try_new(
+            symbolic.factorize_numeric_llt_scratch::<Real>(par, Default::default()),
+        )
+        .map_err(|_| FactorError::OutOfMemory)?;
+        let n = self.size();
+        let matrix = SparseColMatRef::new(
+            SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx),
+            values,
+        );
+        match symbolic.factorize_numeric_llt(
+            factor,
+            matrix,
+            Side::Lower,
+            LltRegularization::default(),
+            par,
+            MemStack::new(&mut memory),
+            Default::default(),
+        ) {
+            Ok(_) => Ok(()),
+            Err(LltError::NonPositivePivot { index }) => {
+                // The pivot is numbered in the fill-reducing order.
+                let dof = symbolic
+                    .perm()
+                    .and_then(|p| p.arrays().0.get(index).map(|&i| i as usize))
+                    .unwrap_or(index);
+                Err(FactorError::NotPositiveDefinite { dof })
             }
         }
-        y
+    }
+
+    /// The Cholesky factor of the matrix with `values` (in this pattern's
+    /// order), kept for many solves.
+    ///
+    /// # Errors
+    /// [`FactorError`] when the matrix is not positive definite or the
+    /// factor's memory cannot be had.
+    pub(crate) fn factorize(&self, values: &[Real]) -> Result<Factor<'_>, FactorError> {
+        let mut factor = Vec::new();
+        self.factorize_into(values, &mut factor, faer::get_global_parallelism())?;
+        Ok(Factor {
+            symbolic: &self.symbolic,
+            values: factor,
+        })
+    }
+}
+
+/// Why a matrix did not factorise.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum FactorError {
+    /// A pivot was not positive: the matrix is not positive definite.
+    /// `dof` is the scalar row whose pivot failed, in the caller's
+    /// numbering: where the trouble showed, not necessarily its cause.
+    NotPositiveDefinite {
+        /// The row.
+        dof: usize,
+    },
+    /// Memory for the factor or its scratch could not be had.
+    OutOfMemory,
+}
+
+/// A Cholesky factorisation `P A P^T = L L^T` over a [`BlockPattern`],
+/// kept so that one factorisation serves many solves. `G = P^T L` is a
+/// square root of `A` (`A = G G^T`); the solves with `G` and `G^T` are
+/// offered apart, since a symmetric transformation such as `G^-1 B G^-T`
+/// needs each on its own. Runs with faer's global parallelism.
+#[derive(Debug)]
+pub(crate) struct Factor<'a> {
+    symbolic: &'a SymbolicCholesky<u32>,
+    /// `L`'s values.
+    values: Vec<Real>,
+}
+
+impl Factor<'_> {
+    /// Scratch for [`Self::solve_g`] and [`Self::solve_gt`] on `ncols`
+    /// columns: a permuted copy and faer's own.
+    pub(crate) fn scratch(&self, ncols: usize, par: Par) -> StackReq {
+        StackReq::all_of(&[
+            temp_mat_scratch::<Real>(self.symbolic.nrows(), ncols),
+            self.symbolic.solve_in_place_scratch::<Real>(ncols, par),
+        ])
+    }
+
+    /// `rhs = G^-1 rhs = L^-1 P rhs`.
+    pub(crate) fn solve_g(&self, mut rhs: MatMut<'_, Real>, par: Par, stack: &mut MemStack) {
+        let (mut x, stack) = temp_mat_zeroed::<Real, _, _>(rhs.nrows(), rhs.ncols(), stack);
+        let mut x = x.as_mat_mut();
+        match self.symbolic.perm() {
+            Some(perm) => permute_rows(x.rb_mut(), rhs.rb(), perm),
+            None => x.copy_from(rhs.rb()),
+        }
+        match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Simplicial(symbolic) => solve_lower_triangular_in_place(
+                SparseColMatRef::new(symbolic.factor(), &self.values),
+                Conj::No,
+                x.rb_mut(),
+                par,
+            ),
+            SymbolicCholeskyRaw::Supernodal(symbolic) => {
+                SupernodalLltRef::new(symbolic, &self.values).l_solve_with_conj(
+                    Conj::No,
+                    x.rb_mut(),
+                    par,
+                    stack,
+                );
+            }
+        }
+        rhs.copy_from(x.rb());
+    }
+
+    /// `rhs = G^-T rhs = P^T L^-T rhs`.
+    pub(crate) fn solve_gt(&self, mut rhs: MatMut<'_, Real>, par: Par, stack: &mut MemStack) {
+        let (mut x, stack) = temp_mat_zeroed::<Real, _, _>(rhs.nrows(), rhs.ncols(), stack);
+        let mut x = x.as_mat_mut();
+        x.copy_from(rhs.rb());
+        match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Simplicial(symbolic) => {
+                solve_lower_triangular_transpose_in_place(
+                    SparseColMatRef::new(symbolic.factor(), &self.values),
+                    Conj::No,
+                    x.rb_mut(),
+                    par,
+                );
+            }
+            SymbolicCholeskyRaw::Supernodal(symbolic) => {
+                SupernodalLltRef::new(symbolic, &self.values).l_transpose_solve_with_conj(
+                    Conj::No,
+                    x.rb_mut(),
+                    par,
+                    stack,
+                );
+            }
+        }
+        match self.symbolic.perm() {
+            Some(perm) => permute_rows(rhs.rb_mut(), x.rb(), perm.inverse()),
+            None => rhs.copy_from(x.rb()),
+        }
     }
 }
 
@@ -198,39 +400,24 @@ impl SparseCholesky {
         rhs: impl IntoIterator<Item = Real>,
     ) -> Option<&[Real]> {
         let symbolic = &pattern.symbolic;
-        // The two large arrays: their allocation failing is no solve.
-        let grow =
-            |v: &mut Vec<Real>, len: usize| v.try_reserve(len.saturating_sub(v.len())).is_ok();
-        if !grow(&mut self.values, pattern.row_idx.len())
-            || !grow(&mut self.factor, symbolic.len_val())
+        // The values' allocation failing is no solve (the factor's too,
+        // in `factorize_into`).
+        if self
+            .values
+            .try_reserve(pattern.nnz().saturating_sub(self.values.len()))
+            .is_err()
         {
             return None;
         }
         pattern.assemble(&mut self.values, column);
         let par = faer::get_global_parallelism();
-        let mut memory = MemBuffer::try_new(
-            symbolic
-                .factorize_numeric_llt_scratch::<Real>(par, Default::default())
-                .or(symbolic.solve_in_place_scratch::<Real>(1, par)),
-        )
-        .ok()?;
-        self.factor.resize(symbolic.len_val(), 0.0);
-        let n = symbolic.nrows();
-        let matrix = SparseColMatRef::new(
-            SymbolicSparseColMatRef::new_checked(n, n, &pattern.col_ptr, None, &pattern.row_idx),
-            &self.values,
-        );
-        let llt = symbolic
-            .factorize_numeric_llt(
-                &mut self.factor,
-                matrix,
-                Side::Lower,
-                LltRegularization::default(),
-                par,
-                MemStack::new(&mut memory),
-                Default::default(),
-            )
+        pattern
+            .factorize_into(&self.values, &mut self.factor, par)
             .ok()?;
+        let mut memory =
+            MemBuffer::try_new(symbolic.solve_in_place_scratch::<Real>(1, par)).ok()?;
+        let n = symbolic.nrows();
+        let llt = LltRef::new(symbolic, &self.factor);
         self.rhs.clear();
         self.rhs.extend(rhs);
         llt.solve_in_place_with_conj(

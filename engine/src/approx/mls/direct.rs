@@ -67,7 +67,7 @@ impl Mls {
         out.weights.clear();
         out.weights.resize(nodes.len(), Vector::zeros());
         let s = &mut out.scratch;
-        s.gather(self, x, nodes);
+        s.gather(self, x, nodes, |_, d| self.weight(d));
         let support = s.nodes.len();
         let mut order = self.params.order;
         loop {

@@ -272,12 +272,19 @@ impl Default for Scratch {
 }
 
 impl Scratch {
-    /// Collects the nodes with a positive weight around `x`.
-    fn gather(&mut self, mls: &Mls, x: &Vector, nodes: &[Vector]) {
+    /// Collects the nodes with a positive weight around `x`; `weight`
+    /// gives node `i`'s weight and its gradient at the offset `x - x_i`.
+    fn gather(
+        &mut self,
+        mls: &Mls,
+        x: &Vector,
+        nodes: &[Vector],
+        weight: impl Fn(usize, &[Real; 3]) -> Option<(Real, [Real; 3])>,
+    ) {
         self.nodes.clear();
         for (index, xi) in nodes.iter().enumerate() {
             let d = [x[0] - xi[0], x[1] - xi[1], x[2] - xi[2]];
-            if let Some((w, dw)) = mls.weight(&d) {
+            if let Some((w, dw)) = weight(index, &d) {
                 let s = [-d[0] * mls.inv_h, -d[1] * mls.inv_h, -d[2] * mls.inv_h];
                 self.nodes.push(NodeTerms {
                     index,

@@ -73,12 +73,33 @@ impl Mls {
         nodes: &[Vector],
         out: &mut ShapeFunctions,
     ) -> Result<Fit, MlsError> {
+        self.shape_functions_weighted(x, nodes, |_, d| self.weight(d), out)
+    }
+
+    /// [`Mls::shape_functions`] with each node's weight given by the
+    /// caller: `weight(i, &(x - x_i))` returns node `i`'s weight and its
+    /// gradient in `x`, or `None` outside its support. The Element-Free
+    /// Galerkin solids use it for their tensor-product weights
+    /// ([`crate::approx::tensor`]), whose supports differ from node to node
+    /// (Guo–Qin, Section 4.1.1); the parameters' `h` is then only the
+    /// basis scale (Eq. 28), and their `weight` is not read.
+    ///
+    /// # Errors
+    /// As [`Mls::shape_functions`], with `h` in the message the basis
+    /// scale.
+    pub fn shape_functions_weighted(
+        &self,
+        x: &Vector,
+        nodes: &[Vector],
+        weight: impl Fn(usize, &[Real; 3]) -> Option<(Real, [Real; 3])>,
+        out: &mut ShapeFunctions,
+    ) -> Result<Fit, MlsError> {
         out.values.clear();
         out.values.resize(nodes.len(), 0.0);
         out.gradients.clear();
         out.gradients.resize(nodes.len(), Vector::zeros());
         let s = &mut out.scratch;
-        s.gather(self, x, nodes);
+        s.gather(self, x, nodes, weight);
         let no_support = || MlsError::NoSupport {
             at: [x[0], x[1], x[2]],
             nodes: nodes.len(),

@@ -34,6 +34,16 @@ pub struct LoadedMesh {
     pub dropped: usize,
 }
 
+/// An oriented point cloud as read: each point with its normal, as
+/// written in the file (finite, but neither unit nor checked nonzero).
+#[derive(Debug, Clone, PartialEq)]
+pub struct OrientedPoints {
+    /// The points, coordinates as in the file.
+    pub points: Vec<Vector>,
+    /// The normal of each point, `normals[i]` that of `points[i]`.
+    pub normals: Vec<Vector>,
+}
+
 /// The file formats the readers know.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -100,6 +110,31 @@ pub fn parse(label: &Path, format: MeshFormat, bytes: &[u8]) -> Result<LoadedMes
         MeshFormat::Obj => obj::parse(label, &String::from_utf8_lossy(bytes)),
         MeshFormat::Ply => ply::parse(label, bytes),
     }
+}
+
+/// Reads an oriented point cloud from a PLY file (ASCII or binary): the
+/// `vertex` element's `x`, `y`, `z` and `nx`, `ny`, `nz`; faces and other
+/// elements are read past. The format is PLY whatever the extension: a
+/// file that is not fails at its header.
+///
+/// # Errors
+/// See [`MeshError`]: unreadable file, not a regular file, larger than
+/// [`MAX_FILE_BYTES`], parse errors (among them a vertex element without
+/// normals, and a normal that is not finite), non-finite coordinates.
+pub fn oriented_points(path: &Path) -> Result<OrientedPoints, MeshError> {
+    let bytes = read_regular_file(path, MAX_FILE_BYTES).map_err(|e| MeshError::Unreadable {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    parse_oriented_points(path, &bytes)
+}
+
+/// Parses an oriented point cloud's PLY bytes; `label` names it in errors.
+///
+/// # Errors
+/// As [`oriented_points`], less the file's own failures.
+pub fn parse_oriented_points(label: &Path, bytes: &[u8]) -> Result<OrientedPoints, MeshError> {
+    ply::parse_oriented_points(label, bytes)
 }
 
 /// The whole of a regular file of at most `max_bytes`. A FIFO, a device

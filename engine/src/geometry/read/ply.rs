@@ -1,10 +1,13 @@
-//! PLY (Stanford) meshes, ASCII or binary of either byte order, parsed by
-//! `ply-rs-bw` into the two elements a surface needs: `vertex` with scalar
-//! `x`, `y`, `z` (any numeric type) and `face` with an integer list
-//! `vertex_indices` (or `vertex_index`). Other elements and properties
-//! (normals, colours, edges, materials) are read past and ignored.
+//! PLY (Stanford) files, ASCII or binary of either byte order, parsed by
+//! `ply-rs-bw`. A mesh takes two elements: `vertex` with scalar `x`, `y`,
+//! `z` (any numeric type) and `face` with an integer list
+//! `vertex_indices` (or `vertex_index`). An oriented point cloud takes the
+//! `vertex` element alone, with scalar normals `nx`, `ny`, `nz` as well;
+//! its faces, if any, are read past. Other elements and properties
+//! (colours, edges, materials; normals for a mesh) are read past and
+//! ignored.
 
-use super::{LoadedMesh, Triangulator, non_finite, parser_message, quote};
+use super::{LoadedMesh, OrientedPoints, Triangulator, non_finite, parser_message, quote};
 use crate::geometry::MeshError;
 use crate::math::{Real, Vector};
 use ply_rs_bw::parser::Parser;
@@ -29,23 +32,38 @@ fn parser_summary(message: &str) -> String {
 
 const FACE_LISTS: [&str; 2] = ["vertex_indices", "vertex_index"];
 
-/// One `vertex` element: its position; other properties are skipped.
-struct PlyVertex([Real; 3]);
+/// The vertex properties kept, in the order [`PlyVertex`] stores them:
+/// the position, then the normal.
+const VERTEX_SCALARS: [&str; 6] = ["x", "y", "z", "nx", "ny", "nz"];
+
+/// One `vertex` element: its position and its normal (zero where the file
+/// has none; only an oriented point cloud asks for it, and its header
+/// check makes sure the file has one). Other properties are skipped.
+struct PlyVertex([Real; 6]);
+
+impl PlyVertex {
+    fn position(&self) -> Vector {
+        Vector::new(self.0[0], self.0[1], self.0[2])
+    }
+
+    fn normal(&self) -> Vector {
+        Vector::new(self.0[3], self.0[4], self.0[5])
+    }
+}
 
 impl PropertyAccess for PlyVertex {
     fn new() -> Self {
-        Self([0.0; 3])
+        Self([0.0; 6])
     }
 
     fn set_property(&mut self, name: &str, property: Property) {
-        let axis = match name {
-            "x" => 0,
-            "y" => 1,
-            "z" => 2,
-            _ => return,
+        let Some(slot) = VERTEX_SCALARS.iter().position(|&s| s == name) else {
+            return;
         };
-        // The header check admits only scalar coordinates.
-        self.0[axis] = match property {
+        // The header check admits only scalars for the properties it asks
+        // for; a list-valued normal of a mesh, which is never read, reads
+        // as NaN here.
+        self.0[slot] = match property {
             Property::Char(v) => v.into(),
             Property::UChar(v) => v.into(),
             Property::Short(v) => v.into(),
@@ -93,8 +111,23 @@ impl PropertyAccess for Skipped {
     }
 }
 
-/// Parses a whole PLY file held in memory.
-pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
+/// What the caller makes of the file, which decides the elements read and
+/// the properties required.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Wanted {
+    /// Vertices (positions) and faces.
+    Mesh,
+    /// Vertices with normals; faces are read past.
+    OrientedPoints,
+}
+
+/// Reads the header and every element of a whole PLY file held in memory:
+/// the vertices, and the faces when a mesh is wanted (empty otherwise).
+fn read_elements(
+    path: &Path,
+    bytes: &[u8],
+    wanted: Wanted,
+) -> Result<(Vec<PlyVertex>, Vec<PlyFace>), MeshError> {
     let parse_error = |location: &str, message: String| MeshError::Parse {
         path: path.to_path_buf(),
         location: location.to_string(),
@@ -119,6 +152,13 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<LoadedMesh, MeshError> 
             ),
         ));
     }
+    if wanted == Wanted::OrientedPoints && !header.elements.contains_key("vertex") {
+        return Err(parse_error(
+            "header",
+            "no 'vertex' element; an oriented point cloud needs one with x, y, z, nx, ny, nz"
+                .to_string(),
+        ));
+    }
     let mut vertices = Vec::new();
     let mut faces = Vec::new();
     for element in header.elements.values() {
@@ -134,14 +174,14 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<LoadedMesh, MeshError> 
                 ),
             )
         };
-        match element.name.as_str() {
-            "vertex" => {
-                check_vertex_header(element).map_err(|m| parse_error("header", m))?;
+        match (element.name.as_str(), wanted) {
+            ("vertex", _) => {
+                check_vertex_header(element, wanted).map_err(|m| parse_error("header", m))?;
                 vertices = Parser::<PlyVertex>::new()
                     .read_payload_for_element(reader, element, &header)
                     .map_err(read_error)?;
             }
-            "face" => {
+            ("face", Wanted::Mesh) => {
                 check_face_header(element).map_err(|m| parse_error("header", m))?;
                 faces = Parser::<PlyFace>::new()
                     .read_payload_for_element(reader, element, &header)
@@ -154,29 +194,44 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<LoadedMesh, MeshError> 
             }
         }
     }
-    let vertices: Vec<Vector> = vertices.into_iter().map(|v| Vector::from(v.0)).collect();
-    if let Some((i, value)) = vertices
+    Ok((vertices, faces))
+}
+
+/// The first vertex with a non-finite value among those `values` gives,
+/// and that value.
+fn first_non_finite(
+    vertices: &[PlyVertex],
+    values: impl Fn(&PlyVertex) -> Vector,
+) -> Option<(usize, Real)> {
+    vertices
         .iter()
         .enumerate()
-        .find_map(|(i, v)| non_finite(v).map(|value| (i, value)))
-    {
+        .find_map(|(i, v)| non_finite(&values(v)).map(|value| (i, value)))
+}
+
+/// Parses a whole PLY mesh held in memory.
+pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
+    let (vertices, faces) = read_elements(path, bytes, Wanted::Mesh)?;
+    if let Some((i, value)) = first_non_finite(&vertices, PlyVertex::position) {
         return Err(MeshError::NonFinite {
             path: path.to_path_buf(),
             location: format!("vertex {i}"),
             value,
         });
     }
+    let vertices: Vec<Vector> = vertices.iter().map(PlyVertex::position).collect();
     let mut triangulator = Triangulator::default();
     let mut polygon = Vec::new();
     for (f, face) in faces.iter().enumerate() {
         if face.0.len() < 3 {
-            return Err(parse_error(
-                &format!("face {f}"),
-                format!(
+            return Err(MeshError::Parse {
+                path: path.to_path_buf(),
+                location: format!("face {f}"),
+                message: format!(
                     "a face needs at least three corners, found {}",
                     face.0.len()
                 ),
-            ));
+            });
         }
         polygon.clear();
         for &index in &face.0 {
@@ -197,16 +252,60 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<LoadedMesh, MeshError> 
     triangulator.finish(path, vertices)
 }
 
-fn check_vertex_header(element: &ElementDef) -> Result<(), String> {
-    for axis in ["x", "y", "z"] {
-        match element.properties.get(axis).map(|p| &p.data_type) {
+/// Parses a whole PLY oriented point cloud held in memory. Normals are
+/// taken as written (their length and direction are the surface fit's to
+/// judge, see [`crate::geometry::PointSurface::new`]); only a value that
+/// is not a number is refused here, where the file and vertex can be
+/// named.
+pub(super) fn parse_oriented_points(
+    path: &Path,
+    bytes: &[u8],
+) -> Result<OrientedPoints, MeshError> {
+    let (vertices, _) = read_elements(path, bytes, Wanted::OrientedPoints)?;
+    if let Some((i, value)) = first_non_finite(&vertices, PlyVertex::position) {
+        return Err(MeshError::NonFinite {
+            path: path.to_path_buf(),
+            location: format!("vertex {i}"),
+            value,
+        });
+    }
+    if let Some((i, value)) = first_non_finite(&vertices, PlyVertex::normal) {
+        return Err(MeshError::Parse {
+            path: path.to_path_buf(),
+            location: format!("vertex {i}"),
+            message: format!(
+                "normal component {value} is not finite; every vertex needs finite nx, ny, nz"
+            ),
+        });
+    }
+    Ok(OrientedPoints {
+        points: vertices.iter().map(PlyVertex::position).collect(),
+        normals: vertices.iter().map(PlyVertex::normal).collect(),
+    })
+}
+
+/// Checks that the vertex element has the scalar properties `wanted`
+/// reads: the position, and for an oriented point cloud the normal.
+fn check_vertex_header(element: &ElementDef, wanted: Wanted) -> Result<(), String> {
+    let required = match wanted {
+        Wanted::Mesh => &VERTEX_SCALARS[..3],
+        Wanted::OrientedPoints => &VERTEX_SCALARS[..],
+    };
+    for name in required {
+        match element.properties.get(*name).map(|p| &p.data_type) {
             Some(PropertyType::Scalar(_)) => {}
             Some(PropertyType::List(..)) => {
                 return Err(format!(
-                    "vertex property '{axis}' is a list; it must be a number"
+                    "vertex property '{name}' is a list; it must be a number"
                 ));
             }
-            None => return Err(format!("vertex element has no property '{axis}'")),
+            None if name.starts_with('n') => {
+                return Err(format!(
+                    "vertex element has no property '{name}'; an oriented point cloud needs \
+                     a normal (nx, ny, nz) for every vertex"
+                ));
+            }
+            None => return Err(format!("vertex element has no property '{name}'")),
         }
     }
     Ok(())
@@ -281,6 +380,170 @@ mod tests {
         for (text, what) in cases {
             let err = read(text.as_bytes()).expect_err(what);
             assert!(err.to_string().contains(what), "{what}: {err}");
+        }
+    }
+
+    /// A cloud of four points with normals, and the header before its
+    /// body in each format: ASCII, and binary with floats (little endian)
+    /// or doubles (big endian), with an extra property and a face element
+    /// that the reader skips.
+    const CLOUD: [[Real; 6]; 4] = [
+        [0.0, 0.0, 0.0, 0.0, 0.0, -1.0],
+        [1.5, 0.0, 0.0, 1.0, 0.0, 0.0],
+        [0.0, -2.25, 0.0, 0.0, -1.0, 0.0],
+        [0.0, 0.0, 3.0, 0.0, 0.6, 0.8],
+    ];
+
+    fn cloud_header(format: &str, scalar: &str) -> String {
+        let properties: String = ["x", "y", "z", "nx", "ny", "nz"]
+            .iter()
+            .map(|p| format!("property {scalar} {p}\n"))
+            .collect();
+        format!(
+            "ply\nformat {format} 1.0\nelement vertex 4\n{properties}property uchar red\n\
+             element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+        )
+    }
+
+    fn ascii_cloud() -> String {
+        let mut text = cloud_header("ascii", "float");
+        for v in CLOUD {
+            let row: Vec<String> = v.iter().map(Real::to_string).collect();
+            text += &format!("{} 7\n", row.join(" "));
+        }
+        text + "3 0 1 2\n"
+    }
+
+    /// `cloud` in binary, little endian floats, its face included.
+    fn binary_cloud(cloud: [[Real; 6]; 4]) -> Vec<u8> {
+        let mut bytes = cloud_header("binary_little_endian", "float").into_bytes();
+        for v in cloud {
+            for x in v {
+                bytes.extend((x as f32).to_le_bytes());
+            }
+            bytes.push(7);
+        }
+        bytes.push(3);
+        for corner in 0_i32..3 {
+            bytes.extend(corner.to_le_bytes());
+        }
+        bytes
+    }
+
+    fn assert_cloud(cloud: &OrientedPoints) {
+        let points: Vec<Vector> = CLOUD
+            .iter()
+            .map(|v| Vector::new(v[0], v[1], v[2]))
+            .collect();
+        let normals: Vec<Vector> = CLOUD
+            .iter()
+            .map(|v| Vector::new(v[3], v[4], v[5]))
+            .collect();
+        assert_eq!(cloud.points, points);
+        // 0.6 and 0.8 went through f32 in two of the files.
+        for (n, expected) in cloud.normals.iter().zip(&normals) {
+            assert!((n - expected).norm() < 1e-7, "{n} != {expected}");
+        }
+    }
+
+    #[test]
+    fn oriented_points_round_trip_ascii_and_binary() {
+        let dir = std::env::temp_dir().join(format!("meshless-ply-cloud-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let mut big = cloud_header("binary_big_endian", "double").into_bytes();
+        for v in CLOUD {
+            for x in v {
+                big.extend(x.to_be_bytes());
+            }
+            big.push(7);
+        }
+        big.push(3);
+        for corner in 0_i32..3 {
+            big.extend(corner.to_be_bytes());
+        }
+        for (name, bytes) in [
+            ("ascii.ply", ascii_cloud().into_bytes()),
+            ("little.ply", binary_cloud(CLOUD)),
+            ("big.ply", big),
+        ] {
+            let file = dir.join(name);
+            std::fs::write(&file, &bytes).expect("write");
+            let cloud = crate::geometry::read::oriented_points(&file).expect(name);
+            assert_cloud(&cloud);
+            // The mesh reader still reads the same file as a mesh.
+            let mesh = parse(&file, &bytes).expect(name);
+            assert_eq!(mesh.mesh.triangles, vec![[0, 1, 2]]);
+        }
+        std::fs::remove_dir_all(&dir).expect("clean up");
+    }
+
+    #[test]
+    fn oriented_points_without_normals_or_vertices_are_refused() {
+        let read = |text: String| parse_oriented_points(Path::new("cloud.ply"), text.as_bytes());
+        let err = read(ascii_cloud().replace("property float ny\n", "")).expect_err("no ny");
+        assert!(matches!(&err, MeshError::Parse { location, .. } if location == "header"));
+        assert!(err.to_string().contains("no property 'ny'"), "{err}");
+        assert!(err.to_string().contains("normal (nx, ny, nz)"), "{err}");
+        // A mesh file without normals reads as a mesh, not as a cloud.
+        let err = read(SQUARE.to_string()).expect_err("a mesh without normals");
+        assert!(err.to_string().contains("no property 'nx'"), "{err}");
+        let err = read(
+            "ply\nformat ascii 1.0\nelement point 1\nproperty float x\nend_header\n1\n".to_string(),
+        )
+        .expect_err("no vertex element");
+        assert!(err.to_string().contains("no 'vertex' element"), "{err}");
+        // Not-a-number values come in binary files (ASCII ones cannot
+        // spell them).
+        let mut cloud = CLOUD;
+        cloud[3][4] = Real::NAN;
+        let err =
+            parse_oriented_points(Path::new("cloud.ply"), &binary_cloud(cloud)).expect_err("NaN");
+        assert!(
+            err.to_string().contains("vertex 3: normal component NaN"),
+            "{err}"
+        );
+        cloud[1][0] = Real::INFINITY;
+        let err = parse_oriented_points(Path::new("cloud.ply"), &binary_cloud(cloud))
+            .expect_err("infinite");
+        assert!(
+            matches!(&err, MeshError::NonFinite { location, .. } if location == "vertex 1"),
+            "{err}"
+        );
+        // Normals as lists are not numbers.
+        let err = read(ascii_cloud().replace("property float nz", "property list uchar float nz"))
+            .expect_err("a list");
+        assert!(err.to_string().contains("'nz' is a list"), "{err}");
+    }
+
+    /// Garbage, whether not PLY at all or a body that does not match its
+    /// header, is refused with a message that quotes no more than a short
+    /// prefix of it.
+    #[test]
+    fn garbage_clouds_are_refused_without_echoing_them() {
+        let long = "g".repeat(5000);
+        let mut seed = 1_u64;
+        let noise: Vec<u8> = (0..5000)
+            .map(|_| (crate::testing::uniform(&mut seed) * 256.0) as u8)
+            .collect();
+        for (bytes, what) in [
+            (format!("{long}\n{long}").into_bytes(), "header"),
+            (noise, "header"),
+            (
+                ascii_cloud().replacen("1.5", &long, 1).into_bytes(),
+                "element \"vertex\"",
+            ),
+            (
+                ascii_cloud()
+                    .replace("3 0 1 2\n", &format!("3 0 {long}\n"))
+                    .into_bytes(),
+                "element \"face\"",
+            ),
+        ] {
+            let err = parse_oriented_points(Path::new("cloud.ply"), &bytes).expect_err(what);
+            let message = err.to_string();
+            assert!(message.contains(what), "{what}: {message}");
+            assert!(!message.contains(&"g".repeat(65)), "{message}");
+            assert!(message.len() < 300, "{} bytes: {message}", message.len());
         }
     }
 

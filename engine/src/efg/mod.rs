@@ -1,0 +1,37 @@
+//! Element-Free Galerkin (EFG) solids on octree nodes (Guo–Qin, Sections
+//! 3, 4.1 and 5.1): the discretisation that the modal solids
+//! ([`crate::modal`]) reduce.
+//!
+//! The pipeline, each stage timed in [`EfgSolid::timings`]:
+//!
+//! 1. an [`Octree`](crate::geometry::Octree) adapted to an
+//!    [`ImplicitSurface`](crate::geometry::ImplicitSurface) places the nodes and
+//!    their cubic supports (Section 4.1.1);
+//! 2. Gauss points on cells cut from its terminal octants
+//!    ([`Quadrature`], Section 4.1.2);
+//! 3. MLS shape functions with the tensor-product weight (Eq. 12-13) at
+//!    those points ([`ShapeTable`]);
+//! 4. the consistent mass, the linear stiffness, the penalty for fixed
+//!    regions and body loads (`assemble.rs`, Eq. 16-17);
+//! 5. the lowest modes and the rotation modes at the nodes, the modal
+//!    basis that [`crate::modal::ModalSystem`] steps (`reduce.rs`,
+//!    Section 5.3).
+//!
+//! Every knob that trades speed for accuracy is a field of [`EfgParams`]:
+//! the cell size (octree depth, hence the node count), `alpha`, the basis
+//! order, the quadrature order and cell subdivision, the mass form and the
+//! penalty.
+
+mod assemble;
+mod quadrature;
+mod reduce;
+mod shape;
+mod solid;
+
+pub use assemble::lame;
+pub use quadrature::{MAX_ORDER, Quadrature};
+pub use shape::{CoverError, Row, ShapeTable};
+pub use solid::{EfgError, EfgParams, EfgSolid, FixedSurface, MassForm, Material};
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,368 @@
+use super::*;
+use crate::Cancel;
+use crate::geometry::{ImplicitSurface, MeshSdf, TriMesh};
+use crate::math::{Real, Vector};
+
+fn steel_like() -> Material {
+    Material {
+        density: 1000.0,
+        young: 1e6,
+        poisson: 0.3,
+    }
+}
+
+/// The cuboid `[0, l] x [0, h] x [0, h]` with its faces cut into small
+/// triangles (for the penalty's surface integral), and the part of it in
+/// the plane `x = 0`.
+fn beam(l: Real, h: Real) -> (MeshSdf, FixedSurface) {
+    let mesh = TriMesh::cuboid(Vector::zeros(), Vector::new(l, h, h)).subdivided(4);
+    let fixed = FixedSurface::of_mesh_in_box(
+        &mesh,
+        &Vector::repeat(-1e-9),
+        &Vector::new(1e-9, h + 1e-9, h + 1e-9),
+    );
+    (MeshSdf::new(&mesh).expect("closed"), fixed)
+}
+
+#[test]
+fn the_quadrature_measures_the_volume_of_a_ball() {
+    let ball = MeshSdf::new(&TriMesh::icosphere(Vector::zeros(), 1.0, 4)).expect("closed");
+    let mesh_volume = ball.mesh().signed_volume();
+    let mut errors = Vec::new();
+    for refinement in [1, 2] {
+        for cell in [0.25, 0.125] {
+            let mut params = EfgParams::new(cell);
+            params.boundary_refinement = refinement;
+            let solid = EfgSolid::build(
+                &ball,
+                &FixedSurface::default(),
+                steel_like(),
+                params,
+                &Cancel::new(),
+            )
+            .expect("solid");
+            let error = solid.volume() / mesh_volume - 1.0;
+            println!(
+                "ball volume, cell {cell}, boundary refinement {refinement}: {} points, {:+.3e}",
+                solid.quadrature_points(),
+                error
+            );
+            errors.push(error.abs());
+        }
+    }
+    // Points dropped outside the surface leave the cut cells' volume
+    // right to parts in 1e3; refined boundary octants, in 1e4.
+    assert!(errors[..2].iter().all(|e| *e < 3e-3), "{errors:?}");
+    assert!(errors[2..].iter().all(|e| *e < 1e-3), "{errors:?}");
+}
+
+/// The patch test: nodal coefficients of a linear field reproduce it at
+/// every quadrature point, and K applied to them leaves no force on the
+/// nodes whose supports see only the uniform interior (where the
+/// quadrature is symmetric about the node, so it integrates the odd
+/// `grad phi_I` exactly).
+#[test]
+fn the_patch_test_passes_on_the_octree_of_a_ball() {
+    let ball = MeshSdf::new(&TriMesh::icosphere(Vector::zeros(), 1.0, 3)).expect("closed");
+    let cell = 0.125;
+    let solid = EfgSolid::build(
+        &ball,
+        &FixedSurface::default(),
+        steel_like(),
+        EfgParams::new(cell),
+        &Cancel::new(),
+    )
+    .expect("solid");
+    let a = nalgebra::Matrix3::new(0.3, -0.1, 0.2, 0.05, -0.4, 0.1, 0.2, 0.15, 0.25) * 1e-3;
+    let c = Vector::new(1e-3, -2e-3, 5e-4);
+    let field = |x: &Vector| a * x + c;
+    let nodal: Vec<Vector> = solid.nodes().iter().map(|n| field(&n.position)).collect();
+    let mut at_points = Vec::new();
+    solid.volume.table.interpolate(&nodal, &mut at_points);
+    let scale = nodal.iter().map(|u| u.norm()).fold(0.0, Real::max);
+    let rule = Quadrature::build(solid.octree(), &ball, 2, 2, 1);
+    assert_eq!(rule.len(), solid.quadrature_points());
+    for (q, x) in rule.points.iter().enumerate() {
+        let err = (at_points[q] - field(x)).norm();
+        assert!(err <= 1e-10 * scale, "point {q}: {err:e}");
+    }
+    let flat: Vec<Real> = nodal.iter().flat_map(|u| [u[0], u[1], u[2]]).collect();
+    let force = solid.pattern().product(solid.stiffness(), &flat);
+    let (lambda, mu) = lame(solid.material().young, solid.material().poisson);
+    // The scale of one node's force: stress times a support's face.
+    let stress = (lambda + 2.0 * mu) * a.norm();
+    let deep = 4.5 * cell;
+    let mut checked = 0;
+    for (i, node) in solid.nodes().iter().enumerate() {
+        if ball.signed_distance(&node.position) > -deep {
+            continue;
+        }
+        checked += 1;
+        let f = Vector::new(force[3 * i], force[3 * i + 1], force[3 * i + 2]).norm();
+        assert!(f <= 1e-10 * stress * cell * cell, "node {i}: {f:e}");
+    }
+    assert!(checked > 50, "only {checked} deep nodes");
+}
+
+/// Tip deflection of a cantilever (L/H = 10, square section, clamped by
+/// the penalty on its end face) under its own weight, against beam
+/// theory: Euler–Bernoulli `q L^4 / (8 E I)` plus Timoshenko's shear term
+/// `q L^2 / (2 kappa G A)` with Cowper's `kappa = 10 (1 + nu) / (12 + 11 nu)`.
+#[test]
+fn a_cantilever_sags_under_gravity_as_beam_theory_says() {
+    let (l, h) = (10.0, 1.0);
+    let (sdf, fixed) = beam(l, h);
+    let material = Material {
+        density: 1000.0,
+        young: 1e9,
+        poisson: 0.3,
+    };
+    let g = 9.81;
+    let q = material.density * g * h * h;
+    let inertia = h.powi(4) / 12.0;
+    let euler_bernoulli = q * l.powi(4) / (8.0 * material.young * inertia);
+    let nu = material.poisson;
+    let kappa = 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu);
+    let shear = material.young / (2.0 * (1.0 + nu));
+    let timoshenko = euler_bernoulli + q * l * l / (2.0 * kappa * shear * h * h);
+    let mut errors = Vec::new();
+    for cell in [0.5, 0.25, 1.0 / 6.0] {
+        let solid = EfgSolid::build(&sdf, &fixed, material, EfgParams::new(cell), &Cancel::new())
+            .expect("solid");
+        let load = solid.body_load(&Vector::new(0.0, 0.0, -g));
+        let u = solid
+            .static_displacement(&load)
+            .expect("held by the penalty");
+        let nodal: Vec<Vector> = u.chunks(3).map(|c| Vector::new(c[0], c[1], c[2])).collect();
+        let table = solid
+            .shape_table(&[
+                Vector::new(l, 0.5 * h, 0.5 * h),
+                Vector::new(0.0, 0.5 * h, 0.5 * h),
+            ])
+            .expect("covered");
+        let mut at = Vec::new();
+        table.interpolate(&nodal, &mut at);
+        let deflection = -at[0][2];
+        let error = deflection / timoshenko - 1.0;
+        println!(
+            "cell {cell:.3}: {} nodes, tip {deflection:.5e} (EB {euler_bernoulli:.5e}, \
+             Timoshenko {timoshenko:.5e}), error {:.2} %, root {:.1e}",
+            solid.nodes().len(),
+            100.0 * error,
+            at[1].norm() / deflection
+        );
+        // The clamp holds: the root's centre barely moves.
+        assert!(at[1].norm() < 1e-3 * deflection, "{:e}", at[1].norm());
+        errors.push(error.abs());
+    }
+    assert!(errors[2] < errors[0], "{errors:?}");
+    assert!(errors[2] < 0.03, "{errors:?}");
+}
+
+/// `(beta_n L)` of a clamped-free Euler–Bernoulli beam: the roots of
+/// `cos x cosh x = -1` (Timoshenko & Young; Blevins, Table 8-1).
+const CLAMPED_FREE: [Real; 4] = [1.875_104_07, 4.694_091_13, 7.854_757_44, 10.995_540_73];
+
+/// `(beta_n L)` of a free-free beam: the positive roots of
+/// `cos x cosh x = 1` (Blevins, Table 8-1).
+const FREE_FREE: [Real; 2] = [4.730_040_74, 7.853_204_62];
+
+/// The angular frequency of the bending wave of wavenumber `k` in a
+/// Timoshenko beam: the lower root of its dispersion relation
+/// `E I k^4 - rho A w^2 - rho I w^2 k^2 (1 + E / (kappa G)) + rho^2 I w^4 / (kappa G) = 0`
+/// (Timoshenko 1921; exact for a simply supported beam, an approximation
+/// at a cantilever's wavenumbers).
+fn timoshenko_frequency(k: Real, material: &Material, area: Real, inertia: Real) -> Real {
+    let (e, rho, nu) = (material.young, material.density, material.poisson);
+    let kappa = 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu);
+    let kg = kappa * e / (2.0 * (1.0 + nu));
+    // a s^2 + b s + c = 0 in s = w^2.
+    let a = rho * rho * inertia / kg;
+    let b = -(rho * area + rho * inertia * k * k * (1.0 + e / kg));
+    let c = e * inertia * k.powi(4);
+    let s = (-b - (b * b - 4.0 * a * c).sqrt()) / (2.0 * a);
+    s.sqrt()
+}
+
+/// The fraction of a mode's nodal coefficients along axis `axis`.
+fn fraction_along(vector: &[Real], axis: usize) -> Real {
+    let total: Real = vector.iter().map(|v| v * v).sum();
+    let along: Real = vector.iter().skip(axis).step_by(3).map(|v| v * v).sum();
+    along / total
+}
+
+/// A clamped 10 x 2 x 1 beam (L/H = 10 in the bending plane x-z): its
+/// first four modes of bending in z against beam theory, at three octree
+/// resolutions.
+#[test]
+fn a_cantilevers_bending_frequencies_converge_to_beam_theory() {
+    let (l, b, h) = (10.0, 2.0, 1.0);
+    let mesh = TriMesh::cuboid(Vector::zeros(), Vector::new(l, b, h)).subdivided(4);
+    let fixed = FixedSurface::of_mesh_in_box(
+        &mesh,
+        &Vector::repeat(-1e-9),
+        &Vector::new(1e-9, b + 1e-9, h + 1e-9),
+    );
+    let sdf = MeshSdf::new(&mesh).expect("closed");
+    let material = Material {
+        density: 1000.0,
+        young: 1e9,
+        poisson: 0.3,
+    };
+    let (area, inertia) = (b * h, b * h.powi(3) / 12.0);
+    let euler = |beta_l: Real| {
+        (beta_l / l).powi(2) * (material.young * inertia / (material.density * area)).sqrt()
+    };
+    let mut errors = Vec::new();
+    for cell in [0.5, 1.0 / 3.0, 0.25] {
+        let solid = EfgSolid::build(&sdf, &fixed, material, EfgParams::new(cell), &Cancel::new())
+            .expect("solid");
+        let modes = solid.modes(16, 1e-10, &Cancel::new()).expect("modes");
+        assert_eq!(modes.zero_modes, 0, "the clamp holds every rigid motion");
+        let n = 3 * solid.nodes().len();
+        let bending: Vec<Real> = (0..16)
+            .filter(|&j| fraction_along(&modes.vectors[j * n..(j + 1) * n], 2) > 0.8)
+            .map(|j| modes.eigenvalues[j].sqrt())
+            .take(4)
+            .collect();
+        assert_eq!(bending.len(), 4, "four z-bending modes among the lowest 16");
+        let mut row = Vec::new();
+        for (mode, &omega) in bending.iter().enumerate() {
+            let reference = timoshenko_frequency(CLAMPED_FREE[mode] / l, &material, area, inertia);
+            println!(
+                "cell {cell:.3} ({} nodes) mode {}: {omega:.4} rad/s, Euler–Bernoulli {:.4} \
+                 ({:+.2} %), Timoshenko {reference:.4} ({:+.2} %)",
+                solid.nodes().len(),
+                mode + 1,
+                euler(CLAMPED_FREE[mode]),
+                100.0 * (omega / euler(CLAMPED_FREE[mode]) - 1.0),
+                100.0 * (omega / reference - 1.0)
+            );
+            row.push((omega / reference - 1.0).abs());
+        }
+        errors.push(row);
+    }
+    for mode in 0..4 {
+        assert!(
+            errors[2][mode] < errors[0][mode],
+            "mode {}: {errors:?}",
+            mode + 1
+        );
+    }
+    // The clamped 3D solid is a little stiffer than a beam in its first
+    // mode (the clamp also holds the section's Poisson contraction).
+    assert!(errors[2][0] < 0.025, "{errors:?}");
+    assert!(errors[2][1..].iter().all(|e| *e < 0.01), "{errors:?}");
+}
+
+/// A free 10 x 2 x 1 beam: six zero modes to round-off, then the first
+/// bending mode in z against beam theory.
+#[test]
+fn a_free_beam_has_six_rigid_modes_then_bends() {
+    let (l, b, h) = (10.0, 2.0, 1.0);
+    let sdf =
+        MeshSdf::new(&TriMesh::cuboid(Vector::zeros(), Vector::new(l, b, h))).expect("closed");
+    let material = Material {
+        density: 1000.0,
+        young: 1e9,
+        poisson: 0.3,
+    };
+    let solid = EfgSolid::build(
+        &sdf,
+        &FixedSurface::default(),
+        material,
+        EfgParams::new(0.25),
+        &Cancel::new(),
+    )
+    .expect("solid");
+    let modes = solid.modes(12, 1e-10, &Cancel::new()).expect("modes");
+    assert_eq!(modes.zero_modes, 6, "{:?}", &modes.eigenvalues[..8]);
+    let first_elastic = modes.eigenvalues[6];
+    for lambda in &modes.eigenvalues[..6] {
+        assert!(lambda.abs() < 1e-8 * first_elastic, "{lambda:e}");
+    }
+    let n = 3 * solid.nodes().len();
+    let j = (6..12)
+        .find(|&j| fraction_along(&modes.vectors[j * n..(j + 1) * n], 2) > 0.8)
+        .expect("a z-bending mode");
+    let omega = modes.eigenvalues[j].sqrt();
+    let (area, inertia) = (b * h, b * h.powi(3) / 12.0);
+    let reference = timoshenko_frequency(FREE_FREE[0] / l, &material, area, inertia);
+    println!("free-free first z bending: {omega:.4} rad/s, Timoshenko {reference:.4}");
+    assert!(
+        (omega / reference - 1.0).abs() < 0.03,
+        "{omega} against {reference}"
+    );
+}
+
+/// Modal warping against linear modes on a cantilever bent far by its own
+/// weight (tip deflection about a quarter of its length): linear modes
+/// only translate the sections, so the centreline stretches; warping
+/// turns them with the local rotation, so it keeps its length.
+#[test]
+fn modal_warping_keeps_a_bent_cantilevers_length_where_linear_modes_stretch_it() {
+    use crate::modal::{Damping, ModalSystem};
+    let (l, h) = (10.0, 1.0);
+    let (sdf, fixed) = beam(l, h);
+    let material = Material {
+        density: 1000.0,
+        young: 5e7,
+        poisson: 0.3,
+    };
+    let solid = EfgSolid::build(&sdf, &fixed, material, EfgParams::new(0.5), &Cancel::new())
+        .expect("solid");
+    let (_, basis) = solid.modal_basis(24, 1e-10, &Cancel::new()).expect("basis");
+    let gravity: Vec<Vector> = solid
+        .node_masses()
+        .iter()
+        .map(|m| Vector::new(0.0, 0.0, -9.81) * *m)
+        .collect();
+    let centreline: Vec<Vector> = (0..=40)
+        .map(|i| Vector::new(l * i as Real / 40.0, 0.5 * h, 0.5 * h))
+        .collect();
+    let table = solid.shape_table(&centreline).expect("covered");
+    let mut result = Vec::new();
+    for warping in [false, true] {
+        // Heavy damping and long implicit steps settle it to the static
+        // shape.
+        let damping = Damping::new(5.0, 0.0).expect("damping");
+        let mut system = ModalSystem::new(basis.clone(), damping, warping);
+        for _ in 0..400 {
+            system.step(0.05, &gravity).expect("step");
+        }
+        let mut u = vec![Vector::zeros(); solid.nodes().len()];
+        system.displacements_into(&mut u).expect("displacements");
+        let mut d = Vec::new();
+        table.interpolate(&u, &mut d);
+        let deformed: Vec<Vector> = centreline.iter().zip(&d).map(|(x, d)| x + d).collect();
+        let length: Real = deformed.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
+        let tip = deformed[40];
+        println!(
+            "warping {warping}: tip ({:.3}, {:.3}), centreline length {:+.2} %",
+            tip.x,
+            tip.z,
+            100.0 * (length / l - 1.0)
+        );
+        result.push((length / l - 1.0, tip));
+    }
+    let (linear, warped) = (result[0], result[1]);
+    assert!(
+        linear.1.z < 0.5 * h - 0.2 * l,
+        "a large deflection: {:?}",
+        linear.1
+    );
+    assert!(
+        linear.0 > 0.02,
+        "linear modes stretch the centreline: {:e}",
+        linear.0
+    );
+    assert!(
+        warped.0.abs() < 0.2 * linear.0,
+        "warping keeps it: {:e}",
+        warped.0
+    );
+    // Warping shortens the reach along the beam, as a bent rod does;
+    // linear modes leave the tip at x = L.
+    assert!((linear.1.x - l).abs() < 1e-6 * l, "{:?}", linear.1);
+    assert!(warped.1.x < l - 0.02 * l, "{:?}", warped.1);
+}
