@@ -178,7 +178,8 @@ impl Knob {
 fn fluid(scene: &mut Scene) -> Result<&mut FluidSpec> {
     match scene.systems.first_mut() {
         Some(SystemSpec::Fluid(fluid)) => Ok(fluid),
-        Some(SystemSpec::RigidBody(_) | SystemSpec::Solid(_)) | None => {
+        Some(SystemSpec::RigidBody(_) | SystemSpec::Solid(_) | SystemSpec::ModalSolid(_))
+        | None => {
             bail!("the scene's first system is no fluid to study")
         }
     }

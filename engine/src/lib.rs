@@ -36,4 +36,6 @@ pub mod world;
 pub use cancel::{Cancel, Cancelled};
 pub use frame::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
 pub use scene::{BuildOptions, Scene, SceneError};
-pub use world::{Clock, StateError, StepError, StepInfo, SystemState, World, WorldState};
+pub use world::{
+    Clock, GrabsError, StateError, StepError, StepInfo, SystemState, World, WorldState,
+};

@@ -230,7 +230,9 @@ fn a_plastic_solid_continues_from_its_rebased_shape() {
 fn fluid_of(state: &mut WorldState) -> &mut FluidSnapshot {
     match &mut state.systems[0] {
         SystemState::Fluid { fluid, .. } => fluid,
-        SystemState::Solid { .. } => panic!("the fluid comes first"),
+        SystemState::Solid { .. } | SystemState::Modal { .. } => {
+            panic!("the fluid comes first")
+        }
     }
 }
 

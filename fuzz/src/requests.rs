@@ -77,6 +77,7 @@ fn context(dim: usize) -> Context {
     Context {
         dim,
         solids: vec![None, Some(8), Some(125)],
+        modal_solids: Vec::new(),
     }
 }
 

@@ -59,12 +59,19 @@ pub fn scene_spec(data: &[u8]) {
 /// before any work, and those inputs are checked.
 const MAX_CHECKED_SUBDIVISIONS: u32 = 2;
 
-/// Whether a solid of `scene` embeds a surface of 3 to 7 subdivisions.
+/// Whether a solid of `scene` embeds a surface of 3 to 7 subdivisions,
+/// or the scene holds a modal solid: admitting one builds its octree,
+/// assembles it and finds its modes (up to `MAX_NODES` nodes, seconds
+/// to minutes), which would starve the fuzzer of inputs. Their parsing
+/// is fuzzed all the same; their admission is tested in
+/// `engine/src/world/tests.rs`, their protocol round trip in
+/// `wire/src/modal.rs`.
 fn fine_surface(scene: &Scene) -> bool {
     scene.systems.iter().any(|system| match system {
         SystemSpec::Solid(solid) => solid.surface.as_ref().is_some_and(|surface| {
             (MAX_CHECKED_SUBDIVISIONS + 1..=7).contains(&surface.subdivisions)
         }),
+        SystemSpec::ModalSolid(_) => true,
         SystemSpec::Fluid(_) | SystemSpec::RigidBody(_) => false,
     })
 }

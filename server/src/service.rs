@@ -430,7 +430,7 @@ impl Simulation for SimulationService {
                     .map_err(|e| ServiceError::Design(e.into()))?;
             }
         }
-        let constraints = session.edit_constraints(&edits)?;
+        let constraints = session.edit_constraints(&edits).await?;
         Ok(Response::new(constraint_list(&constraints)))
     }
 

@@ -49,6 +49,12 @@ pub fn small_solid_scene() -> String {
     fixture("small_column")
 }
 
+/// A small modal EFG cantilever (12 modes), clamped at x = 0, frames every
+/// step (`tests/fixtures/small_modal.toml`).
+pub fn small_modal_scene() -> String {
+    fixture("small_modal")
+}
+
 /// Where cargo put one of the workspace's binaries (`meshless-server`,
 /// `meshless`): beside this test executable's `deps/` folder.
 ///

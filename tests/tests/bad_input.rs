@@ -43,9 +43,12 @@ async fn small_spec(client: &Client) -> v1::SceneSpec {
 fn fluid(spec: &mut v1::SceneSpec) -> &mut v1::FluidSpec {
     match spec.systems[0].kind.as_mut() {
         Some(v1::system_spec::Kind::Fluid(f)) => f,
-        Some(v1::system_spec::Kind::RigidBody(_) | v1::system_spec::Kind::Solid(_)) | None => {
-            panic!("a fluid")
-        }
+        Some(
+            v1::system_spec::Kind::RigidBody(_)
+            | v1::system_spec::Kind::Solid(_)
+            | v1::system_spec::Kind::ModalSolid(_),
+        )
+        | None => panic!("a fluid"),
     }
 }
 
@@ -332,9 +335,12 @@ async fn solid_spec(client: &Client) -> v1::SceneSpec {
 fn solid(spec: &mut v1::SceneSpec) -> &mut v1::SolidSpec {
     match spec.systems[1].kind.as_mut() {
         Some(v1::system_spec::Kind::Solid(s)) => s,
-        Some(v1::system_spec::Kind::Fluid(_) | v1::system_spec::Kind::RigidBody(_)) | None => {
-            panic!("a solid")
-        }
+        Some(
+            v1::system_spec::Kind::Fluid(_)
+            | v1::system_spec::Kind::RigidBody(_)
+            | v1::system_spec::Kind::ModalSolid(_),
+        )
+        | None => panic!("a solid"),
     }
 }
 

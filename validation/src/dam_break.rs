@@ -104,7 +104,8 @@ pub enum ColumnError {
 fn first_fluid(scene: &Scene) -> Option<&FluidSpec> {
     match scene.systems.first() {
         Some(SystemSpec::Fluid(fluid)) => Some(fluid),
-        Some(SystemSpec::RigidBody(_) | SystemSpec::Solid(_)) | None => None,
+        Some(SystemSpec::RigidBody(_) | SystemSpec::Solid(_) | SystemSpec::ModalSolid(_))
+        | None => None,
     }
 }
 

@@ -21,6 +21,7 @@ fn context() -> Context {
     Context {
         dim: 3,
         solids: vec![],
+        modal_solids: Vec::new(),
     }
 }
 

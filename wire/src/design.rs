@@ -7,8 +7,8 @@ use crate::enums::{WireEnum, enum_or, wire_enum};
 use crate::error::{Result, required};
 use crate::scene::{aabb, shape_from_proto, to_aabb, to_shape, to_vec3, vec3};
 use meshless_engine::design::{
-    Constraint, ConstraintKind, DesignParams, Edit, Energies, Handle, MotionParams, Obstacle,
-    Progress, Quadrature, Selection, SolveInfo, Target, Velocity, Waypoint,
+    Constraint, ConstraintKind, DesignParams, Edit, Energies, GrabConstraint, Handle, MotionParams,
+    Obstacle, Progress, Quadrature, Selection, SolveInfo, Target, Velocity, Waypoint,
 };
 use meshless_engine::scene::Aabb;
 use meshless_proto::v1;
@@ -84,10 +84,22 @@ pub fn constraint_from_proto(c: v1::Constraint, field: &str) -> Result<Constrain
                 })
                 .collect::<Result<_>>()?,
         }),
+        Some(v1::constraint::Kind::Grab(v1::GrabConstraint { system, grab })) => {
+            let grab = crate::modal::grab_from_proto(
+                required(grab, &format!("{field}.grab.grab"))?,
+                &format!("{field}.grab.grab"),
+            )?;
+            ConstraintKind::Grab(GrabConstraint {
+                system: system as usize,
+                point: grab.point,
+                position: grab.position,
+                rotation: grab.rotation,
+            })
+        }
         None => {
             return Err(WireError::new(
                 format!("{field}.kind"),
-                format!("constraint `{name}` has no kind; set handle, velocity or obstacle"),
+                format!("constraint `{name}` has no kind; set handle, velocity, obstacle or grab"),
             ));
         }
     };
@@ -175,6 +187,14 @@ pub fn constraint_to_proto(c: &Constraint) -> v1::Constraint {
                     position: Some(to_vec3(w.position)),
                 })
                 .collect(),
+        }),
+        ConstraintKind::Grab(g) => v1::constraint::Kind::Grab(v1::GrabConstraint {
+            system: count(g.system),
+            grab: Some(crate::modal::to_grab(&meshless_engine::scene::GrabSpec {
+                point: g.point,
+                position: g.position,
+                rotation: g.rotation,
+            })),
         }),
     };
     v1::Constraint {
@@ -487,6 +507,15 @@ mod tests {
                             position: [1.0, 0.0, 0.0],
                         },
                     ],
+                }),
+            },
+            Constraint {
+                name: "grab".into(),
+                kind: ConstraintKind::Grab(GrabConstraint {
+                    system: 2,
+                    point: [0.1, 0.0, 0.0],
+                    position: Some([0.1, 0.2, 0.0]),
+                    rotation: None,
                 }),
             },
         ];

@@ -19,6 +19,7 @@ pub mod design;
 pub mod enums;
 mod error;
 pub mod frame;
+pub mod modal;
 pub mod scene;
 pub mod snapshot;
 

@@ -264,9 +264,13 @@ fn system_from_proto(system: v1::SystemSpec, field: &str) -> Result<SystemSpec> 
         Some(v1::system_spec::Kind::Solid(solid)) => {
             Ok(SystemSpec::Solid(solid_from_proto(solid, field)?))
         }
+        Some(v1::system_spec::Kind::ModalSolid(solid)) => Ok(SystemSpec::ModalSolid(
+            crate::modal::modal_from_proto(solid, field)?,
+        )),
         None => Err(WireError::new(
             format!("{field}.kind"),
-            "unknown or missing system kind; this server simulates: fluid, rigid_body, solid",
+            "unknown or missing system kind; this server simulates: fluid, rigid_body, solid, \
+             modal_solid",
         )),
     }
 }
@@ -812,6 +816,9 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
                     }),
                     SystemSpec::RigidBody(b) => v1::system_spec::Kind::RigidBody(to_body(b)),
                     SystemSpec::Solid(s) => v1::system_spec::Kind::Solid(to_solid(s)),
+                    SystemSpec::ModalSolid(s) => {
+                        v1::system_spec::Kind::ModalSolid(crate::modal::to_modal(s))
+                    }
                 }),
             })
             .collect(),
@@ -838,6 +845,7 @@ pub fn scene_echo_to_proto(scene: &Scene) -> v1::SceneSpec {
         let shape = match &mut system.kind {
             Some(v1::system_spec::Kind::RigidBody(body)) => body.shape.as_mut(),
             Some(v1::system_spec::Kind::Solid(solid)) => solid.shape.as_mut(),
+            Some(v1::system_spec::Kind::ModalSolid(solid)) => solid.shape.as_mut(),
             Some(v1::system_spec::Kind::Fluid(_)) | None => None,
         };
         if let Some(v1::Shape {

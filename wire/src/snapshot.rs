@@ -6,6 +6,7 @@
 
 use crate::error::{Result, WireError, required};
 use crate::scene::{to_vec3, vec3};
+use meshless_engine::efg::ModalState;
 use meshless_engine::fluid::FluidSnapshot;
 use meshless_engine::math::{Real, Vector};
 use meshless_engine::rigid::{BodyState, Rotation};
@@ -65,6 +66,10 @@ fn system_to_proto(system: &SystemState) -> v1::SystemSnapshot {
                 .map(|(_, v)| v.clone())
                 .unwrap_or_default(),
             escalated: solid.escalated,
+        }),
+        SystemState::Modal { state, .. } => v1::system_snapshot::Kind::Modal(v1::ModalSnapshot {
+            amplitudes: state.amplitudes.clone(),
+            velocities: state.velocities.clone(),
         }),
     };
     v1::SystemSnapshot {
@@ -156,6 +161,19 @@ fn system_from_proto(message: v1::SystemSnapshot, field: &str) -> Result<SystemS
                 },
                 removals,
                 energy_start,
+            }
+        }
+        v1::system_snapshot::Kind::Modal(m) => {
+            let v1::ModalSnapshot {
+                amplitudes,
+                velocities,
+            } = m;
+            SystemState::Modal {
+                index,
+                state: ModalState {
+                    amplitudes,
+                    velocities,
+                },
             }
         }
         v1::system_snapshot::Kind::Solid(s) => {

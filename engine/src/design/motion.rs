@@ -420,7 +420,8 @@ impl<'a> Setup<'a> {
         let dim = body.dim();
         for c in constraints.iter() {
             match &c.kind {
-                ConstraintKind::Handle(_) => {}
+                // Grabs hold modal solids while they simulate.
+                ConstraintKind::Handle(_) | ConstraintKind::Grab(_) => {}
                 ConstraintKind::Velocity(v) => {
                     if !(start..=end).contains(&v.time) {
                         return Err(DesignError::constraint(

@@ -15,7 +15,10 @@
 //!    regions and body loads (`assemble.rs`, Eq. 16-17);
 //! 5. the lowest modes and the rotation modes at the nodes, the modal
 //!    basis that [`crate::modal::ModalSystem`] steps (`reduce.rs`,
-//!    Section 5.3).
+//!    Section 5.3);
+//! 6. [`ModalSolid`] (`body.rs`): all of the above behind one build, with
+//!    the reduced state, the embedded surface and the user's grabs, as a
+//!    world steps it.
 //!
 //! Every knob that trades speed for accuracy is a field of [`EfgParams`]:
 //! the cell size (octree depth, hence the node count), `alpha`, the basis
@@ -23,12 +26,14 @@
 //! penalty.
 
 mod assemble;
+mod body;
 mod quadrature;
 mod reduce;
 mod shape;
 mod solid;
 
 pub use assemble::lame;
+pub use body::{DeformedSkin, Grab, GrabError, ModalParams, ModalSolid, ModalState, SkinInput};
 pub use quadrature::{MAX_ORDER, Quadrature};
 pub use shape::{CoverError, Row, ShapeTable};
 pub use solid::{EfgError, EfgParams, EfgSolid, FixedSurface, MassForm, Material};

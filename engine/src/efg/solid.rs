@@ -204,7 +204,9 @@ impl EfgSolid {
     ///
     /// # Errors
     /// [`EfgError`]: parameters out of range, an octree that cannot be
-    /// built, a point not covered by enough supports, a non-positive
+    /// built or has no quadrature point inside the surface
+    /// ([`OctreeError::Empty`]: a solid thinner than a cell), a point not
+    /// covered by enough supports, a non-positive
     /// lumped mass, matrices too large, cancellation.
     pub fn build(
         surface: &dyn ImplicitSurface,
@@ -239,6 +241,15 @@ impl EfgSolid {
             params.boundary_refinement,
         );
         lap("quadrature", &mut timings);
+        // A solid thinner than a cell can leave octants that the surface
+        // crosses (so nodes) with no Gauss point inside it: no volume, no
+        // mass, and an eigensolver shift of 0 / 0.
+        if rule.points.is_empty() {
+            return Err(OctreeError::Empty {
+                cell: Brief(params.cell),
+            }
+            .into());
+        }
         cancel.check().map_err(|_| EfgError::Cancelled)?;
         let table = ShapeTable::build(&octree, params.basis, &rule.points)?;
         let volume = Integral::new(table, rule.weights, nodes);
@@ -290,6 +301,12 @@ impl EfgSolid {
             node_masses,
             timings,
         })
+    }
+
+    /// Shape-function entries held for the quadrature and the fixed
+    /// surface (one per point and covering node).
+    pub fn shape_entries(&self) -> usize {
+        self.volume.table.entries() + self.fixed.as_ref().map_or(0, |f| f.table.entries())
     }
 
     /// The discretisation's parameters.

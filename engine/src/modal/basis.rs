@@ -110,16 +110,36 @@ impl ModalBasis {
 
     /// The linear (local-frame) displacement of node `node`,
     /// `u^L_I = Psi_I z` (Eq. 29's `u^L = Psi z^L`).
-    /// The caller guarantees `node < n` and `z.len() == l`.
-    pub(super) fn linear_displacement(&self, node: usize, z: &DVector<Real>) -> Vector {
+    ///
+    /// # Panics
+    /// When `node >= n` or `z.len() != l`.
+    pub fn linear_displacement(&self, node: usize, z: &DVector<Real>) -> Vector {
         node_block(&self.psi_t, node).tr_mul(z)
     }
 
     /// The rotation vector of node `node`, `w_I = W_I z` (Eq. 27): half
     /// the curl of the displacement field there.
-    /// The caller guarantees `node < n` and `z.len() == l`.
-    pub(super) fn rotation_vector(&self, node: usize, z: &DVector<Real>) -> Vector {
+    ///
+    /// # Panics
+    /// When `node >= n` or `z.len() != l`.
+    pub fn rotation_vector(&self, node: usize, z: &DVector<Real>) -> Vector {
         node_block(&self.w_t, node).tr_mul(z)
+    }
+
+    /// `Psi_I^T`, `l x 3`: node `node`'s displacement in every mode.
+    ///
+    /// # Panics
+    /// When `node >= n`.
+    pub fn displacement_block(&self, node: usize) -> MatrixView<'_, Real, Dyn, U3> {
+        node_block(&self.psi_t, node)
+    }
+
+    /// `W_I^T`, `l x 3`: node `node`'s rotation vector in every mode.
+    ///
+    /// # Panics
+    /// When `node >= n`.
+    pub fn rotation_block(&self, node: usize) -> MatrixView<'_, Real, Dyn, U3> {
+        node_block(&self.w_t, node)
     }
 
     /// `out += Psi_I^T f`: node `node`'s share of the modal force

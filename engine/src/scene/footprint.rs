@@ -60,6 +60,13 @@ impl Footprint {
         self.bytes += bytes as Real * BYTES_PER_MESH_BYTE;
     }
 
+    /// Adds a modal solid, already built: its nodes and the bytes it
+    /// holds by its own count ([`crate::efg::ModalSolid::bytes`]).
+    pub(super) fn add_modal_solid(&mut self, solid: &crate::efg::ModalSolid) {
+        self.particles += solid.len() as Real;
+        self.bytes += solid.bytes() as Real;
+    }
+
     /// Adds a solid of `particles` with support `support` spacings.
     pub(super) fn add_solid(&mut self, particles: Real, support: Real, dim: usize, implicit: bool) {
         let per_neighbour = SOLID_BYTES_PER_NEIGHBOUR

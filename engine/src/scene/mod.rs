@@ -15,6 +15,7 @@ mod error;
 mod fluid;
 mod footprint;
 mod mesh;
+mod modal_solid;
 mod solid;
 #[cfg(test)]
 mod tests;
@@ -26,12 +27,16 @@ pub use error::SceneError;
 pub use fluid::{FluidBlock, FluidSpec, ParticleSpec, SolverKind, WallModel, WallVelocities};
 pub use footprint::Footprint;
 pub use mesh::{DEFAULT_MAX_MESH_BYTES, MeshData, MeshFiles};
+pub use modal_solid::{
+    GrabSpec, MAX_MODES, MAX_NODES, ModalSolidSpec, PlaybackSpec, defaults as modal_defaults,
+};
 pub(crate) use solid::SampledSolid;
 pub use solid::{
     AnchorSpec, IntegratorKind, SolidSpec, SolidSurfaceSpec, defaults as solid_defaults,
 };
 
 use crate::approx::KernelKind;
+use crate::efg::ModalSolid;
 use crate::geometry::Shape;
 use crate::geometry::read::parser_message;
 use crate::math::Real;
@@ -230,12 +235,15 @@ pub enum SystemSpec {
     RigidBody(RigidBodySpec),
     /// An elastic MLS solid.
     Solid(SolidSpec),
+    /// An elastic solid in its lowest modes: Element-Free Galerkin on
+    /// octree nodes with modal warping (Guo–Qin).
+    ModalSolid(ModalSolidSpec),
 }
 
 impl<'de> Deserialize<'de> for SystemSpec {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         use serde::de::Error;
-        const KINDS: &[&str] = &["fluid", "rigid_body", "solid"];
+        const KINDS: &[&str] = &["fluid", "rigid_body", "solid", "modal_solid"];
         let mut table = toml::Table::deserialize(deserializer)?;
         let kind = match table.remove("kind") {
             Some(toml::Value::String(kind)) => kind,
@@ -267,6 +275,7 @@ impl<'de> Deserialize<'de> for SystemSpec {
             "fluid" => spec(table).map(Self::Fluid),
             "rigid_body" => spec(table).map(Self::RigidBody),
             "solid" => spec(table).map(Self::Solid),
+            "modal_solid" => spec(table).map(Self::ModalSolid),
             _ => Err(D::Error::unknown_variant(&kind, KINDS)),
         }
     }
@@ -293,6 +302,8 @@ pub(crate) enum Prepared {
     Body(Shape),
     /// A solid's particles and embedded surface.
     Solid(SampledSolid),
+    /// A modal solid, discretised and reduced.
+    Modal(Box<ModalSolid>),
 }
 
 impl Checked {
@@ -411,6 +422,7 @@ impl Scene {
             let shape = match system {
                 SystemSpec::RigidBody(body) => &mut body.shape,
                 SystemSpec::Solid(solid) => &mut solid.shape,
+                SystemSpec::ModalSolid(solid) => &mut solid.shape,
                 SystemSpec::Fluid(_) => continue,
             };
             if let ShapeSpec::Mesh {
@@ -447,6 +459,8 @@ impl Scene {
                     let volume = shape.as_ref().and_then(|s| s.volume(dim)).unwrap_or(0.0);
                     volume / solid.spacing.powi(dim as i32)
                 }
+                // Its nodes are known once its octree is built.
+                SystemSpec::ModalSolid(_) => 0.0,
             })
             .sum()
     }
@@ -471,6 +485,7 @@ impl Scene {
             let shape = match system {
                 SystemSpec::RigidBody(body) => &mut body.shape,
                 SystemSpec::Solid(solid) => &mut solid.shape,
+                SystemSpec::ModalSolid(solid) => &mut solid.shape,
                 SystemSpec::Fluid(_) => continue,
             };
             shape.load_mesh(
@@ -549,7 +564,8 @@ impl Scene {
         for (s, system) in self.systems.iter().enumerate() {
             prepared.push(Prepared::Nothing);
             if let SystemSpec::RigidBody(RigidBodySpec { shape, .. })
-            | SystemSpec::Solid(SolidSpec { shape, .. }) = system
+            | SystemSpec::Solid(SolidSpec { shape, .. })
+            | SystemSpec::ModalSolid(ModalSolidSpec { shape, .. }) = system
                 && let ShapeSpec::Mesh {
                     data: Some(data), ..
                 } = shape
@@ -603,6 +619,16 @@ impl Scene {
                     );
                     prepared[s] = Prepared::Solid(sampled);
                 }
+                SystemSpec::ModalSolid(spec) => {
+                    let solid = self.validate_modal_solid(
+                        &format!("systems[{s}]"),
+                        spec,
+                        options.max_particles,
+                    )?;
+                    solid_particles += solid.len() as f64;
+                    footprint.add_modal_solid(&solid);
+                    prepared[s] = Prepared::Modal(Box::new(solid));
+                }
             }
         }
         if let Some(surface) = &self.output.surface {
@@ -633,7 +659,7 @@ impl Scene {
     pub fn fluid(&self) -> Option<&FluidSpec> {
         self.systems.iter().find_map(|s| match s {
             SystemSpec::Fluid(f) => Some(f),
-            SystemSpec::RigidBody(_) | SystemSpec::Solid(_) => None,
+            SystemSpec::RigidBody(_) | SystemSpec::Solid(_) | SystemSpec::ModalSolid(_) => None,
         })
     }
 
@@ -641,7 +667,7 @@ impl Scene {
     pub fn has_solids(&self) -> bool {
         self.systems
             .iter()
-            .any(|s| matches!(s, SystemSpec::Solid(_)))
+            .any(|s| matches!(s, SystemSpec::Solid(_) | SystemSpec::ModalSolid(_)))
     }
 
     /// The surface needs a 3D fluid, a positive cell, an iso value inside

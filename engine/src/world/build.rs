@@ -2,6 +2,7 @@
 //! those it names. The scene is data and never imports the world, so
 //! [`Scene::build`] lives here.
 
+use super::modal::ModalEntry;
 use super::system::{FluidEntry, RemovalMask, SolidEntry, System};
 use super::watch::EnergyWatch;
 use super::{Clock, StepInfo, World};
@@ -47,6 +48,7 @@ impl World {
     /// from what its check made of each system, by system index.
     fn new(scene: Scene, mut prepared: Vec<Prepared>) -> Self {
         let solids = build_solids(&scene, &mut prepared);
+        let modal = build_modal_solids(&scene, &mut prepared);
         // Bodies after the fluid: they take its spacing and kernels.
         let fluid = scene
             .systems
@@ -67,7 +69,9 @@ impl World {
                                 _ => None,
                             }
                         }
-                        SystemSpec::Fluid(_) | SystemSpec::Solid(_) => None,
+                        SystemSpec::Fluid(_) | SystemSpec::Solid(_) | SystemSpec::ModalSolid(_) => {
+                            None
+                        }
                     })
                     .collect();
                 Some(build_fluid(&scene, index, spec, bodies))
@@ -79,14 +83,16 @@ impl World {
             }
         }
         // Step order: the fluid first, then the solids in scene order.
+        let mut solids: Vec<System> = solids
+            .into_iter()
+            .map(|solid| System::Solid(Box::new(solid)))
+            .chain(modal.into_iter().map(|m| System::Modal(Box::new(m))))
+            .collect();
+        solids.sort_by_key(|s| s.simulated().index());
         let systems = fluid
             .map(|fluid| System::Fluid(Box::new(fluid)))
             .into_iter()
-            .chain(
-                solids
-                    .into_iter()
-                    .map(|solid| System::Solid(Box::new(solid))),
-            )
+            .chain(solids)
             .collect();
         Self {
             scene,
@@ -141,6 +147,32 @@ fn build_solids(scene: &Scene, prepared: &mut [Prepared]) -> Vec<SolidEntry> {
                 solid,
                 backup: SolidState::default(),
                 surface,
+            })
+        })
+        .collect()
+}
+
+/// The modal solids of a validated scene, taken from `prepared` (their
+/// check built them).
+fn build_modal_solids(scene: &Scene, prepared: &mut [Prepared]) -> Vec<ModalEntry> {
+    scene
+        .systems
+        .iter()
+        .zip(prepared.iter_mut())
+        .enumerate()
+        .filter_map(|(index, (spec, prepared))| {
+            let SystemSpec::ModalSolid(spec) = spec else {
+                return None;
+            };
+            let Prepared::Modal(solid) = std::mem::take(prepared) else {
+                return None;
+            };
+            Some(ModalEntry {
+                index,
+                backup: solid.state(),
+                scene_grabs: solid.grabs().to_vec(),
+                solid: *solid,
+                playback: spec.playback,
             })
         })
         .collect()

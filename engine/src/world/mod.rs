@@ -8,6 +8,7 @@
 //! turn (the fluid first, then the solids in scene order), then the clock.
 
 mod build;
+mod modal;
 mod state;
 mod system;
 #[cfg(test)]
@@ -18,6 +19,7 @@ pub use state::{StateError, SystemState, WorldState};
 pub use system::RemoveError;
 
 use crate::cancel::Cancel;
+use crate::efg::{Grab, GrabError, ModalSolid};
 use crate::fluid::Fluid;
 use crate::frame::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
 use crate::math::{Real, vector};
@@ -177,6 +179,28 @@ pub enum StepError {
     },
 }
 
+/// Why grabs were refused; the previous ones stay.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GrabsError {
+    /// The system is not a modal solid.
+    #[error(
+        "systems[{system}] is not a modal solid of this world; grabs hold points of a system \
+         with kind = \"modal_solid\""
+    )]
+    NotModal {
+        /// The index asked for.
+        system: usize,
+    },
+    /// The solid refused a grab.
+    #[error("systems[{system}]: {source}")]
+    Grab {
+        /// The solid's index.
+        system: usize,
+        /// Why.
+        source: GrabError,
+    },
+}
+
 /// State of one scene: its systems and clock. Stepped by [`World::step`].
 #[derive(Debug, Clone)]
 pub struct World {
@@ -222,7 +246,7 @@ impl World {
     pub fn fluid_mut(&mut self) -> Option<&mut Fluid> {
         self.systems.iter_mut().find_map(|s| match s {
             System::Fluid(f) => Some(f.fluid.fluid_mut()),
-            System::Solid(_) => None,
+            System::Solid(_) | System::Modal(_) => None,
         })
     }
 
@@ -239,8 +263,72 @@ impl World {
     pub fn solids(&self) -> impl Iterator<Item = (usize, &ElasticSolid)> {
         self.systems.iter().filter_map(|s| match s {
             System::Solid(s) => Some((s.index, &s.solid)),
-            System::Fluid(_) => None,
+            System::Fluid(_) | System::Modal(_) => None,
         })
+    }
+
+    /// The modal solids with their system indices, in scene order.
+    pub fn modal_solids(&self) -> impl Iterator<Item = (usize, &ModalSolid)> {
+        self.systems.iter().filter_map(|s| match s {
+            System::Modal(m) => Some((m.index, &m.solid)),
+            System::Fluid(_) | System::Solid(_) => None,
+        })
+    }
+
+    /// Holds `grabs` on the modal solid of system `system` besides the
+    /// scene's own (Section 5.3.3), replacing those set before; they act
+    /// from the next step.
+    ///
+    /// # Errors
+    /// [`GrabsError`] when `system` is not a modal solid or a grab is
+    /// refused; the previous grabs then stay.
+    pub fn set_grabs(&mut self, system: usize, grabs: &[Grab]) -> Result<(), GrabsError> {
+        match self.system_mut(system) {
+            Some(System::Modal(m)) => m
+                .set_grabs(grabs)
+                .map_err(|source| GrabsError::Grab { system, source }),
+            _ => Err(GrabsError::NotModal { system }),
+        }
+    }
+
+    /// [`Self::set_grabs`] for every modal solid at once, all or nothing:
+    /// `grabs` by system (a modal solid it does not name holds only the
+    /// scene's grabs).
+    ///
+    /// # Errors
+    /// [`GrabsError`] for the first system refused; every solid then
+    /// keeps the grabs it had.
+    pub fn set_all_grabs(
+        &mut self,
+        grabs: &std::collections::BTreeMap<usize, Vec<Grab>>,
+    ) -> Result<(), GrabsError> {
+        if let Some(&system) = grabs
+            .keys()
+            .find(|s| !self.modal_solids().any(|(m, _)| m == **s))
+        {
+            return Err(GrabsError::NotModal { system });
+        }
+        let mut done: Vec<(usize, Vec<Grab>)> = Vec::new();
+        for system in &mut self.systems {
+            let System::Modal(m) = system else { continue };
+            let before = m.extra_grabs().to_vec();
+            let wanted = grabs.get(&m.index).map_or(&[][..], Vec::as_slice);
+            if let Err(source) = m.set_grabs(wanted) {
+                let failed = m.index;
+                for (index, previous) in done {
+                    if let Some(System::Modal(m)) = self.system_mut(index) {
+                        // They held before: they hold again.
+                        let _ = m.set_grabs(&previous);
+                    }
+                }
+                return Err(GrabsError::Grab {
+                    system: failed,
+                    source,
+                });
+            }
+            done.push((m.index, before));
+        }
+        Ok(())
     }
 
     /// The solid of system `system`, to set up a state a scene cannot
@@ -248,7 +336,7 @@ impl World {
     pub fn solid_mut(&mut self, system: usize) -> Option<&mut ElasticSolid> {
         match self.system_mut(system)? {
             System::Solid(s) => Some(&mut s.solid),
-            System::Fluid(_) => None,
+            System::Fluid(_) | System::Modal(_) => None,
         }
     }
 
@@ -403,11 +491,16 @@ impl World {
     /// The deformed surface of every solid that embeds one.
     pub fn solid_surfaces(&self) -> Vec<SolidSurface> {
         let mut gradients = Vec::new();
-        self.systems
+        let modal = self.systems.iter().filter_map(|s| match s {
+            System::Modal(m) => m.surface(),
+            System::Fluid(_) | System::Solid(_) => None,
+        });
+        let mut surfaces: Vec<SolidSurface> = self
+            .systems
             .iter()
             .filter_map(|s| match s {
                 System::Solid(s) => Some(s),
-                System::Fluid(_) => None,
+                System::Fluid(_) | System::Modal(_) => None,
             })
             .filter_map(|s| {
                 let surface = s.surface.as_ref()?;
@@ -428,7 +521,10 @@ impl World {
                     normals: deformed.normals,
                 })
             })
-            .collect()
+            .chain(modal)
+            .collect();
+        surfaces.sort_by_key(|s| s.system);
+        surfaces
     }
 
     /// Where each solid's particles sit in the frame's fields.
@@ -437,9 +533,9 @@ impl World {
         let mut ranges = Vec::new();
         for system in &self.systems {
             let count = system.simulated().particle_count();
-            if let System::Solid(s) = system {
+            if let System::Solid(_) | System::Modal(_) = system {
                 ranges.push(SolidRange {
-                    system: s.index,
+                    system: system.simulated().index(),
                     first,
                     count,
                 });
@@ -462,7 +558,7 @@ impl World {
     fn fluid_entry(&self) -> Option<&FluidEntry> {
         self.systems.iter().find_map(|s| match s {
             System::Fluid(f) => Some(f.as_ref()),
-            System::Solid(_) => None,
+            System::Solid(_) | System::Modal(_) => None,
         })
     }
 

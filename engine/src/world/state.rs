@@ -6,6 +6,7 @@
 
 use super::system::System;
 use super::{Clock, World};
+use crate::efg::ModalState;
 use crate::fluid::FluidSnapshot;
 use crate::math::Real;
 use crate::snapshot::{SnapshotError, check_finite};
@@ -42,13 +43,23 @@ pub enum SystemState {
         /// Its particles.
         solid: SolidSnapshot,
     },
+    /// A modal solid: its reduced state (its grabs belong to whoever set
+    /// them, and are set again after a restore).
+    Modal {
+        /// Index of its system in the scene.
+        index: usize,
+        /// Modal amplitudes and velocities.
+        state: ModalState,
+    },
 }
 
 impl SystemState {
     /// Index of the system in the scene.
     pub fn index(&self) -> usize {
         match self {
-            Self::Fluid { index, .. } | Self::Solid { index, .. } => *index,
+            Self::Fluid { index, .. } | Self::Solid { index, .. } | Self::Modal { index, .. } => {
+                *index
+            }
         }
     }
 }
@@ -110,6 +121,10 @@ impl World {
                     index: entry.index,
                     solid: entry.solid.snapshot(),
                 },
+                System::Modal(entry) => SystemState::Modal {
+                    index: entry.index,
+                    state: entry.solid.state(),
+                },
             })
             .collect();
         WorldState {
@@ -129,10 +144,12 @@ impl World {
         let kinds = |s: &System| match s {
             System::Fluid(f) => ("fluid", f.index),
             System::Solid(s) => ("solid", s.index),
+            System::Modal(m) => ("modal solid", m.index),
         };
         let state_kinds = |s: &SystemState| match s {
             SystemState::Fluid { index, .. } => ("fluid", *index),
             SystemState::Solid { index, .. } => ("solid", *index),
+            SystemState::Modal { index, .. } => ("modal solid", *index),
         };
         let matches = self.systems.len() == state.systems.len()
             && self
@@ -185,8 +202,33 @@ impl World {
                 (System::Solid(entry), SystemState::Solid { solid, .. }) => {
                     entry.solid.restore_snapshot(solid).map_err(at)?;
                 }
+                (System::Modal(entry), SystemState::Modal { state, .. }) => {
+                    let modes = entry.solid.eigenvalues().len();
+                    for (what, values) in [
+                        ("modal amplitudes", &state.amplitudes),
+                        ("modal velocities", &state.velocities),
+                    ] {
+                        if values.len() != modes {
+                            return Err(at(SnapshotError::Length {
+                                what,
+                                expected: modes,
+                                got: values.len(),
+                            }));
+                        }
+                        check_finite(what, values).map_err(at)?;
+                    }
+                    entry.solid.set_state(state).map_err(|_| {
+                        at(SnapshotError::Length {
+                            what: "modal state",
+                            expected: modes,
+                            got: state.amplitudes.len(),
+                        })
+                    })?;
+                }
                 // The kinds were matched above.
-                (System::Fluid(_) | System::Solid(_), _) => return Err(mismatch),
+                (System::Fluid(_) | System::Solid(_) | System::Modal(_), _) => {
+                    return Err(mismatch);
+                }
             }
         }
         self.clock = state.clock;

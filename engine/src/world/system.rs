@@ -13,6 +13,7 @@
 // silently empty field.
 #![warn(clippy::wildcard_enum_match_arm)]
 
+use super::modal::ModalEntry;
 use super::watch::EnergyWatch;
 use super::{StepError, StepInfo};
 use crate::cancel::Cancel;
@@ -46,12 +47,12 @@ pub(crate) struct StepEnv<'a> {
 
 impl StepEnv<'_> {
     /// The error of this step cancelled.
-    fn cancelled(&self) -> StepError {
+    pub(crate) fn cancelled(&self) -> StepError {
         StepError::Cancelled { step: self.step }
     }
 
     /// [`StepError::Cancelled`] once the step's flag is raised.
-    fn check(&self) -> Result<(), StepError> {
+    pub(crate) fn check(&self) -> Result<(), StepError> {
         self.cancel.check().map_err(|_| self.cancelled())
     }
 }
@@ -185,6 +186,8 @@ pub(crate) enum System {
     Fluid(Box<FluidEntry>),
     /// An elastic solid.
     Solid(Box<SolidEntry>),
+    /// A modal EFG solid.
+    Modal(Box<ModalEntry>),
 }
 
 impl System {
@@ -193,6 +196,7 @@ impl System {
         match self {
             Self::Fluid(fluid) => fluid.as_ref(),
             Self::Solid(solid) => solid.as_ref(),
+            Self::Modal(modal) => modal.as_ref(),
         }
     }
 
@@ -201,6 +205,7 @@ impl System {
         match self {
             Self::Fluid(fluid) => fluid.as_mut(),
             Self::Solid(solid) => solid.as_mut(),
+            Self::Modal(modal) => modal.as_mut(),
         }
     }
 }

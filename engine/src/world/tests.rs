@@ -208,3 +208,247 @@ fn the_mask_collects_marks_until_taken() {
     assert_eq!(mask.take(), Some(vec![false, true, false, true]));
     assert_eq!(mask.take(), None);
 }
+
+/// Modal EFG solids in a world: built from a scene, stepped, listed in
+/// frames with their skin, grabbed, snapshotted and played back.
+mod modal {
+    use crate::efg::Grab;
+    use crate::math::{Real, Vector};
+    use crate::scene::{BuildOptions, Scene};
+    use crate::{GrabsError, World};
+
+    /// A 16 x 4 x 4 cm cantilever on 2 cm cells (a few hundred nodes),
+    /// clamped at x = 0, with `extra` appended to its system table.
+    fn scene(extra: &str) -> Scene {
+        let text = format!(
+            r#"
+            [domain]
+            min = [-0.05, -0.3, -0.1]
+            max = [0.3, 0.1, 0.1]
+            [time]
+            dt = 0.02
+            [output]
+            fields = ["velocity", "elastic_energy", "mass"]
+            [[systems]]
+            kind = "modal_solid"
+            shape = {{ type = "box", half_extents = [0.08, 0.02, 0.02] }}
+            position = [0.08, 0.0, 0.0]
+            young = 1e5
+            cell = 0.02
+            modes = 12
+            mass_damping = 2.0
+            surface_subdivisions = 2
+            anchors = [{{ min = [-0.001, -0.03, -0.03], max = [0.001, 0.03, 0.03] }}]
+            {extra}
+            "#
+        );
+        Scene::from_toml_str(&text).expect("the scene parses")
+    }
+
+    fn world(extra: &str) -> World {
+        scene(extra)
+            .build(&BuildOptions::default())
+            .expect("the scene is valid")
+    }
+
+    fn tip(world: &World) -> Vector {
+        let frame = world.frame();
+        let positions = &frame.fields[0].values;
+        let (_, solid) = world.modal_solids().next().expect("a modal solid");
+        // The node with the largest rest x at mid-height.
+        let (k, _) = solid
+            .rest_positions()
+            .iter()
+            .enumerate()
+            .max_by(|a, b| (a.1.x - a.1.y.abs()).total_cmp(&(b.1.x - b.1.y.abs())))
+            .expect("nodes");
+        Vector::new(
+            positions[3 * k] as Real,
+            positions[3 * k + 1] as Real,
+            positions[3 * k + 2] as Real,
+        )
+    }
+
+    #[test]
+    fn a_clamped_beam_sags_and_its_frames_carry_nodes_and_skin() {
+        let mut world = world("");
+        let frame = world.frame();
+        let (_, solid) = world.modal_solids().next().expect("a modal solid");
+        let nodes = solid.len();
+        assert_eq!(frame.particle_count, nodes);
+        assert_eq!(frame.solids.len(), 1);
+        assert_eq!(frame.solids[0].count, nodes);
+        let rest_tip = tip(&world);
+        for _ in 0..100 {
+            world.step().expect("a stable step");
+        }
+        let sagged = tip(&world);
+        assert!(
+            sagged.y < rest_tip.y - 1e-3,
+            "the tip sags: {rest_tip:?} -> {sagged:?}"
+        );
+        let frame = world.frame();
+        let skin = &frame.solid_surfaces[0];
+        assert_eq!(skin.system, 0);
+        assert_eq!(skin.mesh.triangles.len(), 12 * 16);
+        assert!(
+            skin.normals.iter().all(|n| (n.norm() - 1.0).abs() < 1e-9),
+            "unit normals"
+        );
+        let lowest = skin
+            .mesh
+            .vertices
+            .iter()
+            .map(|v| v.y)
+            .fold(Real::INFINITY, Real::min);
+        assert!(lowest < -0.02 - 1e-3, "the skin sags with the nodes");
+        let energy: f32 = frame
+            .field(crate::frame::FieldKind::ElasticEnergy)
+            .expect("asked for")
+            .values
+            .iter()
+            .sum();
+        assert!(energy > 0.0, "a bent beam stores energy");
+        let mass: f32 = frame
+            .field(crate::frame::FieldKind::Mass)
+            .expect("asked for")
+            .values
+            .iter()
+            .sum();
+        let exact = 1000.0 * 0.16 * 0.04 * 0.04;
+        assert!(
+            ((mass as Real) - exact).abs() < 0.02 * exact,
+            "node masses sum to the beam's {exact} kg: {mass}"
+        );
+    }
+
+    #[test]
+    fn a_grabbed_tip_goes_where_it_is_told_and_a_bad_grab_changes_nothing() {
+        let mut world = world("");
+        let point = Vector::new(0.16, 0.0, 0.0);
+        let target = Vector::new(0.15, 0.05, 0.0);
+        world
+            .set_grabs(
+                0,
+                &[Grab {
+                    point,
+                    position: Some(target),
+                    rotation: None,
+                }],
+            )
+            .expect("a valid grab");
+        for _ in 0..60 {
+            world.step().expect("a stable step");
+        }
+        let (_, solid) = world.modal_solids().next().expect("a modal solid");
+        assert!(
+            solid.grab_violation() < 1e-4,
+            "the grab is met: {}",
+            solid.grab_violation()
+        );
+        let table = solid
+            .efg()
+            .shape_table(&[point])
+            .expect("the point is covered");
+        let mut u = Vec::new();
+        table.interpolate(solid.displacements(), &mut u);
+        let held = point + u[0];
+        println!("grabbed point at {held:?}, target {target:?}");
+        assert!(
+            (held - target).norm() < 1e-3 * (target - point).norm(),
+            "the warped point follows the grab: {held:?} vs {target:?}"
+        );
+        let before = world.state();
+        let outside = Grab {
+            point: Vector::new(2.0, 0.0, 0.0),
+            position: Some(target),
+            rotation: None,
+        };
+        assert!(matches!(
+            world.set_grabs(0, &[outside]),
+            Err(GrabsError::Grab { system: 0, .. })
+        ));
+        assert!(matches!(
+            world.set_grabs(3, &[]),
+            Err(GrabsError::NotModal { system: 3 })
+        ));
+        let empty = Grab {
+            point,
+            position: None,
+            rotation: None,
+        };
+        assert!(world.set_grabs(0, &[empty]).is_err());
+        assert_eq!(world.state(), before);
+        let (_, solid) = world.modal_solids().next().expect("a modal solid");
+        assert_eq!(solid.grabs().len(), 1, "the earlier grab stays");
+    }
+
+    #[test]
+    fn a_snapshot_restores_the_modal_state_bit_for_bit() {
+        let mut a = world("");
+        for _ in 0..5 {
+            a.step().expect("a stable step");
+        }
+        let state = a.state();
+        let b = world("").restored(&state).expect("same scene");
+        let mut a2 = a.clone();
+        let mut b2 = b;
+        a2.step().expect("a stable step");
+        b2.step().expect("a stable step");
+        assert_eq!(a2.frame(), b2.frame());
+    }
+
+    #[test]
+    fn playback_poses_a_mode_shape() {
+        let mut world = world("playback = { mode = 0, amplitude = 0.5 }");
+        world.step().expect("a pose");
+        let frame = world.frame();
+        let (_, solid) = world.modal_solids().next().expect("a modal solid");
+        let omega = solid.frequencies()[0];
+        let expected = 0.5 * (omega * 0.02).sin();
+        let z = solid.state().amplitudes;
+        assert!((z[0] - expected).abs() < 1e-12, "{} vs {expected}", z[0]);
+        assert!(z[1..].iter().all(|v| *v == 0.0));
+        assert_eq!(frame.step, 1);
+    }
+
+    #[test]
+    fn bad_modal_scenes_name_the_field_at_fault() {
+        use crate::scene::{ModalSolidSpec, PlaybackSpec, SystemSpec};
+        let options = BuildOptions::default();
+        type Change<'a> = &'a dyn Fn(&mut ModalSolidSpec);
+        let cases: [(Change, &str); 6] = [
+            (&|s| s.alpha = 1.0, "systems[0].alpha"),
+            (&|s| s.modes = 0, "systems[0].modes"),
+            (&|s| s.quadrature_order = 9, "systems[0].quadrature_order"),
+            (
+                &|s| {
+                    s.playback = Some(PlaybackSpec {
+                        mode: 40,
+                        amplitude: 1.0,
+                    })
+                },
+                "systems[0].playback.mode",
+            ),
+            (&|s| s.grab_gamma = -1.0, "systems[0].grab_gamma"),
+            (&|s| s.anchors[0].min[0] = 0.5, "systems[0].anchors[0]"),
+        ];
+        for (change, field) in cases {
+            let mut bad = scene("");
+            let SystemSpec::ModalSolid(spec) = &mut bad.systems[0] else {
+                panic!("a modal solid");
+            };
+            change(spec);
+            let error = bad.validate(&options).expect_err(field);
+            assert!(error.to_string().starts_with(field), "{field}: {error}");
+        }
+        let mut fine = scene("");
+        if let SystemSpec::ModalSolid(s) = &mut fine.systems[0] {
+            s.cell = 1e-4;
+        }
+        assert!(matches!(
+            fine.validate(&options),
+            Err(crate::SceneError::TooFine { .. })
+        ));
+    }
+}

@@ -202,6 +202,9 @@ pub struct Session {
     /// What constraints are checked against; fixed by the scene.
     context: Context,
     design: SharedDesign,
+    /// Held by one constraint edit from its check to its commit, so that
+    /// edits that move the world's grabs apply in the order they commit.
+    edits: tokio::sync::Mutex<()>,
     /// The key of the session's sealed payloads, for the callers that may
     /// read it; empty when the server does not seal.
     seal_key: Vec<u8>,
@@ -303,6 +306,7 @@ impl Session {
             thread: Mutex::new(Some(thread)),
             context,
             design,
+            edits: tokio::sync::Mutex::new(()),
             seal_key,
             realtime_factor,
         }))
@@ -351,16 +355,35 @@ impl Session {
     }
 
     /// Applies constraint edits all or nothing; returns the constraints.
+    /// When the batch changes the grabs of modal solids, the compute
+    /// thread sets them on the world between two steps (a run goes on)
+    /// before the batch commits, so a grab the world refuses (a point off
+    /// the solid) refuses the whole batch.
     ///
     /// # Errors
-    /// [`ServiceError::Design`] naming the constraint at fault; nothing
-    /// is changed.
-    pub fn edit_constraints(&self, edits: &[Edit]) -> Result<Vec<Constraint>, ServiceError> {
+    /// [`ServiceError::Design`] naming the constraint at fault,
+    /// [`ServiceError::InvalidArgument`] for grabs the world refuses;
+    /// nothing is changed.
+    pub async fn edit_constraints(&self, edits: &[Edit]) -> Result<Vec<Constraint>, ServiceError> {
+        let _serial = self.edits.lock().await;
+        let (next, grabs) = {
+            let design = lock(&self.design);
+            let mut next = design.constraints.clone();
+            next.apply(edits, &self.context)
+                .map_err(design::DesignError::from)?;
+            let grabs = next.grabs();
+            let moved = grabs != design.constraints.grabs();
+            (next, moved.then_some(grabs))
+        };
+        if let Some(grabs) = grabs {
+            let (reply, answer) = oneshot::channel();
+            self.mailbox
+                .send(Message::Grabs(grabs, reply), false)
+                .map_err(|Gone| self.gone())?;
+            answer.await.map_err(|_| self.gone())??;
+        }
         let mut design = lock(&self.design);
-        design
-            .constraints
-            .apply(edits, &self.context)
-            .map_err(design::DesignError::from)?;
+        design.constraints = next;
         design.revision += 1;
         Ok(design.constraints.iter().cloned().collect())
     }

@@ -11,8 +11,10 @@ use super::snapshot::{Captured, Resumed, ResumedSession};
 use super::{Command, LatestFrame, Origin, Reply, SharedDesign, lock};
 use crate::error::{ServiceError, state_name};
 use crate::metrics::Metrics;
+use meshless_engine::efg::Grab;
 use meshless_engine::{BuildOptions, Cancel, Frame, StepError, World};
 use meshless_proto::v1::{SessionState, SessionStatus};
+use std::collections::BTreeMap;
 use std::panic::AssertUnwindSafe;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
@@ -39,6 +41,12 @@ pub enum Message {
     Capture(tokio::sync::oneshot::Sender<Captured>),
     /// Swaps in a restored world and the session state around it.
     Restore(Box<Resumed>, Reply),
+    /// Holds these grabs (by modal solid, besides each scene's own) from
+    /// the next step; a run goes on.
+    Grabs(
+        BTreeMap<usize, Vec<Grab>>,
+        tokio::sync::oneshot::Sender<Result<(), ServiceError>>,
+    ),
     /// Stop and exit; sent on delete and server shutdown.
     Shutdown,
 }
@@ -199,6 +207,17 @@ impl Worker {
                 }
                 Some((_, Message::Restore(resumed, reply))) => {
                     let result = self.guarded(|w| w.restore(*resumed)).and_then(|r| r);
+                    let _ = reply.send(result);
+                }
+                Some((_, Message::Grabs(grabs, reply))) => {
+                    let result = self
+                        .guarded(|w| w.world.set_all_grabs(&grabs))
+                        .and_then(|r| {
+                            r.map_err(|e| ServiceError::InvalidArgument {
+                                field: "edits".into(),
+                                message: e.to_string(),
+                            })
+                        });
                     let _ = reply.send(result);
                 }
                 Some((_, Message::Shutdown)) => break,
@@ -371,9 +390,24 @@ impl Worker {
             design
         });
         lock(&self.design).resume(constraints, last);
+        self.hold_grabs();
         self.published_step = None;
         self.publish_frame();
         self.set_state(state, &reason);
+    }
+
+    /// Sets the session's grab constraints on a world built or restored
+    /// afresh. They held on a world of the same scene, so they hold
+    /// again; should one not, the world keeps its scene's grabs and the
+    /// log says why.
+    fn hold_grabs(&mut self) {
+        let grabs = lock(&self.design).constraints.grabs();
+        if grabs.is_empty() {
+            return;
+        }
+        if let Err(e) = self.world.set_all_grabs(&grabs) {
+            tracing::warn!(session = %self.id, "grabs not held again: {e}");
+        }
     }
 
     fn refuse(&self, action: &'static str, hint: &'static str) -> ServiceError {
@@ -480,6 +514,7 @@ impl Worker {
 
     fn reset(&mut self) -> Result<SessionStatus, ServiceError> {
         self.world = self.world.scene().build(&self.options)?;
+        self.hold_grabs();
         self.run = None;
         self.pacing = None;
         self.published_step = None;

@@ -1,0 +1,534 @@
+//! A modal EFG solid as a world steps it (Guo–Qin Section 5.3): the
+//! discretisation and its modal basis computed once, then per step the
+//! reduced state, the nodal displacements, the surface embedded in the
+//! nodes' shape functions and the user's grabs (Eq. 32-33).
+//!
+//! Everything a step reads that never changes (the EFG solid, the rest
+//! positions, the masses, the surface's shape functions) sits behind one
+//! `Arc`, so a world's copy for a failed step's restore or a snapshot
+//! costs the state only.
+
+use super::{CoverError, EfgError, EfgParams, EfgSolid, FixedSurface, Material, ShapeTable};
+use crate::Cancel;
+use crate::geometry::ImplicitSurface;
+use crate::math::{Real, Vector};
+use crate::modal::{
+    Damping, MAX_CONSTRAINTS, ModalError, ModalSystem, Stabilization, rotation_integral,
+};
+use nalgebra::{DMatrix, DVector};
+use std::sync::Arc;
+
+/// The knobs of a modal solid: the discretisation's and the reduced
+/// model's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModalParams {
+    /// The EFG discretisation.
+    pub efg: EfgParams,
+    /// Modes kept, `l` (free bodies' six rigid modes among them).
+    pub modes: usize,
+    /// Relative accuracy of the eigenpairs.
+    pub tolerance: Real,
+    /// Modal warping (Choi & Ko 2005) or linear modes.
+    pub warping: bool,
+    /// Rayleigh damping `C = a M + b K`.
+    pub damping: Damping,
+    /// Baumgarte factors of the grabs (Eq. 33).
+    pub stabilization: Stabilization,
+}
+
+/// The surface a modal solid carries into frames: a triangle mesh, or
+/// oriented points (surfels) with no triangles.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SkinInput {
+    /// Rest positions, world frame.
+    pub vertices: Vec<Vector>,
+    /// Triangles (empty for a point cloud).
+    pub triangles: Vec<[u32; 3]>,
+    /// Unit rest normals, one per vertex.
+    pub normals: Vec<Vector>,
+}
+
+/// A surface embedded in the nodes' shape functions.
+#[derive(Debug)]
+struct Skin {
+    input: SkinInput,
+    table: ShapeTable,
+}
+
+/// A material point held by the user: its position, its orientation or
+/// both (Section 5.3.3). Targets are in the world frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Grab {
+    /// The material point, rest shape, world frame.
+    pub point: Vector,
+    /// Where it should be.
+    pub position: Option<Vector>,
+    /// The rotation vector (axis times angle, rad) it should be turned by.
+    pub rotation: Option<Vector>,
+}
+
+/// Why grabs were refused; the previous ones stay.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GrabError {
+    /// More constraint rows than the solver takes.
+    #[error(
+        "{rows} constraint rows (3 per position, 3 per orientation) are more than {max}; \
+         grab fewer points"
+    )]
+    TooMany {
+        /// Rows asked for.
+        rows: usize,
+        /// [`MAX_CONSTRAINTS`].
+        max: usize,
+    },
+    /// A grab holds nothing.
+    #[error("grab {index} sets neither a position nor an orientation; set one")]
+    Empty {
+        /// Its index.
+        index: usize,
+    },
+    /// A coordinate is not finite.
+    #[error("grab {index}: a coordinate is not finite")]
+    NotFinite {
+        /// Its index.
+        index: usize,
+    },
+    /// A point is not inside the solid's discretisation.
+    #[error("grab {index}: the point is not on the solid ({source}); pick a point of the solid")]
+    Outside {
+        /// Its index.
+        index: usize,
+        /// What the shape functions found.
+        source: CoverError,
+    },
+    /// The modal solver refused the rows.
+    #[error("{0}")]
+    Modal(#[from] ModalError),
+}
+
+/// What never changes after the build.
+#[derive(Debug)]
+struct Precomputed {
+    efg: EfgSolid,
+    rest: Vec<Vector>,
+    eigenvalues: Vec<Real>,
+    zero_modes: usize,
+    skin: Option<Skin>,
+    stabilization: Stabilization,
+}
+
+/// A modal EFG solid: its discretisation, basis and state.
+#[derive(Debug, Clone)]
+pub struct ModalSolid {
+    pre: Arc<Precomputed>,
+    system: ModalSystem,
+    grabs: Vec<Grab>,
+    /// For each position grab while warping: its first row in the
+    /// constraints, the rows `Phi(x_c) W` of its rotation vector and the
+    /// displacement `p - x_c` it asks for (see [`Self::step`]).
+    warped_targets: Vec<(usize, DMatrix<Real>, Vector)>,
+    /// The constraints' current targets `b_c`.
+    targets: DVector<Real>,
+    /// Nodal displacements of the current state.
+    displacements: Vec<Vector>,
+    /// One load per node, rebuilt each step.
+    loads: Vec<Vector>,
+}
+
+/// The reduced state, for a restore or a snapshot.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ModalState {
+    /// Modal amplitudes `z`.
+    pub amplitudes: Vec<Real>,
+    /// Modal velocities `zdot`.
+    pub velocities: Vec<Real>,
+}
+
+impl ModalSolid {
+    /// Discretises `geometry`, assembles, finds the `params.modes` lowest
+    /// modes and their rotation modes, and embeds `skin`.
+    ///
+    /// # Errors
+    /// [`EfgError`] from the discretisation or the eigensolver, or a skin
+    /// point the supports do not cover.
+    pub fn build(
+        geometry: &dyn ImplicitSurface,
+        fixed: &FixedSurface,
+        material: Material,
+        params: &ModalParams,
+        skin: Option<SkinInput>,
+        cancel: &Cancel,
+    ) -> Result<Self, EfgError> {
+        let efg = EfgSolid::build(geometry, fixed, material, params.efg, cancel)?;
+        let (modes, basis) = efg.modal_basis(params.modes, params.tolerance, cancel)?;
+        let skin = skin
+            .map(|input| {
+                let table = efg.shape_table(&input.vertices)?;
+                Ok::<_, EfgError>(Skin { input, table })
+            })
+            .transpose()?;
+        let rest: Vec<Vector> = efg.nodes().iter().map(|n| n.position).collect();
+        let n = rest.len();
+        let system = ModalSystem::new(basis, params.damping, params.warping);
+        Ok(Self {
+            pre: Arc::new(Precomputed {
+                efg,
+                rest,
+                eigenvalues: modes.eigenvalues,
+                zero_modes: modes.zero_modes,
+                skin,
+                stabilization: params.stabilization,
+            }),
+            system,
+            grabs: Vec::new(),
+            warped_targets: Vec::new(),
+            targets: DVector::zeros(0),
+            displacements: vec![Vector::zeros(); n],
+            loads: vec![Vector::zeros(); n],
+        })
+    }
+
+    /// The bytes it holds, counted from its arrays: stiffness and mass
+    /// values, the two modal bases (`Psi`, `W`), the shape-function
+    /// tables of the quadrature points and the skin (a value, a gradient
+    /// and an index per entry), and the per-node state.
+    pub fn bytes(&self) -> usize {
+        let real = std::mem::size_of::<Real>();
+        let entry = 4 * real + std::mem::size_of::<u32>();
+        let efg = &self.pre.efg;
+        let n = self.len();
+        let l = self.pre.eigenvalues.len();
+        let skin = self.pre.skin.as_ref().map_or(0, |s| {
+            s.table.entries() * entry + s.input.vertices.len() * 6 * real
+        });
+        2 * efg.stiffness().len() * real
+            + 2 * 3 * n * l * real
+            + efg.shape_entries() * entry
+            + skin
+            + n * 12 * real
+    }
+
+    /// The discretisation.
+    pub fn efg(&self) -> &EfgSolid {
+        &self.pre.efg
+    }
+
+    /// Node count.
+    pub fn len(&self) -> usize {
+        self.pre.rest.len()
+    }
+
+    /// Whether it has no node (never, once built).
+    pub fn is_empty(&self) -> bool {
+        self.pre.rest.is_empty()
+    }
+
+    /// Eigenvalues `lambda = omega^2` of the kept modes, ascending.
+    pub fn eigenvalues(&self) -> &[Real] {
+        &self.pre.eigenvalues
+    }
+
+    /// Angular frequencies `omega = sqrt(lambda)`, rad/s.
+    pub fn frequencies(&self) -> Vec<Real> {
+        self.pre.eigenvalues.iter().map(|l| l.sqrt()).collect()
+    }
+
+    /// How many of the modes are rigid (zero eigenvalue).
+    pub fn zero_modes(&self) -> usize {
+        self.pre.zero_modes
+    }
+
+    /// Whether modal warping is on.
+    pub fn warping(&self) -> bool {
+        self.system.warping()
+    }
+
+    /// Rest positions of the nodes.
+    pub fn rest_positions(&self) -> &[Vector] {
+        &self.pre.rest
+    }
+
+    /// Nodal displacements at the current state.
+    pub fn displacements(&self) -> &[Vector] {
+        &self.displacements
+    }
+
+    /// Node positions at the current state.
+    pub fn positions(&self) -> impl Iterator<Item = Vector> + '_ {
+        self.pre
+            .rest
+            .iter()
+            .zip(&self.displacements)
+            .map(|(x, u)| x + u)
+    }
+
+    /// Node velocities `Psi zdot` (the linear modes' velocity: warping's
+    /// rotation of it is second order in the rotation rate).
+    pub fn velocities(&self) -> Vec<Vector> {
+        let basis = self.system.basis();
+        let zdot = self.system.velocities();
+        (0..self.len())
+            .map(|i| basis.linear_displacement(i, zdot))
+            .collect()
+    }
+
+    /// Lumped node masses (row sums of the consistent mass).
+    pub fn masses(&self) -> &[Real] {
+        self.pre.efg.node_masses()
+    }
+
+    /// Each node's share `u_I . (K u)_I / 2` of the strain energy of the
+    /// linear displacement `u = Psi z`: they sum to `z^T Lambda z / 2`.
+    pub fn elastic_energies(&self) -> Vec<Real> {
+        let basis = self.system.basis();
+        let z = self.system.amplitudes();
+        let n = self.len();
+        let u =
+            faer::Mat::<Real>::from_fn(3 * n, 1, |r, _| basis.linear_displacement(r / 3, z)[r % 3]);
+        let mut ku = faer::Mat::<Real>::zeros(3 * n, 1);
+        let efg = &self.pre.efg;
+        efg.pattern()
+            .multiply(efg.stiffness(), u.as_ref(), ku.as_mut());
+        (0..n)
+            .map(|i| {
+                0.5 * (0..3)
+                    .map(|a| u[(3 * i + a, 0)] * ku[(3 * i + a, 0)])
+                    .sum::<Real>()
+            })
+            .collect()
+    }
+
+    /// Advances by `h` under gravity `g`, with the grabs in force.
+    ///
+    /// With warping on, a position grab's rows constrain the linear field
+    /// `u_L(x_c)`, while the point is shown at the warped
+    /// `R(w(x_c)) u_L(x_c)` (`R` the rotation integral, Choi & Ko). So
+    /// before each step its target is set to `R(w)^-1 (p - x_c)` at the
+    /// current rotation `w`: a fixed point that puts the warped point at
+    /// `p` once the motion settles, at the cost of three 3x3 products per
+    /// grab and no refactoring (only the targets move).
+    ///
+    /// # Errors
+    /// [`ModalError`] for a bad step or an overflow; the state is then
+    /// unchanged.
+    pub fn step(&mut self, h: Real, g: &Vector) -> Result<(), ModalError> {
+        for (f, m) in self.loads.iter_mut().zip(self.pre.efg.node_masses()) {
+            *f = g * *m;
+        }
+        if self.system.warping() && !self.warped_targets.is_empty() {
+            let z = self.system.amplitudes();
+            for (row, rotation_rows, wanted) in &self.warped_targets {
+                let w = Vector::from_iterator((rotation_rows * z).iter().copied());
+                let linear = rotation_integral(&w)
+                    .try_inverse()
+                    .map_or(*wanted, |inverse| inverse * wanted);
+                for c in 0..3 {
+                    self.targets[row + c] = linear[c];
+                }
+            }
+            self.system.set_constraint_targets(&self.targets)?;
+        }
+        self.system.step(h, &self.loads)?;
+        self.update_displacements();
+        Ok(())
+    }
+
+    /// Poses mode `mode` at amplitude `amplitude` at rest (the playback
+    /// of a mode shape).
+    ///
+    /// # Errors
+    /// [`ModalError`] when the amplitude is not finite; an out-of-range
+    /// mode is a [`ModalError::Shape`].
+    pub fn pose_mode(&mut self, mode: usize, amplitude: Real) -> Result<(), ModalError> {
+        let l = self.pre.eigenvalues.len();
+        if mode >= l {
+            return Err(ModalError::Shape {
+                what: "mode",
+                expected_rows: l,
+                expected_cols: 1,
+                got_rows: mode + 1,
+                got_cols: 1,
+            });
+        }
+        let mut z = DVector::zeros(l);
+        z[mode] = amplitude;
+        self.system.set_state(&z, &DVector::zeros(l))?;
+        self.update_displacements();
+        Ok(())
+    }
+
+    /// The reduced state.
+    pub fn state(&self) -> ModalState {
+        ModalState {
+            amplitudes: self.system.amplitudes().as_slice().to_vec(),
+            velocities: self.system.velocities().as_slice().to_vec(),
+        }
+    }
+
+    /// Sets the reduced state.
+    ///
+    /// # Errors
+    /// [`ModalError`] when a vector's length is not the mode count or a
+    /// value is not finite; nothing changes then.
+    pub fn set_state(&mut self, state: &ModalState) -> Result<(), ModalError> {
+        self.system.set_state(
+            &DVector::from_column_slice(&state.amplitudes),
+            &DVector::from_column_slice(&state.velocities),
+        )?;
+        self.update_displacements();
+        Ok(())
+    }
+
+    fn update_displacements(&mut self) {
+        // Lengths agree by construction.
+        let _ = self.system.displacements_into(&mut self.displacements);
+    }
+
+    /// The grabs in force.
+    pub fn grabs(&self) -> &[Grab] {
+        &self.grabs
+    }
+
+    /// Replaces the grabs: each position grab is the three rows
+    /// `Phi(x_c) Psi` with target `p - x_c`, each orientation grab the
+    /// three rows `Phi(x_c) W` with target the rotation vector (Eq. 32).
+    /// The rows constrain the linear modal field; with warping on, a
+    /// position target is met by the linear displacement, which the
+    /// warped one differs from at second order in the rotation.
+    ///
+    /// # Errors
+    /// [`GrabError`]; the previous grabs then stay.
+    pub fn set_grabs(&mut self, grabs: &[Grab]) -> Result<(), GrabError> {
+        let mut rows = 0;
+        for (index, g) in grabs.iter().enumerate() {
+            if g.position.is_none() && g.rotation.is_none() {
+                return Err(GrabError::Empty { index });
+            }
+            let finite = [Some(g.point), g.position, g.rotation]
+                .iter()
+                .flatten()
+                .all(|v| v.iter().all(|c| c.is_finite()));
+            if !finite {
+                return Err(GrabError::NotFinite { index });
+            }
+            rows += 3 * (usize::from(g.position.is_some()) + usize::from(g.rotation.is_some()));
+        }
+        if rows > MAX_CONSTRAINTS {
+            return Err(GrabError::TooMany {
+                rows,
+                max: MAX_CONSTRAINTS,
+            });
+        }
+        let l = self.pre.eigenvalues.len();
+        let mut a = DMatrix::zeros(rows, l);
+        let mut b = DVector::zeros(rows);
+        let mut warped_targets = Vec::new();
+        let basis = self.system.basis();
+        let mut r = 0;
+        for (index, g) in grabs.iter().enumerate() {
+            let table = self
+                .pre
+                .efg
+                .shape_table(std::slice::from_ref(&g.point))
+                .map_err(|source| GrabError::Outside { index, source })?;
+            let row = table.row(0);
+            // `Phi(x_c) Psi` or `Phi(x_c) W`, 3 x l.
+            let rows_of = |rotation: bool| {
+                let mut m = DMatrix::zeros(3, l);
+                for (&node, &phi) in row.nodes.iter().zip(row.values) {
+                    let block = if rotation {
+                        basis.rotation_block(node as usize)
+                    } else {
+                        basis.displacement_block(node as usize)
+                    };
+                    m += block.transpose() * phi;
+                }
+                m
+            };
+            if let Some(p) = g.position {
+                warped_targets.push((r, rows_of(true), p - g.point));
+            }
+            let targets = [
+                g.position.map(|p| (p - g.point, false)),
+                g.rotation.map(|w| (w, true)),
+            ];
+            for (target, rotation) in targets.into_iter().flatten() {
+                a.rows_mut(r, 3).copy_from(&rows_of(rotation));
+                for c in 0..3 {
+                    b[r + c] = target[c];
+                }
+                r += 3;
+            }
+        }
+        self.system
+            .set_constraints(&a, &b, self.pre.stabilization)?;
+        self.grabs = grabs.to_vec();
+        self.warped_targets = warped_targets;
+        self.targets = b;
+        Ok(())
+    }
+
+    /// `|A_c z - b_c|` of the grabs at the current state.
+    pub fn grab_violation(&self) -> Real {
+        self.system.constraint_violation()
+    }
+
+    /// The deformed skin: positions and unit normals (recomputed from the
+    /// triangles of a mesh; for a point cloud the rest normals turned by
+    /// the interpolated rotation vector `R(w(x))`). `None` without one.
+    pub fn skin(&self) -> Option<DeformedSkin<'_>> {
+        let skin = self.pre.skin.as_ref()?;
+        let mut moved = Vec::new();
+        skin.table.interpolate(&self.displacements, &mut moved);
+        for (p, x) in moved.iter_mut().zip(&skin.input.vertices) {
+            *p += x;
+        }
+        let normals = if skin.input.triangles.is_empty() {
+            let basis = self.system.basis();
+            let z = self.system.amplitudes();
+            let w: Vec<Vector> = (0..self.len())
+                .map(|i| basis.rotation_vector(i, z))
+                .collect();
+            let mut at = Vec::new();
+            skin.table.interpolate(&w, &mut at);
+            at.iter()
+                .zip(&skin.input.normals)
+                .map(|(w, n)| nalgebra::Rotation3::new(*w) * n)
+                .collect()
+        } else {
+            vertex_normals(&skin.input.triangles, &moved)
+        };
+        Some(DeformedSkin {
+            positions: moved,
+            triangles: &skin.input.triangles,
+            normals,
+        })
+    }
+}
+
+/// The skin as deformed at the current state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeformedSkin<'a> {
+    /// Vertex positions.
+    pub positions: Vec<Vector>,
+    /// Triangles (empty for a point cloud).
+    pub triangles: &'a [[u32; 3]],
+    /// Unit normal per vertex.
+    pub normals: Vec<Vector>,
+}
+
+/// Area-weighted unit vertex normals of triangles over `positions`.
+fn vertex_normals(triangles: &[[u32; 3]], positions: &[Vector]) -> Vec<Vector> {
+    let mut out = vec![Vector::zeros(); positions.len()];
+    for tri in triangles {
+        let [a, b, c] = tri.map(|i| positions[i as usize]);
+        let n = (b - a).cross(&(c - a));
+        for &i in tri {
+            out[i as usize] += n;
+        }
+    }
+    for n in &mut out {
+        *n = n.try_normalize(0.0).unwrap_or_default();
+    }
+    out
+}

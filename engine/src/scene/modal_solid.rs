@@ -1,0 +1,601 @@
+//! Modal EFG solids in a scene (Guo–Qin): the TOML/protocol description,
+//! its validation, and the build of the engine body, which the check
+//! does (the discretisation and eigen-analysis are its admission: a
+//! scene whose supports leave a point uncovered is refused before a
+//! world exists).
+
+use super::error::{check_box, check_positive, check_range, check_vector};
+use super::{Aabb, Scene, SceneError, ShapeSpec};
+use crate::Cancel;
+use crate::approx::mls::Order;
+use crate::efg::{
+    EfgParams, FixedSurface, Grab, MassForm, Material, ModalParams, ModalSolid, SkinInput,
+};
+use crate::geometry::read::{self, MeshFormat};
+use crate::geometry::{ImplicitSurface, MeshSdf, PointSurface, PointSurfaceParams, TriMesh};
+use crate::math::{Real, Vector, vector};
+use crate::modal::{Damping, Stabilization};
+use nalgebra::Rotation3;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Defaults of the optional modal-solid parameters, shared with the
+/// protocol conversion.
+pub mod defaults {
+    use crate::math::Real;
+
+    /// Support side over octant side: Guo–Qin's choice (Section 4.1.1).
+    pub const ALPHA: Real = 3.0;
+    /// Gauss points per axis of an integration cell.
+    pub const QUADRATURE_ORDER: u32 = 2;
+    /// Integration cells per axis of an octant.
+    pub const SUBDIVISION: u32 = 2;
+    /// Boundary octants cut no finer than interior ones.
+    pub const BOUNDARY_REFINEMENT: u32 = 1;
+    /// Penalty of fixed regions in units of `E / cell`.
+    pub const PENALTY: Real = 1e4;
+    /// Guo–Qin Table 1's beam keeps 64.
+    pub const MODES: u32 = 64;
+    /// Relative accuracy of the eigenpairs.
+    pub const EIGEN_TOLERANCE: Real = 1e-10;
+    /// Baumgarte rates of the grabs, 1/s: critical (`eta = gamma`), a
+    /// violated grab closes with time constant 1/20 s.
+    pub const GRAB_RATE: Real = 20.0;
+    /// Faces of a box split 4 times (3,072 triangles), a sphere's
+    /// icosahedron 4 times (5,120).
+    pub const SURFACE_SUBDIVISIONS: u32 = 4;
+}
+
+/// Most nodes a modal solid's octree may place, by the estimate made
+/// before building it: the eigen-analysis of 3n unknowns is the dearest
+/// part of an admission, and a session waits for it.
+pub const MAX_NODES: u64 = 200_000;
+
+/// Most modes kept: beyond that the per-step cost is no longer the
+/// "reduced" one the method is for.
+pub const MAX_MODES: u32 = 1024;
+
+/// A mode shape played back instead of the dynamics: the solid is posed
+/// at `amplitude sin(omega t)` of the mode (a rigid mode at 1 Hz).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlaybackSpec {
+    /// The mode, 0-based in ascending frequency (a free body's first six
+    /// are rigid).
+    pub mode: u32,
+    /// Its peak amplitude (modes are mass-normalised: kg^-1/2).
+    pub amplitude: Real,
+}
+
+/// A held material point: its position, orientation or both
+/// (Section 5.3.3), in the world frame.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GrabSpec {
+    /// The material point (rest shape), m.
+    pub point: [Real; 3],
+    /// Where it should go, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position: Option<[Real; 3]>,
+    /// Rotation vector it should turn by (axis times angle), rad.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotation: Option<[Real; 3]>,
+}
+
+impl GrabSpec {
+    /// The engine's grab.
+    pub fn grab(&self) -> Grab {
+        Grab {
+            point: vector(self.point),
+            position: self.position.map(vector),
+            rotation: self.rotation.map(vector),
+        }
+    }
+}
+
+/// An elastic solid discretised by Element-Free Galerkin on octree nodes
+/// and simulated in its lowest modes, with modal warping (Guo–Qin
+/// Sections 3-5). Every field that trades speed for accuracy is here:
+/// `cell` (octree depth, hence nodes), `alpha`, `basis`,
+/// `quadrature_order`, `subdivision`, `boundary_refinement`, `mass`,
+/// `modes`, `warping`, and the scene's `time.dt`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModalSolidSpec {
+    /// A box, a sphere, a closed mesh (OBJ or PLY) or an oriented point
+    /// cloud (a PLY with normals and no faces).
+    pub shape: ShapeSpec,
+    /// Where the shape's centre goes, m.
+    pub position: [Real; 3],
+    /// Rotation vector of the shape, rad.
+    #[serde(default)]
+    pub orientation: [Real; 3],
+    /// kg/m^3.
+    #[serde(default = "default_density")]
+    pub density: Real,
+    /// Young's modulus, Pa.
+    pub young: Real,
+    /// Poisson's ratio, in [0, 0.5).
+    #[serde(default = "default_poisson")]
+    pub poisson: Real,
+    /// Side of the octants at the surface, m: the resolution.
+    pub cell: Real,
+    /// Levels by which interior octants may be coarser.
+    #[serde(default)]
+    pub interior_levels: u32,
+    /// Support side over octant side.
+    #[serde(default = "default_alpha")]
+    pub alpha: Real,
+    /// MLS basis: linear or quadratic.
+    #[serde(default = "default_basis")]
+    pub basis: Order,
+    /// Gauss points per axis of an integration cell, 1 to 5.
+    #[serde(default = "default_quadrature_order")]
+    pub quadrature_order: u32,
+    /// Integration cells per axis of an octant.
+    #[serde(default = "default_subdivision")]
+    pub subdivision: u32,
+    /// How many times finer boundary octants are cut.
+    #[serde(default = "default_boundary_refinement")]
+    pub boundary_refinement: u32,
+    /// Consistent or lumped mass.
+    #[serde(default = "default_mass")]
+    pub mass: MassForm,
+    /// Penalty of the anchors, in units of `E / cell`.
+    #[serde(default = "default_penalty")]
+    pub penalty: Real,
+    /// Modes kept.
+    #[serde(default = "default_modes")]
+    pub modes: u32,
+    /// Relative accuracy of the eigenpairs.
+    #[serde(default = "default_eigen_tolerance")]
+    pub eigen_tolerance: Real,
+    /// Modal warping (large rotations) or linear modes.
+    #[serde(default = "default_warping")]
+    pub warping: bool,
+    /// Rayleigh damping `a` of `C = a M + b K`, 1/s.
+    #[serde(default)]
+    pub mass_damping: Real,
+    /// Rayleigh damping `b` of `C = a M + b K`, s.
+    #[serde(default)]
+    pub stiffness_damping: Real,
+    /// Baumgarte damping `eta` of the grabs, 1/s.
+    #[serde(default = "default_grab_rate")]
+    pub grab_eta: Real,
+    /// Baumgarte stiffness `gamma` of the grabs, 1/s.
+    #[serde(default = "default_grab_rate")]
+    pub grab_gamma: Real,
+    /// Boxes (world frame): the solid's surface inside them is held.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub anchors: Vec<Aabb>,
+    /// Points held from the start.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub grabs: Vec<GrabSpec>,
+    /// Plays a mode shape back instead of simulating.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub playback: Option<PlaybackSpec>,
+    /// Subdivisions of a box's or a sphere's surface carried in frames (a
+    /// mesh or point cloud carries its own).
+    #[serde(default = "default_surface_subdivisions")]
+    pub surface_subdivisions: u32,
+}
+
+fn default_density() -> Real {
+    super::solid_defaults::DENSITY
+}
+fn default_poisson() -> Real {
+    super::solid_defaults::POISSON
+}
+fn default_alpha() -> Real {
+    defaults::ALPHA
+}
+fn default_basis() -> Order {
+    Order::Linear
+}
+fn default_quadrature_order() -> u32 {
+    defaults::QUADRATURE_ORDER
+}
+fn default_subdivision() -> u32 {
+    defaults::SUBDIVISION
+}
+fn default_boundary_refinement() -> u32 {
+    defaults::BOUNDARY_REFINEMENT
+}
+fn default_mass() -> MassForm {
+    MassForm::Consistent
+}
+fn default_penalty() -> Real {
+    defaults::PENALTY
+}
+fn default_modes() -> u32 {
+    defaults::MODES
+}
+fn default_eigen_tolerance() -> Real {
+    defaults::EIGEN_TOLERANCE
+}
+fn default_warping() -> bool {
+    true
+}
+fn default_grab_rate() -> Real {
+    defaults::GRAB_RATE
+}
+fn default_surface_subdivisions() -> u32 {
+    defaults::SURFACE_SUBDIVISIONS
+}
+
+/// The geometry of a modal solid in the world frame: the implicit
+/// surface its octree adapts to, its skin and the mesh anchors cut.
+struct Geometry {
+    implicit: Box<dyn ImplicitSurface>,
+    skin: SkinInput,
+    /// `(min, max)` of the skin.
+    bounds: (Vector, Vector),
+}
+
+impl ModalSolidSpec {
+    /// The discretisation and reduced-model parameters.
+    pub fn params(&self) -> Result<ModalParams, SceneError> {
+        let mut efg = EfgParams::new(self.cell);
+        efg.interior_levels = self.interior_levels;
+        efg.alpha = self.alpha;
+        efg.basis = self.basis;
+        efg.quadrature_order = self.quadrature_order as usize;
+        efg.subdivision = self.subdivision as usize;
+        efg.boundary_refinement = self.boundary_refinement as usize;
+        efg.mass = self.mass;
+        efg.penalty = self.penalty;
+        Ok(ModalParams {
+            efg,
+            modes: self.modes as usize,
+            tolerance: self.eigen_tolerance,
+            warping: self.warping,
+            damping: Damping::new(self.mass_damping, self.stiffness_damping)
+                .map_err(|e| SceneError::invalid("mass_damping", e.to_string()))?,
+            stabilization: Stabilization::new(self.grab_eta, self.grab_gamma)
+                .map_err(|e| SceneError::invalid("grab_eta", e.to_string()))?,
+        })
+    }
+
+    fn material(&self) -> Material {
+        Material {
+            density: self.density,
+            young: self.young,
+            poisson: self.poisson,
+        }
+    }
+
+    /// The pose that takes the shape's own frame to the world.
+    fn pose(&self) -> (Vector, Rotation3<Real>) {
+        (
+            vector(self.position),
+            Rotation3::new(vector(self.orientation)),
+        )
+    }
+
+    /// The shape in the world frame. A mesh is centred on its bounding
+    /// box's centre before it is placed.
+    fn geometry(&self, at: &str) -> Result<Geometry, SceneError> {
+        let (centre, rotation) = self.pose();
+        let place = |v: &Vector| centre + rotation * v;
+        let shape_at = format!("{at}.shape");
+        let (vertices, triangles, normals): (Vec<Vector>, Vec<[u32; 3]>, Vec<Vector>) = match &self
+            .shape
+        {
+            ShapeSpec::Box { half_extents } => {
+                let h = vector(*half_extents);
+                let m = TriMesh::cuboid(-h, h).subdivided(self.surface_subdivisions);
+                (m.vertices, m.triangles, Vec::new())
+            }
+            ShapeSpec::Sphere { radius } => {
+                let m = TriMesh::icosphere(Vector::zeros(), *radius, self.surface_subdivisions);
+                (m.vertices, m.triangles, Vec::new())
+            }
+            ShapeSpec::Capsule { .. } | ShapeSpec::Plane { .. } => {
+                return Err(SceneError::invalid(
+                    shape_at,
+                    "a modal solid is a box, a sphere, a closed mesh or an oriented point \
+                         cloud (PLY with normals)",
+                ));
+            }
+            ShapeSpec::Mesh { path, data, scale } => {
+                let label = path.clone().unwrap_or_else(|| format!("{shape_at}.data"));
+                let Some(data) = data else {
+                    return Err(SceneError::invalid(
+                        format!("{shape_at}.path"),
+                        "the mesh was not loaded; load it first (`Scene::check` does)",
+                    ));
+                };
+                let scale = scale.unwrap_or(1.0);
+                let mesh = read::parse(Path::new(&label), data.format, &data.content);
+                match mesh {
+                    Ok(loaded) if !loaded.mesh.triangles.is_empty() => (
+                        loaded.mesh.vertices.iter().map(|v| v * scale).collect(),
+                        loaded.mesh.triangles,
+                        Vec::new(),
+                    ),
+                    mesh if data.format == MeshFormat::Ply => {
+                        let cloud = read::parse_oriented_points(Path::new(&label), &data.content)
+                            .map_err(|e| {
+                            let mesh = mesh
+                                .err()
+                                .map_or_else(|| "it has no faces".to_owned(), |m| m.to_string());
+                            SceneError::invalid(
+                                format!("{shape_at}.data"),
+                                format!(
+                                    "{label} is neither a closed mesh ({mesh}) nor an \
+                                             oriented point cloud ({e})"
+                                ),
+                            )
+                        })?;
+                        (
+                            cloud.points.iter().map(|v| v * scale).collect(),
+                            Vec::new(),
+                            cloud.normals,
+                        )
+                    }
+                    Ok(_) => {
+                        return Err(SceneError::invalid(
+                            format!("{shape_at}.data"),
+                            format!(
+                                "{label} has no faces; a point cloud must be a PLY with normals"
+                            ),
+                        ));
+                    }
+                    Err(e) => {
+                        return Err(SceneError::invalid(
+                            format!("{shape_at}.data"),
+                            format!("cannot load the mesh: {e}"),
+                        ));
+                    }
+                }
+            }
+        };
+        // Centre meshes and clouds on their bounding box.
+        let (min, max) = bounds_of(&vertices);
+        let middle = match self.shape {
+            ShapeSpec::Mesh { .. } => (min + max) / 2.0,
+            _ => Vector::zeros(),
+        };
+        let vertices: Vec<Vector> = vertices.iter().map(|v| place(&(v - middle))).collect();
+        let normals: Vec<Vector> = normals
+            .iter()
+            .map(|n| rotation * n.try_normalize(0.0).unwrap_or_default())
+            .collect();
+        let bounds = bounds_of(&vertices);
+        let field = format!("{shape_at}.data");
+        let (implicit, normals): (Box<dyn ImplicitSurface>, Vec<Vector>) = if triangles.is_empty() {
+            let cloud = PointSurface::new(&vertices, &normals, PointSurfaceParams::default())
+                .map_err(|e| SceneError::invalid(&field, e.to_string()))?;
+            (Box::new(cloud), normals)
+        } else {
+            let mesh = TriMesh {
+                vertices: vertices.clone(),
+                triangles: triangles.clone(),
+            };
+            let sdf = MeshSdf::new(&mesh).map_err(|e| {
+                SceneError::invalid(
+                    &field,
+                    format!("the surface must be closed to bound a solid: {e}"),
+                )
+            })?;
+            (Box::new(sdf), Vec::new())
+        };
+        let normals = if normals.is_empty() {
+            vec![Vector::zeros(); vertices.len()]
+        } else {
+            normals
+        };
+        Ok(Geometry {
+            implicit,
+            skin: SkinInput {
+                vertices,
+                triangles,
+                normals,
+            },
+            bounds,
+        })
+    }
+
+    /// The anchored surface: the skin's triangles inside an anchor box
+    /// (their three-point rules), or a point cloud's points inside one,
+    /// each standing for `spacing^2`.
+    fn fixed(&self, geometry: &Geometry) -> FixedSurface {
+        let mut fixed = FixedSurface::default();
+        let skin = &geometry.skin;
+        for anchor in &self.anchors {
+            let (min, max) = (vector(anchor.min), vector(anchor.max));
+            if skin.triangles.is_empty() {
+                let area = point_area(&skin.vertices, &geometry.bounds);
+                for v in &skin.vertices {
+                    if (0..3).all(|k| v[k] >= min[k] && v[k] <= max[k]) {
+                        fixed.points.push(*v);
+                        fixed.areas.push(area);
+                    }
+                }
+            } else {
+                let mesh = TriMesh {
+                    vertices: skin.vertices.clone(),
+                    triangles: skin.triangles.clone(),
+                };
+                let part = FixedSurface::of_mesh_in_box(&mesh, &min, &max);
+                fixed.points.extend(part.points);
+                fixed.areas.extend(part.areas);
+            }
+        }
+        fixed
+    }
+}
+
+/// The area a point of a cloud stands for: the bounding box's surface
+/// over the point count, a fair share for a cloud that samples its
+/// surface evenly (the penalty only needs its scale).
+fn point_area(points: &[Vector], (min, max): &(Vector, Vector)) -> Real {
+    let d = max - min;
+    2.0 * (d.x * d.y + d.y * d.z + d.z * d.x) / points.len().max(1) as Real
+}
+
+fn bounds_of(points: &[Vector]) -> (Vector, Vector) {
+    points.iter().fold(
+        (
+            Vector::repeat(Real::INFINITY),
+            Vector::repeat(Real::NEG_INFINITY),
+        ),
+        |(lo, hi), p| (lo.inf(p), hi.sup(p)),
+    )
+}
+
+impl Scene {
+    /// Checks a modal solid and builds it.
+    pub(super) fn validate_modal_solid(
+        &self,
+        at: &str,
+        spec: &ModalSolidSpec,
+        max_particles: u64,
+    ) -> Result<ModalSolid, SceneError> {
+        if self.dimension != 3 {
+            return Err(SceneError::invalid(
+                at,
+                "modal solids are 3D only; set dimension = 3",
+            ));
+        }
+        let field = |name: &str| format!("{at}.{name}");
+        if let ShapeSpec::Box { .. } | ShapeSpec::Sphere { .. } = spec.shape {
+            super::checked_shape(&field("shape"), &spec.shape, 3)?;
+        }
+        if let ShapeSpec::Mesh {
+            scale: Some(scale), ..
+        } = spec.shape
+        {
+            check_positive(&field("shape.scale"), scale)?;
+        }
+        check_vector(&field("position"), spec.position)?;
+        check_vector(&field("orientation"), spec.orientation)?;
+        check_positive(&field("density"), spec.density)?;
+        check_range(&field("density"), spec.density, 1e-3, 1e6)?;
+        check_positive(&field("young"), spec.young)?;
+        check_range(&field("young"), spec.young, 0.0, 1e13)?;
+        check_range(&field("poisson"), spec.poisson, 0.0, 0.4999)
+            .map_err(|e| e.with_hint("0.5 is incompressible, which Hooke's law cannot hold"))?;
+        check_positive(&field("cell"), spec.cell)?;
+        check_range(&field("alpha"), spec.alpha, 2.0, 6.0).map_err(|e| {
+            e.with_hint("below 2 a point may be covered by fewer supports than the basis needs")
+        })?;
+        if spec.basis == Order::Constant {
+            return Err(SceneError::invalid(
+                field("basis"),
+                "a constant basis has no strain; use \"linear\" or \"quadratic\"",
+            ));
+        }
+        for (name, value, max) in [
+            ("quadrature_order", spec.quadrature_order, 5),
+            ("subdivision", spec.subdivision, 8),
+            ("boundary_refinement", spec.boundary_refinement, 8),
+        ] {
+            if value == 0 || value > max {
+                return Err(SceneError::invalid(
+                    field(name),
+                    format!("must be in [1, {max}], got {value}"),
+                ));
+            }
+        }
+        if spec.interior_levels > 8 {
+            return Err(SceneError::invalid(
+                field("interior_levels"),
+                format!("must be in [0, 8], got {}", spec.interior_levels),
+            ));
+        }
+        check_positive(&field("penalty"), spec.penalty)?;
+        check_range(&field("penalty"), spec.penalty, 0.0, 1e8)?;
+        if spec.modes == 0 || spec.modes > MAX_MODES {
+            return Err(SceneError::invalid(
+                field("modes"),
+                format!("must be in [1, {MAX_MODES}], got {}", spec.modes),
+            ));
+        }
+        check_positive(&field("eigen_tolerance"), spec.eigen_tolerance)?;
+        check_range(&field("eigen_tolerance"), spec.eigen_tolerance, 0.0, 1e-2)?;
+        for name in [
+            "mass_damping",
+            "stiffness_damping",
+            "grab_eta",
+            "grab_gamma",
+        ] {
+            let value = match name {
+                "mass_damping" => spec.mass_damping,
+                "stiffness_damping" => spec.stiffness_damping,
+                "grab_eta" => spec.grab_eta,
+                _ => spec.grab_gamma,
+            };
+            check_range(&field(name), value, 0.0, 1e6)?;
+        }
+        if spec.surface_subdivisions > 7 {
+            return Err(SceneError::invalid(
+                field("surface_subdivisions"),
+                format!("must be in [0, 7], got {}", spec.surface_subdivisions),
+            ));
+        }
+        if let Some(playback) = &spec.playback {
+            if playback.mode >= spec.modes {
+                return Err(SceneError::invalid(
+                    field("playback.mode"),
+                    format!(
+                        "is {}, but the solid keeps {} modes (0 to {})",
+                        playback.mode,
+                        spec.modes,
+                        spec.modes - 1
+                    ),
+                ));
+            }
+            check_range(&field("playback.amplitude"), playback.amplitude, -1e6, 1e6)?;
+        }
+        let geometry = spec.geometry(at)?;
+        let (min, max) = geometry.bounds;
+        let extent = max - min;
+        // Nodes sit at most one per octant of side `cell` over the
+        // bounding box (interior octants are that or coarser).
+        let nodes = (0..3)
+            .map(|k| (extent[k] / spec.cell).ceil().max(1.0))
+            .product::<Real>();
+        let limit = MAX_NODES.min(max_particles);
+        if nodes > limit as Real {
+            return Err(SceneError::TooFine {
+                field: field("cell"),
+                points: nodes.min(u64::MAX as Real) as u64,
+                limit,
+            });
+        }
+        for a in 0..3 {
+            if min[a] < self.domain.min[a] || max[a] > self.domain.max[a] {
+                return Err(SceneError::invalid(
+                    field("position"),
+                    "the solid reaches outside the domain; move it or enlarge the domain",
+                ));
+            }
+        }
+        for (k, anchor) in spec.anchors.iter().enumerate() {
+            check_box(&format!("{at}.anchors[{k}]"), anchor, 3)?;
+        }
+        let fixed = spec.fixed(&geometry);
+        if !spec.anchors.is_empty() && fixed.points.is_empty() {
+            return Err(SceneError::invalid(
+                field("anchors"),
+                "hold none of the solid's surface; move them onto its surface",
+            ));
+        }
+        let params = spec.params()?;
+        let mut solid = ModalSolid::build(
+            geometry.implicit.as_ref(),
+            &fixed,
+            spec.material(),
+            &params,
+            Some(geometry.skin),
+            &Cancel::new(),
+        )
+        .map_err(|e| SceneError::invalid(at, e.to_string()))?;
+        let grabs: Vec<Grab> = spec.grabs.iter().map(GrabSpec::grab).collect();
+        solid
+            .set_grabs(&grabs)
+            .map_err(|e| SceneError::invalid(field("grabs"), e.to_string()))?;
+        Ok(solid)
+    }
+}

@@ -1,0 +1,177 @@
+//! A modal EFG solid as the world keeps it: the adapter between
+//! [`ModalSolid`] and the world's [`Simulated`] trait, with the scene's
+//! mode playback.
+
+use super::system::{RemoveError, Simulated, StepEnv};
+use super::{StepError, StepInfo};
+use crate::efg::{Grab, GrabError, ModalSolid, ModalState};
+use crate::fluid::Invalid;
+use crate::frame::{FieldKind, SolidSurface};
+use crate::geometry::TriMesh;
+use crate::math::{Real, Vector};
+use crate::scene::PlaybackSpec;
+use crate::stats::StageTimer;
+use std::f64::consts::TAU;
+
+/// A modal solid of the scene.
+#[derive(Debug, Clone)]
+pub(crate) struct ModalEntry {
+    /// Index of its system in the scene.
+    pub index: usize,
+    /// The solid.
+    pub solid: ModalSolid,
+    /// Its state at the start of the current step.
+    pub backup: ModalState,
+    /// A mode shape played back instead of the dynamics.
+    pub playback: Option<PlaybackSpec>,
+    /// The scene's own grabs, which every later set keeps.
+    pub scene_grabs: Vec<Grab>,
+}
+
+impl ModalEntry {
+    /// Holds the scene's grabs and `extra`.
+    ///
+    /// # Errors
+    /// [`GrabError`]; the previous grabs then stay.
+    pub(crate) fn set_grabs(&mut self, extra: &[Grab]) -> Result<(), GrabError> {
+        let all: Vec<Grab> = self.scene_grabs.iter().chain(extra).copied().collect();
+        self.solid.set_grabs(&all)
+    }
+
+    /// The grabs besides the scene's.
+    pub(crate) fn extra_grabs(&self) -> &[Grab] {
+        &self.solid.grabs()[self.scene_grabs.len().min(self.solid.grabs().len())..]
+    }
+
+    /// The deformed skin, for a frame.
+    pub(crate) fn surface(&self) -> Option<SolidSurface> {
+        let skin = self.solid.skin()?;
+        Some(SolidSurface {
+            system: self.index,
+            mesh: TriMesh {
+                vertices: skin.positions,
+                triangles: skin.triangles.to_vec(),
+            },
+            normals: skin.normals,
+        })
+    }
+
+    /// The playback's pose at time `t`: the mode at `amplitude sin(omega
+    /// t)`, a rigid mode at 1 Hz.
+    fn play(&mut self, playback: PlaybackSpec, t: Real) -> Result<(), StepError> {
+        let mode = playback.mode as usize;
+        let omega = self
+            .solid
+            .frequencies()
+            .get(mode)
+            .copied()
+            .filter(|w| *w > 0.0 && mode >= self.solid.zero_modes())
+            .unwrap_or(TAU);
+        self.solid
+            .pose_mode(mode, playback.amplitude * (omega * t).sin())
+            .map_err(|_| self.unstable("modal amplitude", Real::NAN, 0))
+    }
+
+    fn unstable(&self, quantity: &'static str, value: Real, step: u64) -> StepError {
+        StepError::SolidUnstable {
+            system: self.index,
+            quantity,
+            particle: 0,
+            value,
+            step,
+        }
+    }
+}
+
+impl Simulated for ModalEntry {
+    fn index(&self) -> usize {
+        self.index
+    }
+
+    fn particle_count(&self) -> usize {
+        self.solid.len()
+    }
+
+    /// Nodes never change.
+    fn start_step(&mut self) {}
+
+    fn save(&mut self) {
+        self.backup = self.solid.state();
+    }
+
+    fn restore(&mut self) {
+        // The backup was taken from this solid: its lengths match.
+        let _ = self.solid.set_state(&self.backup);
+    }
+
+    /// One implicit modal step (Eq. 31, or Eq. 33 with grabs) of any
+    /// length: the integrator is unconditionally stable, so no sub-steps.
+    fn step(&mut self, env: &StepEnv, _timer: &mut StageTimer) -> Result<StepInfo, StepError> {
+        env.check()?;
+        if let Some(playback) = self.playback {
+            self.play(playback, env.step as Real * env.dt)?;
+        } else {
+            self.solid
+                .step(env.dt, &env.gravity)
+                .map_err(|_| self.unstable("modal amplitude", Real::INFINITY, env.step))?;
+        }
+        match self.first_invalid() {
+            Some(invalid) => Err(StepError::SolidUnstable {
+                system: self.index,
+                quantity: invalid.quantity,
+                particle: invalid.particle,
+                value: invalid.value,
+                step: env.step,
+            }),
+            None => Ok(StepInfo::start(env.dt)),
+        }
+    }
+
+    fn first_invalid(&self) -> Option<Invalid> {
+        let (particle, u) = self
+            .solid
+            .displacements()
+            .iter()
+            .enumerate()
+            .find(|(_, u)| !u.iter().all(|c| c.is_finite()))?;
+        Some(Invalid {
+            quantity: "displacement",
+            particle,
+            value: u.norm(),
+        })
+    }
+
+    fn write_field(&self, kind: FieldKind, out: &mut Vec<f32>) {
+        let solid = &self.solid;
+        let vectors = |v: &mut dyn Iterator<Item = Vector>, out: &mut Vec<f32>| {
+            out.extend(v.flat_map(|x| [x.x as f32, x.y as f32, x.z as f32]));
+        };
+        let density = solid.efg().material().density;
+        match kind {
+            FieldKind::Position => vectors(&mut solid.positions(), out),
+            FieldKind::Velocity => vectors(&mut solid.velocities().into_iter(), out),
+            FieldKind::Density => out.extend(std::iter::repeat_n(density as f32, solid.len())),
+            // Linear elasticity has no pressure of its own.
+            FieldKind::Pressure => out.extend(std::iter::repeat_n(0.0, solid.len())),
+            FieldKind::Mass => out.extend(solid.masses().iter().map(|&m| m as f32)),
+            FieldKind::Volume => out.extend(solid.masses().iter().map(|&m| (m / density) as f32)),
+            FieldKind::KineticEnergy => out.extend(
+                solid
+                    .masses()
+                    .iter()
+                    .zip(solid.velocities())
+                    .map(|(m, v)| (0.5 * m * v.norm_squared()) as f32),
+            ),
+            FieldKind::ElasticEnergy => {
+                out.extend(solid.elastic_energies().into_iter().map(|e| e as f32));
+            }
+        }
+    }
+
+    fn mark_removed(&mut self, _ids: &[usize]) -> Result<(), RemoveError> {
+        Err(RemoveError::Unsupported {
+            system: self.index,
+            kind: "a modal solid",
+        })
+    }
+}
