@@ -31,6 +31,8 @@ mod study;
 #[cfg(feature = "embedded")]
 mod study_design;
 #[cfg(feature = "embedded")]
+mod study_modal;
+#[cfg(feature = "embedded")]
 mod study_solid;
 mod watch;
 

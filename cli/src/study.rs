@@ -1,7 +1,8 @@
 //! `meshless study`: sweep one speed-against-accuracy knob on the dam break
 //! and report the surge-front error against Martin & Moyce (1952) and the
 //! cost of each setting, as CSV and a PNG chart. The `solid-*` knobs sweep
-//! the cantilever instead (`study_solid.rs`), the `design-*` knobs the
+//! the cantilever instead (`study_solid.rs`), the `modal-*` knobs the
+//! modal EFG cantilever (`study_modal.rs`), the `design-*` knobs the
 //! shape and motion optimiser's experiments (`study_design.rs`).
 
 use crate::chart;
@@ -46,6 +47,20 @@ pub enum Knob {
     SolidDt,
     /// Elastic solid: hourglass-control weight relative to Young's modulus.
     SolidHourglass,
+    /// Modal solid: octant side of the cantilever, m (the node count).
+    ModalCell,
+    /// Modal solid: support side over octant side.
+    ModalAlpha,
+    /// Modal solid: Gauss points per axis of an integration cell.
+    ModalQuadrature,
+    /// Modal solid: MLS basis, linear or quadratic.
+    ModalBasis,
+    /// Modal solid: modes kept.
+    ModalModes,
+    /// Modal solid: modal warping, on or off (released beam).
+    ModalWarping,
+    /// Modal solid: time step of the released beam, s.
+    ModalDt,
     /// Design: particles of the Figure 13 stretch with the volume energy
     /// (`stretch:N`) and of the cube passing a ball (`passage:N`).
     DesignParticles,
@@ -71,6 +86,13 @@ impl Knob {
             Self::SolidIntegrator => "solid_integrator",
             Self::SolidDt => "solid_dt",
             Self::SolidHourglass => "solid_hourglass",
+            Self::ModalCell => "modal_cell",
+            Self::ModalAlpha => "modal_alpha",
+            Self::ModalQuadrature => "modal_quadrature",
+            Self::ModalBasis => "modal_basis",
+            Self::ModalModes => "modal_modes",
+            Self::ModalWarping => "modal_warping",
+            Self::ModalDt => "modal_dt",
             Self::DesignParticles => "design_particles",
             Self::DesignTolerance => "design_tolerance",
             Self::DesignAdaptive => "design_adaptive",
@@ -90,6 +112,19 @@ impl Knob {
     }
 
     /// Whether the knob belongs to the design study.
+    fn is_modal(self) -> bool {
+        matches!(
+            self,
+            Self::ModalCell
+                | Self::ModalAlpha
+                | Self::ModalQuadrature
+                | Self::ModalBasis
+                | Self::ModalModes
+                | Self::ModalWarping
+                | Self::ModalDt
+        )
+    }
+
     fn is_design(self) -> bool {
         matches!(
             self,
@@ -111,6 +146,13 @@ impl Knob {
             Self::SolidIntegrator => &["explicit", "implicit"],
             Self::SolidDt => &["0.0005", "0.001", "0.002", "0.005", "0.01"],
             Self::SolidHourglass => &["0", "0.1", "1"],
+            Self::ModalCell => &["0.05", "0.0333", "0.025", "0.02"],
+            Self::ModalAlpha => &["2.5", "3", "4"],
+            Self::ModalQuadrature => &["1", "2", "3"],
+            Self::ModalBasis => &["linear", "quadratic"],
+            Self::ModalModes => &["6", "12", "32", "64"],
+            Self::ModalWarping => &["on", "off"],
+            Self::ModalDt => &["0.004", "0.0167", "0.05", "0.2"],
             Self::DesignParticles => &[
                 "stretch:30",
                 "stretch:60",
@@ -170,6 +212,15 @@ impl Knob {
             Self::DesignParticles | Self::DesignTolerance | Self::DesignAdaptive => {
                 bail!("{} is a design knob, not a dam-break one", self.name())
             }
+            Self::ModalCell
+            | Self::ModalAlpha
+            | Self::ModalQuadrature
+            | Self::ModalBasis
+            | Self::ModalModes
+            | Self::ModalWarping
+            | Self::ModalDt => {
+                bail!("{} is a modal-solid knob, not a dam-break one", self.name())
+            }
         }
         Ok(())
     }
@@ -212,6 +263,14 @@ struct Row {
 pub fn study(args: StudyArgs) -> Result<()> {
     if args.knob.is_solid() {
         return crate::study_solid::study(
+            args.knob.name(),
+            args.knob.presets(),
+            &args.values,
+            &args.output,
+        );
+    }
+    if args.knob.is_modal() {
+        return crate::study_modal::study(
             args.knob.name(),
             args.knob.presets(),
             &args.values,

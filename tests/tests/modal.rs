@@ -19,11 +19,9 @@ fn grab(name: &str, point: [f64; 3], position: [f64; 3]) -> v1::ConstraintEdit {
             name: name.into(),
             kind: Some(v1::constraint::Kind::Grab(v1::GrabConstraint {
                 system: 0,
-                grab: Some(v1::Grab {
-                    point: Some(vec3(point)),
-                    position: Some(vec3(position)),
-                    rotation: None,
-                }),
+                point: Some(vec3(point)),
+                position: Some(vec3(position)),
+                rotation: None,
             })),
         })),
     }

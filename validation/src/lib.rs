@@ -11,6 +11,8 @@
 //!   (1952);
 //! - [`cantilever`]: an elastic beam under its own weight against
 //!   Euler–Bernoulli theory;
+//! - [`modal_cantilever`]: a modal EFG beam (Guo–Qin's solids) under its
+//!   own weight against Timoshenko theory;
 //! - [`design`]: the optimiser's Figure 13 stretch and the cube passing a
 //!   ball;
 //! - [`viscous`]: start-up Poiseuille and Couette flow and the spin-down
@@ -19,4 +21,5 @@
 pub mod cantilever;
 pub mod dam_break;
 pub mod design;
+pub mod modal_cantilever;
 pub mod viscous;

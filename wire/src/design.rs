@@ -84,18 +84,17 @@ pub fn constraint_from_proto(c: v1::Constraint, field: &str) -> Result<Constrain
                 })
                 .collect::<Result<_>>()?,
         }),
-        Some(v1::constraint::Kind::Grab(v1::GrabConstraint { system, grab })) => {
-            let grab = crate::modal::grab_from_proto(
-                required(grab, &format!("{field}.grab.grab"))?,
-                &format!("{field}.grab.grab"),
-            )?;
-            ConstraintKind::Grab(GrabConstraint {
-                system: system as usize,
-                point: grab.point,
-                position: grab.position,
-                rotation: grab.rotation,
-            })
-        }
+        Some(v1::constraint::Kind::Grab(v1::GrabConstraint {
+            system,
+            point,
+            position,
+            rotation,
+        })) => ConstraintKind::Grab(GrabConstraint {
+            system: system as usize,
+            point: vec3(required(point, &format!("{field}.grab.point"))?),
+            position: position.map(vec3),
+            rotation: rotation.map(vec3),
+        }),
         None => {
             return Err(WireError::new(
                 format!("{field}.kind"),
@@ -190,11 +189,9 @@ pub fn constraint_to_proto(c: &Constraint) -> v1::Constraint {
         }),
         ConstraintKind::Grab(g) => v1::constraint::Kind::Grab(v1::GrabConstraint {
             system: count(g.system),
-            grab: Some(crate::modal::to_grab(&meshless_engine::scene::GrabSpec {
-                point: g.point,
-                position: g.position,
-                rotation: g.rotation,
-            })),
+            point: Some(to_vec3(g.point)),
+            position: g.position.map(to_vec3),
+            rotation: g.rotation.map(to_vec3),
         }),
     };
     v1::Constraint {

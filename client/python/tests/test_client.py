@@ -341,3 +341,32 @@ def test_a_server_timeout_reported_as_cancelled_is_a_passed_deadline():
     assert passed.code == grpc.StatusCode.DEADLINE_EXCEEDED and "Timeout expired" in passed.details
     assert call_error(Cancelled(), time.monotonic() + 10).code == grpc.StatusCode.CANCELLED
     assert call_error(Cancelled(), None).code == grpc.StatusCode.CANCELLED
+
+
+def test_a_modal_solid_is_grabbed_with_dicts_and_streams_its_skin(client):
+    """A modal EFG cantilever (``tests/fixtures/small_modal.toml``): its
+    frames carry the nodes and the skin with unit normals, a grab in the
+    TOML form of ``docs/modal.md`` pulls the skin's tip vertex to its
+    target, and a grab off the solid is INVALID_ARGUMENT and changes
+    nothing."""
+    session = client.create_session(fixture("small_modal"))
+    rest = client.latest_frame(session)
+    assert [s.system for s in rest.solids] == [0]
+    assert rest.solids[0].count == rest.particle_count
+    skin = rest.solid_surfaces[0]
+    tip = int(np.argmin(np.linalg.norm(skin.vertices - [0.16, 0.0, 0.0], axis=1)))
+    point = skin.vertices[tip].astype(float).tolist()
+    target = [0.15, 0.05, 0.0]
+    grab = {"name": "tip", "type": "grab", "system": 0, "point": point, "position": target}
+    listed = client.edit_constraints(session, add=[grab])
+    assert [c.name for c in listed] == ["tip"] and listed[0].grab.position.y == 0.05
+    far = dict(grab, name="far", point=[2.0, 0.0, 0.0])
+    assert code_of(lambda: client.edit_constraints(session, add=[far])) == (
+        grpc.StatusCode.INVALID_ARGUMENT
+    )
+    assert [c.name for c in client.list_constraints(session)] == ["tip"]
+    client.step(session, 60)
+    held = client.latest_frame(session).solid_surfaces[0]
+    np.testing.assert_allclose(held.vertices[tip], target, atol=1e-3)
+    np.testing.assert_allclose(np.linalg.norm(held.normals, axis=1), 1.0, atol=1e-5)
+    client.delete_session(session)

@@ -40,3 +40,7 @@ pub use solid::{EfgError, EfgParams, EfgSolid, FixedSurface, MassForm, Material}
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_extremes;
+#[cfg(test)]
+mod tests_warping;

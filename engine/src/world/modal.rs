@@ -123,7 +123,11 @@ impl Simulated for ModalEntry {
                 value: invalid.value,
                 step: env.step,
             }),
-            None => Ok(StepInfo::start(env.dt)),
+            None => {
+                let mut info = StepInfo::start(env.dt);
+                info.substeps = 1;
+                Ok(info)
+            }
         }
     }
 

@@ -1,0 +1,287 @@
+//! A modal EFG cantilever (Guo–Qin's solids) under its own weight against
+//! Timoshenko beam theory: what `meshless study --knob modal-*` sweeps.
+//!
+//! The beam is `L x H x H` with `L / H = 10`, clamped at `x = 0`, its
+//! weight along `-y`. Timoshenko's static tip deflection under a uniform
+//! load `q = rho g A` is `q L^4 / (8 E I) + q L^2 / (2 kappa G A)`, with
+//! `I = H^4 / 12` and the shear coefficient `kappa = 10 (1 + nu) / (12 +
+//! 11 nu)` of a rectangle (Cowper 1966). Two measurements:
+//!
+//! - **static**: the modal solution `u = sum_j Psi_j Psi_j^T f / lambda_j`
+//!   of the kept modes (no time stepping): the discretisation's and the
+//!   truncation's error;
+//! - **released**: the beam released from rest and stepped with the
+//!   modal integrator, damped, for `RELEASE_TIME`; its tip then (warping
+//!   on or off, any step).
+
+use meshless_engine::Cancel;
+use meshless_engine::approx::mls::Order;
+use meshless_engine::efg::{EfgParams, FixedSurface, Material, ModalParams, ModalSolid};
+use meshless_engine::geometry::{MeshSdf, TriMesh};
+use meshless_engine::math::{Real, Vector};
+use meshless_engine::modal::{Damping, Stabilization};
+use std::time::Instant;
+
+/// Seconds a released beam is stepped. Its mass damping `2 omega_1`
+/// damps the first bending mode critically (`omega_1 = 32 rad/s` for the
+/// default beam), so by then its motion has decayed by `e^(-omega_1 T)`,
+/// about 1e-7, and every higher mode faster.
+pub const RELEASE_TIME: Real = 0.5;
+
+/// What a setting measures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Measure {
+    /// The modal static solution.
+    Static,
+    /// The released beam after [`RELEASE_TIME`].
+    Released,
+}
+
+/// One cantilever and how it is discretised, reduced and stepped.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModalCantilever {
+    /// Length, m (the section is `length / 10` square).
+    pub length: Real,
+    /// Young's modulus, Pa.
+    pub young: Real,
+    /// Poisson's ratio.
+    pub poisson: Real,
+    /// kg/m^3.
+    pub density: Real,
+    /// Octant side, m.
+    pub cell: Real,
+    /// Support side over octant side.
+    pub alpha: Real,
+    /// Gauss points per axis of an integration cell.
+    pub quadrature_order: usize,
+    /// MLS basis.
+    pub basis: Order,
+    /// Modes kept.
+    pub modes: usize,
+    /// Modal warping.
+    pub warping: bool,
+    /// Time step of the released beam, s.
+    pub dt: Real,
+}
+
+impl Default for ModalCantilever {
+    /// A 1 m beam of a rubber-stiff solid (E = 100 MPa, nu = 0.3: it
+    /// sags 1.5 % of its length, where linear theory holds) on 2.5 cm
+    /// cells (4 across), 32 modes, warping, 60 steps per second.
+    fn default() -> Self {
+        Self {
+            length: 1.0,
+            young: 1e8,
+            poisson: 0.3,
+            density: 1000.0,
+            cell: 0.025,
+            alpha: 3.0,
+            quadrature_order: 2,
+            basis: Order::Linear,
+            modes: 32,
+            warping: true,
+            dt: 1.0 / 60.0,
+        }
+    }
+}
+
+/// What one run measured.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModalMeasured {
+    /// Nodes of the octree.
+    pub nodes: usize,
+    /// Seconds to discretise, assemble and find the modes.
+    pub precompute: Real,
+    /// Milliseconds per step of the released beam (0 for the static
+    /// measure).
+    pub step_ms: Real,
+    /// The tip's deflection, m (positive downward).
+    pub deflection: Real,
+    /// Timoshenko's.
+    pub reference: Real,
+    /// `deflection / reference - 1`.
+    pub error: Real,
+}
+
+impl ModalCantilever {
+    /// Timoshenko's static tip deflection under the beam's weight, m.
+    pub fn timoshenko(&self) -> Real {
+        let h = self.length / 10.0;
+        let area = h * h;
+        let q = self.density * 9.81 * area;
+        let inertia = h.powi(4) / 12.0;
+        let shear = self.young / (2.0 * (1.0 + self.poisson));
+        let kappa = 10.0 * (1.0 + self.poisson) / (12.0 + 11.0 * self.poisson);
+        q * self.length.powi(4) / (8.0 * self.young * inertia)
+            + q * self.length.powi(2) / (2.0 * kappa * shear * area)
+    }
+
+    /// Builds the beam and measures its tip deflection.
+    ///
+    /// # Errors
+    /// The engine's message when the discretisation or the modes fail.
+    pub fn measure(&self, measure: Measure) -> Result<ModalMeasured, String> {
+        let h = self.length / 10.0;
+        let max = Vector::new(self.length, h / 2.0, h / 2.0);
+        let min = Vector::new(0.0, -h / 2.0, -h / 2.0);
+        let mesh = TriMesh::cuboid(min, max);
+        let sdf = MeshSdf::new(&mesh).map_err(|e| e.to_string())?;
+        let slack = Vector::repeat(1e-9 * self.length);
+        let fixed = FixedSurface::of_mesh_in_box(
+            &mesh.subdivided(3),
+            &(min - slack),
+            &Vector::new(slack.x, max.y + slack.y, max.z + slack.z),
+        );
+        let mut efg = EfgParams::new(self.cell);
+        efg.alpha = self.alpha;
+        efg.quadrature_order = self.quadrature_order;
+        efg.basis = self.basis;
+        // Euler–Bernoulli's first bending frequency, damped critically.
+        let omega = 1.875_f64.powi(2) / self.length.powi(2)
+            * (self.young * h.powi(2) / (12.0 * self.density)).sqrt();
+        let params = ModalParams {
+            efg,
+            modes: self.modes,
+            tolerance: 1e-10,
+            warping: self.warping,
+            damping: Damping::new(2.0 * omega, 0.0).map_err(|e| e.to_string())?,
+            stabilization: Stabilization::new(0.0, 0.0).map_err(|e| e.to_string())?,
+        };
+        let material = Material {
+            density: self.density,
+            young: self.young,
+            poisson: self.poisson,
+        };
+        let clock = Instant::now();
+        let mut solid = ModalSolid::build(&sdf, &fixed, material, &params, None, &Cancel::new())
+            .map_err(|e| e.to_string())?;
+        let precompute = clock.elapsed().as_secs_f64();
+        let tip = Vector::new(self.length, 0.0, 0.0);
+        let g = Vector::new(0.0, -9.81, 0.0);
+        let (deflection, step_ms) = match measure {
+            Measure::Static => (-static_tip(&solid, &tip, &g)?, 0.0),
+            Measure::Released => {
+                let steps = (RELEASE_TIME / self.dt).ceil() as usize;
+                let clock = Instant::now();
+                for _ in 0..steps {
+                    solid.step(self.dt, &g).map_err(|e| e.to_string())?;
+                }
+                let ms = clock.elapsed().as_secs_f64() * 1e3 / steps as Real;
+                (
+                    -tip_displacement(&solid, &tip, solid.displacements())?.y,
+                    ms,
+                )
+            }
+        };
+        let reference = self.timoshenko();
+        Ok(ModalMeasured {
+            nodes: solid.len(),
+            precompute,
+            step_ms,
+            deflection,
+            reference,
+            error: deflection / reference - 1.0,
+        })
+    }
+}
+
+/// The modal amplitude that reads a mode shape through the (warped)
+/// displacements: warping turns `Psi z` by about `|W z|`, which is then
+/// 1e-9 of a unit amplitude's.
+const PROBE_AMPLITUDE: Real = 1e-9;
+
+/// The modal static solution's y displacement at `tip`.
+fn static_tip(solid: &ModalSolid, tip: &Vector, g: &Vector) -> Result<Real, String> {
+    let mut probe = solid.clone();
+    let l = solid.eigenvalues().len();
+    let mut z = vec![0.0; l];
+    for (j, z) in z.iter_mut().enumerate() {
+        let lambda = solid.eigenvalues()[j];
+        if lambda <= 0.0 {
+            continue;
+        }
+        let mut state = meshless_engine::efg::ModalState {
+            amplitudes: vec![0.0; l],
+            velocities: vec![0.0; l],
+        };
+        // A tiny amplitude, so that warping leaves the mode shape `Psi_j`.
+        state.amplitudes[j] = PROBE_AMPLITUDE;
+        probe.set_state(&state).map_err(|e| e.to_string())?;
+        // Psi_j^T f with f the nodal weights: the work of gravity on mode j.
+        let work: Real = probe
+            .displacements()
+            .iter()
+            .zip(solid.masses())
+            .map(|(u, m)| m * u.dot(g))
+            .sum::<Real>()
+            / PROBE_AMPLITUDE;
+        *z = work / lambda;
+    }
+    let mut linear = solid.clone();
+    linear
+        .set_state(&meshless_engine::efg::ModalState {
+            amplitudes: z,
+            velocities: vec![0.0; l],
+        })
+        .map_err(|e| e.to_string())?;
+    Ok(tip_displacement(&linear, tip, linear.displacements())?.y)
+}
+
+/// The displacement field at `tip`.
+fn tip_displacement(solid: &ModalSolid, tip: &Vector, u: &[Vector]) -> Result<Vector, String> {
+    let table = solid
+        .efg()
+        .shape_table(std::slice::from_ref(tip))
+        .map_err(|e| e.to_string())?;
+    let mut at = Vec::new();
+    table.interpolate(u, &mut at);
+    Ok(at[0])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A beam two cells deep sags within 30 % of Timoshenko statically
+    /// (it measures 23 % stiff) and, released and damped, comes to rest
+    /// within 5 % of its static sag; four cells deep is closer, and
+    /// Timoshenko's formula is checked against its
+    /// Euler–Bernoulli part for a slender beam.
+    #[test]
+    fn the_modal_cantilever_sags_as_timoshenko_says() {
+        let beam = ModalCantilever {
+            cell: 0.05,
+            modes: 12,
+            ..ModalCantilever::default()
+        };
+        let eb = {
+            let h: Real = 0.1;
+            1000.0 * 9.81 * h * h / (8.0 * 1e8 * h.powi(4) / 12.0)
+        };
+        // Shear over bending: (E / G) (H / L)^2 / (3 kappa) = 1.02 %.
+        let t = beam.timoshenko();
+        assert!(
+            (t / eb - 1.0 - 0.0102).abs() < 1e-4,
+            "shear adds 1.02 %: {t} vs {eb}"
+        );
+        let coarse = beam.measure(Measure::Static).expect("builds");
+        assert!(coarse.error.abs() < 0.3, "coarse static: {coarse:?}");
+        let released = beam.measure(Measure::Released).expect("steps");
+        assert!(
+            (released.deflection - coarse.deflection).abs() < 0.05 * coarse.deflection,
+            "released comes to rest at the static sag: {released:?} vs {coarse:?}"
+        );
+        let fine = ModalCantilever {
+            cell: 0.025,
+            modes: 12,
+            warping: false,
+            ..ModalCantilever::default()
+        }
+        .measure(Measure::Static)
+        .expect("builds");
+        assert!(
+            fine.error.abs() < coarse.error.abs(),
+            "refining converges: {fine:?} vs {coarse:?}"
+        );
+    }
+}
