@@ -451,4 +451,62 @@ mod modal {
             Err(crate::SceneError::TooFine { .. })
         ));
     }
+
+    /// A point cloud (a PLY of 400 points with outward normals on a 5 cm
+    /// sphere, no faces) builds a free modal solid: six rigid modes, its
+    /// skin the points with unit normals and no triangles.
+    #[test]
+    fn an_oriented_point_cloud_builds_a_free_modal_solid() {
+        use crate::geometry::read::MeshFormat;
+        use crate::scene::{MeshData, ShapeSpec, SystemSpec};
+        let count = 400;
+        let mut ply = format!(
+            "ply\nformat ascii 1.0\nelement vertex {count}\nproperty float x\n\
+             property float y\nproperty float z\nproperty float nx\nproperty float ny\n\
+             property float nz\nend_header\n"
+        );
+        // A Fibonacci sphere: even spacing, no duplicates.
+        let golden = std::f64::consts::PI * (3.0 - 5.0_f64.sqrt());
+        for k in 0..count {
+            let y = 1.0 - 2.0 * (k as Real + 0.5) / count as Real;
+            let r = (1.0 - y * y).sqrt();
+            let (x, z) = (
+                r * (golden * k as Real).cos(),
+                r * (golden * k as Real).sin(),
+            );
+            ply.push_str(&format!(
+                "{} {} {} {x} {y} {z}\n",
+                0.05 * x,
+                0.05 * y,
+                0.05 * z
+            ));
+        }
+        let mut scene = scene("");
+        let SystemSpec::ModalSolid(spec) = &mut scene.systems[0] else {
+            panic!("a modal solid");
+        };
+        spec.shape = ShapeSpec::Mesh {
+            path: None,
+            data: Some(MeshData {
+                format: MeshFormat::Ply,
+                content: ply.into_bytes(),
+            }),
+            scale: None,
+        };
+        spec.anchors.clear();
+        let mut world = scene
+            .build(&BuildOptions::default())
+            .expect("a point cloud builds");
+        let (_, solid) = world.modal_solids().next().expect("a modal solid");
+        assert_eq!(solid.zero_modes(), 6, "a free body");
+        world.step().expect("a stable step");
+        let frame = world.frame();
+        let skin = &frame.solid_surfaces[0];
+        assert_eq!(skin.mesh.vertices.len(), count);
+        assert!(skin.mesh.triangles.is_empty(), "surfels, no triangles");
+        assert!(
+            skin.normals.iter().all(|n| (n.norm() - 1.0).abs() < 1e-9),
+            "unit normals"
+        );
+    }
 }

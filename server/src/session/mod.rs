@@ -189,6 +189,8 @@ pub struct Session {
     /// large), meshes' bytes left out.
     scene_echo: v1::SceneSpec,
     pub particle_count: usize,
+    /// Each modal solid's modes, fixed by the scene.
+    modal_modes: Vec<v1::ModalModes>,
     /// Creation order, for listings.
     pub serial: u64,
     /// Who may see and drive it.
@@ -229,6 +231,14 @@ impl Session {
         let scene = world.scene().clone();
         let scene_echo = scene_echo_to_proto(&scene);
         let particle_count = world.particle_count();
+        let modal_modes = world
+            .modal_solids()
+            .map(|(system, solid)| v1::ModalModes {
+                system: u32::try_from(system).unwrap_or(u32::MAX),
+                frequencies: solid.frequencies(),
+                rigid: u32::try_from(solid.zero_modes()).unwrap_or(u32::MAX),
+            })
+            .collect();
         let context = design::context(world);
         let design = SharedDesign::default();
         let initial = v1::SessionStatus {
@@ -293,6 +303,7 @@ impl Session {
             scene,
             scene_echo,
             particle_count,
+            modal_modes,
             serial,
             access,
             mailbox: Mailbox {
@@ -502,6 +513,7 @@ impl Session {
             owner: self.access.owner().to_owned(),
             observers: self.access.observers().to_vec(),
             seal_key: self.seal_key.clone(),
+            modal_modes: self.modal_modes.clone(),
         }
     }
 
