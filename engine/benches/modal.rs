@@ -7,7 +7,7 @@
 //! into 12,288 triangles (6,146 vertices). Then the same beam with a
 //! 98,306-vertex surface.
 //!
-//! **Ball**: a free ball of radius 10 cm (same material), about 1,150
+//! **Ball**: a free ball of radius 10 cm (same material), 823
 //! nodes, 96 modes (six of them rigid), a 98,306-vertex surface.
 //!
 //! For each: the precompute stages (octree, quadrature, shape functions,
@@ -79,7 +79,7 @@ fn ball() -> Model {
         sdf: MeshSdf::new(&TriMesh::icosphere(Vector::zeros(), radius, 4)).expect("closed"),
         fixed: FixedSurface::default(),
         surface,
-        cell: smoke::pick(radius / 5.75, radius / 2.0),
+        cell: smoke::pick(radius / 5.0, radius / 2.0),
         modes: smoke::pick(96, 12),
     }
 }

@@ -366,3 +366,42 @@ fn modal_warping_keeps_a_bent_cantilevers_length_where_linear_modes_stretch_it()
     assert!((linear.1.x - l).abs() < 1e-6 * l, "{:?}", linear.1);
     assert!(warped.1.x < l - 0.02 * l, "{:?}", warped.1);
 }
+
+/// Points a rounding outside the implicit surface (the true sphere
+/// around its icosphere, on octants of a fifth of the radius) still
+/// find the supports that reach them, and their shape functions sum to
+/// one: a skin on the true sphere embeds. (On octants of r / 5.75 the
+/// pole (r, 0, 0) falls in an exterior octant and is refused as
+/// uncovered: a skin must lie within the boundary octants.)
+#[test]
+fn points_just_outside_the_implicit_surface_are_covered() {
+    let r = 0.1;
+    let sdf = MeshSdf::new(&TriMesh::icosphere(Vector::zeros(), r, 4)).expect("closed");
+    let solid = EfgSolid::build(
+        &sdf,
+        &FixedSurface::default(),
+        steel_like(),
+        EfgParams::new(r / 5.0),
+        &Cancel::new(),
+    )
+    .expect("a ball");
+    let mut points = vec![Vector::new(r, 0.0, 0.0), Vector::new(0.0, -r, 0.0)];
+    let golden = std::f64::consts::PI * (3.0 - 5.0_f64.sqrt());
+    for k in 0..200 {
+        let y = 1.0 - 2.0 * (k as Real + 0.5) / 200.0;
+        let s = (1.0 - y * y).sqrt();
+        let a = golden * k as Real;
+        points.push(Vector::new(s * a.cos(), y, s * a.sin()) * r);
+    }
+    let outside = points
+        .iter()
+        .filter(|p| sdf.signed_distance(p) > 0.0)
+        .count();
+    assert!(outside > 100, "most lie outside the icosphere: {outside}");
+    let table = solid.shape_table(&points).expect("every point covered");
+    // Partition of unity at each point.
+    for i in 0..table.len() {
+        let sum: Real = table.row(i).values.iter().sum();
+        assert!((sum - 1.0).abs() < 1e-10, "point {i}: {sum}");
+    }
+}
