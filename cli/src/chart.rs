@@ -49,12 +49,7 @@ fn font() -> bool {
 ///
 /// # Errors
 /// When the PNG cannot be written.
-pub fn error_against_cost(
-    path: &Path,
-    title: &str,
-    y_desc: &str,
-    points: &[Point],
-) -> Result<bool> {
+fn error_against_cost(path: &Path, title: &str, y_desc: &str, points: &[Point]) -> Result<bool> {
     if !font() {
         return Ok(false);
     }
@@ -94,4 +89,30 @@ pub fn error_against_cost(
         .map_err(|e| anyhow::anyhow!("{e}"))
         .with_context(|| format!("cannot draw {}", path.display()))?;
     Ok(true)
+}
+
+/// Writes a study's CSV table to `path` and says where.
+///
+/// # Errors
+/// When the file cannot be written.
+pub fn write_table(path: &Path, csv: &str) -> Result<()> {
+    std::fs::write(path, csv).with_context(|| format!("cannot write {}", path.display()))?;
+    outln!("  table             {}", path.display())?;
+    Ok(())
+}
+
+/// `error_against_cost`, then says where the chart went, or why none
+/// was drawn.
+///
+/// # Errors
+/// When the PNG or the line cannot be written.
+pub fn draw_and_report(path: &Path, title: &str, y_desc: &str, points: &[Point]) -> Result<()> {
+    if error_against_cost(path, title, y_desc, points)? {
+        outln!("  chart             {}", path.display())?;
+    } else {
+        outln!(
+            "  chart             not drawn: no TrueType font found (set MESHLESS_FONT to a .ttf file)"
+        )?;
+    }
+    Ok(())
 }

@@ -358,9 +358,7 @@ pub fn study(args: StudyArgs) -> Result<()> {
             }
         )?;
     }
-    std::fs::write(&csv_path, csv)
-        .with_context(|| format!("cannot write {}", csv_path.display()))?;
-    outln!("  table             {}", csv_path.display())?;
+    chart::write_table(&csv_path, &csv)?;
 
     let points: Vec<chart::Point> = rows
         .iter()
@@ -373,16 +371,11 @@ pub fn study(args: StudyArgs) -> Result<()> {
         })
         .collect();
     let png_path = args.output.join(format!("study_{name}.png"));
-    match chart::error_against_cost(
+    chart::draw_and_report(
         &png_path,
         &format!("dam break: front error against cost, sweeping {name}"),
         "rms front error, 1 <= T <= 3 [%]",
         &points,
-    )? {
-        true => outln!("  chart             {}", png_path.display()),
-        false => outln!(
-            "  chart             not drawn: no TrueType font found (set MESHLESS_FONT to a .ttf file)"
-        ),
-    }?;
+    )?;
     Ok(())
 }

@@ -320,11 +320,6 @@ fn chart_of(name: &str, experiment: Experiment, rows: &[Row], path: &Path) -> Re
             "deepest penetration [% of a spacing]",
         ),
     };
-    match chart::error_against_cost(path, &title, y, &points)? {
-        true => outln!("  chart             {}", path.display()),
-        false => outln!(
-            "  chart             not drawn: no TrueType font found (set MESHLESS_FONT to a .ttf file)"
-        ),
-    }?;
+    chart::draw_and_report(path, &title, y, &points)?;
     Ok(())
 }

@@ -166,9 +166,7 @@ pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> 
         }
     }
     let csv_path = output.join(format!("study_{name}.csv"));
-    std::fs::write(&csv_path, csv)
-        .with_context(|| format!("cannot write {}", csv_path.display()))?;
-    outln!("  table             {}", csv_path.display())?;
+    chart::write_table(&csv_path, &csv)?;
 
     let points: Vec<chart::Point> = rows
         .iter()
@@ -181,16 +179,11 @@ pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> 
         })
         .collect();
     let png_path = output.join(format!("study_{name}.png"));
-    match chart::error_against_cost(
+    chart::draw_and_report(
         &png_path,
         &format!("modal cantilever: {what} error against cost, sweeping {name}"),
         &format!("|{what} error| [%]"),
         &points,
-    )? {
-        true => outln!("  chart             {}", png_path.display()),
-        false => outln!(
-            "  chart             not drawn: no TrueType font found (set MESHLESS_FONT to a .ttf file)"
-        ),
-    }?;
+    )?;
     Ok(())
 }

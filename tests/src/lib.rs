@@ -2,7 +2,7 @@
 //! free loopback ports, and timeouts around every wait.
 
 use anyhow::{Context, Result, bail};
-use meshless_client::Client;
+use meshless_client::{Client, ClientError};
 use std::future::Future;
 use std::path::PathBuf;
 use std::process::{ExitStatus, Stdio};
@@ -47,6 +47,17 @@ pub fn small_scene() -> String {
 /// design tests (`tests/fixtures/small_column.toml`).
 pub fn small_solid_scene() -> String {
     fixture("small_column")
+}
+
+/// The gRPC status of a refused call.
+///
+/// # Panics
+/// When the call failed some other way (a transport or decoding error).
+pub fn rpc_status(error: ClientError) -> tonic::Status {
+    match error {
+        ClientError::Rpc(status) => status,
+        other => panic!("expected a gRPC status, got {other}"),
+    }
 }
 
 /// A small modal EFG cantilever (12 modes), clamped at x = 0, frames every

@@ -5,7 +5,7 @@
 //! refused one changes nothing.
 
 use meshless_client::{Client, ClientError, Design, DesignKind, OptimizeEvent, ZenohLink, v1};
-use meshless_tests::{ServerProcess, small_solid_scene, within};
+use meshless_tests::{ServerProcess, rpc_status, small_solid_scene, within};
 use tokio_stream::{Stream, StreamExt};
 use tonic::Code;
 
@@ -183,13 +183,6 @@ async fn optimise_error(client: &Client, request: v1::OptimizeRequest) -> tonic:
         }
     }
     panic!("the stream ended without an error");
-}
-
-fn rpc_status(error: ClientError) -> tonic::Status {
-    match error {
-        ClientError::Rpc(status) => status,
-        other => panic!("expected a gRPC status, got {other}"),
-    }
 }
 
 /// Constraint edits: add, replace and remove round-trip through the list;

@@ -5,8 +5,8 @@
 //! refuses its whole batch and leaves everything as it was, and a reset
 //! keeps the grabs.
 
-use meshless_client::{Client, ClientError, FrameView, ZenohLink, v1};
-use meshless_tests::{ServerProcess, small_modal_scene, within};
+use meshless_client::{Client, FrameView, ZenohLink, v1};
+use meshless_tests::{ServerProcess, rpc_status, small_modal_scene, within};
 use tonic::Code;
 
 fn vec3([x, y, z]: [f64; 3]) -> v1::Vec3 {
@@ -42,13 +42,6 @@ fn nearest(frame: &FrameView, rest: [f64; 3]) -> usize {
 
 fn position(frame: &FrameView, vertex: usize) -> [f64; 3] {
     frame.solid_surfaces[0].mesh.vertices[vertex].map(f64::from)
-}
-
-fn rpc_status(error: ClientError) -> tonic::Status {
-    match error {
-        ClientError::Rpc(status) => status,
-        other => panic!("expected a gRPC status, got {other}"),
-    }
 }
 
 async fn step(client: &Client, id: &str, steps: u64) {

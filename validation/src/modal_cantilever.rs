@@ -185,46 +185,13 @@ impl ModalCantilever {
     }
 }
 
-/// The modal amplitude that reads a mode shape through the (warped)
-/// displacements: warping turns `Psi z` by about `|W z|`, which is then
-/// 1e-9 of a unit amplitude's.
-const PROBE_AMPLITUDE: Real = 1e-9;
-
 /// The modal static solution's y displacement at `tip`.
 fn static_tip(solid: &ModalSolid, tip: &Vector, g: &Vector) -> Result<Real, String> {
-    let mut probe = solid.clone();
-    let l = solid.eigenvalues().len();
-    let mut z = vec![0.0; l];
-    for (j, z) in z.iter_mut().enumerate() {
-        let lambda = solid.eigenvalues()[j];
-        if lambda <= 0.0 {
-            continue;
-        }
-        let mut state = meshless_engine::efg::ModalState {
-            amplitudes: vec![0.0; l],
-            velocities: vec![0.0; l],
-        };
-        // A tiny amplitude, so that warping leaves the mode shape `Psi_j`.
-        state.amplitudes[j] = PROBE_AMPLITUDE;
-        probe.set_state(&state).map_err(|e| e.to_string())?;
-        // Psi_j^T f with f the nodal weights: the work of gravity on mode j.
-        let work: Real = probe
-            .displacements()
-            .iter()
-            .zip(solid.masses())
-            .map(|(u, m)| m * u.dot(g))
-            .sum::<Real>()
-            / PROBE_AMPLITUDE;
-        *z = work / lambda;
-    }
-    let mut linear = solid.clone();
-    linear
-        .set_state(&meshless_engine::efg::ModalState {
-            amplitudes: z,
-            velocities: vec![0.0; l],
-        })
+    let mut at_rest = solid.clone();
+    at_rest
+        .set_state(&solid.static_state(g))
         .map_err(|e| e.to_string())?;
-    Ok(tip_displacement(&linear, tip, linear.displacements())?.y)
+    Ok(tip_displacement(&at_rest, tip, at_rest.displacements())?.y)
 }
 
 /// The displacement field at `tip`.

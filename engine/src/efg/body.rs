@@ -11,6 +11,7 @@
 use super::{CoverError, EfgError, EfgParams, EfgSolid, FixedSurface, Material, ShapeTable};
 use crate::Cancel;
 use crate::geometry::ImplicitSurface;
+use crate::geometry::vertex_normals;
 use crate::math::{Real, Vector};
 use crate::modal::{
     Damping, MAX_CONSTRAINTS, ModalError, ModalSystem, Stabilization, rotation_integral,
@@ -357,6 +358,26 @@ impl ModalSolid {
         Ok(())
     }
 
+    /// The modal static solution under gravity `g`, at rest: `z_j =
+    /// Psi_j^T f / lambda_j` with `f` the nodal weights, for the kept
+    /// elastic modes; a rigid mode, which has no static response, at 0.
+    /// Truncated to the kept modes, so it measures what reduction costs.
+    pub fn static_state(&self, g: &Vector) -> ModalState {
+        let basis = self.system.basis();
+        let mut work = DVector::zeros(self.pre.eigenvalues.len());
+        for (node, m) in self.pre.efg.node_masses().iter().enumerate() {
+            work += basis.displacement_block(node) * (g * *m);
+        }
+        ModalState {
+            amplitudes: work
+                .iter()
+                .zip(&self.pre.eigenvalues)
+                .map(|(w, lambda)| if *lambda > 0.0 { w / lambda } else { 0.0 })
+                .collect(),
+            velocities: vec![0.0; work.len()],
+        }
+    }
+
     /// The reduced state.
     pub fn state(&self) -> ModalState {
         ModalState {
@@ -445,18 +466,17 @@ impl ModalSolid {
                 }
                 m
             };
+            let rotation_rows = rows_of(true);
             if let Some(p) = g.position {
-                warped_targets.push((r, rows_of(true), p - g.point));
+                let wanted = p - g.point;
+                a.rows_mut(r, 3).copy_from(&rows_of(false));
+                b.rows_mut(r, 3).copy_from(&wanted);
+                warped_targets.push((r, rotation_rows.clone(), wanted));
+                r += 3;
             }
-            let targets = [
-                g.position.map(|p| (p - g.point, false)),
-                g.rotation.map(|w| (w, true)),
-            ];
-            for (target, rotation) in targets.into_iter().flatten() {
-                a.rows_mut(r, 3).copy_from(&rows_of(rotation));
-                for c in 0..3 {
-                    b[r + c] = target[c];
-                }
+            if let Some(w) = g.rotation {
+                a.rows_mut(r, 3).copy_from(&rotation_rows);
+                b.rows_mut(r, 3).copy_from(&w);
                 r += 3;
             }
         }
@@ -515,20 +535,4 @@ pub struct DeformedSkin<'a> {
     pub triangles: &'a [[u32; 3]],
     /// Unit normal per vertex.
     pub normals: Vec<Vector>,
-}
-
-/// Area-weighted unit vertex normals of triangles over `positions`.
-fn vertex_normals(triangles: &[[u32; 3]], positions: &[Vector]) -> Vec<Vector> {
-    let mut out = vec![Vector::zeros(); positions.len()];
-    for tri in triangles {
-        let [a, b, c] = tri.map(|i| positions[i as usize]);
-        let n = (b - a).cross(&(c - a));
-        for &i in tri {
-            out[i as usize] += n;
-        }
-    }
-    for n in &mut out {
-        *n = n.try_normalize(0.0).unwrap_or_default();
-    }
-    out
 }

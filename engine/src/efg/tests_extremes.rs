@@ -11,7 +11,7 @@ use crate::geometry::{
 use crate::linalg::eigen::Modes;
 use crate::math::{Real, Vector};
 use crate::modal::{Damping, ModalSystem};
-use crate::testing::uniform;
+use crate::testing::perturb_normals;
 use nalgebra::DVector;
 
 /// A clamped `l x h x h` cantilever (clamped on `x = 0`).
@@ -359,31 +359,6 @@ fn a_plate_thinner_than_a_cell_is_refused_with_a_clear_error_and_a_thicker_one_b
     }
 }
 
-/// A random unit vector.
-fn random_unit(seed: &mut u64) -> Vector {
-    loop {
-        let v =
-            Vector::new(uniform(seed), uniform(seed), uniform(seed)) * 2.0 - Vector::repeat(1.0);
-        let n2 = v.norm_squared();
-        if n2 > 1e-4 && n2 <= 1.0 {
-            return v / n2.sqrt();
-        }
-    }
-}
-
-/// Each normal turned by a random angle of up to `degrees` about a random
-/// axis perpendicular to it.
-fn perturb(normals: &[Vector], degrees: Real, seed: &mut u64) -> Vec<Vector> {
-    normals
-        .iter()
-        .map(|n| {
-            let axis = n.cross(&random_unit(seed)).normalize();
-            let angle = uniform(seed) * degrees.to_radians();
-            n * angle.cos() + axis * angle.sin()
-        })
-        .collect()
-}
-
 /// Oriented points on the faces of the box `[0, size]`, `spacing` apart
 /// on a grid shifted half a spacing in from the edges.
 fn box_points(size: Vector, spacing: Real) -> (Vec<Vector>, Vec<Vector>) {
@@ -443,9 +418,9 @@ fn noisy_point_clouds_make_solids_with_the_right_volume_and_six_rigid_modes() {
             Vector::new(r * phi.cos(), r * phi.sin(), z)
         })
         .collect();
-    let sphere_normals = perturb(&sphere, 15.0, &mut seed);
+    let sphere_normals = perturb_normals(&sphere, 15.0, &mut seed);
     let (box_p, box_n) = box_points(Vector::new(2.0, 1.0, 1.0), 0.05);
-    let box_n = perturb(&box_n, 15.0, &mut seed);
+    let box_n = perturb_normals(&box_n, 15.0, &mut seed);
     let cases = [
         (
             "sphere",

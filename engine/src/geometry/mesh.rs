@@ -14,7 +14,37 @@ pub struct TriMesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
+/// Area-weighted unit vertex normals of `triangles` over `positions`:
+/// each triangle adds its cross product (twice its area times its unit
+/// normal) to its corners; zero for a vertex in no triangle of positive
+/// area. Takes the positions apart from the triangles so that a deformed
+/// surface needs no mesh of its own.
+pub fn vertex_normals(triangles: &[[u32; 3]], positions: &[Vector]) -> Vec<Vector> {
+    let mut normals = vec![Vector::zeros(); positions.len()];
+    for tri in triangles {
+        let [a, b, c] = tri.map(|i| positions[i as usize]);
+        let n = (b - a).cross(&(c - a));
+        for &i in tri {
+            normals[i as usize] += n;
+        }
+    }
+    for n in &mut normals {
+        let norm_squared = n.norm_squared();
+        *n = if norm_squared > 0.0 && norm_squared.is_finite() {
+            *n * (1.0 / norm_squared.sqrt())
+        } else {
+            Vector::zeros()
+        };
+    }
+    normals
+}
+
 impl TriMesh {
+    /// Area-weighted unit vertex normals ([`vertex_normals`]).
+    pub fn vertex_normals(&self) -> Vec<Vector> {
+        vertex_normals(&self.triangles, &self.vertices)
+    }
+
     /// The three corners of triangle `t`.
     pub fn corners(&self, t: usize) -> [Vector; 3] {
         self.triangles[t].map(|i| self.vertices[i as usize])

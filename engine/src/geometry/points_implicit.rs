@@ -615,47 +615,11 @@ fn kth_neighbour_distances(points: &[Vector], k: usize, start: Real) -> Vec<Real
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testing::uniform;
+    use crate::testing::{fibonacci_sphere, perturb_normals, random_unit, uniform};
     use std::f64::consts::PI;
 
     /// `n` points spread evenly over the unit sphere (a Fibonacci
     /// lattice); each is its own outward normal.
-    fn fibonacci_sphere(n: usize) -> Vec<Vector> {
-        let golden = PI * (3.0 - 5.0_f64.sqrt());
-        (0..n)
-            .map(|i| {
-                let z = 1.0 - (2 * i + 1) as Real / n as Real;
-                let r = (1.0 - z * z).sqrt();
-                let phi = golden * i as Real;
-                Vector::new(r * phi.cos(), r * phi.sin(), z)
-            })
-            .collect()
-    }
-
-    fn random_unit(seed: &mut u64) -> Vector {
-        loop {
-            let v = Vector::new(uniform(seed), uniform(seed), uniform(seed)) * 2.0
-                - Vector::repeat(1.0);
-            let n2 = v.norm_squared();
-            if n2 > 1e-4 && n2 <= 1.0 {
-                return v / n2.sqrt();
-            }
-        }
-    }
-
-    /// Each normal turned by a random angle of up to `max_degrees` about a
-    /// random axis perpendicular to it.
-    fn perturb(normals: &[Vector], max_degrees: Real, seed: &mut u64) -> Vec<Vector> {
-        normals
-            .iter()
-            .map(|n| {
-                let axis = n.cross(&random_unit(seed)).normalize();
-                let angle = uniform(seed) * max_degrees.to_radians();
-                n * angle.cos() + axis * angle.sin()
-            })
-            .collect()
-    }
-
     fn sphere(n: usize) -> PointSurface {
         let points = fibonacci_sphere(n);
         PointSurface::new(&points, &points, PointSurfaceParams::default()).expect("a sphere")
@@ -802,7 +766,7 @@ mod tests {
             }
         }
         if let Some((degrees, mut seed)) = perturbation {
-            normals = perturb(&normals, degrees, &mut seed);
+            normals = perturb_normals(&normals, degrees, &mut seed);
         }
         let surface =
             PointSurface::new(&points, &normals, PointSurfaceParams::default()).expect("a torus");
@@ -904,7 +868,7 @@ mod tests {
     fn noisy_normals_keep_the_sign_a_spacing_away() {
         let mut seed = 21;
         let points = fibonacci_sphere(3000);
-        let normals = perturb(&points, 20.0, &mut seed);
+        let normals = perturb_normals(&points, 20.0, &mut seed);
         let surface = PointSurface::new(&points, &normals, PointSurfaceParams::default())
             .expect("a noisy sphere");
         let spacing = surface.spacing();

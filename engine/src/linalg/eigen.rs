@@ -51,15 +51,14 @@ use faer::{Col, ColRef, Mat, MatMut, MatRef, Par, Side};
 /// not handle (it wants a basis smaller than the dimension).
 const MIN_KRYLOV: usize = 64;
 
-/// Krylov vectors per wanted mode. With twice the modes, Guo–Qin's
-/// 27 x 5 x 5 beam (1,008 nodes, 64 modes) clamped through a finely
-/// sampled face returned duplicated Ritz vectors for 60 modes and, for
-/// 64 and 70, never returned: a square section bends alike in y and z,
-/// so eigenvalues come in exact pairs, and with so little room past the
-/// wanted ones faer's single-vector Krylov–Schur lost one of a pair and
-/// its reorthogonalisation then spun on a vector the basis already held.
-/// Three times the modes found 32 to 70 modes to 1e-8 to 1e-12 in about
-/// a second each (four times: as robust, 40 % slower).
+/// Krylov vectors per wanted mode. With two, Guo–Qin's 27 x 5 x 5 beam
+/// clamped through a finely sampled face returned duplicated Ritz
+/// vectors for 60 modes and never returned for 64: a square section
+/// bends alike in y and z, so its modes come in near pairs, and with so
+/// little room past the wanted ones faer's single-vector Krylov–Schur
+/// lost one of a pair and its reorthogonalisation then spun on a vector
+/// the basis already held. With three both counts return
+/// (`efg::tests::the_table_1_beam_gives_its_paired_modes`).
 const KRYLOV_PER_MODE: usize = 3;
 
 /// Power steps that estimate `||A||` for the tolerance: faer's tolerance

@@ -514,18 +514,12 @@ impl Scene {
         }
         check_positive(&field("eigen_tolerance"), spec.eigen_tolerance)?;
         check_range(&field("eigen_tolerance"), spec.eigen_tolerance, 0.0, 1e-2)?;
-        for name in [
-            "mass_damping",
-            "stiffness_damping",
-            "grab_eta",
-            "grab_gamma",
+        for (name, value) in [
+            ("mass_damping", spec.mass_damping),
+            ("stiffness_damping", spec.stiffness_damping),
+            ("grab_eta", spec.grab_eta),
+            ("grab_gamma", spec.grab_gamma),
         ] {
-            let value = match name {
-                "mass_damping" => spec.mass_damping,
-                "stiffness_damping" => spec.stiffness_damping,
-                "grab_eta" => spec.grab_eta,
-                _ => spec.grab_gamma,
-            };
             check_range(&field(name), value, 0.0, 1e6)?;
         }
         if spec.surface_subdivisions > 7 {

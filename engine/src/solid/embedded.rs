@@ -350,7 +350,7 @@ impl EmbeddedSurface {
             offsets.push(neighbours.len() as u32);
         }
 
-        let normals = vertex_normals(mesh);
+        let normals = mesh.vertex_normals();
         let centre = if rest.is_empty() {
             Vector::zeros()
         } else {
@@ -751,21 +751,6 @@ fn shape_pairs(
         reduced += lowered;
     }
     Ok((pairs, reduced))
-}
-
-/// Area-weighted vertex normals (each triangle adds its cross product, twice
-/// its area times its unit normal, to its corners), normalised; zero for a
-/// vertex in no triangle of positive area.
-fn vertex_normals(mesh: &TriMesh) -> Vec<Vector> {
-    let mut normals = vec![Vector::zeros(); mesh.vertices.len()];
-    for (t, tri) in mesh.triangles.iter().enumerate() {
-        let [a, b, c] = mesh.corners(t);
-        let n = (b - a).cross(&(c - a));
-        for &i in tri {
-            normals[i as usize] += n;
-        }
-    }
-    normals.iter().map(unit).collect()
 }
 
 /// Unit tangents `t1, t2` with `t1 x t2 = n` for a unit `n`, without a

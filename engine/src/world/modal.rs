@@ -62,9 +62,9 @@ impl ModalEntry {
         let mode = playback.mode as usize;
         let omega = self
             .solid
-            .frequencies()
+            .eigenvalues()
             .get(mode)
-            .copied()
+            .map(|lambda| lambda.sqrt())
             .filter(|w| *w > 0.0 && mode >= self.solid.zero_modes())
             .unwrap_or(TAU);
         self.solid

@@ -465,20 +465,11 @@ mod modal {
              property float y\nproperty float z\nproperty float nx\nproperty float ny\n\
              property float nz\nend_header\n"
         );
-        // A Fibonacci sphere: even spacing, no duplicates.
-        let golden = std::f64::consts::PI * (3.0 - 5.0_f64.sqrt());
-        for k in 0..count {
-            let y = 1.0 - 2.0 * (k as Real + 0.5) / count as Real;
-            let r = (1.0 - y * y).sqrt();
-            let (x, z) = (
-                r * (golden * k as Real).cos(),
-                r * (golden * k as Real).sin(),
-            );
+        for n in crate::testing::fibonacci_sphere(count) {
+            let p = n * 0.05;
             ply.push_str(&format!(
-                "{} {} {} {x} {y} {z}\n",
-                0.05 * x,
-                0.05 * y,
-                0.05 * z
+                "{} {} {} {} {} {}\n",
+                p.x, p.y, p.z, n.x, n.y, n.z
             ));
         }
         let mut scene = scene("");
