@@ -7,24 +7,29 @@
 //! into 12,288 triangles (6,146 vertices). Then the same beam with a
 //! 98,306-vertex surface.
 //!
-//! **Ball**: a free ball of radius 10 cm (same material), 823
-//! nodes, 96 modes (six of them rigid), a 98,306-vertex surface.
+//! **Ball**: a free ball of radius 10 cm (same material) cut at a
+//! sixth of its radius, 1,285 nodes, 96 modes (six of them rigid), a
+//! 98,306-vertex surface.
 //!
-//! For each: the precompute stages (octree, quadrature, shape functions,
-//! assembly, modes, rotation modes, surface embedding), then the median
-//! time per frame over 200 frames of h = 1/60 s under gravity — the modal
-//! step (loads rotated into the warped frames), the nodal displacements
-//! and the deformed surface with its normals — with modal warping on and
-//! off. Prints tables; asserts nothing.
+//! Each is built as a world builds a modal solid ([`ModalSolid::build`])
+//! and timed as a world steps it. For each: the precompute stages
+//! (octree, quadrature, shape functions, assembly, modes, rotation
+//! modes, skin embedding), then the median time per frame over 200
+//! frames of h = 1/60 s under gravity: the step (loads rotated into the
+//! warped frames, the implicit modal step, each node's rotation and
+//! displacement) and the skin (its displaced vertices and their
+//! normals), with modal warping on and off. Prints tables; asserts
+//! nothing.
 //!
 //!     cargo bench -p meshless-engine --bench modal
 
 use meshless_engine::Cancel;
-use meshless_engine::efg::{EfgParams, EfgSolid, FixedSurface, Material, ShapeTable};
-use meshless_engine::geometry::{MeshSdf, TriMesh, vertex_normals};
+use meshless_engine::efg::{
+    EfgParams, FixedSurface, Material, ModalParams, ModalSolid, SkinBuffers, SkinInput,
+};
+use meshless_engine::geometry::{MeshSdf, TriMesh};
 use meshless_engine::math::{Real, Vector};
-use meshless_engine::modal::{Damping, ModalBasis, ModalSystem};
-use nalgebra::{DMatrix, DVector};
+use meshless_engine::modal::{Damping, Stabilization};
 use std::time::{Duration, Instant};
 
 #[path = "common/smoke.rs"]
@@ -68,7 +73,9 @@ fn beam(surface_subdivisions: u32) -> Model {
 
 fn ball() -> Model {
     let radius = 0.1;
-    // A cube's faces split 7 times (98,306 vertices) pushed onto the sphere.
+    // A cube's faces split 7 times (98,306 vertices) pushed onto the
+    // sphere; the solid is the inside of that same mesh, so every skin
+    // vertex lies on the discretised surface.
     let mut surface =
         TriMesh::cuboid(Vector::repeat(-1.0), Vector::repeat(1.0)).subdivided(smoke::pick(7, 3));
     for v in &mut surface.vertices {
@@ -76,10 +83,10 @@ fn ball() -> Model {
     }
     Model {
         name: "ball",
-        sdf: MeshSdf::new(&TriMesh::icosphere(Vector::zeros(), radius, 4)).expect("closed"),
+        sdf: MeshSdf::new(&surface).expect("closed"),
         fixed: FixedSurface::default(),
         surface,
-        cell: smoke::pick(radius / 5.0, radius / 2.0),
+        cell: smoke::pick(radius / 6.0, radius / 2.0),
         modes: smoke::pick(96, 12),
     }
 }
@@ -89,80 +96,63 @@ fn ms(d: Duration) -> String {
 }
 
 fn run(model: &Model) {
-    let cancel = Cancel::new();
-    let mut params = EfgParams::new(model.cell);
-    params.penalty = 1e4;
+    let mut efg = EfgParams::new(model.cell);
+    efg.penalty = 1e4;
+    let params = ModalParams {
+        efg,
+        modes: model.modes,
+        tolerance: 1e-10,
+        warping: true,
+        damping: Damping::new(0.5, 1e-3).expect("damping"),
+        stabilization: Stabilization::new(20.0, 20.0).expect("stabilisation"),
+    };
+    let skin = SkinInput {
+        vertices: model.surface.vertices.clone(),
+        triangles: model.surface.triangles.clone(),
+        normals: model.surface.vertex_normals(),
+    };
     let start = Instant::now();
-    let solid = EfgSolid::build(&model.sdf, &model.fixed, MATERIAL, params, &cancel)
-        .expect("discretisation");
-    let mut stages: Vec<(&str, Duration)> = solid.timings().to_vec();
-    let clock = Instant::now();
-    let modes = solid.modes(model.modes, 1e-10, &cancel).expect("modes");
-    stages.push(("modes", clock.elapsed()));
-    let clock = Instant::now();
-    let w = solid.rotation_modes(&modes).expect("rotation modes");
-    stages.push(("rotation modes", clock.elapsed()));
-    let clock = Instant::now();
-    let rest = &model.surface.vertices;
-    let table = ShapeTable::build(solid.octree(), params.basis, rest).expect("surface covered");
-    stages.push(("surface embedding", clock.elapsed()));
+    let mut solid = ModalSolid::build(
+        &model.sdf,
+        &model.fixed,
+        MATERIAL,
+        &params,
+        Some(skin),
+        &Cancel::new(),
+    )
+    .expect("a modal solid");
     let total = start.elapsed();
-    let nodes = solid.nodes().len();
     println!(
-        "\n{}: {nodes} nodes, {} quadrature points, {} modes ({} rigid), {} surface points \
-         ({:.1} nodes per point)",
+        "\n{}: {} nodes, {} quadrature points, {} modes ({} rigid), {} surface points",
         model.name,
-        solid.quadrature_points(),
-        modes.eigenvalues.len(),
-        modes.zero_modes,
-        rest.len(),
-        table.entries() as Real / rest.len() as Real
+        solid.len(),
+        solid.efg().quadrature_points(),
+        solid.eigenvalues().len(),
+        solid.zero_modes(),
+        model.surface.vertices.len(),
     );
     println!("| precompute stage | ms |\n|---|---:|");
-    for (stage, t) in &stages {
+    for (stage, t) in solid.timings() {
         println!("| {stage} | {} |", ms(*t));
     }
     println!("| **total** | **{}** |", ms(total));
 
-    let n = 3 * nodes;
-    let psi = DMatrix::from_column_slice(n, modes.eigenvalues.len(), &modes.vectors);
-    let basis =
-        ModalBasis::new(&DVector::from_column_slice(&modes.eigenvalues), &psi, &w).expect("basis");
-    let masses = solid.node_masses();
-    let gravity: Vec<Vector> = masses
-        .iter()
-        .map(|m| Vector::new(0.0, 0.0, -9.81) * *m)
-        .collect();
+    let gravity = Vector::new(0.0, 0.0, -9.81);
     let frames = smoke::pick(200, 3);
     println!(
-        "| warping | modal step | nodes | surface | normals | **frame** (ms, median of {frames}) |\n\
-         |---|---:|---:|---:|---:|---:|"
+        "| warping | step | skin | **frame** (ms, median of {frames}) |\n|---|---:|---:|---:|"
     );
+    let mut skin = SkinBuffers::default();
     for warping in [true, false] {
-        let mut system = ModalSystem::new(
-            basis.clone(),
-            Damping::new(0.5, 1e-3).expect("damping"),
-            warping,
-        );
-        let mut u = vec![Vector::zeros(); nodes];
-        let mut at_surface = Vec::new();
-        let mut positions = vec![Vector::zeros(); rest.len()];
-        let mut times: Vec<[Duration; 4]> = Vec::with_capacity(frames);
+        solid.set_warping(warping);
+        let mut times: Vec<[Duration; 2]> = Vec::with_capacity(frames);
         for _ in 0..frames {
             let t0 = Instant::now();
-            system.step(1.0 / 60.0, &gravity).expect("step");
+            solid.step(1.0 / 60.0, &gravity).expect("step");
             let t1 = Instant::now();
-            system.displacements_into(&mut u).expect("displacements");
-            let t2 = Instant::now();
-            table.interpolate(&u, &mut at_surface);
-            for ((p, x), d) in positions.iter_mut().zip(rest).zip(&at_surface) {
-                *p = x + d;
-            }
-            let t3 = Instant::now();
-            let surface_normals = vertex_normals(&model.surface.triangles, &positions);
-            std::hint::black_box(&surface_normals);
-            let t4 = Instant::now();
-            times.push([t1 - t0, t2 - t1, t3 - t2, t4 - t3]);
+            solid.skin_into(&mut skin);
+            std::hint::black_box(&skin);
+            times.push([t1 - t0, t1.elapsed()]);
         }
         let median = |k: Option<usize>| {
             let mut v: Vec<Duration> = times
@@ -173,12 +163,10 @@ fn run(model: &Model) {
             v[v.len() / 2]
         };
         println!(
-            "| {} | {} | {} | {} | {} | **{}** |",
+            "| {} | {} | {} | **{}** |",
             if warping { "on" } else { "off" },
             ms(median(Some(0))),
             ms(median(Some(1))),
-            ms(median(Some(2))),
-            ms(median(Some(3))),
             ms(median(None))
         );
     }

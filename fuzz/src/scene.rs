@@ -18,6 +18,7 @@ fn options() -> BuildOptions {
         max_particles: 20_000,
         mesh_files: MeshFiles::None,
         max_mesh_bytes: 64 << 10,
+        ..BuildOptions::default()
     }
 }
 

@@ -2,8 +2,8 @@
 //! then command-line flags (clap resolves the layers), checked at start.
 
 use crate::auth::Tokens;
-use meshless_engine::BuildOptions;
 use meshless_engine::scene::MeshFiles;
+use meshless_engine::{BuildOptions, Cancel};
 use std::net::SocketAddr;
 
 /// How the server's zenoh session joins the network.
@@ -271,6 +271,7 @@ impl ServerConfig {
                 None => MeshFiles::None,
             },
             max_mesh_bytes: u64::from(self.max_mesh_mb) << 20,
+            cancel: Cancel::new(),
         }
     }
 

@@ -108,6 +108,7 @@ impl ServiceError {
                 SceneError::TooManyParticles { .. } | SceneError::TooFine { .. } => {
                     Code::ResourceExhausted
                 }
+                SceneError::Cancelled => Code::Cancelled,
             },
             Self::NotFound(_) | Self::NoDesign(_) => Code::NotFound,
             Self::Design(design) => match design {
@@ -221,5 +222,19 @@ mod tests {
         let status = Status::from(error);
         assert_eq!(status.code(), Code::InvalidArgument);
         assert!(status.message().len() < MAX_MESSAGE_CHARS + 64);
+    }
+
+    #[test]
+    fn scene_errors_map_to_what_the_caller_should_do() {
+        for (error, code) in [
+            (SceneError::Parse("bad".into()), Code::InvalidArgument),
+            (
+                SceneError::TooManyParticles { count: 2, limit: 1 },
+                Code::ResourceExhausted,
+            ),
+            (SceneError::Cancelled, Code::Cancelled),
+        ] {
+            assert_eq!(Status::from(ServiceError::Scene(error)).code(), code);
+        }
     }
 }

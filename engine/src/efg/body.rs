@@ -8,16 +8,18 @@
 //! `Arc`, so a world's copy for a failed step's restore or a snapshot
 //! costs the state only.
 
-use super::{CoverError, EfgError, EfgParams, EfgSolid, FixedSurface, Material, ShapeTable};
+use super::skin::{DeformedSkin, Skin, SkinBuffers, SkinInput};
+use super::solid::Laps;
+use super::{CoverError, EfgError, EfgParams, EfgSolid, FixedSurface, Material};
 use crate::Cancel;
 use crate::geometry::ImplicitSurface;
-use crate::geometry::vertex_normals;
 use crate::math::{Real, Vector};
 use crate::modal::{
     Damping, MAX_CONSTRAINTS, ModalError, ModalSystem, Stabilization, rotation_integral,
 };
 use nalgebra::{DMatrix, DVector};
 use std::sync::Arc;
+use std::time::Duration;
 
 /// The knobs of a modal solid: the discretisation's and the reduced
 /// model's.
@@ -35,25 +37,6 @@ pub struct ModalParams {
     pub damping: Damping,
     /// Baumgarte factors of the grabs (Eq. 33).
     pub stabilization: Stabilization,
-}
-
-/// The surface a modal solid carries into frames: a triangle mesh, or
-/// oriented points (surfels) with no triangles.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SkinInput {
-    /// Rest positions, world frame.
-    pub vertices: Vec<Vector>,
-    /// Triangles (empty for a point cloud).
-    pub triangles: Vec<[u32; 3]>,
-    /// Unit rest normals, one per vertex.
-    pub normals: Vec<Vector>,
-}
-
-/// A surface embedded in the nodes' shape functions.
-#[derive(Debug)]
-struct Skin {
-    input: SkinInput,
-    table: ShapeTable,
 }
 
 /// A material point held by the user: its position, its orientation or
@@ -116,6 +99,7 @@ struct Precomputed {
     zero_modes: usize,
     skin: Option<Skin>,
     stabilization: Stabilization,
+    timings: Vec<(&'static str, Duration)>,
 }
 
 /// A modal EFG solid: its discretisation, basis and state.
@@ -130,8 +114,6 @@ pub struct ModalSolid {
     warped_targets: Vec<(usize, DMatrix<Real>, Vector)>,
     /// The constraints' current targets `b_c`.
     targets: DVector<Real>,
-    /// Nodal displacements of the current state.
-    displacements: Vec<Vector>,
     /// One load per node, rebuilt each step.
     loads: Vec<Vector>,
 }
@@ -161,13 +143,18 @@ impl ModalSolid {
         cancel: &Cancel,
     ) -> Result<Self, EfgError> {
         let efg = EfgSolid::build(geometry, fixed, material, params.efg, cancel)?;
-        let (modes, basis) = efg.modal_basis(params.modes, params.tolerance, cancel)?;
+        let mut laps = Laps::after(efg.timings().to_vec());
+        let modes = efg.modes(params.modes, params.tolerance, cancel)?;
+        laps.lap("modes");
+        let basis = efg.basis_of(&modes)?;
+        laps.lap("rotation modes");
         let skin = skin
             .map(|input| {
                 let table = efg.shape_table(&input.vertices)?;
-                Ok::<_, EfgError>(Skin { input, table })
+                Ok::<_, EfgError>(Skin::new(input, &table))
             })
             .transpose()?;
+        laps.lap("skin embedding");
         let rest: Vec<Vector> = efg.nodes().iter().map(|n| n.position).collect();
         let n = rest.len();
         let system = ModalSystem::new(basis, params.damping, params.warping);
@@ -179,34 +166,40 @@ impl ModalSolid {
                 zero_modes: modes.zero_modes,
                 skin,
                 stabilization: params.stabilization,
+                timings: laps.timings,
             }),
             system,
             grabs: Vec::new(),
             warped_targets: Vec::new(),
             targets: DVector::zeros(0),
-            displacements: vec![Vector::zeros(); n],
             loads: vec![Vector::zeros(); n],
         })
     }
 
     /// The bytes it holds, counted from its arrays: stiffness and mass
     /// values, the two modal bases (`Psi`, `W`), the shape-function
-    /// tables of the quadrature points and the skin (a value, a gradient
-    /// and an index per entry), and the per-node state.
+    /// tables of the quadrature points (a value, a gradient and an index
+    /// per entry) and of the skin (see `Skin::bytes`), and the per-node
+    /// state (displacements, rotations, loads and scratch).
     pub fn bytes(&self) -> usize {
         let real = std::mem::size_of::<Real>();
         let entry = 4 * real + std::mem::size_of::<u32>();
         let efg = &self.pre.efg;
         let n = self.len();
         let l = self.pre.eigenvalues.len();
-        let skin = self.pre.skin.as_ref().map_or(0, |s| {
-            s.table.entries() * entry + s.input.vertices.len() * 6 * real
-        });
+        let skin = self.pre.skin.as_ref().map_or(0, Skin::bytes);
         2 * efg.stiffness().len() * real
             + 2 * 3 * n * l * real
             + efg.shape_entries() * entry
             + skin
-            + n * 12 * real
+            + n * 24 * real
+    }
+
+    /// Wall time of each build stage, in order: the discretisation's
+    /// ([`EfgSolid::timings`]), then the modes, the rotation modes and
+    /// the skin's embedding.
+    pub fn timings(&self) -> &[(&'static str, Duration)] {
+        &self.pre.timings
     }
 
     /// The discretisation.
@@ -251,7 +244,7 @@ impl ModalSolid {
 
     /// Nodal displacements at the current state.
     pub fn displacements(&self) -> &[Vector] {
-        &self.displacements
+        self.system.displacements()
     }
 
     /// Node positions at the current state.
@@ -259,7 +252,7 @@ impl ModalSolid {
         self.pre
             .rest
             .iter()
-            .zip(&self.displacements)
+            .zip(self.system.displacements())
             .map(|(x, u)| x + u)
     }
 
@@ -329,9 +322,7 @@ impl ModalSolid {
             }
             self.system.set_constraint_targets(&self.targets)?;
         }
-        self.system.step(h, &self.loads)?;
-        self.update_displacements();
-        Ok(())
+        self.system.step(h, &self.loads)
     }
 
     /// Poses mode `mode` at amplitude `amplitude` at rest (the playback
@@ -353,9 +344,7 @@ impl ModalSolid {
         }
         let mut z = DVector::zeros(l);
         z[mode] = amplitude;
-        self.system.set_state(&z, &DVector::zeros(l))?;
-        self.update_displacements();
-        Ok(())
+        self.system.set_state(&z, &DVector::zeros(l))
     }
 
     /// The modal static solution under gravity `g`, at rest: `z_j =
@@ -395,14 +384,7 @@ impl ModalSolid {
         self.system.set_state(
             &DVector::from_column_slice(&state.amplitudes),
             &DVector::from_column_slice(&state.velocities),
-        )?;
-        self.update_displacements();
-        Ok(())
-    }
-
-    fn update_displacements(&mut self) {
-        // Lengths agree by construction.
-        let _ = self.system.displacements_into(&mut self.displacements);
+        )
     }
 
     /// The grabs in force.
@@ -497,42 +479,27 @@ impl ModalSolid {
     /// triangles of a mesh; for a point cloud the rest normals turned by
     /// the interpolated rotation vector `R(w(x))`). `None` without one.
     pub fn skin(&self) -> Option<DeformedSkin<'_>> {
-        let skin = self.pre.skin.as_ref()?;
-        let mut moved = Vec::new();
-        skin.table.interpolate(&self.displacements, &mut moved);
-        for (p, x) in moved.iter_mut().zip(&skin.input.vertices) {
-            *p += x;
-        }
-        let normals = if skin.input.triangles.is_empty() {
-            let basis = self.system.basis();
-            let z = self.system.amplitudes();
-            let w: Vec<Vector> = (0..self.len())
-                .map(|i| basis.rotation_vector(i, z))
-                .collect();
-            let mut at = Vec::new();
-            skin.table.interpolate(&w, &mut at);
-            at.iter()
-                .zip(&skin.input.normals)
-                .map(|(w, n)| nalgebra::Rotation3::new(*w) * n)
-                .collect()
-        } else {
-            vertex_normals(&skin.input.triangles, &moved)
-        };
+        let mut buffers = SkinBuffers::default();
+        let triangles = self.skin_into(&mut buffers)?;
         Some(DeformedSkin {
-            positions: moved,
-            triangles: &skin.input.triangles,
-            normals,
+            positions: buffers.positions,
+            triangles,
+            normals: buffers.normals,
         })
     }
-}
 
-/// The skin as deformed at the current state.
-#[derive(Debug, Clone, PartialEq)]
-pub struct DeformedSkin<'a> {
-    /// Vertex positions.
-    pub positions: Vec<Vector>,
-    /// Triangles (empty for a point cloud).
-    pub triangles: &'a [[u32; 3]],
-    /// Unit normal per vertex.
-    pub normals: Vec<Vector>,
+    /// [`Self::skin`] into buffers a caller reuses from frame to frame;
+    /// returns the triangles, or `None` (buffers untouched) without a
+    /// skin.
+    pub fn skin_into(&self, buffers: &mut SkinBuffers) -> Option<&[[u32; 3]]> {
+        let skin = self.pre.skin.as_ref()?;
+        skin.deform_into(&self.system, buffers);
+        Some(skin.triangles())
+    }
+
+    /// Turns modal warping on or off from now on (the same state shown
+    /// warped or linear), to measure what warping costs and changes.
+    pub fn set_warping(&mut self, warping: bool) {
+        self.system.set_warping(warping);
+    }
 }

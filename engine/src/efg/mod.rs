@@ -17,8 +17,8 @@
 //!    basis that [`crate::modal::ModalSystem`] steps (`reduce.rs`,
 //!    Section 5.3);
 //! 6. [`ModalSolid`] (`body.rs`): all of the above behind one build, with
-//!    the reduced state, the embedded surface and the user's grabs, as a
-//!    world steps it.
+//!    the reduced state, the embedded surface (`skin.rs`) and the user's
+//!    grabs, as a world steps it.
 //!
 //! Every knob that trades speed for accuracy is a field of [`EfgParams`]:
 //! the cell size (octree depth, hence the node count), `alpha`, the basis
@@ -30,12 +30,14 @@ mod body;
 mod quadrature;
 mod reduce;
 mod shape;
+mod skin;
 mod solid;
 
 pub use assemble::lame;
-pub use body::{DeformedSkin, Grab, GrabError, ModalParams, ModalSolid, ModalState, SkinInput};
+pub use body::{Grab, GrabError, ModalParams, ModalSolid, ModalState};
 pub use quadrature::{MAX_ORDER, Quadrature};
 pub use shape::{CoverError, Row, ShapeTable};
+pub use skin::{DeformedSkin, SkinBuffers, SkinInput};
 pub use solid::{EfgError, EfgParams, EfgSolid, FixedSurface, MassForm, Material};
 
 #[cfg(test)]

@@ -113,10 +113,24 @@ impl EfgSolid {
         cancel: &Cancel,
     ) -> Result<(Modes, ModalBasis), EfgError> {
         let modes = self.modes(count, tolerance, cancel)?;
-        let w = self.rotation_modes(&modes)?;
+        let basis = self.basis_of(&modes)?;
+        Ok((modes, basis))
+    }
+
+    /// The modal basis of `modes`: their rotation modes, and both
+    /// validated.
+    ///
+    /// # Errors
+    /// As [`EfgSolid::rotation_modes`], and [`EfgError::Modal`] should the
+    /// basis fail validation.
+    pub fn basis_of(&self, modes: &Modes) -> Result<ModalBasis, EfgError> {
+        let w = self.rotation_modes(modes)?;
         let n = w.nrows();
         let psi = DMatrix::from_column_slice(n, modes.eigenvalues.len(), &modes.vectors);
-        let basis = ModalBasis::new(&DVector::from_column_slice(&modes.eigenvalues), &psi, &w)?;
-        Ok((modes, basis))
+        Ok(ModalBasis::new(
+            &DVector::from_column_slice(&modes.eigenvalues),
+            &psi,
+            &w,
+        )?)
     }
 }

@@ -182,6 +182,19 @@ pub enum EfgError {
     Cancelled,
 }
 
+impl EfgError {
+    /// Whether the build stopped because it was cancelled, at whichever
+    /// stage (octree, assembly, eigensolver) saw the flag.
+    pub fn is_cancelled(&self) -> bool {
+        matches!(
+            self,
+            Self::Cancelled
+                | Self::Octree(OctreeError::Cancelled)
+                | Self::Eigen(crate::linalg::eigen::EigenError::Cancelled(_))
+        )
+    }
+}
+
 /// An assembled EFG solid.
 #[derive(Debug)]
 pub struct EfgSolid {
@@ -196,6 +209,30 @@ pub struct EfgSolid {
     consistent_mass: Vec<Real>,
     node_masses: Vec<Real>,
     timings: Vec<(&'static str, Duration)>,
+}
+
+/// Wall times of build stages, each from the end of the one before.
+#[derive(Debug)]
+pub(super) struct Laps {
+    clock: Instant,
+    /// `(stage, time)`, in order.
+    pub(super) timings: Vec<(&'static str, Duration)>,
+}
+
+impl Laps {
+    /// Starts timing now, after the stages in `timings`.
+    pub(super) fn after(timings: Vec<(&'static str, Duration)>) -> Self {
+        Self {
+            clock: Instant::now(),
+            timings,
+        }
+    }
+
+    /// Ends `stage` now.
+    pub(super) fn lap(&mut self, stage: &'static str) {
+        self.timings.push((stage, self.clock.elapsed()));
+        self.clock = Instant::now();
+    }
 }
 
 impl EfgSolid {
@@ -216,12 +253,7 @@ impl EfgSolid {
         cancel: &Cancel,
     ) -> Result<Self, EfgError> {
         validate(&material, &params, fixed)?;
-        let mut timings = Vec::new();
-        let mut clock = Instant::now();
-        let mut lap = |stage: &'static str, timings: &mut Vec<(&'static str, Duration)>| {
-            timings.push((stage, clock.elapsed()));
-            clock = Instant::now();
-        };
+        let mut laps = Laps::after(Vec::new());
         let octree = Octree::build(
             surface,
             &OctreeParams {
@@ -231,7 +263,7 @@ impl EfgSolid {
             },
             cancel,
         )?;
-        lap("octree", &mut timings);
+        laps.lap("octree");
         let nodes = octree.nodes().len();
         let rule = Quadrature::build(
             &octree,
@@ -240,7 +272,7 @@ impl EfgSolid {
             params.subdivision,
             params.boundary_refinement,
         );
-        lap("quadrature", &mut timings);
+        laps.lap("quadrature");
         // A solid thinner than a cell can leave octants that the surface
         // crosses (so nodes) with no Gauss point inside it: no volume, no
         // mass, and an eigensolver shift of 0 / 0.
@@ -259,7 +291,7 @@ impl EfgSolid {
             let table = ShapeTable::build(&octree, params.basis, &fixed.points)?;
             Some(Integral::new(table, fixed.areas.clone(), nodes))
         };
-        lap("shape functions", &mut timings);
+        laps.lap("shape functions");
         cancel.check().map_err(|_| EfgError::Cancelled)?;
         let integrals: Vec<&Integral> = std::iter::once(&volume).chain(fixed.as_ref()).collect();
         let pattern = assemble::pattern(nodes, &integrals).ok_or(EfgError::TooLarge { nodes })?;
@@ -287,7 +319,7 @@ impl EfgSolid {
                 mass: Brief(mass),
             });
         }
-        lap("assembly", &mut timings);
+        laps.lap("assembly");
         Ok(Self {
             params,
             material,
@@ -299,7 +331,7 @@ impl EfgSolid {
             stiffness,
             consistent_mass,
             node_masses,
-            timings,
+            timings: laps.timings,
         })
     }
 

@@ -197,9 +197,11 @@ fn huge_and_tiny_time_steps_stay_finite_and_below_the_static_solution() {
     );
     let damping = Damping::new(0.5, 1e-3).expect("damping");
     let largest = |system: &ModalSystem| {
-        let mut u = vec![Vector::zeros(); nodes];
-        system.displacements_into(&mut u).expect("displacements");
-        u.iter().map(|v| v.norm()).fold(0.0, Real::max)
+        system
+            .displacements()
+            .iter()
+            .map(|v| v.norm())
+            .fold(0.0, Real::max)
     };
     let mut linear_static = ModalSystem::new(basis.clone(), damping, false);
     linear_static
@@ -218,10 +220,16 @@ fn huge_and_tiny_time_steps_stay_finite_and_below_the_static_solution() {
             let z = system.amplitudes();
             assert!(z.iter().all(|v| v.is_finite()));
             if !warping {
+                // A mode gravity does not load (an antisymmetric one) has
+                // a static amplitude of rounding size: allow rounding of
+                // the largest.
+                let rounding = 1e-12 * statics.amax();
                 for (j, (a, s)) in z.iter().zip(statics.iter()).enumerate() {
-                    overshoot = overshoot.max(a.abs() / s.abs() - 1.0);
+                    if s.abs() > rounding {
+                        overshoot = overshoot.max(a.abs() / s.abs() - 1.0);
+                    }
                     assert!(
-                        a.abs() <= s.abs() * (1.0 + 1e-5),
+                        a.abs() <= s.abs() * (1.0 + 1e-5) + rounding,
                         "step {step}, mode {j}: {a:e} over {s:e}"
                     );
                 }

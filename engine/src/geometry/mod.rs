@@ -20,7 +20,7 @@ mod topology;
 
 pub use error::MeshError;
 pub use implicit::ImplicitSurface;
-pub use mesh::{TriMesh, vertex_normals};
+pub use mesh::{TriMesh, VertexRings, vertex_normals};
 pub use mesh_solid::MeshSolid;
 pub use octree::{Octree, OctreeError, OctreeParams};
 pub use points_implicit::{

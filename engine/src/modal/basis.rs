@@ -6,12 +6,12 @@
 //! Storage: `Psi` and `W` are kept transposed, as `l x 3n` nalgebra
 //! (column-major) matrices. Column `3I + a` then holds the `l`
 //! coefficients of scalar dof `(I, a)` contiguously, so a node's three
-//! dofs are one run of `3l` reals: `u_I = Psi_I z` is three contiguous dot
-//! products and `Psi_I^T f_I` three contiguous axpys, and a chunk of nodes
-//! (the parallel unit) is one contiguous slab. A column-major `3n x l`
+//! dofs are one run of `3l` reals, and a chunk of nodes (the parallel
+//! unit) is one contiguous `l x 3m` slab: `Psi z` over it is one
+//! dense matrix-vector product and `Psi^T f` another. A column-major `3n x l`
 //! `Psi` would instead stride by `3n` between a node's coefficients.
 
-use nalgebra::{DMatrix, DVector, DVectorViewMut, Dim, Dyn, Matrix, MatrixView, RawStorage, U3};
+use nalgebra::{DMatrix, DVector, Dim, Dyn, Matrix, MatrixView, RawStorage, U3};
 
 use super::ModalError;
 use crate::math::{Real, Vector};
@@ -142,15 +142,15 @@ impl ModalBasis {
         node_block(&self.w_t, node)
     }
 
-    /// `out += Psi_I^T f`: node `node`'s share of the modal force
-    /// `Psi^T F` (Eq. 25, 30).
-    pub(super) fn accumulate_force(
-        &self,
-        node: usize,
-        f: &Vector,
-        out: &mut DVectorViewMut<'_, Real>,
-    ) {
-        out.gemv(1.0, &node_block(&self.psi_t, node), f, 1.0);
+    /// `Psi^T` as its column-major values (`l x 3n`), for the per-step
+    /// products.
+    pub(super) fn psi_t(&self) -> &[Real] {
+        self.psi_t.as_slice()
+    }
+
+    /// `W^T` as its column-major values (`l x 3n`).
+    pub(super) fn w_t(&self) -> &[Real] {
+        self.w_t.as_slice()
     }
 }
 

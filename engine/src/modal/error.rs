@@ -104,14 +104,6 @@ pub enum ModalError {
         /// The node.
         node: usize,
     },
-    /// The output buffer for the displacements is not one per node.
-    #[error("the displacement buffer holds {got} vectors; the basis has {expected} nodes")]
-    OutputLength {
-        /// The node count.
-        expected: usize,
-        /// The buffer's length.
-        got: usize,
-    },
     /// Setting targets while no constraint is set.
     #[error("no constraints are set; call set_constraints before setting their targets")]
     NoConstraints,

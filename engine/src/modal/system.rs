@@ -1,16 +1,18 @@
 //! One reduced body: its basis, modal state `(z, zdot)`, Rayleigh
 //! damping, warping switch and manipulation constraints, stepped by the
 //! implicit modal integrator (Eq. 31, or Eq. 33 when constrained) with
-//! warped or linear loads (Eq. 30 / 25). All per-step buffers are sized
-//! at construction (and by [`ModalSystem::set_constraints`]), so a step
-//! allocates nothing; a refused step leaves the state as it was.
+//! warped or linear loads (Eq. 30 / 25). The per-node rotations and
+//! displacements are kept for the current state, computed once whenever
+//! it changes. All per-step buffers are sized at construction (and by
+//! [`ModalSystem::set_constraints`]), so a step allocates nothing; a
+//! refused step leaves the state as it was.
 
 use nalgebra::{DMatrix, DVector};
 
 use super::basis::check_finite;
 use super::constraints::ConstraintSet;
 use super::integrate::{Damping, assemble};
-use super::warp::{NODES_PER_CHUNK, displacements, modal_force};
+use super::warp::NodeFrames;
 use super::{ModalBasis, ModalError, Stabilization};
 use crate::math::{Real, Vector};
 
@@ -30,8 +32,8 @@ pub struct ModalSystem {
     /// `b_z`.
     b: DVector<Real>,
     dzdot: DVector<Real>,
-    /// One `l`-vector of partial modal force per chunk of nodes.
-    partials: Vec<Real>,
+    /// The nodes' rotations and displacements at `z`.
+    frames: NodeFrames,
 }
 
 impl ModalSystem {
@@ -40,7 +42,7 @@ impl ModalSystem {
     /// modal model (Eq. 25), so that the two can be compared.
     pub fn new(basis: ModalBasis, damping: Damping, warping: bool) -> Self {
         let l = basis.mode_count();
-        let chunks = basis.node_count().div_ceil(NODES_PER_CHUNK);
+        let frames = NodeFrames::new(&basis);
         Self {
             basis,
             damping,
@@ -52,7 +54,7 @@ impl ModalSystem {
             a: DVector::zeros(l),
             b: DVector::zeros(l),
             dzdot: DVector::zeros(l),
-            partials: vec![0.0; chunks * l],
+            frames,
         }
     }
 
@@ -75,6 +77,7 @@ impl ModalSystem {
     /// the next displacement query).
     pub fn set_warping(&mut self, warping: bool) {
         self.warping = warping;
+        self.frames.update(&self.basis, &self.z, warping);
     }
 
     /// The modal amplitudes `z`.
@@ -114,6 +117,7 @@ impl ModalSystem {
         }
         self.z.copy_from(z);
         self.zdot.copy_from(zdot);
+        self.frames.update(&self.basis, &self.z, self.warping);
         Ok(())
     }
 
@@ -196,14 +200,8 @@ impl ModalSystem {
         {
             return Err(ModalError::LoadNotFinite { node });
         }
-        modal_force(
-            &self.basis,
-            &self.z,
-            self.warping,
-            nodal_loads,
-            &mut self.partials,
-            &mut self.force,
-        );
+        self.frames
+            .modal_force(&self.basis, nodal_loads, &mut self.force);
         let state = (&self.z, &self.zdot);
         assemble(
             h,
@@ -230,25 +228,23 @@ impl ModalSystem {
         }
         self.zdot += &self.dzdot;
         self.z.axpy(h, &self.zdot, 1.0);
+        self.frames.update(&self.basis, &self.z, self.warping);
         Ok(())
     }
 
-    /// The nodal displacements at the current state into `out` (one per
-    /// node): warped `(int_0^1 R(s w_I) ds) Psi_I z` when warping is on
-    /// (Choi & Ko 2005), linear `Psi_I z` when off.
+    /// The nodal displacements at the current state (one per node):
+    /// warped `(int_0^1 R(s w_I) ds) Psi_I z` when warping is on (Choi &
+    /// Ko 2005), linear `Psi_I z` when off.
+    pub fn displacements(&self) -> &[Vector] {
+        self.frames.displacements()
+    }
+
+    /// Node `node`'s rotation vector `w_I = W_I z` at the current state.
     ///
-    /// # Errors
-    /// [`ModalError::OutputLength`] when `out` is not one per node.
-    pub fn displacements_into(&self, out: &mut [Vector]) -> Result<(), ModalError> {
-        let n = self.basis.node_count();
-        if out.len() != n {
-            return Err(ModalError::OutputLength {
-                expected: n,
-                got: out.len(),
-            });
-        }
-        displacements(&self.basis, &self.z, self.warping, out);
-        Ok(())
+    /// # Panics
+    /// When `node >= n`.
+    pub fn rotation_vector(&self, node: usize) -> Vector {
+        self.frames.rotation_vector(node)
     }
 }
 
@@ -271,17 +267,12 @@ mod tests {
                 &DVector::zeros(3),
             )
             .expect("valid");
-        let mut warped = vec![Vector::zeros(); positions.len()];
-        system
-            .displacements_into(&mut warped)
-            .expect("one per node");
+        let warped = system.displacements().to_vec();
         system.set_warping(false);
-        let mut linear = vec![Vector::zeros(); positions.len()];
-        system
-            .displacements_into(&mut linear)
-            .expect("one per node");
+        let linear = system.displacements();
         let rotation = Rotation3::new(w);
         for (i, x) in positions.iter().enumerate() {
+            assert_eq!(system.rotation_vector(i), w, "node {i}'s rotation vector");
             let moved = x + warped[i];
             let error = (moved - rotation * x).norm();
             assert!(error < 1e-12, "node {i}: |x + u - R x| = {error:e}");
@@ -302,7 +293,7 @@ mod tests {
 
     #[test]
     fn without_rotation_the_warped_force_is_the_linear_one() {
-        // 1100 nodes: three parallel chunks, the last one partial.
+        // 1100 nodes: five parallel chunks, the last one partial.
         let n = 1100;
         let (basis, psi) = random_basis(n, &[0.0, 1.0, 4.0, 9.0], 8);
         let loads = points(n, 9);
@@ -312,11 +303,9 @@ mod tests {
         let error = (system.modal_force() - &reference).norm() / reference.norm();
         assert!(error < 1e-12, "warped force at w = 0 differs by {error:e}");
         // The step moved z, so the nodal displacements are Psi z.
-        let mut u = vec![Vector::zeros(); n];
         system.set_warping(false);
-        system.displacements_into(&mut u).expect("one per node");
         let expected = &psi * system.amplitudes();
-        let error = (flatten(&u) - &expected).norm() / expected.norm();
+        let error = (flatten(system.displacements()) - &expected).norm() / expected.norm();
         assert!(
             error < 1e-12,
             "linear displacements differ from Psi z by {error:e}"
@@ -361,6 +350,7 @@ mod tests {
             DVector::from_column_slice(&[-1.0, 1.0]),
         );
         system.set_state(&z, &zdot).expect("valid");
+        let displaced = system.displacements().to_vec();
         let loads = vec![Vector::new(1.0, 2.0, 3.0); 3];
         for h in [0.0, -1e-3, Real::NAN, Real::INFINITY] {
             assert!(
@@ -384,11 +374,7 @@ mod tests {
         let huge = vec![Vector::new(Real::MAX, Real::MAX, Real::MAX); 3];
         assert_eq!(system.step(1.0, &huge), Err(ModalError::Overflow));
         assert_eq!((system.amplitudes(), system.velocities()), (&z, &zdot));
-        let mut out = vec![Vector::zeros(); 2];
-        assert!(matches!(
-            system.displacements_into(&mut out),
-            Err(ModalError::OutputLength { .. })
-        ));
+        assert_eq!(system.displacements(), displaced.as_slice());
         assert!(matches!(
             system.set_state(&DVector::zeros(3), &zdot),
             Err(ModalError::Shape { what: "z", .. })

@@ -7,20 +7,31 @@
 //! `u_I = (int_0^1 R(s w_I) ds) u^L_I`. A linear (unwarped) body uses
 //! `F_z = Psi^T F` and `u_I = u^L_I` (Eq. 25).
 //!
-//! Both per-node loops run in parallel over fixed chunks of nodes; the
-//! modal force sums the chunks' partial sums in chunk order, so its bits
-//! do not depend on the thread count.
+//! [`NodeFrames`] holds the per-node kinematics at the current
+//! amplitudes: a step's force reads the rotations at the amplitudes it
+//! starts from, which are the ones the previous step (or state change)
+//! ended on, so each basis matrix is read once per step for the nodal
+//! state and `Psi` once more for the force, and each node's sine and
+//! cosine are taken once. Both passes run in parallel over fixed chunks
+//! of nodes, each chunk one dense matrix-vector product (faer's, which
+//! picks the widest SIMD the processor has at run time) and a per-node
+//! loop; the modal force sums the chunks' partial sums in chunk order, so
+//! its bits do not depend on the thread count.
 
-use nalgebra::{DVector, DVectorView, DVectorViewMut, Matrix3, Rotation3};
+use faer::linalg::matmul::matmul;
+use faer::{Accum, MatMut, MatRef, Par};
+use nalgebra::{DVector, Matrix3};
 use rayon::prelude::*;
 
 use super::ModalBasis;
 use crate::math::{Real, Vector};
 
 /// Nodes per parallel chunk: fixed rather than per thread so that the
-/// summation order of the modal force is reproducible; 512 nodes make a
-/// task of some `3000 l` flops, well above rayon's per-task cost.
-pub(super) const NODES_PER_CHUNK: usize = 512;
+/// summation order of the modal force is reproducible. 256 nodes are a
+/// task of some `1500 l` flops and 256 sines and cosines, well above
+/// rayon's per-task cost, and a 1,000-node body still gives two threads
+/// two chunks each.
+pub(super) const NODES_PER_CHUNK: usize = 256;
 
 /// Below this angle (radians) the coefficients of [`rotation_integral`]
 /// come from their Taylor series. The closed forms lose digits to
@@ -41,14 +52,25 @@ const SERIES_THRESHOLD: Real = 0.1;
 /// public so that points between the nodes (surface samples) can be
 /// warped with their own interpolated `w`.
 pub fn rotation_integral(w: &Vector) -> Matrix3<Real> {
-    let (a, b) = coefficients(w.norm());
-    let k = w.cross_matrix();
-    Matrix3::identity() + k * a + k * k * b
+    rotation_and_integral(w).1
 }
 
-/// `((1 - cos t) / t^2, (t - sin t) / t^3)`, by series below
+/// `R(w)` (Rodrigues: `I + sin t / t [w]x + (1 - cos t) / t^2 [w]x^2`)
+/// and [`rotation_integral`], from one sine and cosine: they share the
+/// coefficient of `[w]x^2` in `R` with that of `[w]x` in the integral.
+fn rotation_and_integral(w: &Vector) -> (Matrix3<Real>, Matrix3<Real>) {
+    let [s, a, b] = coefficients(w.norm());
+    let k = w.cross_matrix();
+    let k2 = k * k;
+    (
+        Matrix3::identity() + k * s + k2 * a,
+        Matrix3::identity() + k * a + k2 * b,
+    )
+}
+
+/// `[sin t / t, (1 - cos t) / t^2, (t - sin t) / t^3]`, by series below
 /// [`SERIES_THRESHOLD`].
-fn coefficients(t: Real) -> (Real, Real) {
+fn coefficients(t: Real) -> [Real; 3] {
     if t < SERIES_THRESHOLD {
         series(t * t)
     } else {
@@ -57,84 +79,166 @@ fn coefficients(t: Real) -> (Real, Real) {
 }
 
 /// The closed forms of [`coefficients`].
-fn closed(t: Real) -> (Real, Real) {
+fn closed(t: Real) -> [Real; 3] {
+    let (sin, cos) = t.sin_cos();
     let t2 = t * t;
-    ((1.0 - t.cos()) / t2, (t - t.sin()) / (t2 * t))
+    [sin / t, (1.0 - cos) / t2, (t - sin) / (t2 * t)]
 }
 
 /// The Taylor series of [`coefficients`] in `t2 = t^2`, through `t^8`:
-/// `sum_k (-1)^k t^2k / (2k+2)!` and `sum_k (-1)^k t^2k / (2k+3)!`.
-fn series(t2: Real) -> (Real, Real) {
+/// `sum_k (-1)^k t^2k / (2k+1+j)!` for `j = 0, 1, 2` (`sin t / t`
+/// truncates at `t^10 / 11!`, below the other two).
+fn series(t2: Real) -> [Real; 3] {
+    let s = 1.0 - t2 * (1.0 / 6.0 - t2 * (1.0 / 120.0 - t2 * (1.0 / 5_040.0 - t2 / 362_880.0)));
     let a = 1.0 / 2.0
         - t2 * (1.0 / 24.0 - t2 * (1.0 / 720.0 - t2 * (1.0 / 40_320.0 - t2 / 3_628_800.0)));
     let b = 1.0 / 6.0
         - t2 * (1.0 / 120.0 - t2 * (1.0 / 5_040.0 - t2 * (1.0 / 362_880.0 - t2 / 39_916_800.0)));
-    (a, b)
+    [s, a, b]
 }
 
-/// The modal force into `out`: `Psi^T (R^T F)` when `warping` (Eq. 30,
-/// `R_I = R(w_I)` at the amplitudes `z` of the step's start) or
-/// `Psi^T F` (Eq. 25). `partials` holds one `l`-vector per chunk of
-/// [`NODES_PER_CHUNK`] nodes.
-pub(super) fn modal_force(
-    basis: &ModalBasis,
-    z: &DVector<Real>,
-    warping: bool,
-    loads: &[Vector],
-    partials: &mut [Real],
-    out: &mut DVector<Real>,
-) {
-    let l = basis.mode_count();
-    partials
-        .par_chunks_mut(l)
-        .zip(loads.par_chunks(NODES_PER_CHUNK))
-        .enumerate()
-        .for_each(|(chunk, (part, loads))| {
-            let mut part = DVectorViewMut::from_slice(part, l);
-            part.fill(0.0);
-            for (k, f) in loads.iter().enumerate() {
-                let node = chunk * NODES_PER_CHUNK + k;
-                let local = if warping {
-                    Rotation3::new(basis.rotation_vector(node, z)).inverse_transform_vector(f)
-                } else {
-                    *f
-                };
-                basis.accumulate_force(node, &local, &mut part);
-            }
-        });
-    out.fill(0.0);
-    for part in partials.chunks_exact(l) {
-        *out += DVectorView::from_slice(part, l);
+/// The per-node kinematics at one set of amplitudes `z`: `u^L = Psi z`,
+/// `w = W z`, each node's rotation `R(w_I)` (the identity when not
+/// warping) and its displacement, plus the scratch of the force pass.
+/// Sized once; updating allocates nothing.
+#[derive(Debug, Clone)]
+pub(super) struct NodeFrames {
+    /// `u^L`, `3n`.
+    linear: Vec<Real>,
+    /// `w`, `3n`.
+    rotation_vectors: Vec<Real>,
+    /// `R(w_I)`.
+    rotations: Vec<Matrix3<Real>>,
+    /// Warped or linear displacement per node.
+    displacements: Vec<Vector>,
+    /// `R_I^T F_I`, `3n`: the force pass's scratch.
+    local_loads: Vec<Real>,
+    /// One `l`-vector of partial modal force per chunk of nodes.
+    partials: Vec<Real>,
+}
+
+impl NodeFrames {
+    /// The frames of `basis` at rest (`z = 0`).
+    pub(super) fn new(basis: &ModalBasis) -> Self {
+        let n = basis.node_count();
+        let chunks = n.div_ceil(NODES_PER_CHUNK);
+        Self {
+            linear: vec![0.0; 3 * n],
+            rotation_vectors: vec![0.0; 3 * n],
+            rotations: vec![Matrix3::identity(); n],
+            displacements: vec![Vector::zeros(); n],
+            local_loads: vec![0.0; 3 * n],
+            partials: vec![0.0; chunks * basis.mode_count()],
+        }
     }
-}
 
-/// The nodal displacements at amplitudes `z` into `out` (one per node):
-/// warped `(int_0^1 R(s w_I) ds) Psi_I z` or linear `Psi_I z`.
-pub(super) fn displacements(
-    basis: &ModalBasis,
-    z: &DVector<Real>,
-    warping: bool,
-    out: &mut [Vector],
-) {
-    out.par_chunks_mut(NODES_PER_CHUNK)
-        .enumerate()
-        .for_each(|(chunk, out)| {
-            for (k, u) in out.iter_mut().enumerate() {
-                let node = chunk * NODES_PER_CHUNK + k;
-                let linear = basis.linear_displacement(node, z);
-                *u = if warping {
-                    rotation_integral(&basis.rotation_vector(node, z)) * linear
-                } else {
-                    linear
+    /// Recomputes everything at amplitudes `z`: warped displacements
+    /// `(int_0^1 R(s w_I) ds) Psi_I z` when `warping`, linear `Psi_I z`
+    /// otherwise.
+    pub(super) fn update(&mut self, basis: &ModalBasis, z: &DVector<Real>, warping: bool) {
+        let l = basis.mode_count();
+        let z = MatRef::from_column_major_slice(z.as_slice(), l, 1);
+        let slab = 3 * NODES_PER_CHUNK;
+        self.linear
+            .par_chunks_mut(slab)
+            .zip(self.rotation_vectors.par_chunks_mut(slab))
+            .zip(self.rotations.par_chunks_mut(NODES_PER_CHUNK))
+            .zip(self.displacements.par_chunks_mut(NODES_PER_CHUNK))
+            .enumerate()
+            .for_each(|(chunk, (((linear, w), rotations), displacements))| {
+                let dofs = chunk * slab..chunk * slab + linear.len();
+                let rows = linear.len();
+                let product = |t: &[Real], out: &mut [Real]| {
+                    let block =
+                        MatRef::from_column_major_slice(&t[l * dofs.start..l * dofs.end], l, rows);
+                    matmul(
+                        MatMut::from_column_major_slice_mut(out, rows, 1),
+                        Accum::Replace,
+                        block.transpose(),
+                        z,
+                        1.0,
+                        Par::Seq,
+                    );
                 };
+                product(basis.psi_t(), linear);
+                product(basis.w_t(), w);
+                let (linear, w) = (&*linear, &*w);
+                for (k, (r, u)) in rotations.iter_mut().zip(displacements).enumerate() {
+                    let local = Vector::from_column_slice(&linear[3 * k..3 * k + 3]);
+                    if warping {
+                        let (rotation, integral) =
+                            rotation_and_integral(&Vector::from_column_slice(&w[3 * k..3 * k + 3]));
+                        *r = rotation;
+                        *u = integral * local;
+                    } else {
+                        *r = Matrix3::identity();
+                        *u = local;
+                    }
+                }
+            });
+    }
+
+    /// The modal force into `out` at the amplitudes of the last
+    /// [`Self::update`]: `Psi^T (R^T F)` (Eq. 30; `R` the identity when
+    /// not warping, Eq. 25). `loads` has one entry per node.
+    pub(super) fn modal_force(
+        &mut self,
+        basis: &ModalBasis,
+        loads: &[Vector],
+        out: &mut DVector<Real>,
+    ) {
+        let l = basis.mode_count();
+        let slab = 3 * NODES_PER_CHUNK;
+        let psi_t = basis.psi_t();
+        self.partials
+            .par_chunks_mut(l)
+            .zip(self.local_loads.par_chunks_mut(slab))
+            .zip(self.rotations.par_chunks(NODES_PER_CHUNK))
+            .zip(loads.par_chunks(NODES_PER_CHUNK))
+            .enumerate()
+            .for_each(|(chunk, (((part, local), rotations), loads))| {
+                for (k, (r, f)) in rotations.iter().zip(loads).enumerate() {
+                    local[3 * k..3 * k + 3].copy_from_slice(r.tr_mul(f).as_slice());
+                }
+                let start = l * chunk * slab;
+                matmul(
+                    MatMut::from_column_major_slice_mut(part, l, 1),
+                    Accum::Replace,
+                    MatRef::from_column_major_slice(
+                        &psi_t[start..start + l * local.len()],
+                        l,
+                        local.len(),
+                    ),
+                    MatRef::from_column_major_slice(local, local.len(), 1),
+                    1.0,
+                    Par::Seq,
+                );
+            });
+        out.fill(0.0);
+        for part in self.partials.chunks_exact(l) {
+            for (o, p) in out.iter_mut().zip(part) {
+                *o += p;
             }
-        });
+        }
+    }
+
+    /// The nodal displacements at the last update.
+    pub(super) fn displacements(&self) -> &[Vector] {
+        &self.displacements
+    }
+
+    /// Node `node`'s rotation vector `w_I = W_I z` at the last update
+    /// (with or without warping: a point cloud's normals turn by it).
+    pub(super) fn rotation_vector(&self, node: usize) -> Vector {
+        Vector::from_column_slice(&self.rotation_vectors[3 * node..3 * node + 3])
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::testing::uniform;
+    use nalgebra::Rotation3;
 
     /// Composite Simpson of `R(s w) u` over `s` in `[0, 1]`.
     fn simpson(w: &Vector, u: &Vector, intervals: usize) -> Vector {
@@ -182,22 +286,51 @@ mod tests {
             SERIES_THRESHOLD,
             1.5 * SERIES_THRESHOLD,
         ] {
-            let (sa, sb) = series(t * t);
-            let (ca, cb) = closed(t);
+            let series = series(t * t);
+            let closed = closed(t);
             // The closed forms' own cancellation error bounds the
-            // agreement: 2 eps / t^2 and 6 eps / t^2 relative.
+            // agreement: 2 eps / t^2 and 6 eps / t^2 relative (sin t / t
+            // has none).
             let bound = 8.0 * Real::EPSILON / (t * t);
-            assert!(((sa - ca) / ca).abs() < bound, "t = {t}: a {sa} vs {ca}");
-            assert!(((sb - cb) / cb).abs() < bound, "t = {t}: b {sb} vs {cb}");
+            for (j, (s, c)) in series.iter().zip(&closed).enumerate() {
+                assert!(
+                    ((s - c) / c).abs() < bound,
+                    "t = {t}, coefficient {j}: {s} vs {c}"
+                );
+            }
         }
-        // At the switch both branches give the same matrix to rounding:
+        // At the switch both branches give the same matrices to rounding:
         // no jump in the warped displacement as an angle crosses it.
         let w = Vector::new(0.3, -0.4, 1.2).normalize() * SERIES_THRESHOLD;
         let k = w.cross_matrix();
-        let matrix = |(a, b): (Real, Real)| Matrix3::identity() + k * a + k * k * b;
         let t = w.norm();
-        let jump = (matrix(series(t * t)) - matrix(closed(t))).norm();
-        assert!(jump < 4.0 * Real::EPSILON, "jump at the threshold {jump:e}");
+        let [s0, a0, b0] = series(t * t);
+        let [s1, a1, b1] = closed(t);
+        for ((x0, y0), (x1, y1)) in [((s0, a0), (s1, a1)), ((a0, b0), (a1, b1))] {
+            let jump = (k * (x0 - x1) + k * k * (y0 - y1)).norm();
+            assert!(jump < 4.0 * Real::EPSILON, "jump at the threshold {jump:e}");
+        }
+    }
+
+    #[test]
+    fn the_shared_coefficients_give_rodrigues_rotation() {
+        let mut seed = 5;
+        for angle in [0.0, 1e-7, 0.05, 0.0999, 0.1001, 1.0, 3.1] {
+            let axis = Vector::new(
+                uniform(&mut seed) - 0.5,
+                uniform(&mut seed) - 0.5,
+                uniform(&mut seed) - 0.5,
+            )
+            .normalize();
+            let w = axis * angle;
+            let (rotation, integral) = rotation_and_integral(&w);
+            let error = (rotation - Rotation3::new(w).into_inner()).norm();
+            assert!(
+                error < 8.0 * Real::EPSILON,
+                "angle {angle}: |R - Rotation3| = {error:e}"
+            );
+            assert_eq!(integral, rotation_integral(&w));
+        }
     }
 
     #[test]

@@ -44,6 +44,9 @@ pub enum SceneError {
     /// The scene file could not be read or parsed.
     #[error("{0}")]
     Parse(String),
+    /// The check was stopped through [`super::BuildOptions::cancel`].
+    #[error("the scene's check was cancelled before it finished")]
+    Cancelled,
 }
 
 impl SceneError {

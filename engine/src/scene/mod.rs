@@ -35,6 +35,7 @@ pub use solid::{
     AnchorSpec, IntegratorKind, SolidSpec, SolidSurfaceSpec, defaults as solid_defaults,
 };
 
+use crate::Cancel;
 use crate::approx::KernelKind;
 use crate::efg::ModalSolid;
 use crate::geometry::Shape;
@@ -114,7 +115,7 @@ pub mod defaults {
 
 /// Limits a host puts on the worlds it builds, and the files it lets
 /// scenes read.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone)]
 pub struct BuildOptions {
     /// Largest particle count a scene may create.
     pub max_particles: u64,
@@ -122,6 +123,11 @@ pub struct BuildOptions {
     pub mesh_files: MeshFiles,
     /// Largest mesh, file or inline, in bytes.
     pub max_mesh_bytes: u64,
+    /// Raised to stop a check under way: a modal solid's precompute
+    /// (octree, assembly, eigensolve) is the one long part of a check,
+    /// and watches it between stages and inside the eigensolver. A host
+    /// raises it when the client that asked has gone.
+    pub cancel: Cancel,
 }
 
 impl Default for BuildOptions {
@@ -130,6 +136,7 @@ impl Default for BuildOptions {
             max_particles: 5_000_000,
             mesh_files: MeshFiles::Host,
             max_mesh_bytes: DEFAULT_MAX_MESH_BYTES,
+            cancel: Cancel::new(),
         }
     }
 }
@@ -624,6 +631,7 @@ impl Scene {
                         &format!("systems[{s}]"),
                         spec,
                         options.max_particles,
+                        &options.cancel,
                     )?;
                     solid_particles += solid.len() as f64;
                     footprint.add_modal_solid(&solid);

@@ -451,6 +451,7 @@ impl Scene {
         at: &str,
         spec: &ModalSolidSpec,
         max_particles: u64,
+        cancel: &Cancel,
     ) -> Result<ModalSolid, SceneError> {
         if self.dimension != 3 {
             return Err(SceneError::invalid(
@@ -583,9 +584,15 @@ impl Scene {
             spec.material(),
             &params,
             Some(geometry.skin),
-            &Cancel::new(),
+            cancel,
         )
-        .map_err(|e| SceneError::invalid(at, e.to_string()))?;
+        .map_err(|e| {
+            if e.is_cancelled() {
+                SceneError::Cancelled
+            } else {
+                SceneError::invalid(at, e.to_string())
+            }
+        })?;
         let grabs: Vec<Grab> = spec.grabs.iter().map(GrabSpec::grab).collect();
         solid
             .set_grabs(&grabs)
