@@ -82,13 +82,14 @@ impl Skin {
     }
 
     /// The bytes of its tables: an index and an f32 value per
-    /// shape-function entry, rest positions and normals, the triangles
-    /// and their rings.
+    /// shape-function entry; per vertex its rest position and normal and
+    /// two offsets (rows, ring); per triangle its corners twice (the
+    /// input's and the rings' copy) and three ring entries.
     pub(super) fn bytes(&self) -> usize {
         let real = std::mem::size_of::<Real>();
         self.nodes.len() * 8
-            + self.input.vertices.len() * 6 * real
-            + 6 * 4 * self.input.triangles.len()
+            + self.input.vertices.len() * (6 * real + 8)
+            + 9 * 4 * self.input.triangles.len()
     }
 
     /// Its triangles (empty for a point cloud).
