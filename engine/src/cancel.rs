@@ -39,6 +39,13 @@ impl Cancel {
         self.0.load(Ordering::Relaxed)
     }
 
+    /// A guard that raises this flag when it is dropped: ties the work to
+    /// the lifetime of whatever holds the guard (a request, a stream), so
+    /// that work nobody waits for any more stops.
+    pub fn raise_on_drop(&self) -> RaiseOnDrop {
+        RaiseOnDrop(self.clone())
+    }
+
     /// [`Cancelled`] once raised, to end work with `?`.
     ///
     /// # Errors
@@ -49,6 +56,16 @@ impl Cancel {
         } else {
             Ok(())
         }
+    }
+}
+
+/// Raises its [`Cancel`] when dropped ([`Cancel::raise_on_drop`]).
+#[derive(Debug)]
+pub struct RaiseOnDrop(Cancel);
+
+impl Drop for RaiseOnDrop {
+    fn drop(&mut self) {
+        self.0.cancel();
     }
 }
 
@@ -71,5 +88,14 @@ mod tests {
         assert!(cancel.is_cancelled());
         assert_eq!(cancel.check(), Err(Cancelled));
         assert!(!Cancel::new().is_cancelled(), "a new flag is its own");
+    }
+
+    #[test]
+    fn a_dropped_guard_raises_its_flag() {
+        let cancel = Cancel::new();
+        let guard = cancel.raise_on_drop();
+        assert!(!cancel.is_cancelled());
+        drop(guard);
+        assert!(cancel.is_cancelled(), "the work sees its caller go");
     }
 }

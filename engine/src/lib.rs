@@ -33,7 +33,7 @@ pub mod surface;
 mod testing;
 pub mod world;
 
-pub use cancel::{Cancel, Cancelled};
+pub use cancel::{Cancel, Cancelled, RaiseOnDrop};
 pub use frame::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
 pub use scene::{BuildOptions, Scene, SceneError};
 pub use world::{

@@ -154,8 +154,8 @@ impl Registry {
         let mut options = self.options.clone();
         // The check may run a modal solid's precompute for seconds: when
         // the caller goes (this future is dropped), it stops.
-        let stop = StopOnDrop(Cancel::new());
-        options.cancel = stop.0.clone();
+        options.cancel = Cancel::new();
+        let _stop = options.cancel.raise_on_drop();
         // Validation and the estimate first (a mesh may be read), then the
         // reservation, and only then the allocation.
         let checked = tokio::task::spawn_blocking(move || scene.check(&options))
@@ -361,28 +361,9 @@ async fn join_blocking(session: Arc<Session>) {
     }
 }
 
-/// Raises its flag when dropped: ties work on a blocking thread to the
-/// request that asked for it.
-struct StopOnDrop(Cancel);
-
-impl Drop for StopOnDrop {
-    fn drop(&mut self) {
-        self.0.cancel();
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_dropped_admission_raises_its_check_flag() {
-        let stop = StopOnDrop(Cancel::new());
-        let flag = stop.0.clone();
-        assert!(!flag.is_cancelled());
-        drop(stop);
-        assert!(flag.is_cancelled(), "the check sees the caller go");
-    }
 
     #[test]
     fn reservations_fit_the_budget_and_come_back() {

@@ -274,21 +274,17 @@ impl ModalSolid {
     /// Each node's share `u_I . (K u)_I / 2` of the strain energy of the
     /// linear displacement `u = Psi z`: they sum to `z^T Lambda z / 2`.
     pub fn elastic_energies(&self) -> Vec<Real> {
-        let basis = self.system.basis();
-        let z = self.system.amplitudes();
-        let n = self.len();
-        let u =
-            faer::Mat::<Real>::from_fn(3 * n, 1, |r, _| basis.linear_displacement(r / 3, z)[r % 3]);
-        let mut ku = faer::Mat::<Real>::zeros(3 * n, 1);
+        let u = self.system.linear_displacements();
+        let mut ku = faer::Mat::<Real>::zeros(u.len(), 1);
         let efg = &self.pre.efg;
-        efg.pattern()
-            .multiply(efg.stiffness(), u.as_ref(), ku.as_mut());
-        (0..n)
-            .map(|i| {
-                0.5 * (0..3)
-                    .map(|a| u[(3 * i + a, 0)] * ku[(3 * i + a, 0)])
-                    .sum::<Real>()
-            })
+        efg.pattern().multiply(
+            efg.stiffness(),
+            faer::MatRef::from_column_major_slice(u, u.len(), 1),
+            ku.as_mut(),
+        );
+        u.chunks_exact(3)
+            .enumerate()
+            .map(|(i, u)| 0.5 * (0..3).map(|a| u[a] * ku[(3 * i + a, 0)]).sum::<Real>())
             .collect()
     }
 

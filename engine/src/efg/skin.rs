@@ -45,6 +45,8 @@ pub struct SkinBuffers {
     pub normals: Vec<Vector>,
     /// The triangles' cross products (scratch).
     faces: Vec<[f32; 3]>,
+    /// The nodes' rotation vectors, for a point cloud's normals (scratch).
+    rotations: Vec<Vector>,
 }
 
 /// A surface embedded in the nodes' shape functions.
@@ -103,10 +105,10 @@ impl Skin {
         let rest = &self.input.vertices;
         self.sums(system.displacements(), &mut out.positions, |i| rest[i]);
         if self.input.triangles.is_empty() {
-            let w: Vec<Vector> = (0..system.basis().node_count())
-                .map(|i| system.rotation_vector(i))
-                .collect();
-            self.sums(&w, &mut out.normals, |_| Vector::zeros());
+            out.rotations.clear();
+            out.rotations
+                .extend((0..system.basis().node_count()).map(|i| system.rotation_vector(i)));
+            self.sums(&out.rotations, &mut out.normals, |_| Vector::zeros());
             out.normals
                 .par_iter_mut()
                 .zip(&self.input.normals)

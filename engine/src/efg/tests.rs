@@ -438,3 +438,36 @@ fn the_table_1_beam_gives_its_paired_modes() {
         );
     }
 }
+
+/// The bench's second model (`engine/benches/modal.rs`): a ball whose
+/// solid is the inside of its own cube-sphere skin. Cut at a sixth of
+/// its radius every skin vertex embeds; cut at r / 5.75 the vertex
+/// (r, 0, 0) lies on the face of an exterior octant, which lists no
+/// supports, and is refused as uncovered with its position.
+#[test]
+fn a_ball_on_its_own_skin_embeds_at_a_sixth_of_its_radius() {
+    let r = 0.1;
+    let mut skin = TriMesh::cuboid(Vector::repeat(-1.0), Vector::repeat(1.0)).subdivided(3);
+    for v in &mut skin.vertices {
+        *v = v.normalize() * r;
+    }
+    let sdf = MeshSdf::new(&skin).expect("closed");
+    let ball = |cell: Real| {
+        EfgSolid::build(
+            &sdf,
+            &FixedSurface::default(),
+            steel_like(),
+            EfgParams::new(cell),
+            &Cancel::new(),
+        )
+        .expect("a ball")
+    };
+    ball(r / 6.0)
+        .shape_table(&skin.vertices)
+        .expect("every skin vertex covered");
+    let refused = ball(r / 5.75).shape_table(&[Vector::new(r, 0.0, 0.0)]);
+    assert!(
+        matches!(refused, Err(CoverError::Uncovered { supports: 0, .. })),
+        "{refused:?}"
+    );
+}

@@ -117,15 +117,6 @@ impl ModalBasis {
         node_block(&self.psi_t, node).tr_mul(z)
     }
 
-    /// The rotation vector of node `node`, `w_I = W_I z` (Eq. 27): half
-    /// the curl of the displacement field there.
-    ///
-    /// # Panics
-    /// When `node >= n` or `z.len() != l`.
-    pub fn rotation_vector(&self, node: usize, z: &DVector<Real>) -> Vector {
-        node_block(&self.w_t, node).tr_mul(z)
-    }
-
     /// `Psi_I^T`, `l x 3`: node `node`'s displacement in every mode.
     ///
     /// # Panics

@@ -239,6 +239,13 @@ impl ModalSystem {
         self.frames.displacements()
     }
 
+    /// The linear displacements `u^L = Psi z` at the current state, `3n`
+    /// values (`3I + a` is component `a` of node `I`), whether or not
+    /// warping is on.
+    pub fn linear_displacements(&self) -> &[Real] {
+        self.frames.linear()
+    }
+
     /// Node `node`'s rotation vector `w_I = W_I z` at the current state.
     ///
     /// # Panics

@@ -227,6 +227,11 @@ impl NodeFrames {
         &self.displacements
     }
 
+    /// `u^L = Psi z` at the last update, `3n` values (node-major).
+    pub(super) fn linear(&self) -> &[Real] {
+        &self.linear
+    }
+
     /// Node `node`'s rotation vector `w_I = W_I z` at the last update
     /// (with or without warping: a point cloud's normals turn by it).
     pub(super) fn rotation_vector(&self, node: usize) -> Vector {

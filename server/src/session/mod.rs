@@ -85,6 +85,11 @@ pub struct Optimization {
     cancel: Cancel,
 }
 
+/// On the struct itself rather than a guard field: a type with `Drop`
+/// is captured whole, so the task that reads `progress` and `result`
+/// holds the flag too. With a `RaiseOnDrop` field, an `async move` block
+/// capturing just those two fields left the guard behind, dropped with
+/// the handler's frame, and cancelled every optimisation at once.
 impl Drop for Optimization {
     fn drop(&mut self) {
         self.cancel.cancel();
