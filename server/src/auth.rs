@@ -28,6 +28,12 @@ pub const ANONYMOUS: &str = "anonymous";
 pub const MAX_NAME_BYTES: usize = 64;
 /// Shortest token a file may hold: 128 bits as hex or Base64 text.
 const MIN_TOKEN_BYTES: usize = 16;
+/// Longest token a request may present, far above any generated secret
+/// (`openssl rand -hex 32` makes 64 bytes). A longer one is refused by
+/// name before it is compared; the server's header limit leaves room
+/// for it so that it reaches this check instead of an HTTP 431, which
+/// clients show as UNKNOWN.
+pub const MAX_TOKEN_BYTES: usize = 4096;
 
 /// A request's caller, put into the request's extensions by
 /// [`Authenticator`].
@@ -194,6 +200,13 @@ impl Authenticator {
             .as_bytes()
             .strip_prefix(b"Bearer ")
             .ok_or_else(|| Status::unauthenticated("write the token as `Bearer TOKEN`"))?;
+        if presented.len() > MAX_TOKEN_BYTES {
+            return Err(Status::unauthenticated(format!(
+                "the token is {} bytes; a token has at most {MAX_TOKEN_BYTES}: send the one \
+                 the server's tokens file holds",
+                presented.len()
+            )));
+        }
         tokens.principal(presented).ok_or_else(|| {
             Status::unauthenticated("the token is not one this server accepts; check it")
         })
@@ -203,6 +216,11 @@ impl Authenticator {
 impl tonic::service::Interceptor for Authenticator {
     fn call(&mut self, mut request: Request<()>) -> Result<Request<()>, Status> {
         let principal = self.principal(&request)?;
+        // The call passed the token check: its connection has earned its
+        // place under --max-connections (`crate::connection`).
+        if let Some(connection) = request.extensions().get::<crate::connection::Connection>() {
+            connection.earn();
+        }
         let client = match request.metadata().get(CLIENT_ID) {
             None => None,
             Some(value) => {
@@ -335,6 +353,19 @@ mod tests {
             let status = auth.call(request(&headers)).expect_err("refused");
             assert_eq!(status.code(), code, "{headers:?}: {status:?}");
         }
+
+        // An oversized token is refused by its size, never echoed.
+        let giant = format!("Bearer {}", "x".repeat(16 << 10));
+        let status = auth
+            .call(request(&[(AUTHORIZATION, &giant)]))
+            .expect_err("too long");
+        assert_eq!(status.code(), Code::Unauthenticated);
+        assert!(
+            status.message().contains("16384 bytes") && status.message().contains("at most 4096"),
+            "{}",
+            status.message()
+        );
+        assert!(!status.message().contains("xxxx"), "{}", status.message());
 
         let mut open = Authenticator::new(None);
         let ok = open.call(request(&[])).expect("anonymous");

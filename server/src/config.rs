@@ -73,6 +73,15 @@ pub const DEFAULT_MAX_MESH_MB: u32 = 16;
 pub const DEFAULT_MAX_SNAPSHOT_MB: u32 = 64;
 /// Default of `--checkpoint-interval`, seconds.
 pub const DEFAULT_CHECKPOINT_INTERVAL: f64 = 60.0;
+/// Default of `--handshake-timeout`, seconds: a client makes its first
+/// call as soon as it connects, so ten seconds covers a slow link and a
+/// TLS handshake.
+pub const DEFAULT_HANDSHAKE_TIMEOUT: f64 = 10.0;
+/// Default of `--idle-timeout`, seconds: a notebook left alone for five
+/// minutes reconnects at its next call, at the cost of one round trip.
+pub const DEFAULT_IDLE_TIMEOUT: f64 = 300.0;
+/// Default of `--metrics-header-timeout`, seconds.
+pub const DEFAULT_METRICS_HEADER_TIMEOUT: f64 = 10.0;
 
 /// Everything the server needs to start.
 #[derive(Debug, Clone, clap::Args)]
@@ -165,6 +174,17 @@ pub struct ServerConfig {
     #[arg(long, env = "MESHLESS_MAX_CONNECTIONS", default_value_t = DEFAULT_MAX_CONNECTIONS)]
     pub max_connections: u32,
 
+    /// Seconds, in [0.1, 3600], within which a gRPC connection must make
+    /// a call that passes the token check, or be closed: a connection
+    /// earns its place under `--max-connections` by a call, not by bytes.
+    #[arg(long, env = "MESHLESS_HANDSHAKE_TIMEOUT", default_value_t = DEFAULT_HANDSHAKE_TIMEOUT)]
+    pub handshake_timeout: f64,
+
+    /// Seconds, in [0.1, 86400], after which a gRPC connection with no
+    /// call in flight is closed (clients reconnect at their next call).
+    #[arg(long, env = "MESHLESS_IDLE_TIMEOUT", default_value_t = DEFAULT_IDLE_TIMEOUT)]
+    pub idle_timeout: f64,
+
     /// Largest request, in MB; larger ones are RESOURCE_EXHAUSTED before
     /// they are decoded.
     #[arg(long, env = "MESHLESS_MAX_REQUEST_MB", default_value_t = DEFAULT_MAX_REQUEST_MB)]
@@ -197,6 +217,16 @@ pub struct ServerConfig {
     /// 0 picks a free port. Unset: no endpoint.
     #[arg(long, env = "MESHLESS_METRICS_ADDR")]
     pub metrics_addr: Option<SocketAddr>,
+
+    /// Seconds, in [0.1, 3600], within which a metrics request's headers
+    /// must arrive, counted from the connection's start or its previous
+    /// answer; slower connections are closed.
+    #[arg(
+        long,
+        env = "MESHLESS_METRICS_HEADER_TIMEOUT",
+        default_value_t = DEFAULT_METRICS_HEADER_TIMEOUT
+    )]
+    pub metrics_header_timeout: f64,
 
     /// Largest snapshot blob, in MB: Snapshot refuses to make a larger
     /// one and Restore to read one; the response limit grows to hold one,
@@ -259,6 +289,21 @@ impl ServerConfig {
     /// The checkpoint interval.
     pub fn checkpoint_period(&self) -> std::time::Duration {
         std::time::Duration::from_secs_f64(self.checkpoint_interval)
+    }
+
+    /// `--handshake-timeout` as a duration.
+    pub fn handshake_period(&self) -> std::time::Duration {
+        std::time::Duration::from_secs_f64(self.handshake_timeout)
+    }
+
+    /// `--idle-timeout` as a duration.
+    pub fn idle_period(&self) -> std::time::Duration {
+        std::time::Duration::from_secs_f64(self.idle_timeout)
+    }
+
+    /// `--metrics-header-timeout` as a duration.
+    pub fn metrics_header_period(&self) -> std::time::Duration {
+        std::time::Duration::from_secs_f64(self.metrics_header_timeout)
     }
 
     /// What scenes may build: the particle limit, the mesh directory (or
@@ -356,12 +401,15 @@ impl ServerConfig {
             max_particles: DEFAULT_MAX_PARTICLES,
             max_sessions: DEFAULT_MAX_SESSIONS,
             max_connections: DEFAULT_MAX_CONNECTIONS,
+            handshake_timeout: DEFAULT_HANDSHAKE_TIMEOUT,
+            idle_timeout: DEFAULT_IDLE_TIMEOUT,
             max_request_mb: DEFAULT_MAX_REQUEST_MB,
             tokens_file: None,
             mesh_dir: None,
             max_mesh_mb: DEFAULT_MAX_MESH_MB,
             memory_budget_mb: None,
             metrics_addr: None,
+            metrics_header_timeout: DEFAULT_METRICS_HEADER_TIMEOUT,
             max_snapshot_mb: DEFAULT_MAX_SNAPSHOT_MB,
             checkpoint_dir: None,
             checkpoint_interval: DEFAULT_CHECKPOINT_INTERVAL,
@@ -407,6 +455,21 @@ impl ServerConfig {
                 "--checkpoint-interval must be in [0.1, 86400] seconds, got {}",
                 self.checkpoint_interval
             ));
+        }
+        for (flag, value, most) in [
+            ("--handshake-timeout", self.handshake_timeout, 3_600.0),
+            ("--idle-timeout", self.idle_timeout, 86_400.0),
+            (
+                "--metrics-header-timeout",
+                self.metrics_header_timeout,
+                3_600.0,
+            ),
+        ] {
+            if !(0.1..=most).contains(&value) {
+                return Err(format!(
+                    "{flag} must be in [0.1, {most}] seconds, got {value}"
+                ));
+            }
         }
         if self.memory_budget_mb == Some(0) {
             return Err("--memory-budget-mb must be at least 1".into());

@@ -13,9 +13,11 @@ mod checkpoint;
 mod codes;
 pub mod config;
 pub mod config_file;
+mod connection;
 mod error;
 mod listener;
 mod metrics;
+mod metrics_http;
 mod metrics_layer;
 mod pubsub;
 mod registry;
@@ -49,6 +51,17 @@ const KEEPALIVE_INTERVAL: Duration = Duration::from_secs(30);
 
 /// How long a ping may go unanswered before the connection is closed.
 const KEEPALIVE_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// Most streams (calls) open at once on one connection: RFC 9113's
+/// recommended minimum. Unset, hyper's limit was none at all (20,000
+/// streams on one connection were answered, holding 257 MB); past it a
+/// new stream is refused (REFUSED_STREAM), which clients retry.
+const MAX_STREAMS_PER_CONNECTION: u32 = 100;
+
+/// Largest header block of a request. hyper's default (16 kB) answered a
+/// 16 kB token with HTTP 431, which clients show as UNKNOWN; with room
+/// above `auth::MAX_TOKEN_BYTES` the token check refuses it by name.
+const MAX_HEADER_LIST_BYTES: u32 = 64 << 10;
 
 /// A server started by [`start`].
 #[derive(Debug)]
@@ -101,7 +114,9 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
     }
     let mut grpc = tonic::transport::Server::builder()
         .http2_keepalive_interval(Some(KEEPALIVE_INTERVAL))
-        .http2_keepalive_timeout(Some(KEEPALIVE_TIMEOUT));
+        .http2_keepalive_timeout(Some(KEEPALIVE_TIMEOUT))
+        .max_concurrent_streams(MAX_STREAMS_PER_CONNECTION)
+        .http2_max_header_list_size(MAX_HEADER_LIST_BYTES);
     if let Some(tls) = tls {
         grpc = grpc
             .tls_config(tls)
@@ -148,7 +163,15 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
     };
     metrics.watch(&registry, checkpoints.clone());
     let metrics_addr = match config.metrics_addr {
-        Some(addr) => Some(serve_metrics(addr, metrics.clone(), shutdown.child_token()).await?),
+        Some(addr) => Some(
+            metrics_http::serve(
+                addr,
+                metrics.clone(),
+                config.metrics_header_period(),
+                shutdown.child_token(),
+            )
+            .await?,
+        ),
         None => None,
     };
     let info = v1::ServerInfo {
@@ -216,7 +239,10 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
     let incoming = listener::incoming(
         listener,
         config.max_connections as usize,
-        listener::FIRST_BYTE_TIMEOUT,
+        connection::Deadlines {
+            handshake: config.handshake_period(),
+            idle: config.idle_period(),
+        },
         // Accepting ends with the sessions (below): tonic stops at the
         // end of its connections as soon as they end, which would cut
         // the last checkpoint round short.
@@ -246,6 +272,8 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
             // Outermost: it sees the codes as recoded below.
             .layer(metrics_layer::RecordLayer(metrics))
             .layer(tower::util::MapResponseLayer::new(codes::recode))
+            // Innermost: a refusal for the response budget is counted.
+            .layer(connection::CallsLayer)
             .add_service(health)
             .add_service(reflection)
             .add_service(simulation)
@@ -290,44 +318,6 @@ pub async fn serve_until_signal(config: ServerConfig) -> Result<()> {
     shutdown_signal().await?;
     tracing::info!("shutting down");
     server.stop().await
-}
-
-/// Serves `GET /metrics` on `addr` until `stop`; returns the bound
-/// address.
-async fn serve_metrics(
-    addr: SocketAddr,
-    metrics: Arc<metrics::Metrics>,
-    stop: CancellationToken,
-) -> Result<SocketAddr> {
-    let listener = tokio::net::TcpListener::bind(addr)
-        .await
-        .with_context(|| format!("cannot bind the metrics address {addr}"))?;
-    let bound = listener.local_addr()?;
-    let app = axum::Router::new().route(
-        "/metrics",
-        axum::routing::get(move || {
-            let metrics = metrics.clone();
-            async move {
-                (
-                    [(
-                        axum::http::header::CONTENT_TYPE,
-                        "text/plain; version=0.0.4; charset=utf-8",
-                    )],
-                    metrics.encode(),
-                )
-            }
-        }),
-    );
-    tokio::spawn(async move {
-        let served = axum::serve(listener, app)
-            .with_graceful_shutdown(stop.cancelled_owned())
-            .await;
-        if let Err(e) = served {
-            tracing::error!("metrics endpoint: {e}");
-        }
-    });
-    tracing::info!(%bound, "metrics at /metrics");
-    Ok(bound)
 }
 
 async fn shutdown_signal() -> Result<()> {

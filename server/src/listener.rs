@@ -1,15 +1,29 @@
 //! The gRPC listener: at most `max_connections` open at a time, each set
 //! up for request-response traffic, accepting under pressure without
-//! spinning.
+//! spinning, and each closed once it holds its place without earning it.
 //!
 //! The cap is taken before `accept`, so connections beyond it wait in the
 //! kernel's backlog instead of holding one of this process's file
 //! descriptors (1,100 silent connections once exhausted them). An accept
 //! error (out of descriptors, a reset before accept) backs off briefly
-//! rather than retrying in a tight loop. A connection that sends nothing
-//! within [`FIRST_BYTE_TIMEOUT`] of being accepted is closed, so silent
-//! sockets cannot hold every place under the cap.
+//! rather than retrying in a tight loop.
+//!
+//! A place is earned, not taken: a connection that has made no call
+//! passing the token check within the handshake deadline is closed, and
+//! so is one with no call in flight for the idle deadline
+//! ([`crate::connection`] keeps that state). Sockets that send one byte,
+//! the HTTP/2 preface alone, or answer pings on an idle channel held a
+//! place for ever before; four of them locked every client out of a
+//! server with `--max-connections 4`. Deadlines were chosen over evicting
+//! the idlest connection at the cap (a flood of new connections would
+//! evict token holders before their first call arrives) and over a share
+//! per address (clients behind one proxy or NAT, and every test on
+//! loopback, share one). A stranger now holds a place for at most the
+//! handshake deadline, and connections waiting in the backlog are served
+//! in the order they came.
 
+use crate::connection::{Connection, Deadlines};
+use std::future::Future;
 use std::io;
 use std::pin::Pin;
 use std::sync::Arc;
@@ -18,24 +32,42 @@ use std::time::Duration;
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{OwnedSemaphorePermit, Semaphore, mpsc};
+use tokio::time::{Instant, Sleep};
 use tokio_stream::wrappers::ReceiverStream;
 use tokio_util::sync::CancellationToken;
-use tonic::transport::server::{Connected, TcpConnectInfo};
+use tonic::transport::server::Connected;
 
 /// Pause after a failed accept.
 const ACCEPT_BACKOFF: Duration = Duration::from_millis(50);
 
-/// How long an accepted connection may stay silent before it is closed:
-/// a gRPC client sends the HTTP/2 preface at once, so ten seconds covers
-/// any real client on a slow link.
-pub const FIRST_BYTE_TIMEOUT: Duration = Duration::from_secs(10);
-
 /// An accepted connection holding its place under the cap until it
-/// closes.
+/// closes, or until its deadline (see [`Connection::deadline`]) passes:
+/// then every read and write fails, and the server drops it.
 #[derive(Debug)]
 pub struct Admitted {
     stream: TcpStream,
+    connection: Connection,
+    deadline: Pin<Box<Sleep>>,
     _place: OwnedSemaphorePermit,
+}
+
+impl Admitted {
+    /// An error once the connection's deadline has passed; otherwise
+    /// `cx` is woken when it next may have.
+    fn check_deadline(&mut self, cx: &mut Context<'_>) -> io::Result<()> {
+        while self.deadline.as_mut().poll(cx).is_ready() {
+            match self.connection.deadline(Instant::now()) {
+                Some(next) => self.deadline.as_mut().reset(next),
+                None => {
+                    return Err(io::Error::new(
+                        io::ErrorKind::TimedOut,
+                        "closed a connection without a call in time",
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 impl AsyncRead for Admitted {
@@ -44,6 +76,7 @@ impl AsyncRead for Admitted {
         cx: &mut Context<'_>,
         buf: &mut ReadBuf<'_>,
     ) -> Poll<io::Result<()>> {
+        self.check_deadline(cx)?;
         Pin::new(&mut self.stream).poll_read(cx, buf)
     }
 }
@@ -54,6 +87,7 @@ impl AsyncWrite for Admitted {
         cx: &mut Context<'_>,
         buf: &[u8],
     ) -> Poll<io::Result<usize>> {
+        self.check_deadline(cx)?;
         Pin::new(&mut self.stream).poll_write(cx, buf)
     }
 
@@ -62,6 +96,7 @@ impl AsyncWrite for Admitted {
         cx: &mut Context<'_>,
         bufs: &[io::IoSlice<'_>],
     ) -> Poll<io::Result<usize>> {
+        self.check_deadline(cx)?;
         Pin::new(&mut self.stream).poll_write_vectored(cx, bufs)
     }
 
@@ -70,6 +105,7 @@ impl AsyncWrite for Admitted {
     }
 
     fn poll_flush(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        self.check_deadline(cx)?;
         Pin::new(&mut self.stream).poll_flush(cx)
     }
 
@@ -79,23 +115,27 @@ impl AsyncWrite for Admitted {
 }
 
 impl Connected for Admitted {
-    type ConnectInfo = TcpConnectInfo;
+    /// The connection's state, which tonic puts into each request's
+    /// extensions: the authenticator marks it earned, and
+    /// [`crate::connection::CallsLayer`] counts its calls.
+    type ConnectInfo = Connection;
 
     fn connect_info(&self) -> Self::ConnectInfo {
-        self.stream.connect_info()
+        self.connection.clone()
     }
 }
 
 /// The connections of `listener`, at most `max_connections` open at
-/// once, until `stop` or until the stream is dropped. Each gets
-/// `TCP_NODELAY`: a small response held back by Nagle's algorithm until
-/// the client's delayed ACK cost about 44 ms per sequential call in the
-/// loopback test of issue 13 (`cargo bench -p meshless-load` measures
-/// sequential calls; docs/performance.md has its figures).
+/// once, each closed at its `deadlines`, until `stop` or until the stream
+/// is dropped. Each gets `TCP_NODELAY`: a small response held back by
+/// Nagle's algorithm until the client's delayed ACK cost about 44 ms per
+/// sequential call in the loopback test of issue 13 (`cargo bench -p
+/// meshless-load` measures sequential calls; docs/performance.md has its
+/// figures).
 pub fn incoming(
     listener: TcpListener,
     max_connections: usize,
-    first_byte_timeout: Duration,
+    deadlines: Deadlines,
     stop: CancellationToken,
 ) -> ReceiverStream<io::Result<Admitted>> {
     let (admitted, stream) = mpsc::channel(1);
@@ -119,29 +159,20 @@ pub fn incoming(
                         tracing::debug!("TCP_NODELAY on an accepted connection: {e}");
                         continue;
                     }
+                    let connection = Connection::new(deadlines);
+                    let first = connection
+                        .deadline(Instant::now())
+                        .unwrap_or_else(Instant::now);
                     let connection = Admitted {
                         stream,
+                        connection,
+                        deadline: Box::pin(tokio::time::sleep_until(first)),
                         _place: place,
                     };
-                    // Waiting for the first byte must not hold up accept.
-                    let admitted = admitted.clone();
-                    tokio::spawn(async move {
-                        let mut byte = [0u8; 1];
-                        let first = tokio::time::timeout(
-                            first_byte_timeout,
-                            connection.stream.peek(&mut byte),
-                        )
-                        .await;
-                        match first {
-                            Ok(Ok(n)) if n > 0 => {
-                                // The server may be shutting down.
-                                let _ = admitted.send(Ok(connection)).await;
-                            }
-                            // Silent, closed or failed: dropping it closes
-                            // the socket and frees its place.
-                            Ok(_) | Err(_) => tracing::debug!("closed a silent connection"),
-                        }
-                    });
+                    if admitted.send(Ok(connection)).await.is_err() {
+                        // The server is shutting down.
+                        break;
+                    }
                 }
                 Err(e) => {
                     tracing::warn!("accepting a gRPC connection: {e}");
@@ -162,16 +193,20 @@ mod tests {
 
     const WAIT: Duration = Duration::from_secs(10);
 
+    const PATIENT: Deadlines = Deadlines {
+        handshake: WAIT,
+        idle: WAIT,
+    };
+
     #[tokio::test]
     async fn connections_beyond_the_cap_wait_and_all_send_without_delay() {
         let listener = TcpListener::bind("127.0.0.1:0").await.expect("bind");
         let addr = listener.local_addr().expect("address");
-        let mut connections = incoming(listener, 1, WAIT, CancellationToken::new());
-        let mut first_client = timeout(WAIT, TcpStream::connect(addr))
+        let mut connections = incoming(listener, 1, PATIENT, CancellationToken::new());
+        let _first_client = timeout(WAIT, TcpStream::connect(addr))
             .await
             .expect("connects in time")
             .expect("connects");
-        first_client.write_all(b"P").await.expect("speaks");
         let first = timeout(WAIT, connections.next())
             .await
             .expect("admitted in time")
@@ -179,11 +214,10 @@ mod tests {
             .expect("accepted");
         assert!(first.stream.nodelay().expect("option"));
 
-        let mut second_client = timeout(WAIT, TcpStream::connect(addr))
+        let _second_client = timeout(WAIT, TcpStream::connect(addr))
             .await
             .expect("connects in time (the kernel's backlog)")
             .expect("connects");
-        second_client.write_all(b"P").await.expect("speaks");
         // At the cap: the second waits for a place...
         assert!(
             timeout(Duration::from_millis(300), connections.next())
@@ -202,34 +236,56 @@ mod tests {
     }
 
     #[tokio::test]
-    async fn a_silent_connection_is_closed_and_frees_its_place() {
+    async fn a_connection_that_earns_nothing_fails_at_its_deadline_and_frees_its_place() {
         let listener = TcpListener::bind("127.0.0.1:0").await.expect("bind");
         let addr = listener.local_addr().expect("address");
-        let silence = Duration::from_millis(200);
-        let mut connections = incoming(listener, 1, silence, CancellationToken::new());
-        let mut silent = timeout(WAIT, TcpStream::connect(addr))
-            .await
-            .expect("connects in time")
-            .expect("connects");
+        let brief = Deadlines {
+            handshake: Duration::from_millis(200),
+            idle: WAIT,
+        };
+        let mut connections = incoming(listener, 1, brief, CancellationToken::new());
         let mut speaking = timeout(WAIT, TcpStream::connect(addr))
             .await
             .expect("connects in time")
             .expect("connects");
-        speaking.write_all(b"P").await.expect("speaks");
-        // The silent one is closed by the server (end of stream)...
-        let mut buf = [0u8; 1];
-        let read = timeout(WAIT, silent.read(&mut buf))
+        speaking.write_all(b"PRI").await.expect("speaks");
+        let mut admitted = timeout(WAIT, connections.next())
             .await
-            .expect("closed in time");
-        assert!(matches!(read, Ok(0) | Err(_)), "{read:?}");
-        // ...and its place goes to the one that speaks.
-        let admitted = timeout(WAIT, connections.next())
-            .await
-            .expect("admitted once the silent one is gone")
+            .expect("admitted")
             .expect("a connection")
             .expect("accepted");
-        let mut peeked = [0u8; 1];
-        assert_eq!(admitted.stream.peek(&mut peeked).await.expect("peek"), 1);
-        assert_eq!(&peeked, b"P");
+        let _waiting = timeout(WAIT, TcpStream::connect(addr))
+            .await
+            .expect("connects in time")
+            .expect("connects");
+        // Bytes do not earn a place: reads fail once the deadline passes...
+        let mut buf = [0u8; 8];
+        let read = timeout(WAIT, async {
+            loop {
+                match admitted.read(&mut buf).await {
+                    Ok(n) if n > 0 => continue,
+                    other => return other,
+                }
+            }
+        })
+        .await
+        .expect("fails in time");
+        let error = read.expect_err("the deadline passed");
+        assert_eq!(error.kind(), io::ErrorKind::TimedOut, "{error}");
+        // ...and dropping it admits the one waiting.
+        drop(admitted);
+        let next = timeout(WAIT, connections.next())
+            .await
+            .expect("admitted once the first is gone")
+            .expect("a connection")
+            .expect("accepted");
+        // An authenticated call earns the place past the handshake.
+        next.connection.earn();
+        let mut next = next;
+        let pending = timeout(Duration::from_millis(500), next.read(&mut buf)).await;
+        assert!(
+            pending.is_err(),
+            "an earned connection was closed: {pending:?}"
+        );
     }
 }

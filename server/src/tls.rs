@@ -13,9 +13,9 @@ use tonic::transport::{Certificate, Identity, ServerTlsConfig};
 /// anything near this is the wrong file.
 const MAX_PEM_BYTES: u64 = 1 << 20;
 
-/// How long a client may take to finish the handshake: as long as it may
-/// stay silent before its first byte (`listener::FIRST_BYTE_TIMEOUT`).
-pub const HANDSHAKE_TIMEOUT: Duration = crate::listener::FIRST_BYTE_TIMEOUT;
+/// How long a client may take to finish the TLS handshake: the default
+/// `--handshake-timeout`, which bounds it too (`crate::connection`).
+pub const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// Where the gRPC endpoint's TLS material lives.
 #[derive(Debug, Clone, Copy)]

@@ -11,6 +11,7 @@ use tokio::io::{AsyncBufReadExt, BufReader};
 use tokio::process::{Child, Command};
 
 pub mod pki;
+pub mod raw_h2;
 
 /// Upper bound on any single wait in a test.
 pub const TIMEOUT: Duration = Duration::from_secs(30);
@@ -88,6 +89,17 @@ pub fn binary(name: &str) -> Result<PathBuf> {
     Ok(binary)
 }
 
+/// How to start a server beyond its flags.
+#[derive(Debug, Default, Clone)]
+pub struct Launch<'a> {
+    /// Environment variables (settings as `MESHLESS_*`, which a server
+    /// that lacks a setting ignores, so a test runs unchanged against an
+    /// older binary).
+    pub env: &'a [(&'a str, &'a str)],
+    /// The server's limit on open file descriptors (`ulimit -n`).
+    pub fd_limit: Option<u32>,
+}
+
 /// A `meshless-server` child process, killed when dropped.
 #[derive(Debug)]
 pub struct ServerProcess {
@@ -117,9 +129,35 @@ impl ServerProcess {
     /// # Errors
     /// As [`ServerProcess::spawn`].
     pub async fn spawn_listening(zenoh_listen: &str, extra_args: &[&str]) -> Result<Self> {
-        let mut child = Command::new(binary("meshless-server")?)
+        Self::launch(zenoh_listen, extra_args, &Launch::default()).await
+    }
+
+    /// [`ServerProcess::spawn`] with `launch`'s environment and limits.
+    ///
+    /// # Errors
+    /// As [`ServerProcess::spawn`].
+    pub async fn spawn_launched(extra_args: &[&str], launch: &Launch<'_>) -> Result<Self> {
+        Self::launch("tcp/127.0.0.1:0", extra_args, launch).await
+    }
+
+    async fn launch(zenoh_listen: &str, extra_args: &[&str], launch: &Launch<'_>) -> Result<Self> {
+        let server = binary("meshless-server")?;
+        let mut command = match launch.fd_limit {
+            // The shell lowers its own limit, then becomes the server.
+            Some(limit) => {
+                let mut shell = Command::new("sh");
+                shell
+                    .arg("-c")
+                    .arg(format!("ulimit -n {limit} && exec \"$0\" \"$@\""))
+                    .arg(server);
+                shell
+            }
+            None => Command::new(server),
+        };
+        let mut child = command
             .args(["--grpc-addr", "127.0.0.1:0", "--zenoh-listen", zenoh_listen])
             .args(extra_args)
+            .envs(launch.env.iter().copied())
             .env("MESHLESS_LOG", "warn")
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
@@ -207,6 +245,24 @@ impl ServerProcess {
         }
         Ok(within("server exit after SIGTERM", self.child.wait()).await?)
     }
+}
+
+/// Resident memory of process `pid`, bytes (`VmRSS`).
+///
+/// # Panics
+/// When the process has no `/proc` entry (it is gone).
+pub fn resident_bytes(pid: u32) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).expect("proc status");
+    let line = status
+        .lines()
+        .find(|l| l.starts_with("VmRSS:"))
+        .expect("VmRSS");
+    let kib: u64 = line
+        .split_whitespace()
+        .nth(1)
+        .and_then(|v| v.parse().ok())
+        .expect("a number");
+    kib * 1024
 }
 
 /// A temporary directory, removed when dropped.

@@ -13,7 +13,8 @@
 
 use meshless_client::{ClientError, Identity, v1};
 use meshless_tests::{
-    ServerProcess, hostile_mesh_dir, mesh_obstacle, small_scene, small_solid_scene, within,
+    ServerProcess, hostile_mesh_dir, mesh_obstacle, resident_bytes, small_scene, small_solid_scene,
+    within,
 };
 use std::collections::HashMap;
 use tonic::Code;
@@ -39,10 +40,12 @@ enum Who {
     Forger,
     /// The owner with a malformed client id header.
     BadClientId,
+    /// A 16 kB token, above the header limit hyper had by default.
+    Giant,
 }
 
 impl Who {
-    const ALL: [Who; 7] = [
+    const ALL: [Who; 8] = [
         Who::Alice,
         Who::AliceElsewhere,
         Who::Bob,
@@ -50,9 +53,11 @@ impl Who {
         Who::Nobody,
         Who::Forger,
         Who::BadClientId,
+        Who::Giant,
     ];
 
     fn identity(self) -> Identity {
+        let giant = "g".repeat(16 << 10);
         let (token, client_id) = match self {
             Who::Alice => (Some(ALICE), Some("laptop")),
             Who::AliceElsewhere => (Some(ALICE), Some("notebook")),
@@ -61,6 +66,7 @@ impl Who {
             Who::Nobody => (None, None),
             Who::Forger => (Some("alice-token-0123456780"), None),
             Who::BadClientId => (Some(ALICE), Some("two words")),
+            Who::Giant => (Some(giant.as_str()), None),
         };
         Identity {
             token: token.map(Into::into),
@@ -266,6 +272,7 @@ fn cases() -> Vec<Case> {
         case("no token: step", Nobody, Step(v(), 1), Unauthenticated, "token"),
         case("forged token: list", Forger, List, Unauthenticated, "token"),
         case("forged token: delete", Forger, Delete(v()), Unauthenticated, "token"),
+        case("16 kB token", Giant, List, Unauthenticated, "at most 4096"),
         // Authorisation: PERMISSION_DENIED naming what was refused.
         case("stranger reads", Carol, Get(v()), PermissionDenied, "see"),
         case("stranger reads frames", Carol, Latest(v()), PermissionDenied, "see"),
@@ -360,21 +367,6 @@ async fn send(
             client.edit_constraints(&id(s), edits.clone()).await?.len()
         ),
     })
-}
-
-/// Resident memory of process `pid`, bytes.
-fn resident_bytes(pid: u32) -> u64 {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).expect("proc status");
-    let line = status
-        .lines()
-        .find(|l| l.starts_with("VmRSS:"))
-        .expect("VmRSS");
-    let kib: u64 = line
-        .split_whitespace()
-        .nth(1)
-        .and_then(|v| v.parse().ok())
-        .expect("a number");
-    kib * 1024
 }
 
 /// Largest resident memory the server may reach: its memory budget plus
