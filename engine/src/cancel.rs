@@ -6,7 +6,10 @@
 //! at its loop heads: once per sub-step, per Newton or Levenberg–Marquardt
 //! iteration and per CG iteration, each a relaxed atomic load, so the
 //! work stops within one of those iterations and an uncancelled run
-//! computes exactly what it did without the checks.
+//! computes exactly what it did without the checks. A modal solid's
+//! precompute reads it per chunk of every long loop (octree, quadrature,
+//! shape functions, assembly, rotation modes, skin) and in the
+//! eigensolver.
 //!
 //! Cancelled work reports [`Cancelled`] and leaves its owner at a
 //! consistent state: a world goes back to the start of the step (see
@@ -19,7 +22,19 @@ use std::sync::atomic::{AtomicBool, Ordering};
 /// share one flag, and once raised it stays raised (make a new one for
 /// the next piece of work).
 #[derive(Debug, Clone, Default)]
-pub struct Cancel(Arc<AtomicBool>);
+pub struct Cancel(Arc<Flag>);
+
+/// The shared flag; in the engine's own tests also a count of its reads
+/// and the read from which it raises itself, so that a test can stop work
+/// at a chosen point inside a loop without timing anything.
+#[derive(Debug, Default)]
+struct Flag {
+    raised: AtomicBool,
+    #[cfg(test)]
+    reads: std::sync::atomic::AtomicUsize,
+    #[cfg(test)]
+    raise_at: Option<usize>,
+}
 
 impl Cancel {
     /// A flag not raised yet.
@@ -27,16 +42,39 @@ impl Cancel {
         Self::default()
     }
 
+    /// A flag that raises itself at its `read`-th read (1-based): work
+    /// stopped from inside, at a point a test picks by counting reads.
+    #[cfg(test)]
+    pub(crate) fn raised_at_read(read: usize) -> Self {
+        Self(Arc::new(Flag {
+            raise_at: Some(read),
+            ..Flag::default()
+        }))
+    }
+
+    /// How many times the work read this flag (tests only).
+    #[cfg(test)]
+    pub(crate) fn reads(&self) -> usize {
+        self.0.reads.load(Ordering::Relaxed)
+    }
+
     /// Asks the work holding a clone to stop at its next check.
     pub fn cancel(&self) {
         // Relaxed: the flag orders nothing else; the working thread only
         // needs to see it eventually, and sees it within one iteration.
-        self.0.store(true, Ordering::Relaxed);
+        self.0.raised.store(true, Ordering::Relaxed);
     }
 
     /// Whether [`Self::cancel`] was called on this flag or a clone.
     pub fn is_cancelled(&self) -> bool {
-        self.0.load(Ordering::Relaxed)
+        #[cfg(test)]
+        {
+            let read = self.0.reads.fetch_add(1, Ordering::Relaxed) + 1;
+            if self.0.raise_at.is_some_and(|at| read >= at) {
+                self.cancel();
+            }
+        }
+        self.0.raised.load(Ordering::Relaxed)
     }
 
     /// A guard that raises this flag when it is dropped: ties the work to
@@ -88,6 +126,16 @@ mod tests {
         assert!(cancel.is_cancelled());
         assert_eq!(cancel.check(), Err(Cancelled));
         assert!(!Cancel::new().is_cancelled(), "a new flag is its own");
+    }
+
+    #[test]
+    fn a_flag_raised_at_a_read_counts_its_reads() {
+        let cancel = Cancel::raised_at_read(3);
+        assert_eq!(cancel.check(), Ok(()));
+        assert_eq!(cancel.check(), Ok(()));
+        assert_eq!(cancel.check(), Err(Cancelled), "the third read raises it");
+        assert!(cancel.is_cancelled(), "and it stays raised");
+        assert_eq!(cancel.reads(), 4);
     }
 
     #[test]

@@ -1,9 +1,14 @@
 //! Vector fields a scene writes as formulas: an initial velocity field
 //! over the fluid's particles, a body force over space. Each component is
 //! an arithmetic expression in the position `x`, `y`, `z` (m), parsed and
-//! evaluated in f64 by exmex: `+ - * / ^`, parentheses, `sin`, `cos`,
-//! `tan`, `exp`, `log`/`ln`, `sqrt`, `abs`, `tanh` and the others exmex
-//! knows, the constants `PI`/`π`, `TAU` and `E`.
+//! evaluated in f64 by exmex: numbers (`2`, `0.5`, `.5`, and in
+//! scientific notation `1e-3`, `2.5E+4`), `+ - * / ^`, parentheses,
+//! `sin`, `cos`, `tan`, `exp`, `log`/`ln`, `sqrt`, `abs`, `tanh` and the
+//! others exmex knows, the constants `PI`/`π`, `TAU` and `E`.
+//!
+//! exmex's own number literals have no exponent (`1e-3` would read as
+//! `1`, then a variable `e`), so components are parsed with
+//! [`Literal`], which takes one.
 //!
 //! A scene names a field instead of listing a velocity per particle, so a
 //! 31k-particle drop in a vortex is three short lines, not 3 MB.
@@ -15,7 +20,15 @@
 
 use crate::math::{Brief, Real, Vector};
 use exmex::prelude::*;
+use exmex::{FloatOpsFactory, MatchLiteral};
 use std::fmt;
+
+/// A parsed component: exmex's float operators, [`Literal`] numbers.
+type Formula = FlatEx<Real, FloatOpsFactory<Real>, Literal>;
+
+/// What a formula may hold, for the message that refuses one.
+const ALLOWED: &str = "use numbers (2, 0.5, 1e-3, 2.5E+4), x, y and z, + - * / ^, \
+                       parentheses, functions such as sin, cos, exp, sqrt and abs, and PI";
 
 /// Longest component text, in characters.
 pub const MAX_EXPRESSION_CHARS: usize = 500;
@@ -39,10 +52,49 @@ impl fmt::Display for ExpressionError {
 
 impl std::error::Error for ExpressionError {}
 
+/// Number literals with an optional exponent: digits with an optional
+/// fraction (`2`, `2.`, `2.5`, `.5`), then `e` or `E`, an optional sign
+/// and digits. An `e` not followed by digits is left to the parser (a
+/// variable or `exp` after a number is its business).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Literal;
+
+impl MatchLiteral for Literal {
+    fn is_literal(text: &str) -> Option<&str> {
+        let bytes = text.as_bytes();
+        let digits = |from: usize| {
+            bytes[from..]
+                .iter()
+                .take_while(|b| b.is_ascii_digit())
+                .count()
+        };
+        let whole = digits(0);
+        let mut end = whole;
+        let mut fraction = 0;
+        if bytes.get(end) == Some(&b'.') {
+            fraction = digits(end + 1);
+            end += 1 + fraction;
+        }
+        // At least one digit: a lone "." is no number.
+        if whole + fraction == 0 {
+            return None;
+        }
+        if let Some(b'e' | b'E') = bytes.get(end) {
+            let sign = usize::from(matches!(bytes.get(end + 1), Some(b'+' | b'-')));
+            let exponent = digits(end + 1 + sign);
+            if exponent > 0 {
+                end += 1 + sign + exponent;
+            }
+        }
+        // All ASCII up to `end`, so a character boundary.
+        Some(&text[..end])
+    }
+}
+
 /// One parsed component, with the axis each of its variables reads.
 #[derive(Debug, Clone)]
 struct Component {
-    expression: FlatEx<Real>,
+    expression: Formula,
     /// For each variable of `expression` (in its alphabetical order), the
     /// axis whose coordinate it is.
     axes: Vec<usize>,
@@ -59,7 +111,7 @@ impl Component {
                 "is {chars} characters long; keep a component to {MAX_EXPRESSION_CHARS}"
             )));
         }
-        let expression = exmex::parse::<Real>(text).map_err(|e| {
+        let expression = Formula::parse(text).map_err(|e| {
             // exmex quotes the tokens around the fault, which are the
             // client's text: keep a prefix too short to echo it (the
             // `scene_toml` fuzz target found 200 characters repeating a
@@ -69,7 +121,9 @@ impl Component {
             if message.chars().count() > MAX_ERROR_CHARS {
                 short.push('…');
             }
-            ExpressionError(format!("is not a formula exmex can read ({short})"))
+            ExpressionError(format!(
+                "is not a formula in x, y and z; {ALLOWED} (the parser said: {short})"
+            ))
         })?;
         let axes = expression
             .var_names()
@@ -78,7 +132,8 @@ impl Component {
                 VARIABLES.iter().position(|v| v == name).ok_or_else(|| {
                     let shown: String = name.chars().take(40).collect();
                     ExpressionError(format!(
-                        "uses the variable `{shown}`; a field may use only x, y and z"
+                        "uses the variable `{shown}`; a field may use only x, y and z \
+                         ({ALLOWED})"
                     ))
                 })
             })
@@ -199,6 +254,35 @@ mod tests {
         assert_eq!(constant.eval(&at), Vector::new(1.5, 0.0, -2.0));
     }
 
+    /// Numbers in scientific notation are numbers (exmex's own literals
+    /// stop at the `e`): with either case of `e`, either sign or none, a
+    /// fraction or not, beside variables and the constant `E`.
+    #[test]
+    fn scientific_notation_reads_as_numbers() {
+        let at = Vector::new(2.0, 3.0, 0.5);
+        let v = field(["1e-3*x", "2.5E+4 + y", "1e3*z - .5e1"])
+            .expect("scientific notation parses")
+            .eval(&at);
+        assert_eq!(v, Vector::new(1e-3 * 2.0, 2.5e4 + 3.0, 1e3 * 0.5 - 5.0));
+        let v = field(["-1E-2", "2.e2", "E*x + 3e0"])
+            .expect("parses")
+            .eval(&at);
+        assert_eq!(v.x, -1e-2);
+        assert_eq!(v.y, 200.0);
+        assert!((v.z - (std::f64::consts::E * 2.0 + 3.0)).abs() < 1e-12);
+        for (text, literal) in [
+            ("1e-3*x", Some("1e-3")),
+            ("2.5E+4", Some("2.5E+4")),
+            ("1e3", Some("1e3")),
+            ("2exp(x)", Some("2")),
+            ("3e+x", Some("3")),
+            (".", None),
+            ("x", None),
+        ] {
+            assert_eq!(Literal::is_literal(text), literal, "{text}");
+        }
+    }
+
     /// Bad text is refused with the component named: unknown variables,
     /// syntax, length; a formula that is infinite somewhere is found at
     /// its point.
@@ -210,6 +294,10 @@ mod tests {
         let (a, e) = field(["x +* (", "0", "0"]).expect_err("syntax");
         assert_eq!(a, 0);
         assert!(e.to_string().contains("formula"), "{e}");
+        assert!(
+            e.to_string().contains("1e-3") && e.to_string().contains("x, y and z"),
+            "the message says what a formula may hold: {e}"
+        );
         let echo = format!("0.1*{}sin(2*PI*y)", "b".repeat(300));
         let (_, e) = VectorField::parse(&[echo, "0".into(), "0".into()]).expect_err("syntax");
         assert!(!e.to_string().contains(&"b".repeat(49)), "{e}");

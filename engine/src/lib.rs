@@ -35,7 +35,7 @@ pub mod world;
 
 pub use cancel::{Cancel, Cancelled, RaiseOnDrop};
 pub use frame::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
-pub use scene::{BuildOptions, Scene, SceneError};
+pub use scene::{Budget, BuildOptions, Scene, SceneError};
 pub use world::{
     Clock, GrabsError, StateError, StepError, StepInfo, SystemState, World, WorldState,
 };

@@ -3,7 +3,7 @@
 
 use crate::auth::Tokens;
 use meshless_engine::scene::MeshFiles;
-use meshless_engine::{BuildOptions, Cancel};
+use meshless_engine::{Budget, BuildOptions, Cancel};
 use std::net::SocketAddr;
 
 /// How the server's zenoh session joins the network.
@@ -317,6 +317,7 @@ impl ServerConfig {
             },
             max_mesh_bytes: u64::from(self.max_mesh_mb) << 20,
             cancel: Cancel::new(),
+            budget: Budget::default(),
         }
     }
 

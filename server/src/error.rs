@@ -105,9 +105,9 @@ impl ServiceError {
             Self::InvalidArgument { .. } => Code::InvalidArgument,
             Self::Scene(scene) => match scene {
                 SceneError::Invalid { .. } | SceneError::Parse(_) => Code::InvalidArgument,
-                SceneError::TooManyParticles { .. } | SceneError::TooFine { .. } => {
-                    Code::ResourceExhausted
-                }
+                SceneError::TooManyParticles { .. }
+                | SceneError::TooFine { .. }
+                | SceneError::OverBudget { .. } => Code::ResourceExhausted,
                 SceneError::Cancelled => Code::Cancelled,
             },
             Self::NotFound(_) | Self::NoDesign(_) => Code::NotFound,

@@ -3,7 +3,7 @@
 use crate::error::{ServiceError, quote};
 use crate::metrics::Metrics;
 use crate::session::{Access, Decoded, Origin, Outlet, Session};
-use meshless_engine::{BuildOptions, Cancel, Scene};
+use meshless_engine::{Budget, BuildOptions, Cancel, Scene};
 use meshless_proto::seal::Sealer;
 use std::collections::HashMap;
 use std::hash::{BuildHasher, RandomState};
@@ -19,7 +19,9 @@ pub struct Registry {
     seal: bool,
     options: BuildOptions,
     max_sessions: u32,
-    memory: Mutex<Memory>,
+    /// Shared with the budget a check reserves through (see
+    /// [`Registry::admit`]), which may outlive the admission it serves.
+    memory: Arc<Mutex<Memory>>,
     serial: AtomicU64,
     ids: RandomState,
     /// What every id this server makes starts with: `NAME-` with a
@@ -45,11 +47,11 @@ impl Registry {
             seal,
             options,
             max_sessions,
-            memory: Mutex::new(Memory {
+            memory: Arc::new(Mutex::new(Memory {
                 budget: memory_budget,
                 reserved: 0,
                 by_session: HashMap::new(),
-            }),
+            })),
             serial: AtomicU64::new(0),
             ids: RandomState::new(),
             id_prefix: String::new(),
@@ -67,9 +69,7 @@ impl Registry {
     }
 
     fn memory(&self) -> std::sync::MutexGuard<'_, Memory> {
-        self.memory
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
+        lock(&self.memory)
     }
 
     fn read(&self) -> std::sync::RwLockReadGuard<'_, HashMap<String, Arc<Session>>> {
@@ -156,13 +156,27 @@ impl Registry {
         // the caller goes (this future is dropped), it stops.
         options.cancel = Cancel::new();
         let _stop = options.cancel.raise_on_drop();
+        // A modal solid's precompute is built inside the check: its
+        // estimate is reserved there, before the allocation, through
+        // `early`, which gives it back when the check fails or is dropped.
+        let early = Arc::new(Early {
+            memory: self.memory.clone(),
+            bytes: AtomicU64::new(0),
+        });
+        options.budget = early.budget();
         // Validation and the estimate first (a mesh may be read), then the
         // reservation, and only then the allocation.
         let checked = tokio::task::spawn_blocking(move || scene.check(&options))
             .await
             .map_err(|e| ServiceError::Internal(format!("scene check task failed: {e}")))??;
         let needed = checked.footprint().bytes.ceil().min(u64::MAX as f64) as u64;
-        self.memory().reserve(needed)?;
+        // The checked footprint replaces the early reservation, under one
+        // lock so that no other admission sees the bytes free between.
+        {
+            let mut memory = self.memory();
+            memory.release_unassigned(early.bytes.swap(0, Ordering::Relaxed));
+            memory.reserve(needed)?;
+        }
         let serial = self.serial.fetch_add(1, Ordering::Relaxed);
         let id = id.unwrap_or_else(|| {
             format!(
@@ -283,6 +297,50 @@ impl Registry {
             self.memory().release(&session.id);
             join_blocking(session).await;
         }
+    }
+}
+
+fn lock(memory: &Mutex<Memory>) -> std::sync::MutexGuard<'_, Memory> {
+    memory
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// What a scene's check reserved before its precompute ran
+/// ([`meshless_engine::Budget`]): held until the admission replaces it by
+/// the checked footprint, and given back when it is dropped (by the
+/// admission and by the check's own copy of the budget), so a refused,
+/// failed or abandoned check leaves the budget as it found it.
+#[derive(Debug)]
+struct Early {
+    memory: Arc<Mutex<Memory>>,
+    bytes: AtomicU64,
+}
+
+impl Early {
+    /// The budget a check reserves through: the memory's free bytes, or a
+    /// refusal saying what is left and which setting to raise.
+    fn budget(self: &Arc<Self>) -> Budget {
+        let early = self.clone();
+        Budget::new(move |bytes| {
+            lock(&early.memory).reserve(bytes).map_err(|e| match e {
+                ServiceError::MemoryBudget {
+                    free_mb, budget_mb, ..
+                } => format!(
+                    "the server has {free_mb} MB of its {budget_mb} MB memory budget \
+                     (--memory-budget-mb) left"
+                ),
+                other => other.to_string(),
+            })?;
+            early.bytes.fetch_add(bytes, Ordering::Relaxed);
+            Ok(())
+        })
+    }
+}
+
+impl Drop for Early {
+    fn drop(&mut self) {
+        lock(&self.memory).release_unassigned(*self.bytes.get_mut());
     }
 }
 

@@ -2,8 +2,9 @@
 //! `meshless-server` binary: a session of one builds, its frames carry
 //! the nodes and the deformed skin with normals, grab constraints move a
 //! point to its target while the session runs, a grab off the solid
-//! refuses its whole batch and leaves everything as it was, and a reset
-//! keeps the grabs.
+//! refuses its whole batch and leaves everything as it was, a reset
+//! keeps the grabs, and a solid whose precompute would not fit the
+//! server's memory budget is refused by its estimate before it is built.
 
 use meshless_client::{Client, FrameView, ZenohLink, v1};
 use meshless_tests::{ServerProcess, rpc_status, small_modal_scene, within};
@@ -173,4 +174,59 @@ async fn a_grabbed_modal_beam_follows_its_grab_and_a_bad_batch_changes_nothing()
         .sum::<f64>()
         .sqrt();
     assert!(error < 1e-3, "held again after the reset: {at:?}");
+}
+
+/// A modal solid of some 16,000 nodes (a 50 x 25 x 25 cm block on
+/// 1.25 cm octants) needs gigabytes for its shape functions and
+/// matrices. Under a 64 MB budget the server refuses it from the
+/// estimate it makes once the octree stands, before the precompute
+/// allocates anything, with RESOURCE_EXHAUSTED and a message giving the
+/// estimate, the budget and what to change; before, it was measured
+/// after a build of minutes and gigabytes, and refused then. The
+/// refusal keeps nothing: no session, the budget whole for a small one.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_modal_solid_over_the_memory_budget_is_refused_before_it_is_built() {
+    let server = ServerProcess::spawn(&["--memory-budget-mb", "64"])
+        .await
+        .expect("server starts");
+    let client = server.client().await.expect("client");
+    let large = r#"
+        name = "a block too large for the budget"
+        [domain]
+        min = [-0.3, -0.2, -0.2]
+        max = [0.3, 0.2, 0.2]
+        [time]
+        dt = 0.02
+        [[systems]]
+        kind = "modal_solid"
+        shape = { type = "box", half_extents = [0.25, 0.125, 0.125] }
+        position = [0.0, 0.0, 0.0]
+        young = 1.0e5
+        cell = 0.0125
+        modes = 12
+    "#;
+    let status = rpc_status(
+        within("the refusal", client.create_session_toml(large))
+            .await
+            .expect_err("over the budget"),
+    );
+    assert_eq!(status.code(), Code::ResourceExhausted, "{status:?}");
+    let message = status.message();
+    for part in [
+        "systems[0]",
+        "by its estimate",
+        "of its 64 MB memory budget",
+        "--memory-budget-mb",
+        "`cell`",
+    ] {
+        assert!(message.contains(part), "{part:?} in: {message}");
+    }
+    let sessions = within("list", client.list_sessions()).await.expect("list");
+    assert!(sessions.is_empty(), "nothing kept: {sessions:?}");
+    within(
+        "a small one",
+        client.create_session_toml(&small_modal_scene()),
+    )
+    .await
+    .expect("the budget is whole again for a small modal solid");
 }

@@ -25,6 +25,7 @@
 use super::shape::ShapeTable;
 use crate::linalg::{BlockColumn, BlockPattern};
 use crate::math::{Real, Vector};
+use crate::{Cancel, Cancelled};
 use rayon::prelude::*;
 
 /// The Lamé parameters `(lambda, mu)` of Young's modulus `e` and Poisson's
@@ -84,21 +85,30 @@ impl Integral {
 }
 
 /// The block rows `m >= n` of each block column `n` that the integrals
-/// couple: the sparsity of M and K.
-pub fn pattern(nodes: usize, integrals: &[&Integral]) -> Option<BlockPattern> {
+/// couple: the sparsity of M and K (`None` when too large to index).
+/// Reads `cancel` once per column.
+///
+/// # Errors
+/// [`Cancelled`] once `cancel` is raised.
+pub fn pattern(
+    nodes: usize,
+    integrals: &[&Integral],
+    cancel: &Cancel,
+) -> Result<Option<BlockPattern>, Cancelled> {
     let columns: Vec<Vec<u32>> = (0..nodes)
         .into_par_iter()
         .map(|n| {
+            cancel.check()?;
             let mut rows = vec![n as u32];
             for integral in integrals {
                 integral.pairs(n, |_, _, _, m| rows.push(m));
             }
             rows.sort_unstable();
             rows.dedup();
-            rows
+            Ok(rows)
         })
-        .collect();
-    BlockPattern::new(3, &columns)
+        .collect::<Result<_, Cancelled>>()?;
+    Ok(BlockPattern::new(3, &columns))
 }
 
 /// Adds column `n` of the stiffness `K` (volume integral) to `out`.

@@ -8,11 +8,13 @@
 //! `Arc`, so a world's copy for a failed step's restore or a snapshot
 //! costs the state only.
 
+use super::estimate::{Estimate, MATRIX_ENTRY_BYTES, NODE_REALS, SHAPE_ENTRY_BYTES, SurfacePoints};
 use super::skin::{DeformedSkin, Skin, SkinBuffers, SkinInput};
 use super::solid::Laps;
 use super::{CoverError, EfgError, EfgParams, EfgSolid, FixedSurface, Material};
 use crate::Cancel;
 use crate::geometry::ImplicitSurface;
+use crate::geometry::octree::Octree;
 use crate::math::{Real, Vector};
 use crate::modal::{
     Damping, MAX_CONSTRAINTS, ModalError, ModalSystem, Stabilization, rotation_integral,
@@ -142,15 +144,48 @@ impl ModalSolid {
         skin: Option<SkinInput>,
         cancel: &Cancel,
     ) -> Result<Self, EfgError> {
-        let efg = EfgSolid::build(geometry, fixed, material, params.efg, cancel)?;
+        Self::build_admitted(geometry, fixed, material, params, skin, cancel, &|_| Ok(()))
+    }
+
+    /// [`Self::build`], with `admit` asked once the octree stands, with
+    /// the [`Estimate`] of everything after it, before any of that is
+    /// allocated: a host reserves the bytes against its budget there, or
+    /// refuses (its reason becomes [`EfgError::Refused`]).
+    ///
+    /// # Errors
+    /// As [`Self::build`], and [`EfgError::Refused`].
+    pub fn build_admitted(
+        geometry: &dyn ImplicitSurface,
+        fixed: &FixedSurface,
+        material: Material,
+        params: &ModalParams,
+        skin: Option<SkinInput>,
+        cancel: &Cancel,
+        admit: &dyn Fn(&Estimate) -> Result<(), String>,
+    ) -> Result<Self, EfgError> {
+        let surface = SurfacePoints {
+            fixed: &fixed.points,
+            skin: skin.as_ref().map_or(&[][..], |s| s.vertices.as_slice()),
+            triangles: skin.as_ref().map_or(0, |s| s.triangles.len()),
+        };
+        let admit_octree = |octree: &Octree| {
+            let estimate = Estimate::of(octree, &params.efg, params.modes, surface, cancel)
+                .map_err(|_| EfgError::Cancelled)?;
+            admit(&estimate).map_err(|reason| EfgError::Refused {
+                estimate: Box::new(estimate),
+                reason,
+            })
+        };
+        let efg =
+            EfgSolid::build_admitted(geometry, fixed, material, params.efg, cancel, &admit_octree)?;
         let mut laps = Laps::after(efg.timings().to_vec());
         let modes = efg.modes(params.modes, params.tolerance, cancel)?;
         laps.lap("modes");
-        let basis = efg.basis_of(&modes)?;
+        let basis = efg.basis_of(&modes, cancel)?;
         laps.lap("rotation modes");
         let skin = skin
             .map(|input| {
-                let table = efg.shape_table(&input.vertices)?;
+                let table = efg.shape_table_cancellable(&input.vertices, cancel)?;
                 Ok::<_, EfgError>(Skin::new(input, &table))
             })
             .transpose()?;
@@ -176,23 +211,25 @@ impl ModalSolid {
         })
     }
 
-    /// The bytes it holds, counted from its arrays: stiffness and mass
-    /// values, the two modal bases (`Psi`, `W`), the shape-function
-    /// tables of the quadrature points (a value, a gradient and an index
-    /// per entry) and of the skin (see `Skin::bytes`), and the per-node
-    /// state (displacements, rotations, loads and scratch).
+    /// The bytes it holds, counted from its arrays: the octree
+    /// ([`crate::geometry::Octree::bytes`]), stiffness and mass values and
+    /// their pattern's row indices, the two modal bases (`Psi`, `W`), the
+    /// shape-function tables of the quadrature points (a value, a
+    /// gradient and an index per entry) and of the skin (see
+    /// `Skin::bytes`), and the per-node state (displacements, rotations,
+    /// loads and scratch). [`Estimate`] bounds it before the build.
     pub fn bytes(&self) -> usize {
         let real = std::mem::size_of::<Real>();
-        let entry = 4 * real + std::mem::size_of::<u32>();
         let efg = &self.pre.efg;
         let n = self.len();
         let l = self.pre.eigenvalues.len();
         let skin = self.pre.skin.as_ref().map_or(0, Skin::bytes);
-        2 * efg.stiffness().len() * real
+        efg.octree().bytes()
+            + efg.stiffness().len() * MATRIX_ENTRY_BYTES
             + 2 * 3 * n * l * real
-            + efg.shape_entries() * entry
+            + efg.shape_entries() * SHAPE_ENTRY_BYTES
             + skin
-            + n * 24 * real
+            + n * NODE_REALS * real
     }
 
     /// Wall time of each build stage, in order: the discretisation's

@@ -18,7 +18,10 @@
 //!    Section 5.3);
 //! 6. [`ModalSolid`] (`body.rs`): all of the above behind one build, with
 //!    the reduced state, the embedded surface (`skin.rs`) and the user's
-//!    grabs, as a world steps it.
+//!    grabs, as a world steps it. Between stages 1 and 2 the build bounds
+//!    what the rest will hold from the octree ([`Estimate`],
+//!    `estimate.rs`) and asks its host to admit it; every stage's loops
+//!    read the build's cancel flag.
 //!
 //! Every knob that trades speed for accuracy is a field of [`EfgParams`]:
 //! the cell size (octree depth, hence the node count), `alpha`, the basis
@@ -27,6 +30,7 @@
 
 mod assemble;
 mod body;
+mod estimate;
 mod quadrature;
 mod reduce;
 mod shape;
@@ -35,6 +39,7 @@ mod solid;
 
 pub use assemble::lame;
 pub use body::{Grab, GrabError, ModalParams, ModalSolid, ModalState};
+pub use estimate::Estimate;
 pub use quadrature::{MAX_ORDER, Quadrature};
 pub use shape::{CoverError, Row, ShapeTable};
 pub use skin::{DeformedSkin, SkinBuffers, SkinInput};
@@ -42,6 +47,8 @@ pub use solid::{EfgError, EfgParams, EfgSolid, FixedSurface, MassForm, Material}
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_admission;
 #[cfg(test)]
 mod tests_extremes;
 #[cfg(test)]

@@ -11,8 +11,9 @@
 //! (the tests measure the volume of a ball both ways).
 
 use crate::geometry::ImplicitSurface;
-use crate::geometry::octree::{OctantKind, Octree};
+use crate::geometry::octree::{Octant, OctantKind, Octree};
 use crate::math::{Real, Vector};
+use crate::{Cancel, Cancelled};
 use rayon::prelude::*;
 
 /// Most Gauss points per axis of a cell.
@@ -75,23 +76,28 @@ impl Quadrature {
     /// The rule over the octree's I, IB and EB octants with `order`
     /// (1..=[`MAX_ORDER`]) Gauss points per axis on `subdivision^3` cells
     /// per interior octant and `(refinement * subdivision)^3` per boundary
-    /// octant, points outside `surface` dropped.
+    /// octant, points outside `surface` dropped. Reads `cancel` once per
+    /// octant (a boundary octant is up to 4,096 cells of signed
+    /// distances).
+    ///
+    /// # Errors
+    /// [`Cancelled`] once `cancel` is raised.
     pub fn build(
         octree: &Octree,
         surface: &dyn ImplicitSurface,
         order: usize,
         subdivision: usize,
         refinement: usize,
-    ) -> Self {
+        cancel: &Cancel,
+    ) -> Result<Self, Cancelled> {
         let (x, w) = gauss_legendre(order);
         let per_leaf: Vec<(Vec<Vector>, Vec<Real>)> = octree
             .leaves()
             .par_iter()
-            .map(|leaf| {
-                let (cells, boundary) = match leaf.kind {
-                    OctantKind::Exterior => return (Vec::new(), Vec::new()),
-                    OctantKind::Interior => (subdivision, false),
-                    _ => (refinement * subdivision, true),
+            .map(|leaf| -> Result<_, Cancelled> {
+                cancel.check()?;
+                let Some((cells, boundary)) = cells_of(leaf, subdivision, refinement) else {
+                    return Ok((Vec::new(), Vec::new()));
                 };
                 let h = leaf.size / cells as Real;
                 let mut points = Vec::with_capacity(cells.pow(3) * x.len().pow(3));
@@ -117,15 +123,27 @@ impl Quadrature {
                         }
                     }
                 }
-                (points, weights)
+                Ok((points, weights))
             })
-            .collect();
+            .collect::<Result<_, Cancelled>>()?;
         let mut rule = Self::default();
         for (points, weights) in per_leaf {
             rule.points.extend(points);
             rule.weights.extend(weights);
         }
-        rule
+        Ok(rule)
+    }
+
+    /// The points [`Self::build`] would place in `leaf` before it drops
+    /// those outside the surface: an upper bound on its share, known
+    /// before any point is made.
+    pub fn most_points(
+        leaf: &Octant,
+        order: usize,
+        subdivision: usize,
+        refinement: usize,
+    ) -> usize {
+        cells_of(leaf, subdivision, refinement).map_or(0, |(cells, _)| (cells * order).pow(3))
     }
 
     /// The number of points.
@@ -141,5 +159,18 @@ impl Quadrature {
     /// The volume the rule integrates over: the sum of its weights.
     pub fn volume(&self) -> Real {
         self.weights.iter().sum()
+    }
+}
+
+/// Integration cells per axis of `leaf` and whether it is a boundary
+/// octant (whose points outside the surface are dropped); `None` for an
+/// exterior octant, which has none.
+fn cells_of(leaf: &Octant, subdivision: usize, refinement: usize) -> Option<(usize, bool)> {
+    match leaf.kind {
+        OctantKind::Exterior => None,
+        OctantKind::Interior => Some((subdivision, false)),
+        OctantKind::InteriorBoundary | OctantKind::ExteriorBoundary => {
+            Some((refinement * subdivision, true))
+        }
     }
 }

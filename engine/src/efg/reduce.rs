@@ -15,6 +15,9 @@ use crate::math::{Real, Vector};
 use crate::modal::ModalBasis;
 use nalgebra::{DMatrix, DVector};
 
+/// Quadrature points summed between two reads of the cancel flag.
+const POINTS_PER_CHECK: usize = 4096;
+
 impl EfgSolid {
     /// The `count` lowest modes to relative accuracy `tolerance`, with the
     /// mass form of the parameters.
@@ -34,7 +37,7 @@ impl EfgSolid {
         let params = EigenParams {
             count,
             tolerance,
-            shift: Some(self.elastic_shift()),
+            shift: Some(self.elastic_shift(cancel)?),
         };
         Ok(eigen::lowest_modes(
             self.pattern(),
@@ -53,11 +56,15 @@ impl EfgSolid {
     /// Krylov iteration could not separate (the clamped beam of Guo–Qin's
     /// Table 1 ran for minutes). `trace(K) = (lambda + 4 mu) int sum_I
     /// |grad phi_I|^2` for the linear isotropic K.
-    fn elastic_shift(&self) -> Real {
+    /// Reads `cancel` every [`POINTS_PER_CHECK`] points.
+    fn elastic_shift(&self, cancel: &Cancel) -> Result<Real, EfgError> {
         let (lambda, mu) = super::lame(self.material().young, self.material().poisson);
         let table = &self.volume.table;
         let (mut gradients, mut values) = (0.0, 0.0);
         for q in 0..table.len() {
+            if q.is_multiple_of(POINTS_PER_CHECK) {
+                cancel.check().map_err(|_| EfgError::Cancelled)?;
+            }
             let row = table.row(q);
             let w = self.volume.weights[q];
             gradients += w * row.gradients.iter().map(|g| g.norm_squared()).sum::<Real>();
@@ -69,7 +76,7 @@ impl EfgSolid {
                 MassForm::Consistent => self.material().density * values,
                 MassForm::Lumped => self.node_masses().iter().sum::<Real>(),
             };
-        trace_k / trace_m / (3 * self.nodes().len()) as Real
+        Ok(trace_k / trace_m / (3 * self.nodes().len()) as Real)
     }
 
     /// The rotation modes of `modes` at the nodes, `3n x l` (Eq. 27).
@@ -78,12 +85,23 @@ impl EfgSolid {
     /// [`EfgError::Cover`] when a node's own position is not covered well
     /// enough (cannot happen for a discretisation that built).
     pub fn rotation_modes(&self, modes: &Modes) -> Result<DMatrix<Real>, EfgError> {
+        self.rotation_modes_cancellable(modes, &Cancel::new())
+    }
+
+    /// [`Self::rotation_modes`], reading `cancel` per node of the table
+    /// and per mode.
+    fn rotation_modes_cancellable(
+        &self,
+        modes: &Modes,
+        cancel: &Cancel,
+    ) -> Result<DMatrix<Real>, EfgError> {
         let positions: Vec<Vector> = self.nodes().iter().map(|n| n.position).collect();
-        let table = self.shape_table(&positions)?;
+        let table = self.shape_table_cancellable(&positions, cancel)?;
         let n = 3 * positions.len();
         let count = modes.eigenvalues.len();
         let mut w = DMatrix::zeros(n, count);
         for j in 0..count {
+            cancel.check().map_err(|_| EfgError::Cancelled)?;
             let psi = &modes.vectors[j * n..(j + 1) * n];
             for i in 0..positions.len() {
                 let row = table.row(i);
@@ -113,7 +131,7 @@ impl EfgSolid {
         cancel: &Cancel,
     ) -> Result<(Modes, ModalBasis), EfgError> {
         let modes = self.modes(count, tolerance, cancel)?;
-        let basis = self.basis_of(&modes)?;
+        let basis = self.basis_of(&modes, cancel)?;
         Ok((modes, basis))
     }
 
@@ -121,10 +139,10 @@ impl EfgSolid {
     /// validated.
     ///
     /// # Errors
-    /// As [`EfgSolid::rotation_modes`], and [`EfgError::Modal`] should the
-    /// basis fail validation.
-    pub fn basis_of(&self, modes: &Modes) -> Result<ModalBasis, EfgError> {
-        let w = self.rotation_modes(modes)?;
+    /// As [`EfgSolid::rotation_modes`], [`EfgError::Modal`] should the
+    /// basis fail validation, and [`EfgError::Cancelled`].
+    pub fn basis_of(&self, modes: &Modes, cancel: &Cancel) -> Result<ModalBasis, EfgError> {
+        let w = self.rotation_modes_cancellable(modes, cancel)?;
         let n = w.nrows();
         let psi = DMatrix::from_column_slice(n, modes.eigenvalues.len(), &modes.vectors);
         Ok(ModalBasis::new(

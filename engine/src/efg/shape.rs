@@ -12,6 +12,8 @@
 //! position: the paper's patch covering condition (Eq. 8) made a checked
 //! precondition rather than a silent drop of order.
 
+use super::EfgError;
+use crate::Cancel;
 use crate::approx::mls::{Mls, MlsParams, Order, ShapeFunctions};
 use crate::approx::tensor::tensor_weight;
 use crate::geometry::octree::Octree;
@@ -80,11 +82,41 @@ impl ShapeTable {
     /// [`CoverError`] for the first point (in order) outside the tree or
     /// not covered well enough.
     pub fn build(octree: &Octree, order: Order, points: &[Vector]) -> Result<Self, CoverError> {
-        let rows: Vec<Result<RowData, CoverError>> = points
+        Self::build_with(octree, order, points, || Ok(()))
+    }
+
+    /// [`Self::build`] reading `cancel` before each point: the table of a
+    /// solid's quadrature is its longest loop (millions of MLS fits).
+    ///
+    /// # Errors
+    /// As [`Self::build`], and [`EfgError::Cancelled`] once `cancel` is
+    /// raised.
+    pub(super) fn build_cancellable(
+        octree: &Octree,
+        order: Order,
+        points: &[Vector],
+        cancel: &Cancel,
+    ) -> Result<Self, EfgError> {
+        Self::build_with(octree, order, points, || {
+            cancel.check().map_err(|_| EfgError::Cancelled)
+        })
+    }
+
+    /// The table, `stop` asked before each point whether to go on.
+    fn build_with<E: From<CoverError> + Send>(
+        octree: &Octree,
+        order: Order,
+        points: &[Vector],
+        stop: impl Fn() -> Result<(), E> + Sync,
+    ) -> Result<Self, E> {
+        let rows: Vec<Result<RowData, E>> = points
             .par_iter()
             .map_init(
                 || (ShapeFunctions::new(), Vec::new()),
-                |(shape, positions), x| row(octree, order, x, shape, positions),
+                |(shape, positions), x| {
+                    stop()?;
+                    Ok(row(octree, order, x, shape, positions)?)
+                },
             )
             .collect();
         let mut table = Self {

@@ -180,6 +180,19 @@ pub enum EfgError {
     /// Cancelled.
     #[error("the EFG build was cancelled")]
     Cancelled,
+    /// The host refused the memory the estimate asks for, before the
+    /// build allocated it ([`super::ModalSolid::build_admitted`]).
+    #[error(
+        "the modal solid needs about {} MB by its estimate ({} nodes, at most {} quadrature          points, {} modes) and {reason}; use a larger `cell` (fewer nodes), fewer          `modes`, or a lower `quadrature_order` or `subdivision`",
+        .estimate.bytes.div_ceil(1 << 20), .estimate.nodes, .estimate.quadrature_points,
+        .estimate.modes
+    )]
+    Refused {
+        /// The estimate refused.
+        estimate: Box<super::Estimate>,
+        /// Why, in the host's words (what it has left, its setting).
+        reason: String,
+    },
 }
 
 impl EfgError {
@@ -252,7 +265,29 @@ impl EfgSolid {
         params: EfgParams,
         cancel: &Cancel,
     ) -> Result<Self, EfgError> {
+        Self::build_admitted(surface, fixed, material, params, cancel, &|_| Ok(()))
+    }
+
+    /// [`Self::build`], with `admit` asked once the octree stands and
+    /// before anything that grows with it is allocated: the octree fixes
+    /// the node count and every point's candidate supports, hence a bound
+    /// on what the rest holds ([`super::Estimate`]), and `admit` may
+    /// refuse it. Every loop from there on reads `cancel` per point,
+    /// column or octant, so a raised flag stops the build within one of
+    /// them.
+    ///
+    /// # Errors
+    /// As [`Self::build`], and whatever `admit` returns.
+    pub(super) fn build_admitted(
+        surface: &dyn ImplicitSurface,
+        fixed: &FixedSurface,
+        material: Material,
+        params: EfgParams,
+        cancel: &Cancel,
+        admit: &dyn Fn(&Octree) -> Result<(), EfgError>,
+    ) -> Result<Self, EfgError> {
         validate(&material, &params, fixed)?;
+        let cancelled = |_| EfgError::Cancelled;
         let mut laps = Laps::after(Vec::new());
         let octree = Octree::build(
             surface,
@@ -264,6 +299,7 @@ impl EfgSolid {
             cancel,
         )?;
         laps.lap("octree");
+        admit(&octree)?;
         let nodes = octree.nodes().len();
         let rule = Quadrature::build(
             &octree,
@@ -271,7 +307,9 @@ impl EfgSolid {
             params.quadrature_order,
             params.subdivision,
             params.boundary_refinement,
-        );
+            cancel,
+        )
+        .map_err(cancelled)?;
         laps.lap("quadrature");
         // A solid thinner than a cell can leave octants that the surface
         // crosses (so nodes) with no Gauss point inside it: no volume, no
@@ -282,32 +320,43 @@ impl EfgSolid {
             }
             .into());
         }
-        cancel.check().map_err(|_| EfgError::Cancelled)?;
-        let table = ShapeTable::build(&octree, params.basis, &rule.points)?;
+        let table = ShapeTable::build_cancellable(&octree, params.basis, &rule.points, cancel)?;
         let volume = Integral::new(table, rule.weights, nodes);
         let fixed = if fixed.points.is_empty() {
             None
         } else {
-            let table = ShapeTable::build(&octree, params.basis, &fixed.points)?;
+            let table =
+                ShapeTable::build_cancellable(&octree, params.basis, &fixed.points, cancel)?;
             Some(Integral::new(table, fixed.areas.clone(), nodes))
         };
         laps.lap("shape functions");
-        cancel.check().map_err(|_| EfgError::Cancelled)?;
         let integrals: Vec<&Integral> = std::iter::once(&volume).chain(fixed.as_ref()).collect();
-        let pattern = assemble::pattern(nodes, &integrals).ok_or(EfgError::TooLarge { nodes })?;
+        let pattern = assemble::pattern(nodes, &integrals, cancel)
+            .map_err(cancelled)?
+            .ok_or(EfgError::TooLarge { nodes })?;
         let lame = assemble::lame(material.young, material.poisson);
         let beta = params.penalty * material.young / params.cell;
+        // A raised flag turns the remaining columns into no-ops; the
+        // check after each pass then ends the build.
         let mut stiffness = Vec::new();
         pattern.assemble(&mut stiffness, |n, out| {
+            if cancel.is_cancelled() {
+                return;
+            }
             assemble::stiffness_column(&volume, lame, n, out);
             if let Some(fixed) = &fixed {
                 assemble::product_column(fixed, beta, n, out);
             }
         });
+        cancel.check().map_err(cancelled)?;
         let mut consistent_mass = Vec::new();
         pattern.assemble(&mut consistent_mass, |n, out| {
+            if cancel.is_cancelled() {
+                return;
+            }
             assemble::product_column(&volume, material.density, n, out);
         });
+        cancel.check().map_err(cancelled)?;
         let node_masses = assemble::node_masses(&volume, material.density, nodes);
         let not_positive = node_masses
             .iter()
@@ -333,6 +382,18 @@ impl EfgSolid {
             node_masses,
             timings: laps.timings,
         })
+    }
+
+    /// [`Self::shape_table`] reading `cancel` before each point.
+    ///
+    /// # Errors
+    /// As [`Self::shape_table`], and [`EfgError::Cancelled`].
+    pub(super) fn shape_table_cancellable(
+        &self,
+        points: &[Vector],
+        cancel: &Cancel,
+    ) -> Result<ShapeTable, EfgError> {
+        ShapeTable::build_cancellable(&self.octree, self.params.basis, points, cancel)
     }
 
     /// Shape-function entries held for the quadrature and the fixed

@@ -80,7 +80,7 @@ fn the_patch_test_passes_on_the_octree_of_a_ball() {
     let mut at_points = Vec::new();
     solid.volume.table.interpolate(&nodal, &mut at_points);
     let scale = nodal.iter().map(|u| u.norm()).fold(0.0, Real::max);
-    let rule = Quadrature::build(solid.octree(), &ball, 2, 2, 1);
+    let rule = Quadrature::build(solid.octree(), &ball, 2, 2, 1, &Cancel::new()).expect("built");
     assert_eq!(rule.len(), solid.quadrature_points());
     for (q, x) in rule.points.iter().enumerate() {
         let err = (at_points[q] - field(x)).norm();

@@ -61,6 +61,13 @@ const MIN_KRYLOV: usize = 64;
 /// (`efg::tests::the_table_1_beam_gives_its_paired_modes`).
 const KRYLOV_PER_MODE: usize = 3;
 
+/// Vectors in the Krylov basis that a search for `count` modes keeps: the
+/// eigensolver's largest workspace besides the factor, which a memory
+/// estimate made before the build counts.
+pub fn basis_vectors(count: usize) -> usize {
+    MIN_KRYLOV.max(KRYLOV_PER_MODE * count)
+}
+
 /// Power steps that estimate `||A||` for the tolerance: faer's tolerance
 /// is absolute, on the operator's scale. A Rayleigh quotient after four
 /// steps from a random start weighs each eigenvalue by its ninth power,
@@ -339,7 +346,7 @@ pub fn lowest_modes(
         cancel,
     };
     let par = faer::get_global_parallelism();
-    let krylov_dim = MIN_KRYLOV.max(KRYLOV_PER_MODE * params.count);
+    let krylov_dim = basis_vectors(params.count);
     let (mu, y) = if n > krylov_dim {
         krylov(&op, params.count, krylov_dim, params.tolerance, par)?
     } else {

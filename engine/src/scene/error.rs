@@ -27,14 +27,18 @@ pub enum SceneError {
         /// The host's limit ([`super::BuildOptions::max_particles`]).
         limit: u64,
     },
-    /// A solid's lattice would hold more points than the engine samples:
-    /// a resource limit, like [`Self::TooManyParticles`], not a bad value.
+    /// A solid's lattice (or a modal solid's octree) would hold more
+    /// points than the engine takes: a resource limit, like
+    /// [`Self::TooManyParticles`], not a bad value. The message names the
+    /// key to raise, the last part of `field` (`spacing`, `cell`).
     #[error(
-        "{field}: fills the shape's bounding cube with about {points} lattice points, more \
-         than the limit of {limit}; raise the spacing"
+        "{field}: fills the shape's bounding box with about {points} points (lattice points \
+         or octree nodes), more than the limit of {limit}; raise `{}`",
+        key_of(.field)
     )]
     TooFine {
-        /// The spacing at fault.
+        /// The resolution at fault (a solid's `spacing`, a modal solid's
+        /// `cell`).
         field: String,
         /// Lattice points the spacing asks for.
         points: u64,
@@ -44,9 +48,24 @@ pub enum SceneError {
     /// The scene file could not be read or parsed.
     #[error("{0}")]
     Parse(String),
+    /// A system's memory, estimated before it is built, does not fit what
+    /// the host's [`super::BuildOptions::budget`] has left: a resource
+    /// limit, refused before the memory is taken.
+    #[error("{field}: {message}")]
+    OverBudget {
+        /// The system.
+        field: String,
+        /// The estimate, what the host has left and what to change.
+        message: String,
+    },
     /// The check was stopped through [`super::BuildOptions::cancel`].
     #[error("the scene's check was cancelled before it finished")]
     Cancelled,
+}
+
+/// The key a field path ends with: `cell` of `systems[0].cell`.
+fn key_of(field: &str) -> &str {
+    field.rsplit('.').next().unwrap_or(field)
 }
 
 impl SceneError {

@@ -11,6 +11,7 @@
 //! then creates only the systems and fields the scene names.
 
 mod body;
+mod budget;
 mod error;
 mod fluid;
 mod footprint;
@@ -23,6 +24,7 @@ mod tests;
 pub use crate::frame::FieldKind;
 pub use body::{MotionKind, OscillationSpec, RigidBodySpec, ShapeSpec, SlipKind};
 pub(crate) use body::{body_pose, body_shape, checked_shape, shape_axes, shape_pose};
+pub use budget::Budget;
 pub use error::SceneError;
 pub use fluid::{FluidBlock, FluidSpec, ParticleSpec, SolverKind, WallModel, WallVelocities};
 pub use footprint::Footprint;
@@ -128,6 +130,9 @@ pub struct BuildOptions {
     /// and watches it between stages and inside the eigensolver. A host
     /// raises it when the client that asked has gone.
     pub cancel: Cancel,
+    /// Where a modal solid's precompute reserves its estimated memory
+    /// before it allocates it; by default nothing is reserved.
+    pub budget: Budget,
 }
 
 impl Default for BuildOptions {
@@ -137,6 +142,7 @@ impl Default for BuildOptions {
             mesh_files: MeshFiles::Host,
             max_mesh_bytes: DEFAULT_MAX_MESH_BYTES,
             cancel: Cancel::new(),
+            budget: Budget::default(),
         }
     }
 }
@@ -627,12 +633,8 @@ impl Scene {
                     prepared[s] = Prepared::Solid(sampled);
                 }
                 SystemSpec::ModalSolid(spec) => {
-                    let solid = self.validate_modal_solid(
-                        &format!("systems[{s}]"),
-                        spec,
-                        options.max_particles,
-                        &options.cancel,
-                    )?;
+                    let solid =
+                        self.validate_modal_solid(&format!("systems[{s}]"), spec, options)?;
                     solid_particles += solid.len() as f64;
                     footprint.add_modal_solid(&solid);
                     prepared[s] = Prepared::Modal(Box::new(solid));

@@ -5,11 +5,10 @@
 //! world exists).
 
 use super::error::{check_box, check_positive, check_range, check_vector};
-use super::{Aabb, Scene, SceneError, ShapeSpec};
-use crate::Cancel;
+use super::{Aabb, BuildOptions, Scene, SceneError, ShapeSpec};
 use crate::approx::mls::Order;
 use crate::efg::{
-    EfgParams, FixedSurface, Grab, MassForm, Material, ModalParams, ModalSolid, SkinInput,
+    EfgError, EfgParams, FixedSurface, Grab, MassForm, Material, ModalParams, ModalSolid, SkinInput,
 };
 use crate::geometry::read::{self, MeshFormat};
 use crate::geometry::{ImplicitSurface, MeshSdf, PointSurface, PointSurfaceParams, TriMesh};
@@ -450,8 +449,7 @@ impl Scene {
         &self,
         at: &str,
         spec: &ModalSolidSpec,
-        max_particles: u64,
-        cancel: &Cancel,
+        options: &BuildOptions,
     ) -> Result<ModalSolid, SceneError> {
         if self.dimension != 3 {
             return Err(SceneError::invalid(
@@ -551,7 +549,7 @@ impl Scene {
         let nodes = (0..3)
             .map(|k| (extent[k] / spec.cell).ceil().max(1.0))
             .product::<Real>();
-        let limit = MAX_NODES.min(max_particles);
+        let limit = MAX_NODES.min(options.max_particles);
         if nodes > limit as Real {
             return Err(SceneError::TooFine {
                 field: field("cell"),
@@ -578,25 +576,98 @@ impl Scene {
             ));
         }
         let params = spec.params()?;
-        let mut solid = ModalSolid::build(
+        // The host reserves the estimate once the octree stands, before
+        // the quadrature, shape functions and matrices are allocated.
+        let mut solid = ModalSolid::build_admitted(
             geometry.implicit.as_ref(),
             &fixed,
             spec.material(),
             &params,
             Some(geometry.skin),
-            cancel,
+            &options.cancel,
+            &|estimate| options.budget.reserve(estimate.bytes),
         )
-        .map_err(|e| {
-            if e.is_cancelled() {
-                SceneError::Cancelled
-            } else {
-                SceneError::invalid(at, e.to_string())
-            }
+        .map_err(|e| match e {
+            _ if e.is_cancelled() => SceneError::Cancelled,
+            EfgError::Refused { .. } => SceneError::OverBudget {
+                field: at.to_owned(),
+                message: e.to_string(),
+            },
+            _ => SceneError::invalid(at, e.to_string()),
         })?;
         let grabs: Vec<Grab> = spec.grabs.iter().map(GrabSpec::grab).collect();
         solid
             .set_grabs(&grabs)
             .map_err(|e| SceneError::invalid(field("grabs"), e.to_string()))?;
         Ok(solid)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::SystemSpec;
+    use super::*;
+
+    fn beam(cell: Real) -> Scene {
+        let text = format!(
+            r#"
+            [domain]
+            min = [-0.05, -0.3, -0.1]
+            max = [0.3, 0.1, 0.1]
+            [time]
+            dt = 0.02
+            [[systems]]
+            kind = "modal_solid"
+            shape = {{ type = "box", half_extents = [0.08, 0.02, 0.02] }}
+            position = [0.08, 0.0, 0.0]
+            young = 1.0e5
+            cell = {cell}
+            "#
+        );
+        Scene::from_toml_str(&text).expect("parses")
+    }
+
+    /// A modal solid over the node limit is told to raise a key it has:
+    /// the key the message names in backticks is one of the spec's own
+    /// (it said "raise the spacing", which modal solids do not have).
+    #[test]
+    fn the_node_limit_names_a_key_of_the_modal_solid() {
+        let scene = beam(1e-4);
+        let err = scene
+            .validate(&BuildOptions::default())
+            .expect_err("too fine");
+        assert!(matches!(err, SceneError::TooFine { .. }), "{err:?}");
+        let message = err.to_string();
+        let key = message
+            .split("raise `")
+            .nth(1)
+            .and_then(|rest| rest.split('`').next())
+            .unwrap_or_else(|| panic!("names a key to raise: {message}"));
+        let SystemSpec::ModalSolid(spec) = &scene.systems[0] else {
+            panic!("a modal solid");
+        };
+        let keys = toml::Value::try_from(spec).expect("serialises");
+        assert!(
+            keys.get(key).is_some(),
+            "`{key}` is a key of the modal solid spec: {message}"
+        );
+        assert_eq!(key, "cell", "{message}");
+    }
+
+    /// A budget that refuses the estimate refuses the scene as a resource
+    /// limit naming the system, before the precompute allocates it.
+    #[test]
+    fn a_refused_budget_refuses_the_scene() {
+        let options = BuildOptions {
+            budget: super::super::Budget::new(|_| {
+                Err("the host has 1 MB of its 1 MB budget left".into())
+            }),
+            ..BuildOptions::default()
+        };
+        let err = beam(0.02).validate(&options).expect_err("refused");
+        assert!(matches!(err, SceneError::OverBudget { .. }), "{err:?}");
+        let message = err.to_string();
+        assert!(message.starts_with("systems[0]: "), "{message}");
+        assert!(message.contains("1 MB of its 1 MB"), "{message}");
     }
 }

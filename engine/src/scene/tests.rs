@@ -525,6 +525,20 @@ fn formula_fields_build_and_bad_ones_are_refused() {
     // starts against push.
     assert!((mean - 0.1).abs() < 0.02, "{mean}");
 
+    // Scientific notation is a number, in TOML scenes as in formulas.
+    let text = SMALL.replace(
+        "[[systems]]",
+        "[[systems]]\nvelocity_field = [\"1e-3*x\", \"2.5E+4*0\", \"-1e3*0 + 2e-1\"]",
+    );
+    let sci = Scene::from_toml_str(&text).expect("parses");
+    let world = sci
+        .build(&BuildOptions::default())
+        .expect("scientific notation is valid");
+    let f = world.fluid().expect("fluid");
+    for (x, v) in f.positions.iter().zip(&f.velocities) {
+        assert_eq!(*v, crate::math::Vector::new(1e-3 * x.x, 0.0, 2e-1));
+    }
+
     let mut s = small();
     fluid(&mut s).velocity_field = Some(["x".into(), "q".into(), "0".into()]);
     assert_eq!(rejected_field(&s), "systems[0].velocity_field[1]");

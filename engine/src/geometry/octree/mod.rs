@@ -50,6 +50,10 @@ pub const MAX_DEPTH: u32 = 16;
 /// too fine request fails before it exhausts memory.
 pub const MAX_OCTANTS: usize = 4_000_000;
 
+/// Octants (or nodes) handled between two reads of the cancel flag: a
+/// few milliseconds of work at most.
+const CHECK_EVERY: usize = 1024;
+
 /// How an octree is cut.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OctreeParams {
@@ -292,8 +296,12 @@ impl Octree {
         too_fine: &dyn Fn(String) -> OctreeError,
     ) -> Result<(), OctreeError> {
         let mut stack = vec![(0u32, [0u32; 3])];
+        // Counted octants, not the stack's length: a depth-first stack
+        // stays short, so its length rarely meets a multiple.
+        let mut visited = 0usize;
         while let Some((level, coords)) = stack.pop() {
-            if stack.len().is_multiple_of(4096) {
+            visited += 1;
+            if visited.is_multiple_of(CHECK_EVERY) {
                 cancel.check().map_err(|_| OctreeError::Cancelled)?;
             }
             let size = self.size(level);
@@ -354,8 +362,10 @@ impl Octree {
     ) -> Result<(), OctreeError> {
         let mut queue: Vec<u32> = (0..self.leaves.len() as u32).collect();
         let cells = 1i64 << self.depth;
+        let mut visited = 0usize;
         while let Some(i) = queue.pop() {
-            if queue.len().is_multiple_of(4096) {
+            visited += 1;
+            if visited.is_multiple_of(CHECK_EVERY) {
                 cancel.check().map_err(|_| OctreeError::Cancelled)?;
             }
             let leaf = self.leaves[i as usize];
@@ -438,7 +448,7 @@ impl Octree {
         let mut per_leaf: Vec<Vec<u32>> = vec![Vec::new(); self.leaves.len()];
         let mut stack = Vec::new();
         for (n, node) in self.nodes.iter().enumerate() {
-            if n.is_multiple_of(1024) {
+            if n.is_multiple_of(CHECK_EVERY) {
                 cancel.check().map_err(|_| OctreeError::Cancelled)?;
             }
             let lo = node.position - Vector::repeat(node.half_width);
@@ -510,6 +520,17 @@ impl Octree {
     pub fn candidates(&self, leaf: u32) -> &[u32] {
         let i = leaf as usize;
         &self.candidates[self.candidate_offsets[i] as usize..self.candidate_offsets[i + 1] as usize]
+    }
+
+    /// The bytes it holds, counted from its arrays: the leaves, the
+    /// nodes, the candidate lists and the octant map (a key, a slot and
+    /// hashbrown's control byte per entry, at its 7/8 load).
+    pub fn bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.leaves.len() * size_of::<Octant>()
+            + self.nodes.len() * size_of::<Node>()
+            + (self.candidates.len() + self.candidate_offsets.len()) * size_of::<u32>()
+            + self.slots.capacity() * (size_of::<(u64, Slot)>() + 1)
     }
 
     /// Counts of terminal octants by class: `[I, E, IB, EB]`.
