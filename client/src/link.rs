@@ -136,20 +136,18 @@ impl ZenohLink {
     /// Subscribes to a session's frames (pass the [`v1::Session`] the
     /// server answered with, so that sealed frames open). Returns once the
     /// server knows of the subscription (a latest-frame query has made the
-    /// round trip), so no frame published afterwards is missed.
+    /// round trip), so no frame published afterwards is missed. A sealed
+    /// subscription takes nothing sealed before that query's answer, so a
+    /// recording of an older frame played to it is dropped
+    /// ([`DropReason::Replayed`]).
     ///
     /// # Errors
     /// [`ClientError::Zenoh`] when the subscription cannot be declared or
     /// the seal key is malformed.
     pub async fn frames(&self, session: impl Into<Watched>) -> Result<Frames> {
-        let session = session.into();
-        let gate = session.gate(keys::frames(&session.id), true)?;
-        let subscriber = self
-            .session
-            .declare_subscriber(gate.key.clone())
-            .await
-            .map_err(zenoh_error("declare frame subscriber"))?;
-        self.latest_message(session).await?;
+        let (subscriber, gate) = self
+            .subscribe(session.into(), keys::frames, "declare frame subscriber")
+            .await?;
         Ok(Frames { subscriber, gate })
     }
 
@@ -159,15 +157,39 @@ impl ZenohLink {
     /// # Errors
     /// As [`ZenohLink::frames`].
     pub async fn statuses(&self, session: impl Into<Watched>) -> Result<Statuses> {
-        let session = session.into();
-        let gate = session.gate(keys::status(&session.id), true)?;
+        let (subscriber, gate) = self
+            .subscribe(session.into(), keys::status, "declare status subscriber")
+            .await?;
+        Ok(Statuses { subscriber, gate })
+    }
+
+    /// Declares a subscriber on the session's `key`, then queries its
+    /// latest frame: once the answer is back the server knows of the
+    /// subscriber. The answer is sealed after everything the session put
+    /// before it (one counter seals all of a session's keys), so its
+    /// counter becomes the subscription's replay floor: a fresh
+    /// subscription would otherwise take any recorded payload, its last
+    /// counter starting at 0. The gate checks samples as `recv` takes
+    /// them, so the floor covers those that came during the query too.
+    async fn subscribe(
+        &self,
+        session: Watched,
+        key: fn(&str) -> String,
+        what: &str,
+    ) -> Result<(Subscriber<FifoChannelHandler<Sample>>, Gate)> {
+        let gate = session.gate(key(&session.id), true)?;
         let subscriber = self
             .session
             .declare_subscriber(gate.key.clone())
             .await
-            .map_err(zenoh_error("declare status subscriber"))?;
-        self.latest_message(session).await?;
-        Ok(Statuses { subscriber, gate })
+            .map_err(zenoh_error(what))?;
+        let latest = self
+            .latest(session, |frame| FrameView::check(&frame))
+            .await?;
+        if let Some(((), Some(counter))) = latest {
+            gate.raise_floor(counter);
+        }
+        Ok((subscriber, gate))
     }
 
     /// Asks the session's `latest` queryable for its most recent frame;
@@ -178,7 +200,8 @@ impl ZenohLink {
     /// [`ClientError::Zenoh`] when the query cannot be sent or the seal
     /// key is malformed.
     pub async fn latest_frame(&self, session: impl Into<Watched>) -> Result<Option<FrameView>> {
-        self.latest(session.into(), FrameView::from_proto).await
+        let latest = self.latest(session.into(), FrameView::from_proto).await?;
+        Ok(latest.map(|(frame, _)| frame))
     }
 
     /// [`ZenohLink::latest_frame`] as the protocol's message, checked
@@ -188,24 +211,29 @@ impl ZenohLink {
     /// # Errors
     /// As [`ZenohLink::latest_frame`].
     pub async fn latest_message(&self, session: impl Into<Watched>) -> Result<Option<v1::Frame>> {
-        self.latest(session.into(), |frame| {
-            FrameView::check(&frame).map(|()| frame)
-        })
-        .await
+        let latest = self
+            .latest(session.into(), |frame| {
+                FrameView::check(&frame).map(|()| frame)
+            })
+            .await?;
+        Ok(latest.map(|(frame, _)| frame))
     }
 
-    /// Queries `…/latest` and keeps the last reply that passes the
-    /// subscribers' checks and `accept`. Every queryable is asked and
-    /// every reply kept (`QueryTarget::All`, no consolidation): by
-    /// default zenoh asks only a queryable declared complete when there
-    /// is one, and keeps one reply per key, so another peer could answer
-    /// in the server's place. Error replies and rejected ones are logged
-    /// and skipped: the server never sends them.
+    /// Queries `…/latest` and keeps the reply that passes the
+    /// subscribers' checks and `accept` and was sealed last (the last one
+    /// to come when unsealed), with its seal counter. Every queryable is
+    /// asked and every reply kept (`QueryTarget::All`, no consolidation):
+    /// by default zenoh asks only a queryable declared complete when
+    /// there is one, and keeps one reply per key, so another peer could
+    /// answer in the server's place, and where peers may answer, one
+    /// could answer with a recorded older reply, which the counter
+    /// outranks. Error replies and rejected ones are logged and skipped:
+    /// the server never sends them.
     async fn latest<T>(
         &self,
         session: Watched,
         accept: impl Fn(v1::Frame) -> Result<T>,
-    ) -> Result<Option<T>> {
+    ) -> Result<Option<(T, Option<u64>)>> {
         let gate = session.gate(keys::latest(&session.id), false)?;
         let replies = self
             .session
@@ -214,7 +242,7 @@ impl ZenohLink {
             .consolidation(ConsolidationMode::None)
             .await
             .map_err(zenoh_error("query latest frame"))?;
-        let mut latest = None;
+        let mut latest: Option<(T, Option<u64>)> = None;
         while let Ok(reply) = replies.recv_async().await {
             let sample = match reply.result() {
                 Ok(sample) => sample,
@@ -225,7 +253,11 @@ impl ZenohLink {
                 }
             };
             match gate.admit_frame(sample, &accept) {
-                Ok(frame) => latest = Some(frame),
+                Ok((frame, counter)) => {
+                    if latest.as_ref().is_none_or(|(_, newest)| counter >= *newest) {
+                        latest = Some((frame, counter));
+                    }
+                }
                 Err((reason, why)) => {
                     tracing::warn!("latest frame: reply skipped ({reason:?}): {why}");
                 }
@@ -261,7 +293,8 @@ pub enum DropReason {
     /// altered on the way.
     NotAuthentic,
     /// A sealed payload that opens but was sealed before the last one
-    /// taken: a recording played again.
+    /// taken, or before the latest frame the subscription learned of when
+    /// it started: a recording played again.
     Replayed,
 }
 
@@ -361,16 +394,17 @@ impl Gate {
         }
     }
 
-    /// The message of a sample that passes, or why it does not.
-    /// `session_of` reads the session a message names (`None`: it lacks
-    /// the part that names it). Decoding is bounded by the payload:
-    /// protobuf allocates only for bytes it holds.
+    /// The message of a sample that passes and its seal counter (`None`
+    /// unsealed), or why it does not. `session_of` reads the session a
+    /// message names (`None`: it lacks the part that names it). Decoding
+    /// is bounded by the payload: protobuf allocates only for bytes it
+    /// holds.
     fn admit<M: Message + Default>(
         &self,
         sample: &Sample,
         session_of: impl Fn(&M) -> Option<&str>,
-    ) -> std::result::Result<M, Rejection> {
-        self.check(
+    ) -> std::result::Result<(M, Option<u64>), Rejection> {
+        self.check_counted(
             sample.key_expr().as_str(),
             &sample.payload().to_bytes(),
             session_of,
@@ -383,18 +417,31 @@ impl Gate {
         &self,
         sample: &Sample,
         accept: impl Fn(v1::Frame) -> Result<T>,
-    ) -> std::result::Result<T, Rejection> {
-        self.admit(sample, frame_session)
-            .and_then(|frame| accept(frame).map_err(|e| (DropReason::Malformed, e.to_string())))
+    ) -> std::result::Result<(T, Option<u64>), Rejection> {
+        let (frame, counter) = self.admit(sample, frame_session)?;
+        let taken = accept(frame).map_err(|e| (DropReason::Malformed, e.to_string()))?;
+        Ok((taken, counter))
     }
 
-    /// [`Gate::admit`] of a key and payload.
+    /// [`Gate::admit`] of a key and payload, without the counter.
+    #[cfg(test)]
     fn check<M: Message + Default>(
         &self,
         key: &str,
         payload: &[u8],
         session_of: impl Fn(&M) -> Option<&str>,
     ) -> std::result::Result<M, Rejection> {
+        self.check_counted(key, payload, session_of)
+            .map(|(message, _)| message)
+    }
+
+    /// [`Gate::admit`] of a key and payload.
+    fn check_counted<M: Message + Default>(
+        &self,
+        key: &str,
+        payload: &[u8],
+        session_of: impl Fn(&M) -> Option<&str>,
+    ) -> std::result::Result<(M, Option<u64>), Rejection> {
         if key != self.key {
             return Err((
                 DropReason::WrongKey,
@@ -402,15 +449,15 @@ impl Gate {
             ));
         }
         let mut opened;
-        let payload = match &self.seal {
-            None => payload,
+        let (payload, counter) = match &self.seal {
+            None => (payload, None),
             Some(seal) => {
                 opened = payload.to_vec();
                 let (counter, plain) = seal
                     .open(key, &mut opened)
                     .map_err(|e| (DropReason::NotAuthentic, e.to_string()))?;
                 self.check_fresh(counter)?;
-                plain
+                (plain, Some(counter))
             }
         };
         let message = M::decode(payload).map_err(|e| {
@@ -429,7 +476,7 @@ impl Gate {
                     self.session_id
                 ),
             )),
-            Some(_) => Ok(message),
+            Some(_) => Ok((message, counter)),
         }
     }
 
@@ -449,6 +496,16 @@ impl Gate {
         }
         *newest = counter;
         Ok(())
+    }
+
+    /// Refuses, from now on, every payload sealed at or before `counter`:
+    /// that of an authentic latest-frame reply, sealed after everything
+    /// the session had put before it.
+    fn raise_floor(&self, counter: u64) {
+        if let Some(newest) = &self.newest {
+            let mut newest = newest.lock().unwrap_or_else(PoisonError::into_inner);
+            *newest = (*newest).max(counter);
+        }
     }
 
     fn reject(&self, (reason, why): Rejection) {
@@ -476,7 +533,8 @@ impl Gate {
 /// [`FrameView::check`]. Anything else is dropped and counted
 /// ([`Frames::dropped`]); `recv` goes on to the next sample. When the
 /// server seals (see [`Watched`]), a sample must also open with the
-/// session's key and be sealed after the last one taken, so a frame a
+/// session's key and be sealed after the last one taken (and after the
+/// latest frame the subscription learned of as it started), so a frame a
 /// peer forged or recorded is dropped too; unsealed, a well-formed frame
 /// a peer puts in the session's name is refused only by access control
 /// on the zenoh plane.
@@ -521,7 +579,7 @@ impl Frames {
                 .await
                 .map_err(|_| ClientError::Closed)?;
             match self.gate.admit_frame(&sample, &accept) {
-                Ok(frame) => return Ok(frame),
+                Ok((frame, _)) => return Ok(frame),
                 Err(rejection) => self.gate.reject(rejection),
             }
         }
@@ -550,7 +608,7 @@ impl Statuses {
                 .await
                 .map_err(|_| ClientError::Closed)?;
             match self.gate.admit(&sample, status_session) {
-                Ok(status) => return Ok(status),
+                Ok((status, _)) => return Ok(status),
                 Err(rejection) => self.gate.reject(rejection),
             }
         }
@@ -726,6 +784,32 @@ mod tests {
         altered[20] ^= 4;
         assert_eq!(check(&altered), Err(DropReason::NotAuthentic));
         assert_eq!(check(&sealer.seal(&key, &frame("abc", 7))), Ok(Some(7)));
+
+        // A fresh subscription whose latest-frame answer was sealed as
+        // number 9 refuses a recording sealed before it, however new to it.
+        let fresh = watched.gate(key.clone(), true).expect("32 bytes");
+        let recorded = sealer.seal(&key, &frame("abc", 8));
+        let answer = sealer.seal(&keys::latest("abc"), &frame("abc", 8));
+        let (floor, _) = sealer
+            .key()
+            .open(&keys::latest("abc"), &mut answer.clone())
+            .expect("opens");
+        fresh.raise_floor(floor);
+        let fresh_check = |payload: &[u8]| {
+            fresh
+                .check::<v1::Frame>(&key, payload, frame_session)
+                .map(|f| f.header.map(|h| h.step))
+                .map_err(|(reason, _)| reason)
+        };
+        assert_eq!(fresh_check(&recorded), Err(DropReason::Replayed));
+        let nine = sealer.seal(&key, &frame("abc", 9));
+        assert_eq!(fresh_check(&nine), Ok(Some(9)));
+        fresh.raise_floor(1);
+        assert_eq!(
+            fresh_check(&nine),
+            Err(DropReason::Replayed),
+            "a lower floor never lowers the mark"
+        );
 
         let err = Watched::new("abc", &[1; 5])
             .gate(key.clone(), true)

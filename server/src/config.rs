@@ -54,6 +54,18 @@ pub enum ZenohSealing {
     Never,
 }
 
+/// Default of `--zenoh-accept-pending`: 4 times zenoh's own 100, so that
+/// 300 silent connections (a port scan, a careless or hostile client) no
+/// longer fill the queue, yet with `--max-connections` within the usual
+/// limit of 1,024 file descriptors (each pending link holds one, and
+/// nothing else until bytes arrive). docs/operations.md, "Zenoh limits".
+pub const DEFAULT_ZENOH_ACCEPT_PENDING: usize = 400;
+/// Default of `--zenoh-accept-timeout-ms`: half zenoh's own 10 s. A zenoh
+/// handshake is two round trips (TLS is done before it counts), so this
+/// covers a slow link on a loaded host while a silent connection gives
+/// its place up twice as soon.
+pub const DEFAULT_ZENOH_ACCEPT_TIMEOUT_MS: u64 = 5_000;
+
 /// Default of `--max-particles`.
 pub const DEFAULT_MAX_PARTICLES: u64 = 2_000_000;
 /// Default of `--max-sessions`.
@@ -146,6 +158,19 @@ pub struct ServerConfig {
         default_value = "auto"
     )]
     pub zenoh_sealing: ZenohSealing,
+
+    /// Most incoming zenoh links in their handshake at once (zenoh's
+    /// `transport/unicast/accept_pending`); a link beyond them is closed
+    /// at once, so a subscriber is refused while this many connections
+    /// stay silent. Set over `--zenoh-config`.
+    #[arg(long, env = "MESHLESS_ZENOH_ACCEPT_PENDING", default_value_t = DEFAULT_ZENOH_ACCEPT_PENDING)]
+    pub zenoh_accept_pending: usize,
+
+    /// Milliseconds an incoming zenoh link may take over its handshake
+    /// before it is closed and gives its place up (zenoh's
+    /// `transport/unicast/accept_timeout`). Set over `--zenoh-config`.
+    #[arg(long, env = "MESHLESS_ZENOH_ACCEPT_TIMEOUT_MS", default_value_t = DEFAULT_ZENOH_ACCEPT_TIMEOUT_MS)]
+    pub zenoh_accept_timeout_ms: u64,
 
     /// The gRPC endpoint's certificate chain (PEM); with `--tls-key` the
     /// endpoint speaks only TLS (clients use `https://`).
@@ -396,6 +421,8 @@ impl ServerConfig {
             zenoh_config: None,
             zenoh_publishers: ZenohPublishers::Server,
             zenoh_sealing: ZenohSealing::Auto,
+            zenoh_accept_pending: DEFAULT_ZENOH_ACCEPT_PENDING,
+            zenoh_accept_timeout_ms: DEFAULT_ZENOH_ACCEPT_TIMEOUT_MS,
             tls_cert: None,
             tls_key: None,
             tls_client_ca: None,
@@ -427,6 +454,15 @@ impl ServerConfig {
         }
         if self.max_particles == 0 {
             return Err("--max-particles must be at least 1".into());
+        }
+        if self.zenoh_accept_pending == 0 {
+            return Err("--zenoh-accept-pending must be at least 1".into());
+        }
+        if !(100..=600_000).contains(&self.zenoh_accept_timeout_ms) {
+            return Err(format!(
+                "--zenoh-accept-timeout-ms must be in [100, 600000] ms, got {}",
+                self.zenoh_accept_timeout_ms
+            ));
         }
         if self.max_sessions == 0 {
             return Err("--max-sessions must be at least 1".into());

@@ -28,7 +28,11 @@ const SERVER_ONLY_ACL: &str = r#"{
 /// Opens the zenoh session and returns it with the endpoints it listens on.
 ///
 /// Multicast scouting is off: peers find the server through explicit
-/// endpoints (and gossip), never by flooding the network.
+/// endpoints (and gossip), never by flooding the network. The handshake
+/// limits are the server's own (`--zenoh-accept-pending`,
+/// `--zenoh-accept-timeout-ms`): at zenoh's defaults 100 silent TCP
+/// connections refuse every new subscriber for 10 s at a time
+/// (docs/operations.md, "Zenoh limits").
 ///
 /// # Errors
 /// A bad endpoint, or a port that cannot be bound.
@@ -59,6 +63,16 @@ pub async fn open(config: &ServerConfig) -> Result<(zenoh::Session, Vec<String>)
         config.zenoh_connect.clone().into(),
     )?;
     set(&mut zconfig, "scouting/multicast/enabled", false.into())?;
+    set(
+        &mut zconfig,
+        "transport/unicast/accept_pending",
+        config.zenoh_accept_pending.into(),
+    )?;
+    set(
+        &mut zconfig,
+        "transport/unicast/accept_timeout",
+        config.zenoh_accept_timeout_ms.into(),
+    )?;
     if config.zenoh_publishers == ZenohPublishers::Server {
         let own_acl = zconfig
             .get_json("access_control/enabled")

@@ -640,3 +640,70 @@ async fn sealed_payloads_open_only_for_those_who_may_see_the_session() {
     );
     link.close().await;
 }
+
+/// A recorded sealed frame played to a subscriber that started after the
+/// session moved on: a fresh subscription has taken no counter yet, so
+/// it learns the session's latest from the sealed answer to its
+/// latest-frame query (which only the server can seal) and refuses
+/// anything sealed before it. Behind `--zenoh-publishers any`, where a
+/// peer can put the recording.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_fresh_subscriber_refuses_a_frame_recorded_before_it_started() {
+    let dir = meshless_tests::TempDir::new("replay-fresh");
+    let tokens = dir.0.join("tokens");
+    std::fs::write(&tokens, "alice alice-token-0123456789\n").expect("tokens file");
+    let tokens = tokens.to_str().expect("utf-8");
+    let server = ServerProcess::spawn(&["--tokens-file", tokens, OPEN[0], OPEN[1]])
+        .await
+        .expect("server starts");
+    let alice = server
+        .client_as(&meshless_client::Identity {
+            token: Some("alice-token-0123456789".into()),
+            ..Default::default()
+        })
+        .await
+        .expect("alice");
+    let info = within("info", alice.server_info()).await.expect("info");
+    let session = within("create", alice.create_session_toml(&small_scene()))
+        .await
+        .expect("session");
+    let (id, particles) = (session.id.as_str(), session.particle_count as usize);
+    let prefix = &session.zenoh_key_prefix;
+
+    // A stranger records the session's first frame, sealed as it is.
+    let peer = hostile_peer(&info.zenoh_locators).await;
+    let recorder = within(
+        "recording subscriber",
+        peer.declare_subscriber(format!("{prefix}/frames"))
+            .into_future(),
+    )
+    .await
+    .expect("zenoh lets any peer subscribe");
+    put_all(&peer, prefix, Vec::new()).await;
+    within("step", alice.step(id, 1)).await.expect("steps");
+    let recorded = within("the recorded frame", recorder.recv_async())
+        .await
+        .expect("a sample")
+        .payload()
+        .to_bytes()
+        .into_owned();
+    within("step", alice.step(id, 2)).await.expect("steps");
+
+    // The session is at step 3 when the subscriber starts.
+    let link = within("zenoh connect", ZenohLink::connect(&info.zenoh_locators))
+        .await
+        .expect("zenoh link");
+    let frames = within("subscribe", link.frames(&session))
+        .await
+        .expect("frames");
+    put_all(&peer, prefix, vec![(format!("{prefix}/frames"), recorded)]).await;
+    within("step", alice.step(id, 1)).await.expect("steps");
+    real_frame(&frames, id, 4, particles).await;
+    let dropped = frames.dropped();
+    assert_eq!(
+        (dropped.replayed, dropped.total()),
+        (1, 1),
+        "the recording of step 1 is refused: {dropped:?}"
+    );
+    link.close().await;
+}

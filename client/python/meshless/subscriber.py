@@ -111,7 +111,10 @@ class Frames:
     receive (``Session.seal_key``); given the message, or ``seal_key``,
     frames are opened with it (:class:`meshless.Seal`), and a payload that
     does not open (``not_authentic``) or was sealed before the last one
-    taken (``replayed``) is dropped too.
+    taken (``replayed``) is dropped too. Before it subscribes, a sealed
+    subscription asks for the session's latest frame and takes nothing
+    sealed before that answer, so a recording of an older frame played to
+    a fresh subscription is ``replayed`` as well.
 
     ``zenoh_config`` names a zenoh configuration file (JSON5) to start
     from: the CA of ``tls/`` endpoints, a client certificate.
@@ -146,6 +149,14 @@ class Frames:
         self._closed = False
         self._session = zenoh.open(zenoh_client_config(endpoints, zenoh_config))
         try:
+            # The replay floor: a fresh subscription has taken no counter
+            # yet, so it would take any recorded payload. The answer is
+            # sealed after everything the session put before it (one
+            # counter seals all of a session's keys), and only the server
+            # can seal it. Asked before subscribing, so that the floor
+            # holds for the first sample the callback meets.
+            if self._seal is not None:
+                _, self._newest = self._query_latest()
             self._subscriber = self._session.declare_subscriber(self._key, self._on_sample)
             self.latest: Frame | None = self.query_latest()
         except BaseException:
@@ -183,12 +194,16 @@ class Frames:
         with self._lock:
             return self._callback_errors
 
-    def _admit(self, key: str, data: bytes, expected_key: str, replay: bool = True) -> Frame:
-        """The frame of a sample on ``key``, or ``_Dropped`` saying why not.
-        ``replay``: refuse a sealed payload sealed before the last one taken
-        (a subscription's; a query's replies are each new)."""
+    def _admit(
+        self, key: str, data: bytes, expected_key: str, replay: bool = True
+    ) -> tuple[Frame, int]:
+        """The frame of a sample on ``key`` and its seal counter (0
+        unsealed), or ``_Dropped`` saying why not. ``replay``: refuse a
+        sealed payload sealed before the last one taken (a subscription's;
+        a query's replies are each new)."""
         if key != expected_key:
             raise _Dropped("wrong_key", f"put on {_quote(key)}, not {expected_key}")
+        counter = 0
         if self._seal is not None:
             try:
                 counter, data = self._seal.open(key, data)
@@ -212,7 +227,7 @@ class Frames:
                 "wrong_session", f"names session {_quote(session_id)}, not {self._session_id!r}"
             )
         try:
-            return unpack_frame(message, data)
+            return unpack_frame(message, data), counter
         except ValueError as e:
             raise _Dropped("malformed", str(e)) from e
 
@@ -220,7 +235,7 @@ class Frames:
         # Runs on zenoh's thread, where an exception would be logged and the
         # sample lost uncounted: every failure is a counted drop instead.
         try:
-            frame = self._admit(str(sample.key_expr), sample.payload.to_bytes(), self._key)
+            frame, _ = self._admit(str(sample.key_expr), sample.payload.to_bytes(), self._key)
         except _Dropped as e:
             self._drop(e.reason, e.why)
         except Exception as e:
@@ -246,14 +261,22 @@ class Frames:
             self._last_drop = (reason, why)
 
     def query_latest(self) -> Frame | None:
-        """The session's latest frame from its ``latest`` queryable: the last
-        reply that passes the checks, the others skipped; ``None`` when no
-        reply does. Every queryable is asked and every reply kept (by
-        default zenoh asks only a queryable declared complete when there is
-        one, and keeps one reply per key, so another peer could answer in
-        the server's place)."""
+        """The session's latest frame from its ``latest`` queryable: the
+        reply that passes the checks and was sealed last (the last to come
+        when unsealed), the others skipped; ``None`` when no reply does.
+        Every queryable is asked and every reply kept (by default zenoh
+        asks only a queryable declared complete when there is one, and
+        keeps one reply per key, so another peer could answer in the
+        server's place, or answer with a recorded older reply, which the
+        seal counter outranks)."""
+        return self._query_latest()[0]
+
+    def _query_latest(self) -> tuple[Frame | None, int]:
+        """:meth:`query_latest`'s frame and its seal counter (0 when none
+        or unsealed)."""
         key = latest_key(self._session_id)
-        latest = None
+        latest: Frame | None = None
+        newest = 0
         for reply in self._session.get(
             key,
             target=zenoh.QueryTarget.ALL,
@@ -263,14 +286,16 @@ class Frames:
             if reply.ok is None:
                 continue
             try:
-                latest = self._admit(
+                frame, counter = self._admit(
                     str(reply.ok.key_expr), reply.ok.payload.to_bytes(), key, replay=False
                 )
             except Exception:
                 # Skipped as the subscriber drops it, but not counted: the
                 # counts are of the subscription.
                 continue
-        return latest
+            if counter >= newest:
+                latest, newest = frame, counter
+        return latest, newest
 
     def next(self, timeout: float | None = None) -> Frame:
         """The next frame that passed the checks, waiting at most

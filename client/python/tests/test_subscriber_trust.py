@@ -216,3 +216,34 @@ def test_sealed_frames_open_only_for_those_who_may_see_the_session(tmp_path):
                     assert dict(frames.drop_reasons) == {"replayed": 1, "not_authentic": 1}
                     alice.step(session.id, 1)
                     assert frames.next().step == 3
+
+
+def test_a_fresh_subscriber_refuses_a_frame_recorded_before_it_started(tmp_path):
+    """A recorded sealed frame played to a subscription that started after
+    the session moved on: the subscription learns the session's latest from
+    the sealed answer to its latest-frame query and refuses anything sealed
+    before it, though it has taken no frame yet."""
+    tokens = tmp_path / "tokens"
+    tokens.write_text("alice alice-token-0123456789\n")
+    with running_server("--tokens-file", str(tokens), "--zenoh-publishers", "any") as server:
+        with Client(server.grpc_target, token="alice-token-0123456789") as alice:
+            session = alice.create_session(SCENE)
+            key = frames_key(session.id)
+            captured: list[bytes] = []
+            with hostile_peer(server.zenoh_endpoints) as peer:
+                peer.declare_subscriber(key, lambda sample: captured.append(sample.payload.to_bytes()))
+                # The server answers the peer's query after it has learnt of
+                # the peer's subscriber.
+                assert [r for r in peer.get(latest_key(session.id)) if r.ok]
+                alice.step(session.id, 1)
+                until(lambda: len(captured) == 1, "the recorded frame of step 1")
+                alice.step(session.id, 2)
+                with Frames(server.zenoh_endpoints, session) as frames:
+                    assert frames.latest is not None and frames.latest.step == 3
+                    peer.put(key, captured[0])
+                    # The server answers after forwarding the put.
+                    assert [r for r in peer.get(latest_key(session.id)) if r.ok]
+                    alice.step(session.id, 1)
+                    assert frames.next().step == 4, "the recording of step 1 is refused"
+                    until(lambda: frames.dropped == 1, "the replay counted")
+                    assert dict(frames.drop_reasons) == {"replayed": 1}
