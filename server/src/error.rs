@@ -32,6 +32,27 @@ pub enum ServiceError {
     },
     #[error("session {session_id} is faulted ({reason}); reset or delete it")]
     Faulted { session_id: String, reason: String },
+    /// A stepping call is in progress; `call` says which and how far.
+    #[error(
+        "cannot {action} session {session_id} while it is stepping for another call ({call}); \
+         wait for that call to end, or cancel it (or Pause the session)"
+    )]
+    Stepping {
+        session_id: String,
+        action: &'static str,
+        call: String,
+    },
+    /// Taking `steps` more steps would pass the largest step count.
+    #[error(
+        "session {session_id} is at step {step}, and {steps} more would pass {}, the largest \
+         step count, which never wraps: ask for at most {} steps, or reset the session or \
+         restore an earlier snapshot", u64::MAX, u64::MAX - step
+    )]
+    StepCounterFull {
+        session_id: String,
+        step: u64,
+        steps: u64,
+    },
     #[error("this server already holds {limit} sessions, its limit; delete one first")]
     TooManySessions { limit: u32 },
     /// The scene's memory estimate does not fit what the budget has left.
@@ -120,7 +141,10 @@ impl ServiceError {
                 DesignError::Diverged { .. } => Code::Aborted,
                 DesignError::Cancelled { .. } => Code::Cancelled,
             },
-            Self::WrongState { .. } | Self::Faulted { .. } => Code::FailedPrecondition,
+            Self::WrongState { .. }
+            | Self::Faulted { .. }
+            | Self::Stepping { .. }
+            | Self::StepCounterFull { .. } => Code::FailedPrecondition,
             Self::TooManySessions { .. } | Self::MemoryBudget { .. } => Code::ResourceExhausted,
             Self::PermissionDenied { .. } => Code::PermissionDenied,
             Self::ControlledElsewhere { .. } => Code::Aborted,

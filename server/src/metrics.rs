@@ -243,8 +243,8 @@ impl Metrics {
             Some(StepError::SolidUnstable { .. }) => "solid_unstable",
             Some(StepError::Compressed { .. }) => "compressed",
             Some(StepError::EnergyGained { .. }) => "energy_gained",
-            // Never a fault: the step is undone.
-            Some(StepError::Cancelled { .. }) => return,
+            // Never a fault: the step is undone, or refused untaken.
+            Some(StepError::Cancelled { .. } | StepError::CounterFull { .. }) => return,
             None => "internal",
         };
         self.faults.get_or_create(&ReasonLabel { reason }).inc();

@@ -252,3 +252,79 @@ async fn a_killed_server_comes_back_with_its_sessions() {
     let (_, bob) = clients(&server).await;
     assert_eq!(status(&bob, &solid).await.step, 8);
 }
+
+/// The step of the checkpoint at `path`, if one is there and whole.
+fn checkpoint_step(path: &Path) -> Option<u64> {
+    let data = std::fs::read(path).ok()?;
+    let payload = meshless_proto::snapshot::decode(&data, usize::MAX).ok()?;
+    payload.world.map(|w| w.step)
+}
+
+/// A long `Step` does not escape the checkpoints: a round during it
+/// writes the step it has reached, so a server killed with SIGKILL in
+/// the middle of a `Step(1_000_000)` comes back at a step past the one
+/// the `Step` began at, paused there, and steps on.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_long_step_is_checkpointed_between_its_steps() {
+    let dir = TempDir::new("checkpoints-long-step");
+    std::fs::write(dir.0.join("tokens"), format!("alice {ALICE}\n")).expect("tokens");
+    let server = spawn(&dir.0, INTERVAL).await;
+    let (alice, _) = clients(&server).await;
+    // At rest without gravity: short steps, never a fault.
+    let scene = format!("gravity = [0.0, 0.0, 0.0]\n{}", small_solid_scene());
+    let id = within("create", alice.create_session_toml(&scene))
+        .await
+        .expect("created")
+        .id;
+    let began = within("step", alice.step(&id, 3))
+        .await
+        .expect("stepped")
+        .status
+        .expect("a status")
+        .step;
+    let step = tokio::spawn({
+        let (alice, id) = (alice.clone(), id.clone());
+        async move { alice.step(&id, 1_000_000).await }
+    });
+    let file = dir.0.join("checkpoints").join(format!("{id}.snapshot"));
+    let checkpointed = within("a checkpoint inside the Step", async {
+        let mut ticks = tokio::time::interval(Duration::from_millis(20));
+        loop {
+            ticks.tick().await;
+            if let Some(step) = checkpoint_step(&file).filter(|&s| s > began) {
+                return step;
+            }
+        }
+    })
+    .await;
+    assert!(!step.is_finished(), "written while the Step is in progress");
+    server.kill().await.expect("killed");
+    let _ = step.await;
+
+    let server = spawn(&dir.0, INTERVAL).await;
+    let (alice, _) = clients(&server).await;
+    let restored = status(&alice, &id).await;
+    println!(
+        "Step began at {began}, checkpointed at {checkpointed}, restored at {}",
+        restored.step
+    );
+    assert!(
+        restored.step >= checkpointed,
+        "the last checkpoint, written at or after step {checkpointed}"
+    );
+    assert_eq!(
+        restored.state,
+        v1::SessionState::Paused as i32,
+        "{}",
+        restored.reason
+    );
+    assert!(
+        restored
+            .reason
+            .contains("stepping when the snapshot was taken"),
+        "{}",
+        restored.reason
+    );
+    let on = within("step", alice.step(&id, 1)).await.expect("steps on");
+    assert_eq!(on.status.expect("a status").step, restored.step + 1);
+}

@@ -177,6 +177,18 @@ pub enum StepError {
         /// The step that was cancelled (steps completed plus one).
         step: u64,
     },
+    /// The step counter is at its largest value (a restored snapshot can
+    /// put it there): one more step would wrap it to 0, and frames,
+    /// checkpoints and progress would count from there. Refused before
+    /// anything changes.
+    #[error(
+        "the world is at step {step}, the largest step count there is, and takes no more steps \
+         (the counter never wraps); reset the session or restore an earlier snapshot"
+    )]
+    CounterFull {
+        /// The step the world is at: [`u64::MAX`].
+        step: u64,
+    },
 }
 
 /// Why grabs were refused; the previous ones stay.
@@ -382,15 +394,21 @@ impl World {
     /// As [`Self::step`], and [`StepError::Cancelled`] when `cancel` was
     /// raised before the step finished (or before it began). The world is
     /// then as it was before the step, its clock included, and the same
-    /// step can be taken again.
+    /// step can be taken again. [`StepError::CounterFull`] at step
+    /// [`u64::MAX`], with nothing changed.
     pub fn step_cancellable(&mut self, cancel: &Cancel) -> Result<StepInfo, StepError> {
+        let Some(next) = self.clock.step.checked_add(1) else {
+            return Err(StepError::CounterFull {
+                step: self.clock.step,
+            });
+        };
         let time = &self.scene.time;
         let env = StepEnv {
             dt: time.dt,
             gravity: vector(self.scene.gravity),
             cfl: time.cfl,
             max_substeps: time.max_substeps,
-            step: self.clock.step + 1,
+            step: next,
             cancel,
         };
         // Before stage 1, whose removals a cancelled step would not undo.
@@ -419,7 +437,7 @@ impl World {
             }
         }
         // Stage 3: the clock.
-        self.clock.step += 1;
+        self.clock.step = next;
         self.clock.time += env.dt;
         self.last_step = info;
         Ok(info)
@@ -568,5 +586,51 @@ impl World {
         self.systems
             .iter_mut()
             .find(|s| s.simulated().index() == system)
+    }
+}
+
+/// The step counter never wraps: a world at step [`u64::MAX`] refuses to
+/// step, and is left exactly as it was.
+#[cfg(test)]
+mod counter_tests {
+    use super::{Clock, StepError};
+    use crate::scene::{BuildOptions, Scene};
+
+    #[test]
+    fn a_world_at_the_largest_step_refuses_to_step_and_changes_nothing() {
+        let scene = Scene::from_toml_str(
+            r#"
+            [domain]
+            min = [0.0, 0.0, 0.0]
+            max = [1.0, 1.0, 1.0]
+            [time]
+            dt = 0.001
+            [[systems]]
+            kind = "fluid"
+            spacing = 0.1
+            [[systems.blocks]]
+            region = { min = [0.0, 0.0, 0.0], max = [0.3, 0.3, 0.3] }
+            "#,
+        )
+        .expect("scene");
+        let mut world = scene.build(&BuildOptions::default()).expect("world");
+        world.clock = Clock {
+            step: u64::MAX - 1,
+            time: 1.0,
+        };
+        world.step().expect("the last step the counter holds");
+        let last = world.clock();
+        assert_eq!(last.step, u64::MAX);
+        let before = world.frame();
+        let refused = world.step().expect_err("a step past u64::MAX");
+        assert_eq!(refused, StepError::CounterFull { step: u64::MAX });
+        assert!(refused.to_string().contains("never wraps"), "{refused}");
+        assert_eq!(world.clock(), last, "the clock is unchanged");
+        let after = world.frame();
+        assert_eq!(
+            (after.step, &after.fields),
+            (before.step, &before.fields),
+            "the state is unchanged"
+        );
     }
 }

@@ -24,6 +24,7 @@ use tokio_util::sync::CancellationToken;
 pub use access::{Access, check_observers};
 pub use optimize::{OptimizeJob, Problem};
 pub use publish::Outlet;
+use simulate::Progress;
 pub use simulate::{Simulate, check_request as check_simulate, grpc_deadline};
 pub use snapshot::{Decoded, Resumed, encode as encode_snapshot};
 pub use worker::RunTarget;
@@ -32,9 +33,16 @@ use worker::{Message, Queued};
 /// A request to the compute thread; applied between steps, except that
 /// a Pause (and a deletion, and a `Step` caller giving up) interrupts the
 /// step in progress (see `interrupt.rs`).
+///
+/// The steps of one stepping call (`Step`, `SimulateSteps`) are one
+/// command, taken whole before the next stepping command: calls sent
+/// together take their steps one after the other, each counting its own.
 #[derive(Debug)]
 pub enum Command {
     Step(u64),
+    /// A `SimulateSteps` call's steps: as `Step`, with how far they are
+    /// reported on the channel after each one.
+    Simulate(u64, watch::Sender<Option<Progress>>),
     Run(RunTarget),
     Pause,
     Resume,
@@ -120,14 +128,14 @@ impl Mailbox {
 
     /// Sends a command and waits for its answer. A Pause interrupts the
     /// step in progress (and any queued before it), which keeps the last
-    /// completed step; dropping the future of a `Step` interrupts that
-    /// step.
+    /// completed step; dropping the future of a `Step` (or a
+    /// `SimulateSteps`) interrupts that step.
     async fn command(
         &self,
         command: Command,
     ) -> Result<Result<v1::SessionStatus, ServiceError>, Gone> {
         let interrupting = matches!(command, Command::Pause);
-        let abandons = matches!(command, Command::Step(_));
+        let abandons = matches!(command, Command::Step(_) | Command::Simulate(..));
         let (reply, answer) = oneshot::channel();
         let number = self.send(Message::Command(command, reply), interrupting)?;
         let mut pending = Pending {
@@ -150,7 +158,7 @@ struct Pending<'a> {
     interrupts: &'a Interrupts,
     number: u64,
     /// Whether dropping it unanswered interrupts the command's work:
-    /// only a `Step`'s, since a run outlives its `Run` call.
+    /// only a stepping call's, since a run outlives its `Run` call.
     abandons: bool,
 }
 

@@ -1,7 +1,10 @@
 //! `SimulateSteps`: many steps with progress. The steps go to the
-//! compute thread in chunks sized to report about every interval; a
-//! caller that goes away, or a deadline that passes, abandons the chunk in
-//! hand, whose step in progress is undone (`interrupt.rs`), so the
+//! compute thread as one command, which reports after each step how many
+//! of them it has taken; this task turns those reports into a progress
+//! message about every interval. A call sent while another stepping call
+//! of the session is in progress waits for it, and counts only its own
+//! steps. A caller that goes away, or a deadline that passes, abandons
+//! the command, whose step in progress is undone (`interrupt.rs`), so the
 //! session ends at its last completed step.
 
 use super::{Command, Session};
@@ -9,7 +12,7 @@ use crate::error::ServiceError;
 use meshless_proto::v1;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use tokio::sync::mpsc;
+use tokio::sync::{mpsc, watch};
 use tonic::Status;
 
 /// What a `SimulateSteps` call asked for.
@@ -22,95 +25,148 @@ pub struct Simulate {
     pub deadline: Option<Instant>,
 }
 
-/// Largest chunk: a step count no single `Step` command exceeds.
-const MAX_CHUNK: u64 = 1_000_000;
+/// How far a call's steps are, as the compute thread reports them when
+/// they begin and after each one.
+#[derive(Debug, Clone, Copy)]
+pub struct Progress {
+    /// The call's own steps taken.
+    pub done: u64,
+    /// The session's step and simulated time after them.
+    pub step: u64,
+    pub time: f64,
+    /// Simulated time and wall clock when the call's steps began.
+    pub start_time: f64,
+    pub began: Instant,
+}
+
+impl Progress {
+    /// The progress message of a call of `total` steps, on `status`
+    /// (the session's; its step and time are this report's).
+    fn message(
+        &self,
+        mut status: v1::SessionStatus,
+        total: u64,
+        done: bool,
+    ) -> v1::SimulateProgress {
+        status.step = self.step;
+        status.time = self.time;
+        let elapsed = self.began.elapsed().as_secs_f64();
+        v1::SimulateProgress {
+            status: Some(status),
+            steps_done: self.done,
+            steps_total: total,
+            done,
+            realtime_factor: if elapsed > 0.0 {
+                (self.time - self.start_time) / elapsed
+            } else {
+                0.0
+            },
+        }
+    }
+}
 
 impl Session {
-    /// Takes `job.steps` steps in chunks, sending progress to `tx`: one
-    /// message first, then one per chunk, the last with `done` set. Ends
-    /// early, at the last completed step, when `tx` closes, the deadline
-    /// passes, the session faults or another command interrupts it.
+    /// Takes `job.steps` steps, sending progress to `tx`: one message
+    /// when they begin, then one per interval while they advance, the
+    /// last with `done` set. Ends early, at the last completed step, when
+    /// `tx` closes, the deadline passes, the session faults or another
+    /// command interrupts it.
     pub async fn simulate(
         self: Arc<Self>,
         job: Simulate,
         tx: mpsc::Sender<Result<v1::SimulateProgress, Status>>,
     ) {
-        let first = self.status();
-        let started = Instant::now();
-        let progress = |status: v1::SessionStatus, done: bool| {
-            let steps_done = status.step.saturating_sub(first.step);
-            let elapsed = started.elapsed().as_secs_f64();
-            let simulated = status.time - first.time;
-            v1::SimulateProgress {
-                status: Some(status),
-                steps_done,
-                steps_total: job.steps,
-                done,
-                realtime_factor: if elapsed > 0.0 {
-                    simulated / elapsed
-                } else {
-                    0.0
-                },
+        let (report, mut reports) = watch::channel(None);
+        // Dropping `step` (the caller gone, the deadline passed)
+        // interrupts it at its step in progress.
+        let step = self.command(Command::Simulate(job.steps, report));
+        tokio::pin!(step);
+        let deadline = async {
+            match job.deadline {
+                Some(at) => tokio::time::sleep_until(at.into()).await,
+                None => std::future::pending().await,
             }
         };
-        if tx.send(Ok(progress(first.clone(), false))).await.is_err() {
-            return;
-        }
-        let mut taken = 0;
-        let mut chunk = 1;
-        while taken < job.steps {
-            let want = chunk.min(job.steps - taken);
-            let began = Instant::now();
-            let step = self.command(Command::Step(want));
-            let deadline = async {
-                match job.deadline {
-                    Some(at) => tokio::time::sleep_until(at.into()).await,
-                    None => std::future::pending().await,
+        tokio::pin!(deadline);
+        let mut ticks = tokio::time::interval(job.interval);
+        ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        // The steps reported in the last message sent, once they began.
+        let mut sent: Option<u64> = None;
+        // Until the compute thread drops its end (with the answer).
+        let mut reporting = true;
+        loop {
+            tokio::select! {
+                // In this order: the first report before the answer, so
+                // that a call's first message is never its last.
+                biased;
+                changed = reports.changed(), if reporting && sent.is_none() => {
+                    // Closed with the answer, maybe after a last report.
+                    reporting = changed.is_ok();
+                    // The steps began: the first message.
+                    let first = *reports.borrow_and_update();
+                    if let Some(p) = first {
+                        sent = Some(p.done);
+                        ticks.reset();
+                        if tx.send(Ok(p.message(self.status(), job.steps, false))).await.is_err() {
+                            return;
+                        }
+                    }
                 }
-            };
-            // Dropping `step` (the caller gone, the deadline passed)
-            // interrupts it at its step in progress.
-            let answer = tokio::select! {
-                answer = step => answer,
+                answer = &mut step => {
+                    let last = *reports.borrow();
+                    let _ = tx.send(self.finish(answer, last, job.steps)).await;
+                    return;
+                }
                 () = tx.closed() => return,
-                () = deadline => {
-                    let status = self.status();
+                () = &mut deadline => {
+                    let (step, done) = match *reports.borrow() {
+                        Some(p) => (p.step, p.done),
+                        None => (self.status().step, 0),
+                    };
                     let _ = tx
                         .send(Err(Status::deadline_exceeded(format!(
-                            "the deadline passed at step {} after {} of {} steps; the session is \
-                             paused there",
-                            status.step,
-                            status.step.saturating_sub(first.step),
+                            "the deadline passed at step {step} after {done} of {} steps; the \
+                             session is paused at its last completed step",
                             job.steps
                         ))))
                         .await;
                     return;
                 }
-            };
-            let status = match answer {
-                Ok(status) => status,
-                Err(e) => {
-                    let _ = tx.send(Err(e.into())).await;
-                    return;
+                _ = ticks.tick(), if sent.is_some() => {
+                    let current = *reports.borrow();
+                    let Some(p) = current else { continue };
+                    if sent != Some(p.done) {
+                        sent = Some(p.done);
+                        if tx.send(Ok(p.message(self.status(), job.steps, false))).await.is_err() {
+                            return;
+                        }
+                    }
                 }
-            };
-            let done_now = status.step.saturating_sub(first.step);
-            let faulted = status.state == v1::SessionState::Faulted as i32;
-            // Fewer steps than asked: a Pause or a fault stopped them.
-            let stopped = done_now < taken + want;
-            taken = done_now;
-            let done = taken >= job.steps || faulted;
-            if tx.send(Ok(progress(status, done))).await.is_err() || done || stopped {
-                return;
             }
-            // The next chunk takes about one interval, by this one's pace.
-            let per_step = began.elapsed().as_secs_f64() / want as f64;
-            chunk = if per_step > 0.0 {
-                ((job.interval.as_secs_f64() / per_step) as u64).clamp(1, MAX_CHUNK)
-            } else {
-                MAX_CHUNK
-            };
         }
+    }
+
+    /// The last message of a call of `total` steps: its answer, with the
+    /// call's last report.
+    fn finish(
+        &self,
+        answer: Result<v1::SessionStatus, ServiceError>,
+        last: Option<Progress>,
+        total: u64,
+    ) -> Result<v1::SimulateProgress, Status> {
+        let status = answer?;
+        let progress = last.unwrap_or(Progress {
+            done: 0,
+            step: status.step,
+            time: status.time,
+            start_time: status.time,
+            began: Instant::now(),
+        });
+        // Fewer steps than asked and not faulted: a Pause stopped them.
+        let done = progress.done >= total || status.state == v1::SessionState::Faulted as i32;
+        let mut message = progress.message(status.clone(), total, done);
+        message.status = Some(status);
+        Ok(message)
     }
 }
 

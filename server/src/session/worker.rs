@@ -4,9 +4,17 @@
 //! belongs to (`interrupt.rs`), so a Pause or a deletion stops it within
 //! a sub-step; the step is undone and the session keeps its last
 //! completed step.
+//!
+//! A stepping call (`Step`, `SimulateSteps`, up to a billion steps) is
+//! one command, but between two of its steps the thread serves what a
+//! running session serves between steps: snapshots and checkpoints
+//! (`Capture`) and grabs. A restore is refused meanwhile, as while
+//! running; every other message waits for the call, in order, so that
+//! the steps of two calls never interleave.
 
 use super::interrupt::Interrupts;
 use super::optimize::{self, Channels, OptimizeJob, WarmStart};
+use super::simulate::Progress;
 use super::snapshot::{Captured, Resumed, ResumedSession};
 use super::{Command, LatestFrame, Origin, Reply, SharedDesign, lock};
 use crate::error::{ServiceError, state_name};
@@ -14,7 +22,7 @@ use crate::metrics::Metrics;
 use meshless_engine::efg::Grab;
 use meshless_engine::{BuildOptions, Cancel, Frame, StepError, World};
 use meshless_proto::v1::{SessionState, SessionStatus};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::panic::AssertUnwindSafe;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
@@ -111,6 +119,40 @@ pub struct Worker {
     /// The flag of the stepping work in hand (a `Step`, a run), which
     /// every step reads.
     work: Cancel,
+    /// The stepping call in progress, while its steps are taken.
+    call: Option<Call>,
+    /// Messages read between the steps of a call that wait for its end,
+    /// in the order they came; read before the channel.
+    deferred: VecDeque<Queued>,
+}
+
+/// A stepping call as the thread takes its steps.
+#[derive(Debug, Clone, Copy)]
+struct Call {
+    /// `Step` or `SimulateSteps`, as the protocol names it.
+    name: &'static str,
+    steps: u64,
+    done: u64,
+}
+
+impl Call {
+    fn new(name: &'static str, steps: u64) -> Self {
+        Self {
+            name,
+            steps,
+            done: 0,
+        }
+    }
+}
+
+impl std::fmt::Display for Call {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} of {} steps, {} done",
+            self.name, self.steps, self.done
+        )
+    }
 }
 
 /// How one step went.
@@ -119,6 +161,9 @@ enum Advance {
     Stepped,
     /// Interrupted and undone: the world is at the last completed step.
     Interrupted,
+    /// Refused before it began (the step counter is full); the work in
+    /// hand ends.
+    Refused,
     /// The step failed; the session faulted.
     Faulted,
 }
@@ -156,6 +201,8 @@ impl Worker {
             warm: None,
             interrupts,
             work: Cancel::new(),
+            call: None,
+            deferred: VecDeque::new(),
         };
         match resumed {
             Some(session) => worker.take(session),
@@ -170,7 +217,9 @@ impl Worker {
     pub fn run(mut self, messages: Receiver<Queued>) {
         loop {
             let stepping = self.state == SessionState::Running && !self.work.is_cancelled();
-            let message = if stepping {
+            let message = if let Some(deferred) = self.deferred.pop_front() {
+                Some(deferred)
+            } else if stepping {
                 match self.pacing.and_then(|p| p.wait(self.world.clock().time)) {
                     Some(wait) => match messages.recv_timeout(wait) {
                         Ok(m) => Some(m),
@@ -189,7 +238,7 @@ impl Worker {
             match message {
                 Some((number, Message::Command(command, reply))) => {
                     let result = self
-                        .guarded(|w| w.handle(command, number, &reply))
+                        .guarded(|w| w.handle(command, number, &reply, &messages))
                         .and_then(|r| r);
                     // The caller may have gone away; the command still applied.
                     let _ = reply.send(result);
@@ -210,14 +259,7 @@ impl Worker {
                     let _ = reply.send(result);
                 }
                 Some((_, Message::Grabs(grabs, reply))) => {
-                    let result = self
-                        .guarded(|w| w.world.set_all_grabs(&grabs))
-                        .and_then(|r| {
-                            r.map_err(|e| ServiceError::InvalidArgument {
-                                field: "edits".into(),
-                                message: e.to_string(),
-                            })
-                        });
+                    let result = self.guarded(|w| w.set_grabs(&grabs)).and_then(|r| r);
                     let _ = reply.send(result);
                 }
                 Some((_, Message::Shutdown)) => break,
@@ -264,14 +306,23 @@ impl Worker {
 
     /// Applies command `number`; `reply` is where its answer goes, and a
     /// closed one (the caller gave up) ends a long `Step` at the next step.
+    /// A stepping call serves `inbox` between its steps.
     fn handle(
         &mut self,
         command: Command,
         number: u64,
         reply: &Reply,
+        inbox: &Receiver<Queued>,
     ) -> Result<SessionStatus, ServiceError> {
         match command {
-            Command::Step(steps) => self.step(steps, number, reply),
+            Command::Step(steps) => self.step(Call::new("Step", steps), None, number, reply, inbox),
+            Command::Simulate(steps, progress) => self.step(
+                Call::new("SimulateSteps", steps),
+                Some(&progress),
+                number,
+                reply,
+                inbox,
+            ),
             Command::Run(target) => self.start_run(target, number),
             Command::Pause => {
                 if self.state == SessionState::Running {
@@ -335,23 +386,40 @@ impl Worker {
     }
 
     /// The state a snapshot keeps. A running session is kept as paused
-    /// with its run, so that a restore resumes it on request only.
+    /// with its run, so that a restore resumes it on request only; one
+    /// inside a stepping call as paused at the step it reached, as the
+    /// call would leave it (the call's other steps are the caller's).
     fn capture(&self) -> Captured {
-        let (state, reason) = if self.state == SessionState::Running {
-            (
+        let (state, reason, run) = match (self.call, self.state) {
+            (Some(call), _) => (
+                SessionState::Paused,
+                format!("stepping when the snapshot was taken ({call})"),
+                None,
+            ),
+            (None, SessionState::Running) => (
                 SessionState::Paused,
                 "running when the snapshot was taken; Resume continues the run".to_owned(),
-            )
-        } else {
-            (self.state, self.reason.clone())
+                self.run,
+            ),
+            (None, state) => (state, self.reason.clone(), self.run),
         };
         Captured {
             world: self.world.state(),
             state,
             reason,
-            run: self.run,
+            run,
             warm: self.warm.clone(),
         }
+    }
+
+    /// Holds `grabs` from the next step.
+    fn set_grabs(&mut self, grabs: &BTreeMap<usize, Vec<Grab>>) -> Result<(), ServiceError> {
+        self.world
+            .set_all_grabs(grabs)
+            .map_err(|e| ServiceError::InvalidArgument {
+                field: "edits".into(),
+                message: e.to_string(),
+            })
     }
 
     /// Swaps in a restored world, unless running; a faulted session may
@@ -426,48 +494,134 @@ impl Worker {
         }
     }
 
-    /// Takes up to `steps` steps for command `number`; stops early when
-    /// the session is shut down, the caller is gone (an abandoned
-    /// `Step(1_000_000)` would otherwise hold the session for as long as
-    /// it takes) or a Pause interrupts it, the step in progress undone.
+    /// Takes the steps of `call`, command `number`, reporting each on
+    /// `progress`; stops early when the session is shut down, the caller
+    /// is gone (an abandoned `Step(1_000_000)` would otherwise hold the
+    /// session for as long as it takes) or a Pause interrupts it, the
+    /// step in progress undone. Between two steps it serves `inbox` as a
+    /// run does (`between_steps`).
+    ///
+    /// # Errors
+    /// Running or faulted: [`ServiceError::WrongState`] or
+    /// [`ServiceError::Faulted`]; steps that would pass the largest step
+    /// count: [`ServiceError::StepCounterFull`]. Nothing changes.
     fn step(
         &mut self,
-        steps: u64,
+        mut call: Call,
+        progress: Option<&watch::Sender<Option<Progress>>>,
         number: u64,
         reply: &Reply,
+        inbox: &Receiver<Queued>,
     ) -> Result<SessionStatus, ServiceError> {
         if matches!(self.state, SessionState::Running | SessionState::Faulted) {
             return Err(self.refuse("step", "pause it first"));
         }
+        self.check_counter(call.steps)?;
         self.work = self.interrupts.begin(number);
-        let mut taken = 0;
+        let start = self.world.clock();
+        let began = Instant::now();
+        let report = |world: &World, done| {
+            if let Some(progress) = progress {
+                let clock = world.clock();
+                progress.send_replace(Some(Progress {
+                    done,
+                    step: clock.step,
+                    time: clock.time,
+                    start_time: start.time,
+                    began,
+                }));
+            }
+        };
+        report(&self.world, 0);
         let mut outcome = Advance::Stepped;
-        while taken < steps && !self.cancel.is_cancelled() && !reply.is_closed() {
+        while call.done < call.steps && !self.cancel.is_cancelled() && !reply.is_closed() {
             outcome = self.advance();
             if outcome != Advance::Stepped {
                 break;
             }
-            taken += 1;
+            call.done += 1;
+            report(&self.world, call.done);
+            if call.done < call.steps && !self.between_steps(call, inbox) {
+                break;
+            }
         }
         if self.state != SessionState::Faulted {
             self.publish_if_stale();
             self.run = None;
-            let reason = if outcome == Advance::Interrupted {
-                format!(
-                    "interrupted after {taken} of {steps} steps; the step in progress was undone"
-                )
-            } else {
-                "stepped".into()
+            let reason = match outcome {
+                Advance::Interrupted => format!(
+                    "interrupted after {} of {} steps; the step in progress was undone",
+                    call.done, call.steps
+                ),
+                Advance::Stepped | Advance::Refused | Advance::Faulted => "stepped".into(),
             };
             self.set_state(SessionState::Paused, &reason);
         }
         Ok(self.status())
     }
 
+    /// Refuses `steps` more steps where they would pass [`u64::MAX`]:
+    /// the counter never wraps.
+    fn check_counter(&self, steps: u64) -> Result<(), ServiceError> {
+        let step = self.world.clock().step;
+        match step.checked_add(steps) {
+            Some(_) => Ok(()),
+            None => Err(ServiceError::StepCounterFull {
+                session_id: self.id.clone(),
+                step,
+                steps,
+            }),
+        }
+    }
+
+    /// Serves the messages that came during the step just taken of
+    /// `call`, as a running session does between two steps:
+    /// a snapshot or checkpoint (`Capture`) sees the step reached, grabs
+    /// hold from the next step, a restore is refused (the call steps on
+    /// the world it would replace); everything else waits for the call,
+    /// in order (a Pause has already interrupted it, another stepping
+    /// call takes its own steps after it). Returns false when the session
+    /// is gone: the call ends.
+    fn between_steps(&mut self, call: Call, inbox: &Receiver<Queued>) -> bool {
+        self.call = Some(call);
+        let open = loop {
+            let (number, message) = match inbox.try_recv() {
+                Ok(queued) => queued,
+                Err(TryRecvError::Empty) => break true,
+                Err(TryRecvError::Disconnected) => {
+                    self.deferred.push_back((0, Message::Shutdown));
+                    break false;
+                }
+            };
+            match message {
+                Message::Capture(out) => {
+                    // The caller may have gone away.
+                    let _ = out.send(self.capture());
+                }
+                Message::Grabs(grabs, reply) => {
+                    let _ = reply.send(self.set_grabs(&grabs));
+                }
+                Message::Restore(_, reply) => {
+                    let _ = reply.send(Err(ServiceError::Stepping {
+                        session_id: self.id.clone(),
+                        action: "restore a snapshot into",
+                        call: call.to_string(),
+                    }));
+                }
+                message @ (Message::Command(..) | Message::Optimize(..) | Message::Shutdown) => {
+                    self.deferred.push_back((number, message));
+                }
+            }
+        };
+        self.call = None;
+        open
+    }
+
     fn start_run(&mut self, target: RunTarget, number: u64) -> Result<SessionStatus, ServiceError> {
         if matches!(self.state, SessionState::Running | SessionState::Faulted) {
             return Err(self.refuse("run", "pause it first"));
         }
+        self.check_counter(1)?;
         let now = self.world.clock().time;
         if let Some(until) = target.until
             && until <= now
@@ -486,6 +640,7 @@ impl Worker {
         match self.state {
             SessionState::Running => Ok(self.status()),
             SessionState::Paused if self.run.is_some() => {
+                self.check_counter(1)?;
                 self.begin_running(number);
                 Ok(self.status())
             }
@@ -566,6 +721,15 @@ impl Worker {
                 Advance::Stepped
             }
             Err(StepError::Cancelled { .. }) => Advance::Interrupted,
+            // Only a run gets here (a stepping call is checked first): it
+            // ends at the last step there is, nothing faulted.
+            Err(e @ StepError::CounterFull { .. }) => {
+                self.run = None;
+                self.pacing = None;
+                self.publish_if_stale();
+                self.set_state(SessionState::Paused, &e.to_string());
+                Advance::Refused
+            }
             Err(e) => {
                 self.out.metrics.fault(Some(&e));
                 tracing::warn!(session = %self.id, "session faulted: {e}");
@@ -688,11 +852,13 @@ mod tests {
             .expect("numbered")
     }
 
-    /// Applies `command` with a caller that waits for the answer.
+    /// Applies `command` with a caller that waits for the answer, and
+    /// no message coming meanwhile.
     fn command(worker: &mut Worker, command: Command) -> Result<SessionStatus, ServiceError> {
         let (reply, _answer) = tokio::sync::oneshot::channel();
         let number = number(worker);
-        worker.handle(command, number, &reply)
+        let (_sender, inbox) = std::sync::mpsc::channel();
+        worker.handle(command, number, &reply, &inbox)
     }
 
     #[test]
@@ -701,8 +867,9 @@ mod tests {
         let (reply, answer) = tokio::sync::oneshot::channel();
         drop(answer);
         let number = number(&worker);
+        let (_sender, inbox) = std::sync::mpsc::channel();
         let status = worker
-            .handle(Command::Step(1_000_000), number, &reply)
+            .handle(Command::Step(1_000_000), number, &reply, &inbox)
             .expect("answers");
         assert_eq!(status.step, 0, "no step for a caller that is gone");
         assert_eq!(
