@@ -2,7 +2,7 @@
 
 use crate::error::{ServiceError, quote};
 use crate::metrics::Metrics;
-use crate::session::{Access, Decoded, Origin, Outlet, Session};
+use crate::session::{Access, Decoded, Origin, Outlet, Session, snapshot_unfit};
 use meshless_engine::{BuildOptions, Cancel, Scene};
 use meshless_proto::seal::Sealer;
 use std::collections::HashMap;
@@ -158,10 +158,22 @@ impl Registry {
         let _stop = options.cancel.raise_on_drop();
         // Validation and the estimate first (a mesh may be read), then the
         // reservation, and only then the allocation.
-        let checked = tokio::task::spawn_blocking(move || scene.check(&options))
-            .await
-            .map_err(|e| ServiceError::Internal(format!("scene check task failed: {e}")))??;
-        let needed = checked.footprint().bytes.ceil().min(u64::MAX as f64) as u64;
+        // A restore reserves for the state it restores, its positions
+        // checked first: a forged snapshot may pile particles the scene's
+        // lattice never would.
+        let (checked, snapshot, footprint) = tokio::task::spawn_blocking(move || {
+            let checked = scene.check(&options)?;
+            let footprint = match &snapshot {
+                None => checked.footprint(),
+                Some(snapshot) => checked
+                    .restored_footprint(&snapshot.world)
+                    .map_err(|e| snapshot_unfit(&e))?,
+            };
+            Ok::<_, ServiceError>((checked, snapshot, footprint))
+        })
+        .await
+        .map_err(|e| ServiceError::Internal(format!("scene check task failed: {e}")))??;
+        let needed = footprint.bytes.ceil().min(u64::MAX as f64) as u64;
         self.memory().reserve(needed)?;
         let serial = self.serial.fetch_add(1, Ordering::Relaxed);
         let id = id.unwrap_or_else(|| {
