@@ -28,6 +28,9 @@ pub const ANONYMOUS: &str = "anonymous";
 pub const MAX_NAME_BYTES: usize = 64;
 /// Shortest token a file may hold: 128 bits as hex or Base64 text.
 const MIN_TOKEN_BYTES: usize = 16;
+/// Longest tokens file read: a line of a name and a token is about a
+/// hundred bytes, so this holds some ten thousand principals.
+pub const MAX_TOKENS_FILE_BYTES: u64 = 1 << 20;
 
 /// A request's caller, put into the request's extensions by
 /// [`Authenticator`].
@@ -116,12 +119,14 @@ impl Tokens {
         Ok(Self { entries })
     }
 
-    /// Reads a tokens file; see [`Tokens::parse`].
+    /// Reads a tokens file, a regular file of at most
+    /// [`MAX_TOKENS_FILE_BYTES`] ([`crate::files`]); see [`Tokens::parse`].
     ///
     /// # Errors
-    /// An unreadable file or a bad line.
+    /// An unreadable file, one that is not regular or too large, or a bad
+    /// line.
     pub fn from_file(path: &Path) -> Result<Self, String> {
-        let text = std::fs::read_to_string(path)
+        let text = crate::files::read_regular_text(path, MAX_TOKENS_FILE_BYTES)
             .map_err(|e| format!("cannot read the tokens file {}: {e}", path.display()))?;
         Self::parse(&text, &path.display().to_string())
     }

@@ -14,6 +14,7 @@ mod codes;
 pub mod config;
 pub mod config_file;
 mod error;
+mod files;
 mod listener;
 mod metrics;
 mod metrics_layer;
