@@ -35,6 +35,10 @@ const MIN_TOKEN_BYTES: usize = 16;
 /// clients show as UNKNOWN.
 pub const MAX_TOKEN_BYTES: usize = 4096;
 
+/// Longest tokens file read: a line of a name and a token is about a
+/// hundred bytes, so this holds some ten thousand principals.
+pub const MAX_TOKENS_FILE_BYTES: u64 = 1 << 20;
+
 /// A request's caller, put into the request's extensions by
 /// [`Authenticator`].
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -122,12 +126,14 @@ impl Tokens {
         Ok(Self { entries })
     }
 
-    /// Reads a tokens file; see [`Tokens::parse`].
+    /// Reads a tokens file, a regular file of at most
+    /// [`MAX_TOKENS_FILE_BYTES`] ([`crate::files`]); see [`Tokens::parse`].
     ///
     /// # Errors
-    /// An unreadable file or a bad line.
+    /// An unreadable file, one that is not regular or too large, or a bad
+    /// line.
     pub fn from_file(path: &Path) -> Result<Self, String> {
-        let text = std::fs::read_to_string(path)
+        let text = crate::files::read_regular_text(path, MAX_TOKENS_FILE_BYTES)
             .map_err(|e| format!("cannot read the tokens file {}: {e}", path.display()))?;
         Self::parse(&text, &path.display().to_string())
     }

@@ -10,6 +10,7 @@
 //! that has not changed since its last checkpoint is not written again;
 //! a deleted session's checkpoint is removed with it.
 
+use crate::files::FileError;
 use crate::metrics::Metrics;
 use crate::registry::Registry;
 use crate::session::{Access, Decoded, Session, encode_snapshot};
@@ -47,6 +48,38 @@ fn fingerprint(session: &Session) -> Fingerprint {
         reason: status.reason,
         design: session.design_revision(),
     }
+}
+
+/// Replaces the file at `path` with what `write` writes: into
+/// `temporary`, flushed to disk, renamed over `path`. On any failure (a
+/// full disk, a path that cannot be replaced) the temporary file is
+/// removed, so that it neither takes the space the next write needs nor
+/// outlives the failure, and `path` keeps what it held.
+///
+/// # Errors
+/// The first I/O error.
+fn replace(
+    temporary: &Path,
+    path: &Path,
+    write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
+) -> std::io::Result<()> {
+    let written = std::fs::File::create(temporary).and_then(|mut file| {
+        write(&mut file)?;
+        file.sync_all()?;
+        drop(file);
+        std::fs::rename(temporary, path)
+    });
+    if written.is_err() {
+        match std::fs::remove_file(temporary) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => tracing::warn!(
+                file = %temporary.display(),
+                "cannot remove an unfinished checkpoint: {e}"
+            ),
+        }
+    }
+    written
 }
 
 /// The checkpoint directory, its interval and what was last written.
@@ -157,16 +190,16 @@ impl Checkpoints {
     }
 
     async fn restore_one(&self, registry: &Registry, path: &Path) -> anyhow::Result<Arc<Session>> {
-        let size = std::fs::metadata(path)?.len();
-        if size > self.limit as u64 {
-            anyhow::bail!(
-                "{size} bytes, over the snapshot limit of {} (--max-snapshot-mb)",
-                self.limit
-            );
-        }
         let (path, limit) = (path.to_owned(), self.limit);
         let decoded = tokio::task::spawn_blocking(move || {
-            let data = std::fs::read(&path)?;
+            // A regular file within the snapshot limit only: a link to
+            // `/dev/zero` or a FIFO is refused, not read for ever.
+            let data = crate::files::read_regular(&path, limit as u64).map_err(|e| match e {
+                FileError::TooLarge { .. } => {
+                    anyhow::anyhow!("{e} (the snapshot limit, --max-snapshot-mb)")
+                }
+                FileError::Io(_) | FileError::NotRegular { .. } => anyhow::Error::new(e),
+            })?;
             let decoded = Decoded::from_blob(&data, limit)?;
             let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("");
             if stem != decoded.record.id {
@@ -206,7 +239,15 @@ impl Checkpoints {
                     self.metrics.snapshot();
                     self.written().insert(session.id.clone(), print);
                 }
-                Err(e) => tracing::warn!(session = %session.id, "checkpoint not written: {e}"),
+                Err(e) => {
+                    // The last good checkpoint stays; the next round tries
+                    // again, and the other sessions are written meanwhile.
+                    self.metrics.checkpoint_failed();
+                    tracing::warn!(
+                        session = %session.id,
+                        "checkpoint not written (the last one written stays): {e:#}"
+                    );
+                }
             }
         }
         let live: std::collections::HashSet<&str> =
@@ -237,11 +278,9 @@ impl Checkpoints {
         );
         tokio::task::spawn_blocking(move || {
             let data = encode_snapshot(&payload, limit)?;
-            let mut file = std::fs::File::create(&temporary)?;
-            std::io::Write::write_all(&mut file, &data)?;
-            file.sync_all()?;
-            drop(file);
-            std::fs::rename(&temporary, &path)?;
+            replace(&temporary, &path, |file| {
+                std::io::Write::write_all(file, &data)
+            })?;
             // The rename itself reaches the disk with the directory.
             if let Ok(dir) = std::fs::File::open(&dir) {
                 let _ = dir.sync_all();
@@ -285,5 +324,39 @@ impl Checkpoints {
                 tracing::trace!(took = ?started.elapsed(), "checkpoint round");
             }
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A write that fails part of the way (here, as on a full disk)
+    /// leaves no temporary file and the previous checkpoint whole.
+    #[test]
+    fn a_failed_write_removes_its_temporary_file_and_keeps_the_last_checkpoint() {
+        let dir = std::env::temp_dir().join(format!("meshless-replace-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let (path, temporary) = (dir.join("s.snapshot"), dir.join("s.tmp"));
+        replace(&temporary, &path, |f| std::io::Write::write_all(f, b"good")).expect("written");
+        let full = replace(&temporary, &path, |f| {
+            std::io::Write::write_all(f, b"half")?;
+            Err(std::io::Error::new(
+                std::io::ErrorKind::StorageFull,
+                "No space left on device",
+            ))
+        });
+        assert_eq!(
+            full.expect_err("the injected error").kind(),
+            std::io::ErrorKind::StorageFull
+        );
+        assert!(
+            !temporary.exists(),
+            "the temporary file outlived the failure"
+        );
+        assert_eq!(std::fs::read(&path).expect("kept"), b"good");
+        replace(&temporary, &path, |f| std::io::Write::write_all(f, b"next")).expect("written");
+        assert_eq!(std::fs::read(&path).expect("written"), b"next");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -43,15 +43,9 @@ pub fn config_path(args: &[OsString]) -> Option<PathBuf> {
 /// number, boolean or array of them.
 pub fn with_file(mut command: Command, path: &Path) -> Result<(Command, Vec<String>), String> {
     let shown = path.display();
-    let size = std::fs::metadata(path)
-        .map_err(|e| format!("cannot read config file {shown}: {e}"))?
-        .len();
-    if size > MAX_FILE_BYTES {
-        return Err(format!(
-            "config file {shown} has {size} bytes; a config file has at most {MAX_FILE_BYTES}"
-        ));
-    }
-    let text = std::fs::read_to_string(path)
+    // A regular file only: a FIFO or a device named by mistake fails the
+    // start at once instead of hanging it or filling memory.
+    let text = crate::files::read_regular_text(path, MAX_FILE_BYTES)
         .map_err(|e| format!("cannot read config file {shown}: {e}"))?;
     let table: toml::Table =
         toml::from_str(&text).map_err(|e| format!("config file {shown}: {e}"))?;

@@ -15,6 +15,7 @@ pub mod config;
 pub mod config_file;
 mod connection;
 mod error;
+mod files;
 mod listener;
 mod metrics;
 mod metrics_http;

@@ -76,6 +76,7 @@ pub struct Metrics {
     bytes_sent: Counter,
     snapshots: Counter,
     restores: Counter,
+    checkpoint_failures: Counter,
     rpcs: Family<RpcLabel, Counter>,
     rpc_seconds: Family<MethodLabel, Histogram, fn() -> Histogram>,
     /// Filled in once the sessions exist (they need the metrics first).
@@ -163,6 +164,12 @@ impl Metrics {
             "Snapshots restored (by Restore and from checkpoints)",
             restores.clone(),
         );
+        let checkpoint_failures = Counter::default();
+        registry.register(
+            "checkpoint_failures",
+            "Checkpoints not written (a full disk, an unwritable file); the last good one stays",
+            checkpoint_failures.clone(),
+        );
         let rpcs = Family::default();
         registry.register(
             "rpcs",
@@ -192,6 +199,7 @@ impl Metrics {
             bytes_sent,
             snapshots,
             restores,
+            checkpoint_failures,
             rpcs,
             rpc_seconds,
             live,
@@ -273,6 +281,11 @@ impl Metrics {
     /// Records a snapshot restored.
     pub fn restore(&self) {
         self.restores.inc();
+    }
+
+    /// Records a checkpoint that was not written.
+    pub fn checkpoint_failed(&self) {
+        self.checkpoint_failures.inc();
     }
 
     /// Records a call of `method` ([`method_name`]) answered with `code`

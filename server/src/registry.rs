@@ -2,7 +2,7 @@
 
 use crate::error::{ServiceError, quote};
 use crate::metrics::Metrics;
-use crate::session::{Access, Decoded, Origin, Outlet, Session};
+use crate::session::{Access, Decoded, Origin, Outlet, Session, snapshot_unfit};
 use meshless_engine::{Budget, BuildOptions, Cancel, Scene};
 use meshless_proto::seal::Sealer;
 use std::collections::HashMap;
@@ -166,10 +166,22 @@ impl Registry {
         options.budget = early.budget();
         // Validation and the estimate first (a mesh may be read), then the
         // reservation, and only then the allocation.
-        let checked = tokio::task::spawn_blocking(move || scene.check(&options))
-            .await
-            .map_err(|e| ServiceError::Internal(format!("scene check task failed: {e}")))??;
-        let needed = checked.footprint().bytes.ceil().min(u64::MAX as f64) as u64;
+        // A restore reserves for the state it restores, its positions
+        // checked first: a forged snapshot may pile particles the scene's
+        // lattice never would.
+        let (checked, snapshot, footprint) = tokio::task::spawn_blocking(move || {
+            let checked = scene.check(&options)?;
+            let footprint = match &snapshot {
+                None => checked.footprint(),
+                Some(snapshot) => checked
+                    .restored_footprint(&snapshot.world)
+                    .map_err(|e| snapshot_unfit(&e))?,
+            };
+            Ok::<_, ServiceError>((checked, snapshot, footprint))
+        })
+        .await
+        .map_err(|e| ServiceError::Internal(format!("scene check task failed: {e}")))??;
+        let needed = footprint.bytes.ceil().min(u64::MAX as f64) as u64;
         // The checked footprint replaces the early reservation, under one
         // lock so that no other admission sees the bytes free between.
         {

@@ -13,7 +13,6 @@ use crate::session::{
 };
 use meshless_engine::Scene;
 use meshless_engine::design::{Constraint, Edit};
-use meshless_engine::math::Brief;
 use meshless_proto::v1::{self, simulation_server::Simulation};
 use meshless_wire::design::{
     constraint_to_proto, design_params_from_proto, edit_from_proto, motion_params_from_proto,
@@ -29,10 +28,6 @@ use tonic::{Request, Response, Status};
 /// Most steps one `Step` call may ask for.
 const MAX_STEPS_PER_CALL: u64 = 1_000_000;
 
-/// Real-time factors a paced run accepts. Outside, pacing means nothing a
-/// user can watch: a millionth of real time is 11 days per simulated
-/// second, and above a million times the run is unpaced in all but name.
-const REALTIME_FACTORS: std::ops::RangeInclusive<f64> = 1e-6..=1e6;
 /// Playback frames per second of design time when a motion names none.
 const DEFAULT_PLAYBACK_RATE: f64 = 30.0;
 /// Optimisation events queued per stream.
@@ -290,14 +285,7 @@ impl Simulation for SimulationService {
         // No cap on how far ahead: however long a run is, Pause, Delete
         // and shutdown stop it within a sub-step (`session/interrupt.rs`).
         let until = match until {
-            Some(v1::run_request::Until::UntilTime(t)) if t.is_finite() && t > 0.0 => Some(t),
-            Some(v1::run_request::Until::UntilTime(t)) => {
-                return Err(ServiceError::invalid(
-                    "until_time",
-                    format!("must be a finite time > 0 s, got {t}"),
-                )
-                .into());
-            }
+            Some(v1::run_request::Until::UntilTime(t)) => Some(RunTarget::check_until(t)?),
             Some(v1::run_request::Until::Forever(true)) => None,
             Some(v1::run_request::Until::Forever(false)) | None => {
                 return Err(ServiceError::invalid(
@@ -307,23 +295,7 @@ impl Simulation for SimulationService {
                 .into());
             }
         };
-        let realtime_factor = match realtime_factor {
-            Some(0.0) | None => None,
-            Some(f) if REALTIME_FACTORS.contains(&f) => Some(f),
-            Some(f) => {
-                return Err(ServiceError::invalid(
-                    "realtime_factor",
-                    format!(
-                        "must be 0 (as fast as possible) or in [{:e}, {:e}] simulated seconds \
-                         per second, got {}",
-                        REALTIME_FACTORS.start(),
-                        REALTIME_FACTORS.end(),
-                        Brief(f)
-                    ),
-                )
-                .into());
-            }
-        };
+        let realtime_factor = RunTarget::check_realtime_factor(realtime_factor)?;
         let target = RunTarget {
             until,
             realtime_factor,

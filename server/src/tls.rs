@@ -36,6 +36,7 @@ pub struct TlsFiles<'a> {
 /// or holds no PEM block of the kind expected.
 pub fn server_config(files: TlsFiles<'_>) -> Result<ServerTlsConfig, String> {
     let cert = read_pem(files.cert, "--tls-cert", "CERTIFICATE")?;
+    warn_on_validity(&cert, files.cert);
     let key = read_pem(files.key, "--tls-key", "PRIVATE KEY")?;
     let mut config = ServerTlsConfig::new()
         .identity(Identity::from_pem(cert, key))
@@ -48,17 +49,19 @@ pub fn server_config(files: TlsFiles<'_>) -> Result<ServerTlsConfig, String> {
 }
 
 /// The bytes of a PEM file that holds at least one `label` block (`PRIVATE
-/// KEY` also matches `RSA PRIVATE KEY` and `EC PRIVATE KEY`).
+/// KEY` also matches `RSA PRIVATE KEY` and `EC PRIVATE KEY`). Only a
+/// regular file is read ([`crate::files`]): a FIFO or `/dev/zero` named
+/// by mistake fails the start at once.
 fn read_pem(path: &Path, flag: &str, label: &str) -> Result<Vec<u8>, String> {
-    let unreadable = |e: std::io::Error| format!("{flag} {}: {e}", path.display());
-    let size = std::fs::metadata(path).map_err(unreadable)?.len();
-    if size > MAX_PEM_BYTES {
-        return Err(format!(
-            "{flag} {}: {size} bytes is no PEM certificate or key (at most {MAX_PEM_BYTES})",
+    let bytes = crate::files::read_regular(path, MAX_PEM_BYTES).map_err(|e| match e {
+        crate::files::FileError::TooLarge { .. } => format!(
+            "{flag} {}: {e}; no PEM certificate or key is that large (at most {MAX_PEM_BYTES})",
             path.display()
-        ));
-    }
-    let bytes = std::fs::read(path).map_err(unreadable)?;
+        ),
+        crate::files::FileError::Io(_) | crate::files::FileError::NotRegular { .. } => {
+            format!("{flag} {}: {e}", path.display())
+        }
+    })?;
     let text = String::from_utf8_lossy(&bytes);
     let has_block = text
         .lines()
@@ -70,6 +73,41 @@ fn read_pem(path: &Path, flag: &str, label: &str) -> Result<Vec<u8>, String> {
         ));
     }
     Ok(bytes)
+}
+
+/// Why the leaf certificate of `chain` (PEM) is not valid at `now`, if it
+/// is not: expired, or not yet valid. The server still starts (an
+/// operator may be mid-renewal, and a clock may be wrong), but every
+/// client will refuse the handshake, so the start says so. A chain that
+/// does not parse says nothing here: rustls reports it at the handshake.
+fn validity_problem(chain: &[u8], now: x509_parser::time::ASN1Time) -> Option<String> {
+    let leaf = x509_parser::pem::Pem::iter_from_buffer(chain)
+        .filter_map(Result::ok)
+        .find(|pem| pem.label == "CERTIFICATE")?;
+    let certificate = leaf.parse_x509().ok()?;
+    let validity = certificate.validity();
+    if now > validity.not_after {
+        Some(format!(
+            "expired on {}; clients will refuse the handshake until it is renewed",
+            validity.not_after
+        ))
+    } else if now < validity.not_before {
+        Some(format!(
+            "is not valid before {}; clients will refuse the handshake until then (or check \
+             this host's clock)",
+            validity.not_before
+        ))
+    } else {
+        None
+    }
+}
+
+/// Logs a warning naming `path` when its leaf certificate is expired or
+/// not yet valid ([`validity_problem`]).
+fn warn_on_validity(chain: &[u8], path: &Path) {
+    if let Some(problem) = validity_problem(chain, x509_parser::time::ASN1Time::now()) {
+        tracing::warn!(file = %path.display(), "--tls-cert {}: the certificate {problem}", path.display());
+    }
 }
 
 #[cfg(test)]

@@ -98,6 +98,9 @@ pub struct Launch<'a> {
     pub env: &'a [(&'a str, &'a str)],
     /// The server's limit on open file descriptors (`ulimit -n`).
     pub fd_limit: Option<u32>,
+    /// A file for the server's log (stderr), for a test that reads what
+    /// it said; by default the test's own stderr.
+    pub log: Option<&'a std::path::Path>,
 }
 
 /// A `meshless-server` child process, killed when dropped.
@@ -140,8 +143,27 @@ impl ServerProcess {
         Self::launch("tcp/127.0.0.1:0", extra_args, launch).await
     }
 
+    /// [`ServerProcess::spawn`] with its log (stderr, warnings and up)
+    /// written to the file `log`, for a test that reads what it said.
+    ///
+    /// # Errors
+    /// As [`ServerProcess::spawn`], and a log file that cannot be made.
+    pub async fn spawn_logging(extra_args: &[&str], log: &std::path::Path) -> Result<Self> {
+        let launch = Launch {
+            log: Some(log),
+            ..Launch::default()
+        };
+        Self::launch("tcp/127.0.0.1:0", extra_args, &launch).await
+    }
+
     async fn launch(zenoh_listen: &str, extra_args: &[&str], launch: &Launch<'_>) -> Result<Self> {
         let server = binary("meshless-server")?;
+        let stderr = match launch.log {
+            Some(log) => {
+                Stdio::from(std::fs::File::create(log).context("cannot create the log file")?)
+            }
+            None => Stdio::inherit(),
+        };
         let mut command = match launch.fd_limit {
             // The shell lowers its own limit, then becomes the server.
             Some(limit) => {
@@ -160,7 +182,7 @@ impl ServerProcess {
             .envs(launch.env.iter().copied())
             .env("MESHLESS_LOG", "warn")
             .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
+            .stderr(stderr)
             .kill_on_drop(true)
             .spawn()
             .context("cannot start meshless-server")?;
@@ -263,6 +285,82 @@ pub fn resident_bytes(pid: u32) -> u64 {
         .and_then(|v| v.parse().ok())
         .expect("a number");
     kib * 1024
+}
+
+/// Runs `meshless-server` with `args` (on free ports) and waits, within
+/// [`TIMEOUT`], for it to exit: for a start that must fail fast. Returns
+/// whether it succeeded and its stderr. A server that hangs instead is
+/// killed and fails the test.
+///
+/// # Panics
+/// When the binary is missing or the server does not exit in time.
+pub async fn failed_start(args: &[&str]) -> (bool, String) {
+    let output = within(
+        "the server to exit",
+        Command::new(binary("meshless-server").expect("built"))
+            .args([
+                "--grpc-addr",
+                "127.0.0.1:0",
+                "--zenoh-listen",
+                "tcp/127.0.0.1:0",
+            ])
+            .args(args)
+            .stdin(Stdio::null())
+            .kill_on_drop(true)
+            .output(),
+    )
+    .await
+    .expect("it runs");
+    (
+        output.status.success(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
+
+/// `blob` (a snapshot of this build) with its payload altered by `alter`
+/// and its checksum recomputed: a forgery, which the checksum (there to
+/// catch corruption) cannot tell from a snapshot the server wrote.
+///
+/// # Panics
+/// When `blob` is not a snapshot of this build.
+pub fn forge(
+    blob: &[u8],
+    alter: impl FnOnce(&mut meshless_client::v1::SnapshotPayload),
+) -> Vec<u8> {
+    let mut payload = meshless_proto::snapshot::decode(blob, usize::MAX).expect("a snapshot");
+    alter(&mut payload);
+    meshless_proto::snapshot::encode(&payload)
+}
+
+/// The fluid of a snapshot's payload, to alter (the first system that is
+/// one).
+///
+/// # Panics
+/// When the payload holds no fluid.
+pub fn fluid_of(
+    payload: &mut meshless_client::v1::SnapshotPayload,
+) -> &mut meshless_client::v1::FluidSnapshot {
+    use meshless_client::v1::system_snapshot::Kind;
+    payload
+        .world
+        .as_mut()
+        .expect("a world")
+        .systems
+        .iter_mut()
+        .find_map(|s| match s.kind.as_mut() {
+            Some(Kind::Fluid(fluid)) => Some(fluid),
+            _ => None,
+        })
+        .expect("a fluid")
+}
+
+/// Makes a FIFO at `path` (with `mkfifo`).
+///
+/// # Panics
+/// When it cannot be made.
+pub fn make_fifo(path: &std::path::Path) {
+    let made = std::process::Command::new("mkfifo").arg(path).status();
+    assert!(made.is_ok_and(|s| s.success()), "mkfifo {}", path.display());
 }
 
 /// A temporary directory, removed when dropped.

@@ -3,10 +3,15 @@
 //! directory comes back with every session (ids, owners, observers,
 //! constraints, state), losing at most one interval of a running one; a
 //! half-written or corrupted checkpoint is never read as one; a deleted
-//! session's checkpoint goes with it; SIGTERM writes a last round.
+//! session's checkpoint goes with it; SIGTERM writes a last round; a
+//! checkpoint that does not fit the disk is cleaned up, counted and
+//! written again once it fits, the others written meanwhile; a link to
+//! `/dev/zero` or a FIFO in the directory never holds up a start.
 
 use meshless_client::{Client, Identity, v1};
-use meshless_tests::{ServerProcess, TempDir, fixture, small_solid_scene, within};
+use meshless_tests::{
+    ServerProcess, TempDir, fixture, make_fifo, small_scene, small_solid_scene, within,
+};
 use std::path::Path;
 use std::time::{Duration, SystemTime};
 
@@ -327,4 +332,144 @@ async fn a_long_step_is_checkpointed_between_its_steps() {
     );
     let on = within("step", alice.step(&id, 1)).await.expect("steps on");
     assert_eq!(on.status.expect("a status").step, restored.step + 1);
+}
+
+/// The value of counter `name` on the server's metrics endpoint.
+async fn counter(url: &str, name: &str) -> f64 {
+    let (url, name) = (url.to_owned(), name.to_owned());
+    within(
+        "a scrape",
+        tokio::task::spawn_blocking(move || {
+            let text = ureq::get(&url)
+                .call()
+                .expect("the endpoint answers")
+                .body_mut()
+                .read_to_string()
+                .expect("text");
+            text.lines()
+                .find_map(|l| l.strip_prefix(&format!("{name} ")))
+                .and_then(|v| v.trim().parse().ok())
+                .unwrap_or_else(|| panic!("no {name} in\n{text}"))
+        }),
+    )
+    .await
+    .expect("scraped")
+}
+
+/// Polls `done` every 20 ms until it holds.
+async fn until(what: &str, mut done: impl FnMut() -> bool) {
+    within(what, async {
+        let mut ticks = tokio::time::interval(Duration::from_millis(20));
+        while !done() {
+            ticks.tick().await;
+        }
+    })
+    .await;
+}
+
+/// A full disk, for real: the session's temporary file is a link to
+/// `/dev/full`, whose every write fails with "no space left on device".
+/// The failed checkpoint removes its temporary file (once a leftover that
+/// made every later write fail), counts in
+/// `meshless_checkpoint_failures_total`, leaves the other session's
+/// checkpoint to be written, and the next round writes it.
+#[tokio::test]
+async fn a_checkpoint_that_does_not_fit_is_cleaned_up_and_written_once_it_fits() {
+    if !Path::new("/dev/full").exists() {
+        eprintln!("skipped: this host has no /dev/full");
+        return;
+    }
+    let dir = TempDir::new("checkpoints-full");
+    std::fs::write(dir.0.join("tokens"), format!("alice {ALICE}\n")).expect("tokens");
+    let checkpoints = dir.0.join("checkpoints");
+    let server = ServerProcess::spawn(&[
+        "--tokens-file",
+        dir.0.join("tokens").to_str().expect("utf-8"),
+        "--checkpoint-dir",
+        checkpoints.to_str().expect("utf-8"),
+        "--checkpoint-interval",
+        &INTERVAL.to_string(),
+        "--metrics-addr",
+        "127.0.0.1:0",
+    ])
+    .await
+    .expect("server");
+    let metrics = server.metrics_url.clone().expect("metrics");
+    let alice = server.client_as(&as_token(ALICE)).await.expect("alice");
+    let mut ids = Vec::new();
+    for _ in 0..2 {
+        let id = within("create", alice.create_session_toml(&small_scene()))
+            .await
+            .expect("created")
+            .id;
+        ids.push(id);
+    }
+    let file = |id: &str, extension: &str| checkpoints.join(format!("{id}.{extension}"));
+    until("both checkpoints", || {
+        ids.iter().all(|id| file(id, "snapshot").exists())
+    })
+    .await;
+    let (full, fits) = (&ids[0], &ids[1]);
+    let (full_before, fits_before) = (
+        std::fs::read(file(full, "snapshot")).expect("read"),
+        std::fs::read(file(fits, "snapshot")).expect("read"),
+    );
+    std::os::unix::fs::symlink("/dev/full", file(full, "tmp")).expect("link");
+    for id in &ids {
+        within("step", alice.step(id, 1)).await.expect("stepped");
+    }
+    // The other session is written in spite of it, and the full one
+    // once its temporary file is gone (a leftover once failed it for
+    // good); the failure was counted.
+    until("the other checkpoint", || {
+        std::fs::read(file(fits, "snapshot")).is_ok_and(|d| d != fits_before)
+    })
+    .await;
+    until("the checkpoint that did not fit, written", || {
+        std::fs::read(file(full, "snapshot")).is_ok_and(|d| d != full_before)
+    })
+    .await;
+    let failures = counter(&metrics, "meshless_checkpoint_failures_total").await;
+    assert!(failures >= 1.0, "{failures} checkpoint failures counted");
+    assert!(
+        std::fs::symlink_metadata(file(full, "tmp")).is_err(),
+        "the temporary file outlived the failure"
+    );
+    server.terminate().await.expect("stopped");
+}
+
+/// A checkpoint directory holding a link to `/dev/zero` (once read to the
+/// end of memory) and a FIFO (once waited on for ever) under checkpoint
+/// names: the server starts promptly, restores the good checkpoint and
+/// puts the other two aside.
+#[tokio::test]
+async fn a_device_link_and_a_fifo_never_hold_up_a_start() {
+    let dir = TempDir::new("checkpoints-special");
+    std::fs::write(dir.0.join("tokens"), format!("alice {ALICE}\n")).expect("tokens");
+    let checkpoints = dir.0.join("checkpoints");
+    let server = spawn(&dir.0, 3600.0).await;
+    let alice = server.client_as(&as_token(ALICE)).await.expect("alice");
+    let id = within("create", alice.create_session_toml(&small_scene()))
+        .await
+        .expect("created")
+        .id;
+    within("step", alice.step(&id, 2)).await.expect("stepped");
+    server.terminate().await.expect("stopped: a last round");
+    assert!(checkpoints.join(format!("{id}.snapshot")).exists());
+    std::os::unix::fs::symlink("/dev/zero", checkpoints.join("0000000000000000.snapshot"))
+        .expect("link");
+    make_fifo(&checkpoints.join("1111111111111111.snapshot"));
+
+    let server = spawn(&dir.0, 3600.0).await;
+    let alice = server.client_as(&as_token(ALICE)).await.expect("alice");
+    assert_eq!(status(&alice, &id).await.step, 2, "the good checkpoint");
+    let sessions = within("list", alice.list_sessions()).await.expect("listed");
+    assert_eq!(sessions.len(), 1, "only the good checkpoint is a session");
+    for name in ["0000000000000000", "1111111111111111"] {
+        assert!(
+            std::fs::symlink_metadata(checkpoints.join(format!("{name}.rejected"))).is_ok(),
+            "{name} was not put aside"
+        );
+    }
+    server.terminate().await.expect("stopped");
 }

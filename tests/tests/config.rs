@@ -3,9 +3,10 @@
 //! before; `--print-config` shows the result with each value's layer and
 //! reads back as a file; a file with a key that is no setting is refused
 //! naming the settings; JSON logs are one object per line with the
-//! session id on the lines about a session.
+//! session id on the lines about a session; a config or tokens file that
+//! is a FIFO or a device fails the start at once, naming it.
 
-use meshless_tests::{TempDir, binary, small_scene, within};
+use meshless_tests::{TempDir, binary, failed_start, make_fifo, small_scene, within};
 use std::process::Stdio;
 use tokio::io::{AsyncBufReadExt, BufReader};
 use tokio::process::Command;
@@ -134,4 +135,26 @@ async fn a_config_file_configures_the_running_server_and_logs_are_json() {
     .await;
     assert_eq!(created["fields"]["session"], id.as_str(), "{created}");
     assert_eq!(created["level"], "INFO");
+}
+
+/// `--config` and `--tokens-file` naming a FIFO (whose open waits for a
+/// writer, for ever) or `/dev/zero` (which never ends) stop the start at
+/// once with a message naming the file and what it is, instead of
+/// hanging or filling memory.
+#[tokio::test]
+async fn a_config_or_tokens_file_that_is_no_regular_file_fails_fast() {
+    let dir = TempDir::new("config-special");
+    let fifo = dir.0.join("fifo");
+    make_fifo(&fifo);
+    let fifo = fifo.to_str().expect("utf-8");
+    for (special, kind) in [(fifo, "a FIFO"), ("/dev/zero", "a character device")] {
+        for flag in ["--config", "--tokens-file"] {
+            let (ok, stderr) = failed_start(&[flag, special]).await;
+            assert!(!ok, "{flag} {special} started");
+            assert!(
+                stderr.contains(special) && stderr.contains(kind),
+                "{flag} {special}: the message names neither the file nor what it is: {stderr}"
+            );
+        }
+    }
 }

@@ -13,8 +13,8 @@
 
 use meshless_client::{ClientError, Identity, v1};
 use meshless_tests::{
-    ServerProcess, hostile_mesh_dir, mesh_obstacle, resident_bytes, small_scene, small_solid_scene,
-    within,
+    ServerProcess, fluid_of, forge, hostile_mesh_dir, mesh_obstacle, resident_bytes, small_scene,
+    small_solid_scene, within,
 };
 use std::collections::HashMap;
 use tonic::Code;
@@ -92,6 +92,20 @@ enum Call {
     Latest(String),
     Watch(String),
     Edit(String, Vec<v1::ConstraintEdit>),
+    /// The victim's snapshot, forged (its checksum recomputed), restored
+    /// into a new session or (`true`) into the victim.
+    Forged(Forgery, bool),
+}
+
+/// How a hostile client alters a snapshot before restoring it.
+#[derive(Debug, Clone, Copy)]
+enum Forgery {
+    /// Every fluid particle on the first one's position.
+    Piled,
+    /// A run paced at this factor.
+    Pace(f64),
+    /// A run until this time.
+    Until(f64),
 }
 
 const VICTIM: &str = "VICTIM";
@@ -295,6 +309,11 @@ fn cases() -> Vec<Case> {
         case("observer with a space", Alice, Observed(vec!["b o b".into()]), InvalidArgument, "observers[0]"),
         case("a 10 kB observer", Alice, Observed(vec!["o".repeat(10_000)]), InvalidArgument, "observers[0]"),
         case("65 observers", Alice, Observed(vec!["o".into(); 65]), InvalidArgument, "observers"),
+        // Forged snapshots, checked as the requests they stand for.
+        case("forged snapshot: piled particles", Alice, Forged(Forgery::Piled, false), InvalidArgument, "within one spacing"),
+        case("forged snapshot into the victim: piled particles", Alice, Forged(Forgery::Piled, true), InvalidArgument, "within one spacing"),
+        case("forged snapshot: run at -1 x real time", Alice, Forged(Forgery::Pace(-1.0), false), InvalidArgument, "realtime_factor"),
+        case("forged snapshot into the victim: run until NaN", Alice, Forged(Forgery::Until(f64::NAN), true), InvalidArgument, "until_time"),
         // Size: a request over --max-request-mb, refused before decoding.
         case("2 MB request", Alice, Toml(format!("# {}\n{}", "x".repeat(2 << 20), small_scene())), ResourceExhausted, "max-request-mb"),
     ];
@@ -366,6 +385,34 @@ async fn send(
             "{} constraints",
             client.edit_constraints(&id(s), edits.clone()).await?.len()
         ),
+        Call::Forged(forgery, into_victim) => {
+            let good = client.snapshot(victim).await?.data;
+            let data = forge(&good, |payload| {
+                let run = |until_time, realtime_factor| v1::RunRecord {
+                    until_time,
+                    realtime_factor,
+                };
+                match *forgery {
+                    Forgery::Piled => {
+                        let fluid = fluid_of(payload);
+                        let first: Vec<f64> = fluid.positions[..3].to_vec();
+                        for (k, x) in fluid.positions.iter_mut().enumerate() {
+                            *x = first[k % 3];
+                        }
+                    }
+                    Forgery::Pace(factor) => {
+                        payload.session.as_mut().expect("a record").run =
+                            Some(run(None, Some(factor)));
+                    }
+                    Forgery::Until(time) => {
+                        payload.session.as_mut().expect("a record").run =
+                            Some(run(Some(time), None));
+                    }
+                }
+            });
+            let into = into_victim.then_some(victim);
+            client.restore(data, into, None).await?.id
+        }
     })
 }
 

@@ -3,11 +3,16 @@
 //! does, bit for bit, for a fluid, a solid, a rigid-body scene and a
 //! design session; blobs that are not this build's, truncated, corrupted
 //! or over the limit are refused with the code that says so and change
-//! nothing; `SimulateSteps` reports progress and stops at a completed step
-//! when its caller goes away or its deadline passes.
+//! nothing; a forged blob (its checksum recomputed) is checked as a
+//! request is: piled or stray positions and run targets `Run` refuses are
+//! refused, and its memory is reserved for the state it holds;
+//! `SimulateSteps` reports progress and stops at a completed step when its
+//! caller goes away or its deadline passes.
 
 use meshless_client::{Client, ClientError, FrameView, v1};
-use meshless_tests::{ServerProcess, fixture, small_scene, small_solid_scene, within};
+use meshless_tests::{
+    ServerProcess, fixture, fluid_of, forge, small_scene, small_solid_scene, within,
+};
 use std::time::Duration;
 use tokio_stream::StreamExt;
 use tonic::Code;
@@ -558,4 +563,136 @@ async fn simulate_steps_reports_progress_and_stops_at_a_completed_step() {
             .expect("refused");
         assert_eq!(err.code(), Some(Code::InvalidArgument), "{err}");
     }
+}
+
+/// A forged snapshot is input like a request: the checksum only catches
+/// corruption. Positions piled on one point (whose neighbour lists grow
+/// with the square of the pile; the restore once never finished) or
+/// outside the domain are refused as `CreateSession` refuses them, and so
+/// are run targets `Run` refuses; neither a new session nor the existing
+/// one changes.
+#[tokio::test]
+async fn forged_positions_and_run_targets_are_refused_as_requests_are() {
+    let server = ServerProcess::spawn(&[]).await.expect("server");
+    let client = server.client().await.expect("client");
+    let id = within("create", client.create_session_toml(&small_scene()))
+        .await
+        .expect("created")
+        .id;
+    within("step", client.step(&id, 2)).await.expect("stepped");
+    let good = within("snapshot", client.snapshot(&id))
+        .await
+        .expect("a snapshot")
+        .data;
+    within("step", client.step(&id, 1)).await.expect("stepped");
+    let before = frame(&client, &id).await;
+
+    let piled = forge(&good, |payload| {
+        let fluid = fluid_of(payload);
+        let first = [fluid.positions[0], fluid.positions[1], fluid.positions[2]];
+        for (k, x) in fluid.positions.iter_mut().enumerate() {
+            *x = first[k % 3];
+        }
+    });
+    let stray = forge(&good, |payload| fluid_of(payload).positions[3 * 7] = 5.0);
+    let run = |until: Option<f64>, factor: Option<f64>| {
+        forge(&good, |payload| {
+            payload.session.as_mut().expect("a record").run = Some(v1::RunRecord {
+                until_time: until,
+                realtime_factor: factor,
+            });
+        })
+    };
+    let cases = [
+        ("piled on one point", piled, "within one spacing"),
+        ("outside the domain", stray, "positions[7]"),
+        ("factor -1", run(None, Some(-1.0)), "realtime_factor"),
+        ("factor NaN", run(None, Some(f64::NAN)), "realtime_factor"),
+        ("factor 1e-300", run(None, Some(1e-300)), "realtime_factor"),
+        ("end time NaN", run(Some(f64::NAN), None), "until_time"),
+        ("end time -1", run(Some(-1.0), Some(1.0)), "until_time"),
+    ];
+    for (what, data, mentions) in cases {
+        for into in [None, Some(id.as_str())] {
+            let (code, message) = refused(&client, data.clone(), into).await;
+            assert_eq!(
+                code,
+                Code::InvalidArgument,
+                "{what} into {into:?}: {message}"
+            );
+            assert!(
+                message.contains(mentions),
+                "{what} into {into:?}: no mention of {mentions:?}: {message}"
+            );
+        }
+    }
+    assert_eq!(
+        within("list", client.list_sessions())
+            .await
+            .expect("listed")
+            .len(),
+        1,
+        "no session was made"
+    );
+    assert_eq!(
+        frame(&client, &id).await,
+        before,
+        "the session is unchanged"
+    );
+    // The same run target as Run accepts it restores.
+    let paced = run(Some(1.0), Some(0.5));
+    within("restore", client.restore(paced, None, None))
+        .await
+        .expect("a run target Run accepts is restored");
+}
+
+/// A restore reserves memory for the state it restores: a forged fluid
+/// squeezed to 8 particles a cell (as many as a scene may place) has about
+/// eight times the neighbour pairs of its scene's lattice, and is refused
+/// where the scene itself fits.
+#[tokio::test]
+async fn a_restore_reserves_for_its_positions_not_its_scene() {
+    // 16^3 = 4096 particles: about 4.1 MB by the scene's estimate, about
+    // 16 MB squeezed to half their spacing on every axis.
+    const CUBE: &str = r#"
+name = "cube"
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [1.0, 1.0, 1.0]
+[time]
+dt = 0.005
+[[systems]]
+kind = "fluid"
+spacing = 0.05
+stiffness = 2.0e4
+[[systems.blocks]]
+region = { min = [0.0, 0.0, 0.0], max = [0.8, 0.8, 0.8] }
+"#;
+    let server = ServerProcess::spawn(&["--memory-budget-mb", "12"])
+        .await
+        .expect("server");
+    let client = server.client().await.expect("client");
+    let id = within("create", client.create_session_toml(CUBE))
+        .await
+        .expect("the scene fits")
+        .id;
+    let good = within("snapshot", client.snapshot(&id))
+        .await
+        .expect("a snapshot")
+        .data;
+    // Its own state fits beside it, and goes again.
+    let twin = within("restore", client.restore(good.clone(), None, None))
+        .await
+        .expect("the scene's own state fits")
+        .id;
+    within("delete", client.delete_session(&twin))
+        .await
+        .expect("deleted");
+    let squeezed = forge(&good, |payload| {
+        for x in &mut fluid_of(payload).positions {
+            *x *= 0.5;
+        }
+    });
+    let (code, message) = refused(&client, squeezed, None).await;
+    assert_eq!(code, Code::ResourceExhausted, "{message}");
 }

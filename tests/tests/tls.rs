@@ -4,11 +4,12 @@
 //! zenoh over `tls/` endpoints with the same CA. A client that speaks
 //! plain text, trusts another CA or shows no certificate where one is
 //! asked for gets nothing; files that are not what their flag says stop
-//! the server at start, naming the flag.
+//! the server at start, naming the flag; an expired certificate starts
+//! the server with a warning naming it.
 
 use meshless_client::{Client, ClientError, Identity, Tls, ZenohLink};
 use meshless_tests::pki::TestPki;
-use meshless_tests::{ServerProcess, binary, small_scene, within};
+use meshless_tests::{ServerProcess, binary, failed_start, make_fifo, small_scene, within};
 use std::path::Path;
 
 /// `https://localhost:PORT` of a server started with TLS.
@@ -264,4 +265,93 @@ async fn bad_tls_files_stop_the_server_naming_the_flag() {
         assert!(!output.status.success(), "{args:?} started");
         assert!(stderr.contains(expected), "{args:?}: {stderr}");
     }
+}
+
+/// `--tls-cert` naming a FIFO or `/dev/zero` stops the start at once,
+/// naming the flag, the file and what it is.
+#[tokio::test]
+async fn a_certificate_that_is_no_regular_file_fails_fast() {
+    let pki = TestPki::new("tls-special").expect("certificates");
+    let fifo = pki.dir.0.join("fifo.pem");
+    make_fifo(&fifo);
+    let (fifo, key) = (
+        fifo.display().to_string(),
+        pki.server_key.display().to_string(),
+    );
+    for (special, kind) in [
+        (fifo.as_str(), "a FIFO"),
+        ("/dev/zero", "a character device"),
+    ] {
+        let (ok, stderr) = failed_start(&["--tls-cert", special, "--tls-key", &key]).await;
+        assert!(!ok, "--tls-cert {special} started");
+        assert!(
+            stderr.contains(&format!("--tls-cert {special}")) && stderr.contains(kind),
+            "{special}: {stderr}"
+        );
+    }
+}
+
+/// A certificate that expired is served (an operator may be renewing
+/// it), but the start warns, naming the file and the date, since every
+/// client will refuse the handshake.
+#[tokio::test]
+async fn an_expired_certificate_is_named_in_the_log_at_start() {
+    let pki = TestPki::new("tls-expired").expect("certificates");
+    let key = rcgen::KeyPair::generate().expect("key");
+    let mut params = rcgen::CertificateParams::new(vec!["localhost".into()]).expect("parameters");
+    params.not_before = rcgen::date_time_ymd(2019, 1, 1);
+    params.not_after = rcgen::date_time_ymd(2020, 1, 1);
+    let cert = params.self_signed(&key).expect("certificate");
+    let (cert_file, key_file, log) = (
+        pki.dir.0.join("expired.pem"),
+        pki.dir.0.join("expired-key.pem"),
+        pki.dir.0.join("server.log"),
+    );
+    std::fs::write(&cert_file, cert.pem()).expect("write");
+    std::fs::write(&key_file, key.serialize_pem()).expect("write");
+    let cert_path = cert_file.display().to_string();
+    let server = ServerProcess::spawn_logging(
+        &[
+            "--tls-cert",
+            &cert_path,
+            "--tls-key",
+            &key_file.display().to_string(),
+        ],
+        &log,
+    )
+    .await
+    .expect("an expired certificate still starts the server");
+    let warned = within("the warning", async {
+        let mut ticks = tokio::time::interval(std::time::Duration::from_millis(20));
+        loop {
+            ticks.tick().await;
+            let text = std::fs::read_to_string(&log).unwrap_or_default();
+            if let Some(line) = text.lines().find(|l| l.contains("expired")) {
+                return line.to_owned();
+            }
+        }
+    })
+    .await;
+    assert!(
+        warned.contains("WARN") && warned.contains(&cert_path) && warned.contains("2020"),
+        "the warning names neither the file nor the date: {warned}"
+    );
+    drop(server);
+
+    // A valid certificate says nothing of the kind.
+    let log = pki.dir.0.join("valid.log");
+    let server = ServerProcess::spawn_logging(
+        &[
+            "--tls-cert",
+            &pki.server_cert.display().to_string(),
+            "--tls-key",
+            &pki.server_key.display().to_string(),
+        ],
+        &log,
+    )
+    .await
+    .expect("server");
+    drop(server);
+    let text = std::fs::read_to_string(&log).expect("log");
+    assert!(!text.contains("expired"), "{text}");
 }

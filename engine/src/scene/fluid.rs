@@ -253,33 +253,68 @@ impl FluidSpec {
 pub const MAX_PARTICLES_PER_CELL: usize = 8;
 
 impl Scene {
-    /// Refuses hand-placed particles piled into one spot: bins them into
-    /// cells of side `spacing` (one pass, memory linear in their number)
-    /// and names the first crowded cell's first particle. This bounds the
-    /// neighbours of every particle before any neighbour search runs.
-    fn check_crowding(&self, at: &str, fluid: &FluidSpec) -> Result<(), SceneError> {
+    /// The checks every fluid position passes, whether a scene places it
+    /// by hand or a snapshot restores it (a snapshot may be forged; its
+    /// checksum catches corruption only): finite, inside the domain, and
+    /// not piled into one spot. Bins the positions into cells of side
+    /// `spacing` (one pass, memory linear in their number) and names the
+    /// first crowded cell's first particle, which bounds the neighbours
+    /// of every particle before any neighbour search runs. Returns the
+    /// neighbour pairs the layout makes, by estimate
+    /// ([`super::footprint::pairs_in_cells`]), for a memory reservation.
+    /// `field` names position `i` in errors.
+    ///
+    /// # Errors
+    /// [`SceneError::Invalid`] naming the first offending position.
+    pub fn check_fluid_positions(
+        &self,
+        fluid: &FluidSpec,
+        positions: impl IntoIterator<Item = [Real; 3]>,
+        field: &dyn Fn(usize) -> String,
+    ) -> Result<Real, SceneError> {
+        let positions = positions.into_iter();
         let mut cells: HashMap<[i64; 3], (usize, usize)> =
-            HashMap::with_capacity(fluid.particles.len());
-        for (i, particle) in fluid.particles.iter().enumerate() {
+            HashMap::with_capacity(positions.size_hint().0);
+        for (i, position) in positions.enumerate() {
+            check_vector(&field(i), position)?;
+            let outside = (0..self.dimension)
+                .find(|&a| position[a] < self.domain.min[a] || position[a] > self.domain.max[a]);
+            if let Some(a) = outside {
+                let axis = ["x", "y", "z"][a];
+                return Err(SceneError::invalid(
+                    field(i),
+                    format!(
+                        "lies outside the domain: {axis} = {} is not in [{}, {}]; move the particle \
+                         inside or widen the domain",
+                        position[a], self.domain.min[a], self.domain.max[a]
+                    ),
+                ));
+            }
             // Saturating casts: positions are finite and inside the domain.
             let cell = std::array::from_fn(|a| {
-                ((particle.position[a] - self.domain.min[a]) / fluid.spacing).floor() as i64
+                ((position[a] - self.domain.min[a]) / fluid.spacing).floor() as i64
             });
             let (first, count) = cells.entry(cell).or_insert((i, 0));
             *count += 1;
             if *count > MAX_PARTICLES_PER_CELL {
                 return Err(SceneError::invalid(
-                    format!("{at}.particles[{first}].position"),
+                    field(*first),
                     format!(
                         "more than {MAX_PARTICLES_PER_CELL} particles lie within one spacing \
-                         ({}) of each other here (particles[{first}] and particles[{i}] among \
-                         them); place hand-placed particles about a spacing apart",
-                        fluid.spacing
+                         ({}) of each other here ({} and {} among them); place particles about \
+                         a spacing apart",
+                        fluid.spacing,
+                        field(*first),
+                        field(i)
                     ),
                 ));
             }
         }
-        Ok(())
+        Ok(super::footprint::pairs_in_cells(
+            cells.into_iter().map(|(cell, (_, count))| (cell, count)),
+            fluid.support_radius() / fluid.spacing,
+            self.dimension,
+        ))
     }
 
     /// No-slip walls need solid walls and viscosity; moving walls need
@@ -434,26 +469,11 @@ impl Scene {
             ));
         }
         for (i, particle) in fluid.particles.iter().enumerate() {
-            let field = format!("{at}.particles[{i}]");
-            check_vector(&format!("{field}.position"), particle.position)?;
-            check_vector(&format!("{field}.velocity"), particle.velocity)?;
-            let outside = (0..self.dimension).find(|&a| {
-                particle.position[a] < self.domain.min[a]
-                    || particle.position[a] > self.domain.max[a]
-            });
-            if let Some(a) = outside {
-                let axis = ["x", "y", "z"][a];
-                return Err(SceneError::invalid(
-                    format!("{field}.position"),
-                    format!(
-                        "lies outside the domain: {axis} = {} is not in [{}, {}]; move the particle \
-                         inside or widen the domain",
-                        particle.position[a], self.domain.min[a], self.domain.max[a]
-                    ),
-                ));
-            }
+            check_vector(&format!("{at}.particles[{i}].velocity"), particle.velocity)?;
         }
-        self.check_crowding(at, fluid)?;
+        self.check_fluid_positions(fluid, fluid.particles.iter().map(|p| p.position), &|i| {
+            format!("{at}.particles[{i}].position")
+        })?;
         let domain = Aabb {
             min: self.domain.min,
             max: self.domain.max,

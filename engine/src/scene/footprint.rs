@@ -48,11 +48,18 @@ pub struct Footprint {
 }
 
 impl Footprint {
-    /// Adds a fluid of `particles` with support `support` spacings.
-    pub(super) fn add_fluid(&mut self, particles: Real, support: Real, dim: usize) {
+    /// Adds a fluid of `particles` on a lattice, with support `support`
+    /// spacings.
+    pub(crate) fn add_fluid(&mut self, particles: Real, support: Real, dim: usize) {
+        self.add_fluid_pairs(particles, particles * neighbours(support, dim));
+    }
+
+    /// Adds a fluid of `particles` that make `pairs` neighbour pairs (a
+    /// restored layout's, [`pairs_in_cells`]).
+    pub fn add_fluid_pairs(&mut self, particles: Real, pairs: Real) {
         self.particles += particles;
-        self.bytes += particles
-            * (FLUID_BYTES_PER_PARTICLE + neighbours(support, dim) * FLUID_BYTES_PER_NEIGHBOUR);
+        self.bytes +=
+            particles * FLUID_BYTES_PER_PARTICLE + pairs.max(0.0) * FLUID_BYTES_PER_NEIGHBOUR;
     }
 
     /// Adds a mesh shape whose file has `bytes` bytes.
@@ -92,9 +99,61 @@ fn neighbours(support: Real, dim: usize) -> Real {
     ball + 1.0
 }
 
+/// Neighbour pairs (each particle's own included, as in [`neighbours`])
+/// of particles binned into cells of unit spacing, `(cell, count)`: each
+/// particle counts the particles of the cells within `support` spacings,
+/// scaled by the share of that block of cells the support ball covers.
+/// On a lattice this is [`neighbours`] per particle; a pile counts the
+/// square of its size. One pass over the occupied cells, each visiting
+/// `(2 ceil(support) + 1)^dim` cells.
+pub(super) fn pairs_in_cells(
+    cells: impl Iterator<Item = ([i64; 3], usize)>,
+    support: Real,
+    dim: usize,
+) -> Real {
+    let cells: std::collections::HashMap<[i64; 3], usize> = cells.collect();
+    // A support of a few spacings, or the estimate is meaningless anyway.
+    let reach = support.ceil().clamp(1.0, 8.0) as i64;
+    let width = (2 * reach + 1) as Real;
+    let share = (neighbours(support, dim) - 1.0) / width.powi(dim as i32);
+    let z_reach = if dim == 2 { 0 } else { reach };
+    let mut pairs = 0.0;
+    for (cell, &count) in &cells {
+        let mut around = 0usize;
+        for dz in -z_reach..=z_reach {
+            for dy in -reach..=reach {
+                for dx in -reach..=reach {
+                    let other = [cell[0] + dx, cell[1] + dy, cell[2] + dz];
+                    around += cells.get(&other).copied().unwrap_or(0);
+                }
+            }
+        }
+        pairs += count as Real * (around as Real * share + 1.0);
+    }
+    pairs
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn cell_pairs_match_the_lattice_and_grow_with_a_pile() {
+        // A 20^3 lattice, one particle per cell: interior particles see
+        // the support ball, the edges fewer.
+        let lattice: Vec<([i64; 3], usize)> = (0..8000)
+            .map(|i| ([i % 20, (i / 20) % 20, i / 400], 1))
+            .collect();
+        let pairs = pairs_in_cells(lattice.into_iter(), 2.0, 3);
+        let full = 8000.0 * neighbours(2.0, 3);
+        assert!(
+            pairs <= full && pairs > 0.5 * full,
+            "{pairs} pairs against {full} for a full ball each"
+        );
+        // 8000 particles piled in one cell: every one sees all others.
+        let pile = pairs_in_cells(std::iter::once(([0, 0, 0], 8000)), 2.0, 3);
+        assert!(pile > 8000.0 * 8000.0 * 0.2, "{pile} pairs for a pile");
+    }
 
     #[test]
     fn neighbour_counts_are_those_of_the_support_ball() {

@@ -9,6 +9,7 @@ use super::{Clock, World};
 use crate::efg::ModalState;
 use crate::fluid::FluidSnapshot;
 use crate::math::Real;
+use crate::scene::{Checked, Footprint, Scene, SceneError};
 use crate::snapshot::{SnapshotError, check_finite};
 use crate::solid::SolidSnapshot;
 
@@ -84,6 +85,15 @@ pub enum StateError {
         /// The time it holds.
         time: Real,
     },
+    /// A fluid's positions fail the checks a scene's own particles pass
+    /// (outside the domain, piled into one spot).
+    #[error("systems[{system}]: {source}")]
+    Layout {
+        /// Index of the system in the scene.
+        system: usize,
+        /// The check that failed, naming the position.
+        source: SceneError,
+    },
     /// One system's state does not fit it.
     #[error("systems[{system}]: {source}")]
     System {
@@ -101,6 +111,58 @@ fn describe<'a>(systems: impl Iterator<Item = (&'static str, usize)> + 'a) -> St
         "none".into()
     } else {
         names.join(", ")
+    }
+}
+
+/// Checks a restored fluid's positions as the scene checks its own
+/// particles ([`Scene::check_fluid_positions`]), so that a forged state
+/// cannot pile particles whose neighbour lists grow with the square of
+/// the pile; returns the neighbour pairs they make, by estimate. A scene
+/// without a fluid has nothing to check (the systems' mismatch is
+/// reported by [`World::restored`]).
+fn check_layout(scene: &Scene, system: usize, fluid: &FluidSnapshot) -> Result<Real, StateError> {
+    let Some(spec) = scene.fluid() else {
+        return Ok(0.0);
+    };
+    scene
+        .check_fluid_positions(
+            spec,
+            fluid.positions.iter().map(|p| [p.x, p.y, p.z]),
+            &|i| format!("positions[{i}]"),
+        )
+        .map_err(|source| StateError::Layout { system, source })
+}
+
+impl Checked {
+    /// The memory the world of this scene moved to `state` holds, by
+    /// estimate, with `state`'s fluid positions checked: the neighbour
+    /// pairs come from the restored positions, not the scene's lattice.
+    /// The world is built from the scene before it moves to the state,
+    /// so the estimate is never below the scene's own.
+    ///
+    /// # Errors
+    /// [`StateError::Layout`] for positions a scene could not hold.
+    pub fn restored_footprint(&self, state: &WorldState) -> Result<Footprint, StateError> {
+        let mut footprint = self.footprint();
+        let dim = self.scene.dimension;
+        for saved in &state.systems {
+            let SystemState::Fluid { index, fluid, .. } = saved else {
+                continue;
+            };
+            let Some(spec) = self.scene.fluid() else {
+                continue;
+            };
+            let pairs = check_layout(&self.scene, *index, fluid)?;
+            let (mut restored, mut built) = (Footprint::default(), Footprint::default());
+            restored.add_fluid_pairs(fluid.positions.len() as Real, pairs);
+            built.add_fluid(
+                spec.particle_count(dim),
+                spec.support_radius() / spec.spacing,
+                dim,
+            );
+            footprint.bytes += (restored.bytes - built.bytes).max(0.0);
+        }
+        Ok(footprint)
     }
 }
 
@@ -139,7 +201,8 @@ impl World {
     ///
     /// # Errors
     /// [`StateError`] when the state is not one of this scene's: other
-    /// systems, counts, ids, or values that are not finite.
+    /// systems, counts, ids, values that are not finite, or fluid
+    /// positions the scene's own checks refuse.
     pub fn restored(mut self, state: &WorldState) -> Result<World, StateError> {
         let kinds = |s: &System| match s {
             System::Fluid(f) => ("fluid", f.index),
@@ -184,6 +247,7 @@ impl World {
                         ..
                     },
                 ) => {
+                    check_layout(&self.scene, entry.index, fluid)?;
                     entry.fluid.restore_snapshot(fluid).map_err(at)?;
                     let ids: Vec<usize> = removals.iter().map(|&id| id as usize).collect();
                     let count = fluid.ids.len();

@@ -26,7 +26,7 @@ pub use optimize::{OptimizeJob, Problem};
 pub use publish::Outlet;
 use simulate::Progress;
 pub use simulate::{Simulate, check_request as check_simulate, grpc_deadline};
-pub use snapshot::{Decoded, Resumed, encode as encode_snapshot};
+pub use snapshot::{Decoded, Resumed, encode as encode_snapshot, unfit as snapshot_unfit};
 pub use worker::RunTarget;
 use worker::{Message, Queued};
 

@@ -174,9 +174,6 @@ impl Decoded {
     /// # Errors
     /// [`ServiceError::InvalidArgument`] naming what does not fit.
     pub fn resume(self, world: World, options: &BuildOptions) -> Result<Resumed, ServiceError> {
-        let unfit = |e: &dyn std::fmt::Display| {
-            ServiceError::invalid("data", format!("the snapshot does not fit its scene: {e}"))
-        };
         let world = world.restored(&self.world).map_err(|e| unfit(&e))?;
         let context = design::context(&world);
         let mut edits = Vec::with_capacity(self.constraints.len());
@@ -209,10 +206,19 @@ impl Decoded {
                 )));
             }
         };
-        let run = self.record.run.map(|r| RunTarget {
-            until: r.until_time,
-            realtime_factor: r.realtime_factor,
-        });
+        // A run target is checked as `Run` checks one: a forged blob must
+        // not pace a run at -1 or NaN times real time.
+        let run = self
+            .record
+            .run
+            .map(|r| {
+                Ok::<_, ServiceError>(RunTarget {
+                    until: r.until_time.map(RunTarget::check_until).transpose()?,
+                    realtime_factor: RunTarget::check_realtime_factor(r.realtime_factor)?,
+                })
+            })
+            .transpose()
+            .map_err(|e| unfit(&format!("its run target: {e}")))?;
         // The blob's reason is input like any other: quoted short.
         let reason = format!(
             "restored at step {}; it was {}",
@@ -231,6 +237,11 @@ impl Decoded {
             },
         })
     }
+}
+
+/// The error of a snapshot whose content its scene refuses, saying why.
+pub fn unfit(e: &dyn std::fmt::Display) -> ServiceError {
+    ServiceError::invalid("data", format!("the snapshot does not fit its scene: {e}"))
 }
 
 /// A blob of `payload`, refused when over `limit` bytes.
