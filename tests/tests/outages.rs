@@ -294,6 +294,7 @@ async fn half_sent_metrics_requests_starve_nothing() {
         &Launch {
             env: &[("MESHLESS_METRICS_HEADER_TIMEOUT", "0.3")],
             fd_limit: Some(256),
+            ..Launch::default()
         },
     )
     .await

@@ -608,6 +608,7 @@ mod counter_tests {
             [[systems]]
             kind = "fluid"
             spacing = 0.1
+            stiffness = 1000.0
             [[systems.blocks]]
             region = { min = [0.0, 0.0, 0.0], max = [0.3, 0.3, 0.3] }
             "#,
