@@ -261,7 +261,7 @@ impl Scene {
     /// first crowded cell's first particle, which bounds the neighbours
     /// of every particle before any neighbour search runs. Returns the
     /// neighbour pairs the layout makes, by estimate
-    /// ([`super::footprint::pairs_in_cells`]), for a memory reservation.
+    /// (`footprint::pairs_in_cells`), for a memory reservation.
     /// `field` names position `i` in errors.
     ///
     /// # Errors

@@ -55,7 +55,7 @@ impl Footprint {
     }
 
     /// Adds a fluid of `particles` that make `pairs` neighbour pairs (a
-    /// restored layout's, [`pairs_in_cells`]).
+    /// restored layout's, `pairs_in_cells`).
     pub fn add_fluid_pairs(&mut self, particles: Real, pairs: Real) {
         self.particles += particles;
         self.bytes +=
