@@ -39,6 +39,17 @@ pub enum SnapshotError {
         /// The offending value.
         value: Real,
     },
+    /// A shape crowded far past the one its system was built with.
+    #[error(
+        "the reference shape's particles are crowded: up to {bound} neighbour pairs where \
+         the solid allows {limit} (a shape piled onto a few points)"
+    )]
+    Crowded {
+        /// The shape's pairs, bounded from its cells.
+        bound: u64,
+        /// What the solid allows.
+        limit: u64,
+    },
     /// The particle ids are not each id below the count once.
     #[error("the particle ids are not a permutation of 0..{count}")]
     Ids {

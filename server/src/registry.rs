@@ -5,6 +5,7 @@ use crate::metrics::Metrics;
 use crate::session::{Access, Decoded, Origin, Outlet, Session, snapshot_unfit};
 use meshless_engine::{Budget, BuildOptions, Cancel, Scene};
 use meshless_proto::seal::Sealer;
+use meshless_proto::v1;
 use std::collections::HashMap;
 use std::hash::{BuildHasher, RandomState};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -136,6 +137,40 @@ impl Registry {
         }
         self.admit(snapshot.scene.clone(), Some(snapshot), access, id)
             .await
+    }
+
+    /// Moves `session` to `snapshot` (of the session's own scene). Its
+    /// reservation first grows to what the restored state holds by
+    /// estimate, its positions checked, as a restore into a new session
+    /// reserves: a forged state may pile particles its scene's lattice
+    /// never would. A refused restore gives the growth back.
+    ///
+    /// # Errors
+    /// As [`Session::restore`], and [`ServiceError::MemoryBudget`] when
+    /// the growth does not fit. Nothing changes on error.
+    pub async fn restore_into(
+        &self,
+        session: &Session,
+        snapshot: Decoded,
+    ) -> Result<v1::SessionStatus, ServiceError> {
+        session.check_scene(&snapshot)?;
+        let (scene, options) = (session.scene.clone(), self.options.clone());
+        let (checked, snapshot, footprint) = tokio::task::spawn_blocking(move || {
+            let checked = scene.check(&options)?;
+            let footprint = checked
+                .restored_footprint(&snapshot.world)
+                .map_err(|e| snapshot_unfit(&e))?;
+            Ok::<_, ServiceError>((checked, snapshot, footprint))
+        })
+        .await
+        .map_err(|e| ServiceError::Internal(format!("scene check task failed: {e}")))??;
+        let needed = footprint.bytes.ceil().min(u64::MAX as f64) as u64;
+        let held = self.memory().grow(&session.id, needed)?;
+        let restored = session.restore(snapshot, checked, &self.options).await;
+        if restored.is_err() {
+            self.memory().shrink(&session.id, held);
+        }
+        restored
     }
 
     /// Checks, reserves, builds (and restores `snapshot` into) a world
@@ -416,6 +451,26 @@ impl Memory {
         self.by_session.insert(id.to_owned(), bytes);
     }
 
+    /// Grows what session `id` holds to `bytes` (never shrinks it: the
+    /// world it holds until a restore is swapped in is the old one), or
+    /// says how much the budget has left. Returns what it held before.
+    fn grow(&mut self, id: &str, bytes: u64) -> Result<u64, ServiceError> {
+        let held = self.by_session.get(id).copied().unwrap_or(0);
+        if bytes > held {
+            self.reserve(bytes - held)?;
+            self.by_session.insert(id.to_owned(), bytes);
+        }
+        Ok(held)
+    }
+
+    /// Gives back what session `id` holds above `bytes`.
+    fn shrink(&mut self, id: &str, bytes: u64) {
+        if let Some(held) = self.by_session.get_mut(id) {
+            self.reserved = self.reserved.saturating_sub(held.saturating_sub(bytes));
+            *held = (*held).min(bytes);
+        }
+    }
+
     /// Gives back what session `id` held.
     fn release(&mut self, id: &str) {
         if let Some(bytes) = self.by_session.remove(id) {
@@ -449,6 +504,15 @@ mod tests {
         assert!(err.to_string().contains("4 MB of its 10 MB"), "{err}");
         memory.reserve(4 << 20).expect("the rest fits");
         memory.release_unassigned(4 << 20);
+        // A restore into "a" grows what it holds, within the budget only,
+        // and a refused restore gives the growth back.
+        let err = memory.grow("a", 11 << 20).expect_err("past the budget");
+        assert!(err.to_string().contains("4 MB of its 10 MB"), "{err}");
+        assert_eq!(memory.grow("a", 9 << 20).expect("fits"), 6 << 20);
+        assert_eq!(memory.reserved, 9 << 20);
+        assert_eq!(memory.grow("a", 2 << 20).expect("held"), 9 << 20);
+        memory.shrink("a", 6 << 20);
+        assert_eq!(memory.reserved, 6 << 20);
         memory.release("a");
         memory.release("a");
         assert_eq!(memory.reserved, 0);

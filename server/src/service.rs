@@ -556,7 +556,7 @@ impl Simulation for SimulationService {
             .map_err(|e| ServiceError::Internal(format!("snapshot decoding failed: {e}")))??;
         let session = match target {
             Some(session) => {
-                session.restore(decoded, self.registry.options()).await?;
+                self.registry.restore_into(&session, decoded).await?;
                 session
             }
             None => {

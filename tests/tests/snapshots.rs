@@ -693,6 +693,21 @@ region = { min = [0.0, 0.0, 0.0], max = [0.8, 0.8, 0.8] }
             *x *= 0.5;
         }
     });
-    let (code, message) = refused(&client, squeezed, None).await;
+    let (code, message) = refused(&client, squeezed.clone(), None).await;
     assert_eq!(code, Code::ResourceExhausted, "{message}");
+    // Into the session itself: its reservation must grow to the squeezed
+    // state's, which does not fit beside nothing else either; the session
+    // is left as it was, and its own state still restores into it.
+    within("step", client.step(&id, 2)).await.expect("stepped");
+    let (code, message) = refused(&client, squeezed, Some(&id)).await;
+    assert_eq!(code, Code::ResourceExhausted, "{message}");
+    let kept = within("get", client.get_session(&id))
+        .await
+        .expect("the session")
+        .status
+        .expect("a status");
+    assert_eq!(kept.step, 2, "the refused restore changed nothing");
+    within("restore", client.restore(good, Some(&id), None))
+        .await
+        .expect("its own state fits where it is");
 }

@@ -11,6 +11,7 @@ use super::topology::Topology;
 use crate::math::{Real, Vector};
 use crate::snapshot::{SnapshotError, check_finite, check_length, check_vectors};
 use nalgebra::Matrix3;
+use std::collections::HashMap;
 
 /// The evolving state of an elastic solid, per particle in scene order.
 #[derive(Debug, Clone, PartialEq)]
@@ -106,6 +107,7 @@ fn check(body: &Body, state: &SolidSnapshot) -> Result<Option<Topology>, Snapsho
         return Ok(Some(body.topology.clone()));
     }
     let params = &body.params;
+    check_crowding(rest, params.support, body.topology.owner.len())?;
     Topology::build(rest, params.dim, params.order, params.support)
         .map(Some)
         .map_err(|_| SnapshotError::Invalid {
@@ -113,6 +115,51 @@ fn check(body: &Body, state: &SolidSnapshot) -> Result<Option<Topology>, Snapsho
             index: 0,
             value: 0.0,
         })
+}
+
+/// How many times the neighbour pairs of the shape a solid was built
+/// with a re-based reference shape may bound, by [`pair_bound`]: plastic
+/// flow crowds a shape by a few times at most, while one forged onto a
+/// point (its checksum recomputed) holds n^2 pairs, so that building its
+/// neighbourhoods would take memory and time without bound.
+const MAX_PAIR_GROWTH: u64 = 64;
+
+/// Refuses a reference shape whose neighbour pairs could exceed
+/// [`MAX_PAIR_GROWTH`] times `built_pairs` (the built shape's, at least
+/// one per particle), before any neighbourhood is searched.
+fn check_crowding(rest: &[Vector], support: Real, built_pairs: usize) -> Result<(), SnapshotError> {
+    let limit = MAX_PAIR_GROWTH.saturating_mul(built_pairs.max(rest.len()) as u64);
+    let bound = pair_bound(rest, support);
+    if bound > limit {
+        return Err(SnapshotError::Crowded { bound, limit });
+    }
+    Ok(())
+}
+
+/// An upper bound on the pairs of `points` closer than `support`: each
+/// point pairs at most with the points of its own and the neighbouring
+/// cells of side `support`. Linear in the points (a hash of the cells).
+fn pair_bound(points: &[Vector], support: Real) -> u64 {
+    let mut cells: HashMap<[i64; 3], u64> = HashMap::with_capacity(points.len());
+    let cell_of = |p: &Vector| p.map(|x| (x / support).floor() as i64);
+    for p in points {
+        let c = cell_of(p);
+        *cells.entry([c.x, c.y, c.z]).or_default() += 1;
+    }
+    let mut bound = 0u64;
+    for (cell, &count) in &cells {
+        let mut near = 0u64;
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let key = [cell[0] + dx, cell[1] + dy, cell[2] + dz];
+                    near += cells.get(&key).copied().unwrap_or(0);
+                }
+            }
+        }
+        bound = bound.saturating_add(count.saturating_mul(near));
+    }
+    bound
 }
 
 impl Integrator {

@@ -299,3 +299,77 @@ impl World {
         Ok(self)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{StateError, SystemState, WorldState};
+    use crate::math::Vector;
+    use crate::scene::{BuildOptions, Scene};
+    use crate::snapshot::SnapshotError;
+
+    /// A forged snapshot of a plastic solid whose re-based reference shape
+    /// is piled onto one point (its checksum recomputed) is refused before
+    /// any neighbourhood is searched: its 20,000 and more particles would
+    /// otherwise make over 4e8 neighbour pairs. The shape it was built with, moved
+    /// rigidly, restores.
+    #[test]
+    fn a_reference_shape_piled_onto_a_point_is_refused_before_its_neighbours() {
+        let scene = Scene::from_toml_str(
+            r#"
+            [domain]
+            min = [-1.0, -1.0, -1.0]
+            max = [1.0, 1.0, 1.0]
+            [time]
+            dt = 0.001
+            [[systems]]
+            kind = "solid"
+            shape = { type = "box", half_extents = [0.5, 0.5, 0.5] }
+            position = [0.0, 0.0, 0.0]
+            spacing = 0.035
+            young = 1e5
+            plasticity = { yield = 0.01, creep = 1.0, max = 0.5, rebase = 0.1 }
+            "#,
+        )
+        .expect("scene");
+        let world = scene.build(&BuildOptions::default()).expect("world");
+        let mut state = world.state();
+        fn reference(state: &mut WorldState) -> &mut Vec<Vector> {
+            let Some(SystemState::Solid { solid, .. }) = state.systems.first_mut() else {
+                panic!("a solid")
+            };
+            let (rest, _) = solid
+                .reference
+                .as_mut()
+                .expect("a re-basing solid keeps it");
+            assert!(rest.len() > 20_000, "{} particles", rest.len());
+            rest
+        }
+        let mut moved = state.clone();
+        for x in reference(&mut moved).iter_mut() {
+            x.x += 0.1;
+        }
+        assert!(
+            scene
+                .build(&BuildOptions::default())
+                .expect("world")
+                .restored(&moved)
+                .is_ok(),
+            "the shape it was built with, moved, restores"
+        );
+        for x in reference(&mut state).iter_mut() {
+            *x = Vector::new(0.25, 0.25, 0.25);
+        }
+        let refused = world.restored(&state).expect_err("a pile");
+        assert!(
+            matches!(
+                refused,
+                StateError::System {
+                    source: SnapshotError::Crowded { .. },
+                    ..
+                }
+            ),
+            "{refused}"
+        );
+        assert!(refused.to_string().contains("crowded"), "{refused}");
+    }
+}

@@ -9,6 +9,7 @@ use super::worker::RunTarget;
 use super::{DesignState, Session, lock};
 use crate::error::ServiceError;
 use meshless_engine::design::{self, ConstraintSet, Edit};
+use meshless_engine::scene::Checked;
 use meshless_engine::{BuildOptions, Scene, World, WorldState};
 use meshless_proto::snapshot as blob;
 use meshless_proto::v1::{self, SessionState};
@@ -87,19 +88,12 @@ impl Session {
         .map_err(|e| ServiceError::Internal(format!("snapshot task failed: {e}")))
     }
 
-    /// Moves this session to `snapshot`, which must hold this session's
-    /// scene: a world is built and restored off the session, then swapped
-    /// in by the compute thread between two steps.
+    /// Refuses a snapshot of another scene than this session's, before
+    /// anything is built for it.
     ///
     /// # Errors
-    /// [`ServiceError::InvalidArgument`] for a snapshot of another scene
-    /// or one that does not fit it; [`ServiceError::WrongState`] while
-    /// running. Nothing changes on error.
-    pub async fn restore(
-        &self,
-        snapshot: Decoded,
-        options: &BuildOptions,
-    ) -> Result<v1::SessionStatus, ServiceError> {
+    /// [`ServiceError::InvalidArgument`] naming both scenes.
+    pub fn check_scene(&self, snapshot: &Decoded) -> Result<(), ServiceError> {
         if scene_to_proto(&snapshot.scene) != scene_to_proto(&self.scene) {
             return Err(ServiceError::invalid(
                 "data",
@@ -111,13 +105,30 @@ impl Session {
                 ),
             ));
         }
-        let (scene, options) = (self.scene.clone(), options.clone());
-        let resumed = tokio::task::spawn_blocking(move || {
-            let world = scene.build(&options)?;
-            snapshot.resume(world, &options)
-        })
-        .await
-        .map_err(|e| ServiceError::Internal(format!("restore task failed: {e}")))??;
+        Ok(())
+    }
+
+    /// Moves this session to `snapshot`, which must hold this session's
+    /// scene, checked as `checked` (the registry reserved its footprint):
+    /// a world is built and restored off the session, then swapped in by
+    /// the compute thread between two steps.
+    ///
+    /// # Errors
+    /// [`ServiceError::InvalidArgument`] for a snapshot of another scene
+    /// or one that does not fit it; [`ServiceError::WrongState`] while
+    /// running. Nothing changes on error.
+    pub async fn restore(
+        &self,
+        snapshot: Decoded,
+        checked: Checked,
+        options: &BuildOptions,
+    ) -> Result<v1::SessionStatus, ServiceError> {
+        self.check_scene(&snapshot)?;
+        let options = options.clone();
+        let resumed =
+            tokio::task::spawn_blocking(move || snapshot.resume(checked.build(), &options))
+                .await
+                .map_err(|e| ServiceError::Internal(format!("restore task failed: {e}")))??;
         self.swap(resumed).await
     }
 }
