@@ -379,11 +379,14 @@ impl ServerConfig {
     /// A missing, unreadable or malformed file, named by its flag.
     pub fn grpc_tls(&self) -> Result<Option<tonic::transport::ServerTlsConfig>, String> {
         match (&self.tls_cert, &self.tls_key) {
-            (Some(cert), Some(key)) => crate::tls::server_config(crate::tls::TlsFiles {
-                cert,
-                key,
-                client_ca: self.tls_client_ca.as_deref(),
-            })
+            (Some(cert), Some(key)) => crate::tls::server_config(
+                crate::tls::TlsFiles {
+                    cert,
+                    key,
+                    client_ca: self.tls_client_ca.as_deref(),
+                },
+                self.handshake_period(),
+            )
             .map(Some),
             (None, None) if self.tls_client_ca.is_some() => {
                 Err("--tls-client-ca needs --tls-cert and --tls-key".into())

@@ -142,46 +142,57 @@ pub fn incoming(
     let places = Arc::new(Semaphore::new(max_connections));
     tokio::spawn(async move {
         loop {
-            let place = tokio::select! {
-                place = places.clone().acquire_owned() => place,
-                () = stop.cancelled() => break,
-                () = admitted.closed() => break,
+            let next = tokio::select! {
+                next = accept_within(&listener, &places, "gRPC") => next,
+                () = stop.cancelled() => None,
+                () = admitted.closed() => None,
             };
-            let Ok(place) = place else { break };
-            let accepted = tokio::select! {
-                accepted = listener.accept() => accepted,
-                () = stop.cancelled() => break,
-                () = admitted.closed() => break,
+            let Some((stream, place)) = next else { break };
+            if let Err(e) = stream.set_nodelay(true) {
+                tracing::debug!("TCP_NODELAY on an accepted connection: {e}");
+                continue;
+            }
+            let connection = Connection::new(deadlines);
+            let first = connection
+                .deadline(Instant::now())
+                .unwrap_or_else(Instant::now);
+            let connection = Admitted {
+                stream,
+                connection,
+                deadline: Box::pin(tokio::time::sleep_until(first)),
+                _place: place,
             };
-            match accepted {
-                Ok((stream, _)) => {
-                    if let Err(e) = stream.set_nodelay(true) {
-                        tracing::debug!("TCP_NODELAY on an accepted connection: {e}");
-                        continue;
-                    }
-                    let connection = Connection::new(deadlines);
-                    let first = connection
-                        .deadline(Instant::now())
-                        .unwrap_or_else(Instant::now);
-                    let connection = Admitted {
-                        stream,
-                        connection,
-                        deadline: Box::pin(tokio::time::sleep_until(first)),
-                        _place: place,
-                    };
-                    if admitted.send(Ok(connection)).await.is_err() {
-                        // The server is shutting down.
-                        break;
-                    }
-                }
-                Err(e) => {
-                    tracing::warn!("accepting a gRPC connection: {e}");
-                    tokio::time::sleep(ACCEPT_BACKOFF).await;
-                }
+            if admitted.send(Ok(connection)).await.is_err() {
+                // The server is shutting down.
+                break;
             }
         }
     });
     ReceiverStream::new(stream)
+}
+
+/// The next connection of `listener` with a place under `places`, which
+/// it keeps until it closes: the place is taken before `accept`, so
+/// connections beyond the cap wait in the kernel's backlog instead of
+/// holding one of this process's file descriptors, and a failed accept
+/// (out of descriptors, a reset before accept) backs off briefly rather
+/// than retrying in a tight loop. `None` once `places` is closed. The
+/// gRPC port and the metrics port (`what` in the log) accept this way.
+pub async fn accept_within(
+    listener: &TcpListener,
+    places: &Arc<Semaphore>,
+    what: &str,
+) -> Option<(TcpStream, OwnedSemaphorePermit)> {
+    let place = places.clone().acquire_owned().await.ok()?;
+    loop {
+        match listener.accept().await {
+            Ok((stream, _)) => return Some((stream, place)),
+            Err(e) => {
+                tracing::warn!("accepting a {what} connection: {e}");
+                tokio::time::sleep(ACCEPT_BACKOFF).await;
+            }
+        }
+    }
 }
 
 #[cfg(test)]

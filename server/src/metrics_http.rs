@@ -11,6 +11,7 @@
 //! previous answer (an idle keep-alive connection included; Prometheus
 //! reconnects at its next scrape).
 
+use crate::listener::accept_within;
 use crate::metrics::Metrics;
 use anyhow::{Context, Result};
 use hyper_util::rt::{TokioIo, TokioTimer};
@@ -24,9 +25,6 @@ use tokio_util::sync::CancellationToken;
 /// Most metrics connections open at once: a scraper holds one, and a few
 /// scrapers and a person with curl are all an endpoint serves.
 pub const MAX_CONNECTIONS: usize = 16;
-
-/// Pause after a failed accept.
-const ACCEPT_BACKOFF: Duration = Duration::from_millis(50);
 
 /// Serves `GET /metrics` on `addr` until `stop`; returns the bound
 /// address.
@@ -61,23 +59,11 @@ pub async fn serve(
     let places = Arc::new(Semaphore::new(MAX_CONNECTIONS));
     tokio::spawn(async move {
         loop {
-            let place = tokio::select! {
-                place = places.clone().acquire_owned() => place,
-                () = stop.cancelled() => break,
+            let next = tokio::select! {
+                next = accept_within(&listener, &places, "metrics") => next,
+                () = stop.cancelled() => None,
             };
-            let Ok(place) = place else { break };
-            let accepted = tokio::select! {
-                accepted = listener.accept() => accepted,
-                () = stop.cancelled() => break,
-            };
-            let stream = match accepted {
-                Ok((stream, _)) => stream,
-                Err(e) => {
-                    tracing::warn!("accepting a metrics connection: {e}");
-                    tokio::time::sleep(ACCEPT_BACKOFF).await;
-                    continue;
-                }
-            };
+            let Some((stream, place)) = next else { break };
             let service = TowerToHyperService::new(app.clone());
             let stop = stop.clone();
             tokio::spawn(async move {

@@ -3,7 +3,8 @@
 use crate::error::{ServiceError, quote};
 use crate::metrics::Metrics;
 use crate::session::{Access, Decoded, Origin, Outlet, Session, snapshot_unfit};
-use meshless_engine::{Budget, BuildOptions, Cancel, Scene};
+use meshless_engine::scene::Checked;
+use meshless_engine::{Budget, BuildOptions, Cancel, Scene, WorldState};
 use meshless_proto::seal::Sealer;
 use meshless_proto::v1;
 use std::collections::HashMap;
@@ -155,16 +156,12 @@ impl Registry {
     ) -> Result<v1::SessionStatus, ServiceError> {
         session.check_scene(&snapshot)?;
         let (scene, options) = (session.scene.clone(), self.options.clone());
-        let (checked, snapshot, footprint) = tokio::task::spawn_blocking(move || {
-            let checked = scene.check(&options)?;
-            let footprint = checked
-                .restored_footprint(&snapshot.world)
-                .map_err(|e| snapshot_unfit(&e))?;
-            Ok::<_, ServiceError>((checked, snapshot, footprint))
+        let (checked, snapshot, needed) = tokio::task::spawn_blocking(move || {
+            let (checked, needed) = check(scene, &options, Some(&snapshot.world))?;
+            Ok::<_, ServiceError>((checked, snapshot, needed))
         })
         .await
         .map_err(|e| ServiceError::Internal(format!("scene check task failed: {e}")))??;
-        let needed = footprint.bytes.ceil().min(u64::MAX as f64) as u64;
         let held = self.memory().grow(&session.id, needed)?;
         let restored = session.restore(snapshot, checked, &self.options).await;
         if restored.is_err() {
@@ -201,22 +198,12 @@ impl Registry {
         options.budget = early.budget();
         // Validation and the estimate first (a mesh may be read), then the
         // reservation, and only then the allocation.
-        // A restore reserves for the state it restores, its positions
-        // checked first: a forged snapshot may pile particles the scene's
-        // lattice never would.
-        let (checked, snapshot, footprint) = tokio::task::spawn_blocking(move || {
-            let checked = scene.check(&options)?;
-            let footprint = match &snapshot {
-                None => checked.footprint(),
-                Some(snapshot) => checked
-                    .restored_footprint(&snapshot.world)
-                    .map_err(|e| snapshot_unfit(&e))?,
-            };
-            Ok::<_, ServiceError>((checked, snapshot, footprint))
+        let (checked, snapshot, needed) = tokio::task::spawn_blocking(move || {
+            let (checked, needed) = check(scene, &options, snapshot.as_ref().map(|s| &s.world))?;
+            Ok::<_, ServiceError>((checked, snapshot, needed))
         })
         .await
         .map_err(|e| ServiceError::Internal(format!("scene check task failed: {e}")))??;
-        let needed = footprint.bytes.ceil().min(u64::MAX as f64) as u64;
         // The checked footprint replaces the early reservation, under one
         // lock so that no other admission sees the bytes free between.
         {
@@ -345,6 +332,26 @@ impl Registry {
             join_blocking(session).await;
         }
     }
+}
+
+/// Checks `scene` (and the positions of `restored`, a state it is to
+/// move to), and says how many bytes its world will hold by estimate: the
+/// restored state's neighbour pairs where there is one, since a forged
+/// state may pile particles the scene's lattice never would. Blocking.
+fn check(
+    scene: Scene,
+    options: &BuildOptions,
+    restored: Option<&WorldState>,
+) -> Result<(Checked, u64), ServiceError> {
+    let checked = scene.check(options)?;
+    let footprint = match restored {
+        None => checked.footprint(),
+        Some(state) => checked
+            .restored_footprint(state)
+            .map_err(|e| snapshot_unfit(&e))?,
+    };
+    let needed = footprint.bytes.ceil().min(u64::MAX as f64) as u64;
+    Ok((checked, needed))
 }
 
 fn lock(memory: &Mutex<Memory>) -> std::sync::MutexGuard<'_, Memory> {

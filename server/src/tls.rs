@@ -13,10 +13,6 @@ use tonic::transport::{Certificate, Identity, ServerTlsConfig};
 /// anything near this is the wrong file.
 const MAX_PEM_BYTES: u64 = 1 << 20;
 
-/// How long a client may take to finish the TLS handshake: the default
-/// `--handshake-timeout`, which bounds it too (`crate::connection`).
-pub const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(10);
-
 /// Where the gRPC endpoint's TLS material lives.
 #[derive(Debug, Clone, Copy)]
 pub struct TlsFiles<'a> {
@@ -34,13 +30,16 @@ pub struct TlsFiles<'a> {
 /// # Errors
 /// A message naming the flag whose file is missing, unreadable, too large
 /// or holds no PEM block of the kind expected.
-pub fn server_config(files: TlsFiles<'_>) -> Result<ServerTlsConfig, String> {
+/// A client has `handshake` (`--handshake-timeout`, which bounds the
+/// whole connection until its first authenticated call too) to finish
+/// the TLS handshake.
+pub fn server_config(files: TlsFiles<'_>, handshake: Duration) -> Result<ServerTlsConfig, String> {
     let cert = read_pem(files.cert, "--tls-cert", "CERTIFICATE")?;
     warn_on_validity(&cert, files.cert);
     let key = read_pem(files.key, "--tls-key", "PRIVATE KEY")?;
     let mut config = ServerTlsConfig::new()
         .identity(Identity::from_pem(cert, key))
-        .timeout(HANDSHAKE_TIMEOUT);
+        .timeout(handshake);
     if let Some(ca) = files.client_ca {
         let ca = read_pem(ca, "--tls-client-ca", "CERTIFICATE")?;
         config = config.client_ca_root(Certificate::from_pem(ca));
@@ -114,6 +113,9 @@ fn warn_on_validity(chain: &[u8], path: &Path) {
 mod tests {
     use super::*;
 
+    /// A handshake timeout for the checks, which never reach a handshake.
+    const WAIT: Duration = Duration::from_secs(10);
+
     fn temp_file(name: &str, content: &[u8]) -> std::path::PathBuf {
         let dir = std::env::temp_dir().join(format!("meshless-tls-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("temp dir");
@@ -134,7 +136,7 @@ mod tests {
         );
         let not_pem = temp_file("not.pem", b"hello");
         let missing = Path::new("/nonexistent/meshless/cert.pem");
-        let error = |files| server_config(files).expect_err("refused");
+        let error = |files| server_config(files, WAIT).expect_err("refused");
 
         let e = error(TlsFiles {
             cert: missing,
@@ -168,11 +170,14 @@ mod tests {
             "{e}"
         );
         assert!(
-            server_config(TlsFiles {
-                cert: &cert,
-                key: &key,
-                client_ca: Some(&cert),
-            })
+            server_config(
+                TlsFiles {
+                    cert: &cert,
+                    key: &key,
+                    client_ca: Some(&cert),
+                },
+                WAIT
+            )
             .is_ok(),
             "well-formed PEM files pass this check; rustls judges their content"
         );

@@ -282,6 +282,32 @@ where
 /// between the first call's steps: many of its chunks' worth.
 const WINDOW: u64 = 2_000;
 
+/// A resting column's session, its status events watched, with a long
+/// `SimulateSteps` (0.02 s progress) that has taken its first step: what
+/// a second stepping call meets. Returns the id, the events, the call's
+/// progress stream and its first progress.
+async fn simulating(
+    client: &Client,
+) -> (
+    String,
+    impl Stream<Item = Result<v1::SessionStatus, ClientError>> + Unpin,
+    impl Stream<Item = Result<v1::SimulateProgress, ClientError>> + Unpin,
+    v1::SimulateProgress,
+) {
+    let id = within("create", client.create_session_toml(&resting_column()))
+        .await
+        .expect("created")
+        .id;
+    let events = within("watch", client.watch_status(&id))
+        .await
+        .expect("watching");
+    let mut simulate = within("simulate", client.simulate_steps(&id, 100_000_000, 0.02))
+        .await
+        .expect("a stream");
+    let began = progress_until(&mut simulate, 1, || {}).await;
+    (id, events, simulate, began)
+}
+
 /// A `Step` sent while a `SimulateSteps` is in progress waits for it and
 /// then takes its own 500 steps; it never slips in between (the
 /// `SimulateSteps` would then end early, counting the `Step`'s steps as
@@ -290,17 +316,7 @@ const WINDOW: u64 = 2_000;
 async fn a_step_sent_during_simulate_steps_takes_its_own_steps_after_it() {
     let server = ServerProcess::spawn(&[]).await.expect("server starts");
     let client = server.client().await.expect("client");
-    let id = within("create", client.create_session_toml(&resting_column()))
-        .await
-        .expect("created")
-        .id;
-    let mut events = within("watch", client.watch_status(&id))
-        .await
-        .expect("watching");
-    let mut simulate = within("simulate", client.simulate_steps(&id, 100_000_000, 0.02))
-        .await
-        .expect("a stream");
-    let sent_at = progress_until(&mut simulate, 1, || {}).await;
+    let (id, mut events, mut simulate, sent_at) = simulating(&client).await;
     let step = tokio::spawn({
         let (client, id) = (client.clone(), id.clone());
         async move { client.step(&id, 500).await }
@@ -351,17 +367,7 @@ async fn simulate_error(client: &Client, id: &str, steps: u64) -> Result<(), Cli
 async fn simulate_steps_during_simulate_steps_counts_its_own_steps_after_it() {
     let server = ServerProcess::spawn(&[]).await.expect("server starts");
     let client = server.client().await.expect("client");
-    let id = within("create", client.create_session_toml(&resting_column()))
-        .await
-        .expect("created")
-        .id;
-    let mut events = within("watch", client.watch_status(&id))
-        .await
-        .expect("watching");
-    let mut first = within("simulate", client.simulate_steps(&id, 100_000_000, 0.02))
-        .await
-        .expect("a stream");
-    let sent_at = progress_until(&mut first, 1, || {}).await;
+    let (id, mut events, mut first, sent_at) = simulating(&client).await;
     let mut second = within("simulate", client.simulate_steps(&id, 40, 0.01))
         .await
         .expect("a stream");

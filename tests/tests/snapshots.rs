@@ -268,23 +268,33 @@ async fn refused(client: &Client, data: Vec<u8>, into: Option<&str>) -> (Code, S
     (status.code(), status.message().to_owned())
 }
 
+/// A small tank's session, its snapshot after `at` steps, and its frame
+/// after `then` more: a session that has moved on from a snapshot, for a
+/// refused restore to leave as it is.
+async fn moved_on(client: &Client, at: u64, then: u64) -> (String, Vec<u8>, FrameView) {
+    let id = within("create", client.create_session_toml(&small_scene()))
+        .await
+        .expect("created")
+        .id;
+    within("step", client.step(&id, at)).await.expect("stepped");
+    let good = within("snapshot", client.snapshot(&id))
+        .await
+        .expect("a snapshot")
+        .data;
+    within("step", client.step(&id, then))
+        .await
+        .expect("stepped");
+    let before = frame(client, &id).await;
+    (id, good, before)
+}
+
 #[tokio::test]
 async fn bad_blobs_are_refused_and_change_nothing() {
     let server = ServerProcess::spawn(&["--max-snapshot-mb", "1"])
         .await
         .expect("server");
     let client = server.client().await.expect("client");
-    let id = within("create", client.create_session_toml(&small_scene()))
-        .await
-        .expect("created")
-        .id;
-    within("step", client.step(&id, 4)).await.expect("stepped");
-    let good = within("snapshot", client.snapshot(&id))
-        .await
-        .expect("a snapshot")
-        .data;
-    within("step", client.step(&id, 3)).await.expect("stepped");
-    let before = frame(&client, &id).await;
+    let (id, good, before) = moved_on(&client, 4, 3).await;
     let sessions = || async {
         within("list", client.list_sessions())
             .await
@@ -575,17 +585,7 @@ async fn simulate_steps_reports_progress_and_stops_at_a_completed_step() {
 async fn forged_positions_and_run_targets_are_refused_as_requests_are() {
     let server = ServerProcess::spawn(&[]).await.expect("server");
     let client = server.client().await.expect("client");
-    let id = within("create", client.create_session_toml(&small_scene()))
-        .await
-        .expect("created")
-        .id;
-    within("step", client.step(&id, 2)).await.expect("stepped");
-    let good = within("snapshot", client.snapshot(&id))
-        .await
-        .expect("a snapshot")
-        .data;
-    within("step", client.step(&id, 1)).await.expect("stepped");
-    let before = frame(&client, &id).await;
+    let (id, good, before) = moved_on(&client, 2, 1).await;
 
     let piled = forge(&good, |payload| {
         let fluid = fluid_of(payload);

@@ -183,7 +183,9 @@ pub enum EfgError {
     /// The host refused the memory the estimate asks for, before the
     /// build allocated it ([`super::ModalSolid::build_admitted`]).
     #[error(
-        "the modal solid needs about {} MB by its estimate ({} nodes, at most {} quadrature          points, {} modes) and {reason}; use a larger `cell` (fewer nodes), fewer          `modes`, or a lower `quadrature_order` or `subdivision`",
+        "the modal solid needs about {} MB by its estimate ({} nodes, at most {} quadrature \
+         points, {} modes) and {reason}; use a larger `cell` (fewer nodes), fewer \
+         `modes`, or a lower `quadrature_order` or `subdivision`",
         .estimate.bytes.div_ceil(1 << 20), .estimate.nodes, .estimate.quadrature_points,
         .estimate.modes
     )]
