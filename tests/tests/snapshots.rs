@@ -541,8 +541,12 @@ async fn simulate_steps_reports_progress_and_stops_at_a_completed_step() {
         .expect("stepped");
     assert_eq!(frame(&client, &id).await, frame(&client, &twin).await);
 
-    // A unary Step past its deadline is DEADLINE_EXCEEDED too, and the
-    // session stays at a completed step.
+    // A unary Step past its deadline ends, and the session stays at a
+    // completed step. The server answers DEADLINE_EXCEEDED; tonic's client
+    // also runs its own timer on the same `grpc-timeout`, and on a loaded
+    // machine that timer can fire first (CANCELLED, "Timeout expired").
+    // Either way the call ended at its deadline: a server that ignored it
+    // would still be stepping, and the step after would time out below.
     let mut grpc = v1::simulation_client::SimulationClient::connect(server.grpc_url.clone())
         .await
         .expect("connects");
@@ -554,7 +558,13 @@ async fn simulate_steps_reports_progress_and_stops_at_a_completed_step() {
     let err = within("a step past its deadline", grpc.step(request))
         .await
         .expect_err("past the deadline");
-    assert_eq!(err.code(), Code::DeadlineExceeded, "{}", err.message());
+    let client_timer = err.code() == Code::Cancelled && err.message().contains("Timeout expired");
+    assert!(
+        err.code() == Code::DeadlineExceeded || client_timer,
+        "{:?}: {}",
+        err.code(),
+        err.message()
+    );
     let after = within("a step after", client.step(&id, 1))
         .await
         .expect("stepped")
