@@ -26,13 +26,17 @@
 //! so that the flow meets the wall's velocity at the wall: a ghost at depth
 //! `d_g` behind a wall seen from a particle at distance `d` moves relative
 //! to the wall at `-(d_g / d)` times the particle's relative velocity,
-//! making the pair's relative velocity `beta = min(1.5, 1 + d_g / d)` times
-//! the particle's (their cap, which keeps particles touching the wall
-//! finite). The ghosts act through Monaghan's pair form (see
-//! `viscosity.rs`), whose sum over a planar lattice is again a function of
-//! `d` alone, in two tables: one for the velocity along the wall and one
-//! across it.
+//! making the pair's relative velocity `beta = 1 + d_g / d` times the
+//! particle's (with `d` bounded below by half a spacing rather than their
+//! cap on `beta`; see `extrapolation`). The ghosts act through the
+//! fluid's own pair form (see `viscosity.rs`), so that the wall is the
+//! fluid continued: Monaghan's form along the pair, or Morris's along the
+//! velocity difference (also standing in for the kernel-Laplacian form,
+//! which pushes along it too). Either sum over a planar lattice is again
+//! a function of `d` alone, in two tables: one for the velocity along the
+//! wall and one across it.
 
+use super::ViscosityModel;
 use crate::approx::Kernel;
 use crate::math::{Real, Vector};
 use std::f64::consts::PI;
@@ -61,17 +65,32 @@ pub struct BoxWalls {
 /// The friction of no-slip walls (see the module documentation).
 #[derive(Debug, Clone)]
 struct Friction {
-    /// Ghost-lattice sum of `2 (d + 2) beta x_t^2 W'(r) / (r (r^2 + eta^2))`
-    /// for one tangential component, times `m / dx^3`.
+    /// Ghost-lattice sum, times `m / dx^3`, of Monaghan's
+    /// `2 (d + 2) beta x_t^2 W'(r) / (r (r^2 + eta^2))` for one tangential
+    /// component, or Morris's `2 beta r W'(r) / (r^2 + eta^2)`.
     tangential: Vec<Real>,
-    /// The same with the normal component `x_n^2`.
+    /// The same with the normal component `x_n^2` in Monaghan's form;
+    /// Morris's is isotropic, the same as `tangential`.
     normal: Vec<Real>,
     /// Each wall's velocity, `[axis][0 below, 1 above]`.
     velocity: [[Vector; 2]; 3],
 }
 
-/// Morris et al.'s cap on the ghosts' velocity extrapolation.
-const BETA_MAX: Real = 1.5;
+/// `beta`: the relative velocity of a particle at distance `d` from the
+/// wall and a ghost at `depth` behind it, over the particle's own velocity
+/// relative to the wall, `1 + depth / d`, with `d` no nearer than half a
+/// spacing (where a lattice's first row sits).
+///
+/// Morris et al. cap `beta` at 1.5 to keep particles touching the wall
+/// finite. The cap cuts the extrapolation short for every layer deeper
+/// than half the particle's distance, so the ghosts drag too little and
+/// the flow's no-slip plane lay 0.2 spacings behind the wall, its first
+/// row 54 % fast in a Poiseuille channel (`validation_viscous`). Bounding
+/// `d` instead keeps the extrapolation exact wherever a lattice puts
+/// particles and still finite at the wall.
+fn extrapolation(depth: Real, d: Real, spacing: Real) -> Real {
+    1.0 + depth / d.max(0.5 * spacing)
+}
 
 /// One ghost layer's friction sums at distance `z` from the particle:
 /// `(int x_t^2 g dA, int z^2 g dA)` over the layer's plane (3D) or line
@@ -194,19 +213,32 @@ impl BoxWalls {
     }
 
     /// Makes the walls no-slip for a fluid sampled at `spacing` with
-    /// particle `mass`, viscous through `gradient_kernel`; `velocity`
-    /// gives each wall's (tangential) velocity, `[axis][0 below, 1
-    /// above]`.
+    /// particle `mass`, viscous through `model` with `gradient_kernel`;
+    /// `velocity` gives each wall's (tangential) velocity, `[axis][0
+    /// below, 1 above]`.
     pub fn with_friction(
         mut self,
         spacing: Real,
         mass: Real,
         gradient_kernel: &Kernel,
+        model: ViscosityModel,
         velocity: [[Vector; 2]; 3],
     ) -> Self {
         let axes = gradient_kernel.dim();
         let per_volume = mass / spacing.powi(axes as i32);
-        let projected = 2.0 * (axes as Real + 2.0);
+        // A layer's `(int x_t^2 g, int z^2 g)` as the pair form weighs it:
+        // Monaghan's projects onto the pair (`2 (d + 2)` restores the
+        // Laplacian); Morris's `2 r^2 g` sums every component of `r^2`.
+        let weigh = |(t, n): (Real, Real)| match model {
+            ViscosityModel::Monaghan => {
+                let projected = 2.0 * (axes as Real + 2.0);
+                (projected * t, projected * n)
+            }
+            ViscosityModel::Morris | ViscosityModel::KernelLaplacian => {
+                let isotropic = 2.0 * ((axes - 1) as Real * t + n);
+                (isotropic, isotropic)
+            }
+        };
         let layers = (self.h / spacing).ceil() as usize + 1;
         let sample = |i: usize| self.h * i as Real / (SAMPLES - 1) as Real;
         let sums: Vec<(Real, Real)> = (0..SAMPLES)
@@ -214,13 +246,9 @@ impl BoxWalls {
                 let d = sample(i);
                 (0..layers).fold((0.0, 0.0), |(t, n), k| {
                     let depth = (k as Real + 0.5) * spacing;
-                    let beta = if d > 0.0 {
-                        (1.0 + depth / d).min(BETA_MAX)
-                    } else {
-                        BETA_MAX
-                    };
-                    let (lt, ln) = friction_layer(gradient_kernel, d + depth);
-                    let scale = projected * per_volume * spacing * beta;
+                    let beta = extrapolation(depth, d, spacing);
+                    let (lt, ln) = weigh(friction_layer(gradient_kernel, d + depth));
+                    let scale = per_volume * spacing * beta;
                     (t + scale * lt, n + scale * ln)
                 })
             })
@@ -410,13 +438,16 @@ mod tests {
     /// a particle at distance `d` from the floor moving at `v`, against the
     /// same sum taken over explicit ghost particles (spacing `dx` along the
     /// wall, layers at `dx/2, 3dx/2, …` behind it, each moving at
-    /// `-(d_g / d) v` relative to the wall, capped as Morris et al. do),
-    /// in 2D and 3D, along the wall and across it, with the wall itself
-    /// moving.
+    /// `-(d_g / d) v` relative to the wall, `d` bounded below by half a
+    /// spacing), in 2D and 3D, along the wall and across it, with the wall
+    /// itself moving, in Monaghan's pair form and in Morris's.
     #[test]
     fn friction_tables_match_the_ghost_lattice_they_integrate() {
         let spacing = 0.02;
-        for dim in [2, 3] {
+        for (dim, model) in [2, 3]
+            .into_iter()
+            .flat_map(|d| [(d, ViscosityModel::Monaghan), (d, ViscosityModel::Morris)])
+        {
             let kernel = Kernel::new(KernelKind::CubicSpline, dim, 2.0 * spacing);
             let mass = FluidParams::lattice_mass(spacing, &kernel, 1000.0);
             let lid = Vector::new(0.3, 0.0, 0.0);
@@ -432,6 +463,7 @@ mod tests {
                 spacing,
                 mass,
                 &kernel,
+                model,
                 [
                     [Vector::zeros(); 2],
                     [lid, Vector::zeros()],
@@ -458,7 +490,7 @@ mod tests {
                     let mut sum = Vector::zeros();
                     for k in 0..reach {
                         let depth = (k as Real + 0.5) * spacing;
-                        let beta = (1.0 + depth / d).min(BETA_MAX);
+                        let beta = extrapolation(depth, d, spacing);
                         for i in -reach * fine..=reach * fine {
                             for j in depth_range.clone() {
                                 let ghost = Vector::new(
@@ -472,8 +504,13 @@ mod tests {
                                     continue;
                                 }
                                 let grad = kernel.gradient(&r, rn);
-                                let along = (relative * beta).dot(&r) / (rn * rn + eta2);
-                                sum += grad * (along * projected * cell);
+                                let pair = relative * beta;
+                                sum += match model {
+                                    ViscosityModel::Monaghan => {
+                                        grad * (projected * pair.dot(&r) / (rn * rn + eta2))
+                                    }
+                                    _ => pair * (2.0 * r.dot(&grad) / (rn * rn + eta2)),
+                                } * cell;
                             }
                         }
                     }
@@ -482,7 +519,7 @@ mod tests {
                     let scale = lattice.norm();
                     assert!(
                         (table - lattice).norm() < 0.03 * scale,
-                        "{dim}D, d = {d}, v = {v:?}: table {table:?} against lattice {lattice:?}"
+                        "{model:?} in {dim}D, d = {d}, v = {v:?}: table {table:?} against lattice {lattice:?}"
                     );
                     assert!(
                         table.dot(&relative) < 0.0,

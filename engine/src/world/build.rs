@@ -309,7 +309,13 @@ fn build_fluid(
                     .wall_velocity
                     .by_wall()
                     .map(|sides| sides.map(|(_, v)| v.map_or(Vector::zeros(), vector)));
-                walls.with_friction(spec.spacing, params.mass, &gradient_kernel, velocity)
+                walls.with_friction(
+                    spec.spacing,
+                    params.mass,
+                    &gradient_kernel,
+                    spec.viscosity_model,
+                    velocity,
+                )
             }
         }),
         WallModel::Reflect => None,
