@@ -249,6 +249,7 @@ impl Metrics {
         let reason = match error {
             Some(StepError::Unstable { .. }) => "fluid_unstable",
             Some(StepError::SolidUnstable { .. }) => "solid_unstable",
+            Some(StepError::Collapsed { .. }) => "solid_collapsed",
             Some(StepError::Compressed { .. }) => "compressed",
             Some(StepError::EnergyGained { .. }) => "energy_gained",
             // Never a fault: the step is undone, or refused untaken.

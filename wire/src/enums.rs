@@ -153,7 +153,7 @@ mod tests {
     use meshless_engine::fluid::ViscosityModel;
     use meshless_engine::scene::{IntegratorKind, MotionKind, SlipKind, SolverKind, WallModel};
     use meshless_engine::solid::embedded::EmbeddingMethod;
-    use meshless_engine::solid::{ImplicitScheme, LinearSolver};
+    use meshless_engine::solid::{Hyperelastic, ImplicitScheme, LinearSolver};
 
     /// Every name of `E`'s table is the scene file's spelling of its
     /// variant, and every variant survives both conversions.
@@ -188,6 +188,7 @@ mod tests {
         check::<SlipKind>();
         check::<Order>();
         check::<IntegratorKind>();
+        check::<Hyperelastic>();
         check::<EmbeddingMethod>();
         check::<LinearSolver>();
         check::<ImplicitScheme>();

@@ -18,7 +18,9 @@ use meshless_engine::scene::{
     SurfaceSpec, SystemSpec, TimeSpec, WallModel, WallVelocities, defaults, solid_defaults,
 };
 use meshless_engine::solid::embedded::EmbeddingMethod;
-use meshless_engine::solid::{ImplicitParams, ImplicitScheme, LinearSolver, Plasticity};
+use meshless_engine::solid::{
+    Hyperelastic, ImplicitParams, ImplicitScheme, LinearSolver, Plasticity,
+};
 use meshless_engine::{FieldKind, Scene};
 use meshless_proto::v1;
 
@@ -103,6 +105,14 @@ wire_enum! {
         "constant" => Constant,
         "linear" => Linear,
         "quadratic" => Quadratic,
+    }
+}
+
+wire_enum! {
+    /// A solid's hyperelastic energy.
+    Hyperelastic <-> SolidMaterial, "material" {
+        "st_venant_kirchhoff" => StVenantKirchhoff,
+        "stable_neo_hookean" => StableNeoHookean,
     }
 }
 
@@ -497,6 +507,7 @@ fn solid_from_proto(solid: v1::SolidSpec, field: &str) -> Result<SolidSpec> {
         anchors,
         plasticity,
         surface,
+        material,
     } = solid;
     let surface = surface
         .map(|surface| {
@@ -559,6 +570,11 @@ fn solid_from_proto(solid: v1::SolidSpec, field: &str) -> Result<SolidSpec> {
         anchors,
         plasticity,
         surface,
+        material: optional_enum(
+            material,
+            Hyperelastic::default(),
+            &format!("{field}.material"),
+        )?,
     })
 }
 
@@ -587,6 +603,7 @@ fn to_solid(solid: &SolidSpec) -> v1::SolidSpec {
         anchors,
         plasticity,
         surface,
+        material,
     } = solid;
     v1::SolidSpec {
         shape: Some(to_shape(shape)),
@@ -607,6 +624,7 @@ fn to_solid(solid: &SolidSpec) -> v1::SolidSpec {
         implicit: Some(to_implicit(implicit)),
         velocity: Some(to_vec3(*velocity)),
         angular_velocity: Some(to_vec3(*angular_velocity)),
+        material: Some(material.to_i32()),
         anchors: anchors.iter().map(to_aabb).collect(),
         plasticity: plasticity.map(|p| {
             let Plasticity {

@@ -150,8 +150,9 @@ pub struct FluidSpec {
     /// DFSPH: largest average density error accepted (fraction of rho_0).
     #[serde(default = "default_density_tolerance")]
     pub density_tolerance: Real,
-    /// DFSPH: largest average density change per sub-step accepted by the
-    /// divergence-free solve (fraction of rho_0).
+    /// DFSPH: largest average density change accepted by the
+    /// divergence-free solve, per sub-step at CFL 0.4 however short the
+    /// sub-steps are (fraction of rho_0).
     #[serde(default = "default_divergence_tolerance")]
     pub divergence_tolerance: Real,
     /// DFSPH: iteration cap of each solve.

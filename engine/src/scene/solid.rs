@@ -8,7 +8,9 @@ use crate::geometry::Shape;
 use crate::geometry::TriMesh;
 use crate::math::{Real, Vector, vector};
 use crate::solid::embedded::{EmbeddedSurface, EmbeddingMethod};
-use crate::solid::{ImplicitParams, ImplicitScheme, Integrator, Material, Plasticity, SolidParams};
+use crate::solid::{
+    Hyperelastic, ImplicitParams, ImplicitScheme, Integrator, Material, Plasticity, SolidParams,
+};
 use serde::{Deserialize, Serialize};
 
 /// Defaults of the optional solid parameters, shared with the protocol
@@ -121,6 +123,10 @@ pub struct SolidSpec {
     /// every frame (3D); none computes no surface.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub surface: Option<SolidSurfaceSpec>,
+    /// The hyperelastic energy (`material = "stable_neo_hookean"` for a
+    /// soft solid that must not collapse; see `solid::material`).
+    #[serde(default, skip_serializing_if = "Hyperelastic::is_default")]
+    pub material: Hyperelastic,
 }
 
 /// The surface embedded in a solid (tutorial Section 7.2): the shape's own
@@ -177,7 +183,8 @@ impl SolidSpec {
             spacing: self.spacing,
             density: self.density,
             young: self.young,
-            material: Material::from_young_poisson(self.young, self.poisson, self.volume_stiffness),
+            material: Material::from_young_poisson(self.young, self.poisson, self.volume_stiffness)
+                .with_model(self.material),
             order: self.order,
             support: self.support * self.spacing,
             hourglass: self.hourglass,
@@ -362,6 +369,13 @@ impl Scene {
             }
         }
         if let Some(p) = &solid.plasticity {
+            if solid.material != Hyperelastic::StVenantKirchhoff {
+                return Err(SceneError::invalid(
+                    format!("{at}.plasticity"),
+                    "plastic flow is written on St Venant-Kirchhoff's Green strain; remove \
+                     plasticity or set material = \"st_venant_kirchhoff\"",
+                ));
+            }
             check_range(&format!("{at}.plasticity.yield"), p.yield_strain, 0.0, 10.0)?;
             check_positive(&format!("{at}.plasticity.creep"), p.creep)?;
             check_range(&format!("{at}.plasticity.creep"), p.creep, 0.0, 1.0)?;

@@ -4,6 +4,7 @@
 use super::body::{Body, SolidError};
 use super::contact::Obstacles;
 use super::integrate::{Integrator, SolidStep};
+use super::material::Hyperelastic;
 use super::params::SolidParams;
 use crate::cancel::{Cancel, Cancelled};
 use crate::math::{Real, Vector};
@@ -113,6 +114,41 @@ impl ElasticSolid {
     /// Green strain norm beyond which a solid is taken to have blown up: a
     /// stretch of about 14 times, far past any elastic material.
     pub const MAX_STRAIN: Real = 100.0;
+
+    /// The smallest volume ratio `det F` a particle may reach: a fifth of
+    /// its volume, far past what an elastic solid survives. St Venant–
+    /// Kirchhoff's resistance to compression peaks at a stretch of
+    /// `1/sqrt(3)` and vanishes at 0, so a soft block under its own weight
+    /// flattened into one layer of particles (`det F` near 0) and stayed
+    /// there as an equilibrium, with nothing in the finite-and-bounded
+    /// checks of [`Self::first_invalid`] to notice.
+    pub const MIN_VOLUME_RATIO: Real = 0.2;
+
+    /// The particle squeezed furthest below [`Self::MIN_VOLUME_RATIO`] at
+    /// the last force evaluation, with its `det F`.
+    pub(crate) fn collapsed(&self) -> Option<(usize, Real)> {
+        self.integrator
+            .states()
+            .iter()
+            .map(|s| s.det)
+            .enumerate()
+            .filter(|(_, det)| *det < Self::MIN_VOLUME_RATIO)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
+    /// What to change when the solid collapses, by its material.
+    pub(crate) fn collapse_advice(&self) -> &'static str {
+        match self.body.params.material.model {
+            Hyperelastic::StVenantKirchhoff => {
+                "St Venant-Kirchhoff stops resisting compression past a stretch of 1/sqrt(3); set \
+                 material = \"stable_neo_hookean\", or stiffen the solid (young, volume_stiffness)"
+            }
+            Hyperelastic::StableNeoHookean => {
+                "the load crushes the material; stiffen it (young, volume_stiffness) or lower \
+                 time.dt"
+            }
+        }
+    }
 }
 
 impl Deref for ElasticSolid {

@@ -34,7 +34,7 @@ pub use body::{Body, SolidError, SolidState};
 pub use contact::{Obstacle, Obstacles};
 pub use elastic::ElasticSolid;
 pub use integrate::SolidStep;
-pub use material::{Material, StressState, cofactor, green_strain};
+pub use material::{Hyperelastic, Material, StressState, cofactor, green_strain};
 pub use params::{
     ImplicitParams, ImplicitScheme, Integrator, LinearSolver, Plasticity, SolidParams,
 };

@@ -133,6 +133,27 @@ pub enum StepError {
         /// The step that failed.
         step: u64,
     },
+    /// An elastic solid's particle was squeezed to a sliver of its volume
+    /// or turned inside out ([`crate::solid::ElasticSolid::MIN_VOLUME_RATIO`]).
+    #[error(
+        "particle {particle} of the solid in systems[{system}] was squeezed to {ratio:.3} of its \
+         volume in step {step} (below the {limit} a solid allows; 0 or less is inside out): the \
+         solid collapsed; {advice}"
+    )]
+    Collapsed {
+        /// Index of the solid's system in the scene.
+        system: usize,
+        /// The particle, in the solid's order.
+        particle: usize,
+        /// Its volume ratio `det F`.
+        ratio: f64,
+        /// The smallest ratio allowed.
+        limit: f64,
+        /// What to change, for the solid's material.
+        advice: &'static str,
+        /// The step that failed.
+        step: u64,
+    },
     /// A fluid particle was compressed beyond the band a fluid allows
     /// ([`watch::MAX_COMPRESSION`]).
     #[error(
@@ -156,12 +177,13 @@ pub enum StepError {
     #[error(
         "the fluid's mechanical energy rose by {gained:.3e} J since it started ({:.1} % of its \
          scale, beyond the {:.0} % allowed) in step {step}, with no moving wall or body to supply \
-         it: the scheme is adding energy; lower time.dt, set negative_pressure_scale = 0, or use \
-         one kernel for densities and pressure", 100.0 * fraction, 100.0 * limit
+         it: the scheme is adding energy; {advice}", 100.0 * fraction, 100.0 * limit
     )]
     EnergyGained {
         /// Joules gained (per metre of depth in 2D).
         gained: Real,
+        /// What to change, for the fluid's pressure solver.
+        advice: &'static str,
         /// The gain as a fraction of the energy scale.
         fraction: Real,
         /// The largest fraction allowed.

@@ -282,7 +282,7 @@ impl Simulated for FluidEntry {
         while dt - elapsed > dt * 1e-9 {
             env.check()?;
             let remaining = dt - elapsed;
-            let limit = self.fluid.stable_dt(env.cfl);
+            let limit = self.fluid.stable_dt(env.cfl, &env.gravity);
             let budget = env.max_substeps - info.substeps;
             let wanted = (remaining / limit).ceil().max(1.0);
             if wanted > budget as Real {
@@ -406,16 +406,26 @@ impl Simulated for SolidEntry {
             solid_residual: step.residual,
             unconverged: u32::from(step.unconverged),
         };
-        match self.first_invalid() {
-            Some(invalid) => Err(StepError::SolidUnstable {
+        if let Some(invalid) = self.first_invalid() {
+            return Err(StepError::SolidUnstable {
                 system: self.index,
                 quantity: invalid.quantity,
                 particle: invalid.particle,
                 value: invalid.value,
                 step: env.step,
-            }),
-            None => Ok(info),
+            });
         }
+        if let Some((particle, ratio)) = self.solid.collapsed() {
+            return Err(StepError::Collapsed {
+                system: self.index,
+                particle,
+                ratio,
+                limit: ElasticSolid::MIN_VOLUME_RATIO,
+                advice: self.solid.collapse_advice(),
+                step: env.step,
+            });
+        }
+        Ok(info)
     }
 
     fn first_invalid(&self) -> Option<Invalid> {

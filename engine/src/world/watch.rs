@@ -104,6 +104,7 @@ impl EnergyWatch {
             if gained > MAX_ENERGY_GAIN * scale {
                 return Err(StepError::EnergyGained {
                     gained,
+                    advice: energy_advice(system),
                     fraction: gained / scale,
                     limit: MAX_ENERGY_GAIN,
                     step,
@@ -111,5 +112,23 @@ impl EnergyWatch {
             }
         }
         Ok(())
+    }
+}
+
+/// What to change when a fluid gains energy, by what gains it in each
+/// solver. WCSPH's gain comes from its explicit step, tensile instability
+/// or a kernel pair that does not conserve energy. DFSPH has no step to
+/// shorten: it is paced by its CFL sub-step however short the sub-steps
+/// (a shorter `time.dt` used to be what pumped it), so what is left is a
+/// solve stopped at its cap with the fluid compressed, pushed back within
+/// one sub-step.
+fn energy_advice(system: &FluidSystem) -> &'static str {
+    if system.pressure().has_equation_of_state() {
+        "lower time.dt, set negative_pressure_scale = 0, or use one kernel for densities and \
+         pressure"
+    } else {
+        "raise max_solver_iterations or lower density_tolerance so that the pressure solves \
+         converge (a solve stopped at its cap leaves the fluid compressed); a shorter time.dt \
+         does not help DFSPH"
     }
 }

@@ -67,9 +67,10 @@ pub(in crate::fluid) trait PressureSolver {
     fn init(&mut self, fluid: &mut Fluid);
 
     /// The largest sub-step the solver allows now, given the fastest
-    /// particle or body surface `v_max` (the fluid adds the viscous
-    /// limit, which every solver obeys).
-    fn stable_dt(&self, fluid: &Fluid, cfl: Real, v_max: Real) -> Real;
+    /// particle or body surface `v_max` and the largest acceleration
+    /// `a_max` (the fluid adds the viscous limit, which every solver
+    /// obeys).
+    fn stable_dt(&self, fluid: &Fluid, cfl: Real, v_max: Real, a_max: Real) -> Real;
 
     /// Particle speeds above this count as a blow-up: the solver's model
     /// is void there.

@@ -32,11 +32,11 @@ impl PressureSolver for Wcsph {
 
     /// The CFL condition `cfl * h / (c_0 + |v|_max)` and the force
     /// condition `cfl * sqrt(h / |a|_max)` (Monaghan 1992).
-    fn stable_dt(&self, fluid: &Fluid, cfl: Real, v_max: Real) -> Real {
+    fn stable_dt(&self, fluid: &Fluid, cfl: Real, v_max: Real, a_max: Real) -> Real {
         let h = fluid.params.support_radius;
         let mut dt = cfl * h / (fluid.params.eos.sound_speed() + v_max);
-        if fluid.max_acceleration > 0.0 {
-            dt = dt.min(cfl * (h / fluid.max_acceleration).sqrt());
+        if a_max > 0.0 {
+            dt = dt.min(cfl * (h / a_max).sqrt());
         }
         dt
     }
