@@ -1,32 +1,5 @@
 use super::*;
-use crate::geometry::{MeshSdf, TriMesh};
-
-/// A ball as an exact signed distance.
-struct Ball {
-    centre: Vector,
-    radius: Real,
-}
-
-impl ImplicitSurface for Ball {
-    fn signed_distance(&self, p: &Vector) -> Real {
-        (p - self.centre).norm() - self.radius
-    }
-
-    fn normal(&self, p: &Vector) -> Vector {
-        (p - self.centre).normalize()
-    }
-
-    fn project(&self, p: &Vector) -> Vector {
-        self.centre + self.normal(p) * self.radius
-    }
-
-    fn bounds(&self) -> (Vector, Vector) {
-        (
-            self.centre - Vector::repeat(self.radius),
-            self.centre + Vector::repeat(self.radius),
-        )
-    }
-}
+use crate::geometry::{Ball, MeshSdf, TriMesh};
 
 fn params(cell: Real, interior_levels: u32) -> OctreeParams {
     OctreeParams {
