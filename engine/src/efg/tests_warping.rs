@@ -690,3 +690,97 @@ fn a_grabbed_cantilever_tip_reaches_its_position_and_orientation() {
         }
     }
 }
+
+/// An orientation grab's rows are Eq. 27 at the grabbed point: half the
+/// curl of the EFG field `u = sum_J phi_J u_J` there. Tested on a
+/// quadratic field `u = (y^2, z^2, x^2)`, whose half curl is `-(z, x, y)`:
+///
+/// - with the quadratic basis the field is reproduced exactly, so the rows
+///   give the analytic half curl to round-off (as interpolated nodal curls
+///   also do: the curl is linear, which the basis reproduces);
+/// - with the linear basis the field is not reproduced, and the rows give
+///   the curl of the field the solid has, measured by central differences
+///   of `sum_J phi_J(x) u(x_J)` (no shape-function gradient involved), to
+///   1e-8 of it. Interpolating the nodes' curls instead (`Phi(x_c) W`, the
+///   rows before) missed it by 2.6e-2 to 5.0e-2.
+#[test]
+fn an_orientation_grab_reads_the_curl_of_the_field_at_its_point() {
+    use super::body::GrabRows;
+    use crate::approx::mls::Order;
+    let mesh = TriMesh::cuboid(Vector::zeros(), Vector::new(1.0, 0.5, 0.5));
+    let sdf = MeshSdf::new(&mesh).expect("closed");
+    let field = |x: &Vector| Vector::new(x.y * x.y, x.z * x.z, x.x * x.x);
+    let half_curl = |x: &Vector| -Vector::new(x.z, x.x, x.y);
+    let points = [
+        Vector::new(0.37, 0.11, 0.29),
+        Vector::new(0.93, 0.47, 0.02),
+        Vector::new(0.03, 0.4, 0.45),
+        Vector::new(0.6, 0.05, 0.21),
+    ];
+    // At alpha 5 a corner node sees the 10 supports the quadratic basis
+    // needs (at 3 or 4, 8).
+    for (basis, alpha) in [(Order::Quadratic, 5.0), (Order::Linear, 3.0)] {
+        let mut params = EfgParams::new(0.125);
+        params.basis = basis;
+        params.alpha = alpha;
+        let solid = EfgSolid::build(
+            &sdf,
+            &FixedSurface::default(),
+            Material {
+                density: 1000.0,
+                young: 1e6,
+                poisson: 0.3,
+            },
+            params,
+            &Cancel::new(),
+        )
+        .expect("solid");
+        let nodal: Vec<Vector> = solid.nodes().iter().map(|n| field(&n.position)).collect();
+        // One "mode": the field's nodal coefficients.
+        let modes = Modes {
+            eigenvalues: vec![1.0],
+            vectors: nodal.iter().flat_map(|u| [u.x, u.y, u.z]).collect(),
+            zero_modes: 0,
+        };
+        let modal = solid.basis_of(&modes, &Cancel::new()).expect("basis");
+        let column = |m: &DMatrix<Real>| Vector::new(m[(0, 0)], m[(1, 0)], m[(2, 0)]);
+        for p in &points {
+            let rows = GrabRows::at(&solid.shape_table(&[*p]).expect("covered").row(0), &modal);
+            let (grab, nodal_curls) = (column(&rows.orientation), column(&rows.warp));
+            let reference = match basis {
+                Order::Quadratic => half_curl(p),
+                _ => {
+                    let d = 1e-6;
+                    let mut probes = Vec::new();
+                    for k in 0..3 {
+                        probes.push(p + Vector::ith(k, d));
+                        probes.push(p - Vector::ith(k, d));
+                    }
+                    let mut u = Vec::new();
+                    solid
+                        .shape_table(&probes)
+                        .expect("covered")
+                        .interpolate(&nodal, &mut u);
+                    let du = |k: usize, c: usize| (u[2 * k][c] - u[2 * k + 1][c]) / (2.0 * d);
+                    0.5 * Vector::new(
+                        du(1, 2) - du(2, 1),
+                        du(2, 0) - du(0, 2),
+                        du(0, 1) - du(1, 0),
+                    )
+                }
+            };
+            let error = (grab - reference).norm() / reference.norm();
+            println!(
+                "{basis:?} at {:?}: grab rows {error:.1e}, interpolated nodal curls {:.1e}",
+                p.as_slice(),
+                (nodal_curls - reference).norm() / reference.norm()
+            );
+            let tolerance = if basis == Order::Quadratic {
+                1e-12
+            } else {
+                1e-6
+            };
+            assert!(error < tolerance, "{basis:?} at {p:?}: {error:e}");
+        }
+    }
+}
