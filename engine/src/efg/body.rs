@@ -329,13 +329,11 @@ impl ModalSolid {
             .map(|(x, u)| x + u)
     }
 
-    /// Node velocities `Psi zdot` (the linear modes' velocity: warping's
-    /// rotation of it is second order in the rotation rate).
+    /// Node velocities: the local velocity `Psi_I zdot` turned by the node's
+    /// rotation `R(w_I)` while warping ([`ModalSystem::node_velocity`]).
     pub fn velocities(&self) -> Vec<Vector> {
-        let basis = self.system.basis();
-        let zdot = self.system.velocities();
         (0..self.len())
-            .map(|i| basis.linear_displacement(i, zdot))
+            .map(|i| self.system.node_velocity(i))
             .collect()
     }
 
