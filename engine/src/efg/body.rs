@@ -462,7 +462,7 @@ impl ModalSolid {
     /// Replaces the grabs: each position grab is the three rows
     /// `Phi(x_c) Psi` with target `p - x_c`, each orientation grab the
     /// three rows `1/2 curl Phi(x_c) Psi` with target the rotation vector
-    /// (Eq. 32, the rotation of Eq. 27 at the grabbed point; [`GrabRows`]).
+    /// (Eq. 32, the rotation of Eq. 27 at the grabbed point).
     /// The rows constrain the linear modal field; with warping on, a
     /// position target is met by the linear displacement, which the
     /// warped one differs from at second order in the rotation.
