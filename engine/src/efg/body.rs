@@ -11,13 +11,13 @@
 use super::estimate::{Estimate, MATRIX_ENTRY_BYTES, NODE_REALS, SHAPE_ENTRY_BYTES, SurfacePoints};
 use super::skin::{DeformedSkin, Skin, SkinBuffers, SkinInput};
 use super::solid::Laps;
-use super::{CoverError, EfgError, EfgParams, EfgSolid, FixedSurface, Material};
+use super::{CoverError, EfgError, EfgParams, EfgSolid, FixedSurface, Material, Row};
 use crate::Cancel;
 use crate::geometry::ImplicitSurface;
 use crate::geometry::octree::Octree;
 use crate::math::{Real, Vector};
 use crate::modal::{
-    Damping, MAX_CONSTRAINTS, ModalError, ModalSystem, Stabilization, rotation_integral,
+    Damping, MAX_CONSTRAINTS, ModalBasis, ModalError, ModalSystem, Stabilization, rotation_integral,
 };
 use nalgebra::{DMatrix, DVector};
 use std::sync::Arc;
@@ -127,6 +127,42 @@ pub struct ModalState {
     pub amplitudes: Vec<Real>,
     /// Modal velocities `zdot`.
     pub velocities: Vec<Real>,
+}
+
+/// The `3 x l` rows of one grabbed point `x_c` (Section 5.3.3).
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct GrabRows {
+    /// `Phi(x_c) Psi`: the displacement there.
+    pub(super) position: DMatrix<Real>,
+    /// `1/2 curl Phi(x_c) Psi = 1/2 sum_J grad phi_J(x_c) x Psi_J`: the
+    /// rotation vector there, the curl of the shape functions at the point
+    /// as Eq. 27 defines it. Interpolating the nodes' rotation vectors
+    /// (`Phi(x_c) W`) instead agrees with it only where the field's curl
+    /// is one the basis reproduces from the nodes' (a linear field's).
+    pub(super) orientation: DMatrix<Real>,
+    /// `Phi(x_c) W`: the nodes' rotation vectors interpolated, the rotation
+    /// warping gives the point (what frames show, [`ModalSolid::step`]).
+    pub(super) warp: DMatrix<Real>,
+}
+
+impl GrabRows {
+    /// The rows at the point whose shape-function row is `row`.
+    pub(super) fn at(row: &Row<'_>, basis: &ModalBasis) -> Self {
+        let l = basis.mode_count();
+        let mut rows = Self {
+            position: DMatrix::zeros(3, l),
+            orientation: DMatrix::zeros(3, l),
+            warp: DMatrix::zeros(3, l),
+        };
+        for ((&node, &phi), grad) in row.nodes.iter().zip(row.values).zip(row.gradients) {
+            let psi = basis.displacement_block(node as usize).transpose();
+            rows.position += &psi * phi;
+            rows.warp += basis.rotation_block(node as usize).transpose() * phi;
+            // grad phi x Psi column by column: the cross product's matrix.
+            rows.orientation += grad.cross_matrix() * psi * 0.5;
+        }
+        rows
+    }
 }
 
 impl ModalSolid {
@@ -293,13 +329,11 @@ impl ModalSolid {
             .map(|(x, u)| x + u)
     }
 
-    /// Node velocities `Psi zdot` (the linear modes' velocity: warping's
-    /// rotation of it is second order in the rotation rate).
+    /// Node velocities: the local velocity `Psi_I zdot` turned by the node's
+    /// rotation `R(w_I)` while warping ([`ModalSystem::node_velocity`]).
     pub fn velocities(&self) -> Vec<Vector> {
-        let basis = self.system.basis();
-        let zdot = self.system.velocities();
         (0..self.len())
-            .map(|i| basis.linear_displacement(i, zdot))
+            .map(|i| self.system.node_velocity(i))
             .collect()
     }
 
@@ -427,7 +461,8 @@ impl ModalSolid {
 
     /// Replaces the grabs: each position grab is the three rows
     /// `Phi(x_c) Psi` with target `p - x_c`, each orientation grab the
-    /// three rows `Phi(x_c) W` with target the rotation vector (Eq. 32).
+    /// three rows `1/2 curl Phi(x_c) Psi` with target the rotation vector
+    /// (Eq. 32, the rotation of Eq. 27 at the grabbed point).
     /// The rows constrain the linear modal field; with warping on, a
     /// position target is met by the linear displacement, which the
     /// warped one differs from at second order in the rotation.
@@ -467,30 +502,16 @@ impl ModalSolid {
                 .efg
                 .shape_table(std::slice::from_ref(&g.point))
                 .map_err(|source| GrabError::Outside { index, source })?;
-            let row = table.row(0);
-            // `Phi(x_c) Psi` or `Phi(x_c) W`, 3 x l.
-            let rows_of = |rotation: bool| {
-                let mut m = DMatrix::zeros(3, l);
-                for (&node, &phi) in row.nodes.iter().zip(row.values) {
-                    let block = if rotation {
-                        basis.rotation_block(node as usize)
-                    } else {
-                        basis.displacement_block(node as usize)
-                    };
-                    m += block.transpose() * phi;
-                }
-                m
-            };
-            let rotation_rows = rows_of(true);
+            let rows = GrabRows::at(&table.row(0), basis);
             if let Some(p) = g.position {
                 let wanted = p - g.point;
-                a.rows_mut(r, 3).copy_from(&rows_of(false));
+                a.rows_mut(r, 3).copy_from(&rows.position);
                 b.rows_mut(r, 3).copy_from(&wanted);
-                warped_targets.push((r, rotation_rows.clone(), wanted));
+                warped_targets.push((r, rows.warp, wanted));
                 r += 3;
             }
             if let Some(w) = g.rotation {
-                a.rows_mut(r, 3).copy_from(&rotation_rows);
+                a.rows_mut(r, 3).copy_from(&rows.orientation);
                 b.rows_mut(r, 3).copy_from(&w);
                 r += 3;
             }

@@ -12,7 +12,8 @@
 //! 3. MLS shape functions with the tensor-product weight (Eq. 12-13) at
 //!    those points ([`ShapeTable`]);
 //! 4. the consistent mass, the linear stiffness, the penalty for fixed
-//!    regions and body loads (`assemble.rs`, Eq. 16-17);
+//!    regions and body loads (`assemble.rs`, Eq. 16-17), the fixed regions
+//!    integrated over the solid's own boundary (`boundary.rs`);
 //! 5. the lowest modes and the rotation modes at the nodes, the modal
 //!    basis that [`crate::modal::ModalSystem`] steps (`reduce.rs`,
 //!    Section 5.3);
@@ -30,6 +31,7 @@
 
 mod assemble;
 mod body;
+mod boundary;
 mod estimate;
 mod quadrature;
 mod reduce;
@@ -39,6 +41,7 @@ mod solid;
 
 pub use assemble::lame;
 pub use body::{Grab, GrabError, ModalParams, ModalSolid, ModalState};
+pub use boundary::{Anchor, MAX_FIXED_POINTS, Pose, TooManyPoints};
 pub use estimate::Estimate;
 pub use quadrature::{MAX_ORDER, Quadrature};
 pub use shape::{CoverError, Row, ShapeTable};

@@ -21,7 +21,7 @@ pub const MAX_ORDER: usize = 5;
 
 /// Gauss–Legendre abscissae and weights on [-1, 1] for 1 to 5 points
 /// (Abramowitz & Stegun, Table 25.4).
-fn gauss_legendre(order: usize) -> (&'static [Real], &'static [Real]) {
+pub(super) fn gauss_legendre(order: usize) -> (&'static [Real], &'static [Real]) {
     const X1: [Real; 1] = [0.0];
     const W1: [Real; 1] = [2.0];
     const X2: [Real; 2] = [-0.577_350_269_189_625_8, 0.577_350_269_189_625_8];

@@ -6,7 +6,9 @@
 //!
 //! A closed triangle mesh answers through its exact signed distance
 //! ([`MeshSdf`]); an oriented point cloud through the field fitted to its
-//! points (`points_implicit.rs`).
+//! points (`points_implicit.rs`); a sphere through its own ([`Ball`]), so
+//! that a spherical solid is a sphere and not the polyhedron a display
+//! mesh approximates it by.
 
 use super::MeshSdf;
 use crate::math::{Real, Vector};
@@ -51,5 +53,39 @@ impl ImplicitSurface for MeshSdf {
 
     fn bounds(&self) -> (Vector, Vector) {
         MeshSdf::bounds(self)
+    }
+}
+
+/// A sphere as its exact signed distance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ball {
+    /// The centre.
+    pub centre: Vector,
+    /// The radius.
+    pub radius: Real,
+}
+
+impl ImplicitSurface for Ball {
+    fn signed_distance(&self, p: &Vector) -> Real {
+        (p - self.centre).norm() - self.radius
+    }
+
+    /// The radial direction; `+z` at the centre, where every direction is
+    /// the gradient's limit.
+    fn normal(&self, p: &Vector) -> Vector {
+        (p - self.centre)
+            .try_normalize(0.0)
+            .unwrap_or_else(Vector::z)
+    }
+
+    fn project(&self, p: &Vector) -> Vector {
+        self.centre + self.normal(p) * self.radius
+    }
+
+    fn bounds(&self) -> (Vector, Vector) {
+        (
+            self.centre - Vector::repeat(self.radius),
+            self.centre + Vector::repeat(self.radius),
+        )
     }
 }

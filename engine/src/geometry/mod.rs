@@ -19,7 +19,7 @@ mod shape;
 mod topology;
 
 pub use error::MeshError;
-pub use implicit::ImplicitSurface;
+pub use implicit::{Ball, ImplicitSurface};
 pub use mesh::{TriMesh, VertexRings, vertex_normals};
 pub use mesh_solid::MeshSolid;
 pub use octree::{Octree, OctreeError, OctreeParams};

@@ -246,6 +246,20 @@ impl ModalSystem {
         self.frames.linear()
     }
 
+    /// Node `node`'s velocity at the current state: with warping on,
+    /// `R(w_I) Psi_I zdot`, the local frame's velocity turned with the
+    /// frame (Choi & Ko's kinematics, `du = R(w) du^L`, of which the warped
+    /// displacement is the integral along the straight path); `Psi_I zdot`
+    /// with it off. Leaving the local velocity unturned while warping is
+    /// wrong by `|R(w_I) - I| ~ |w_I|`: first order in the rotation (a
+    /// spinning body's frames showed its velocity at the rest pose).
+    ///
+    /// # Panics
+    /// When `node >= n`.
+    pub fn node_velocity(&self, node: usize) -> Vector {
+        self.frames.rotation(node) * self.basis.linear_displacement(node, &self.zdot)
+    }
+
     /// Node `node`'s rotation vector `w_I = W_I z` at the current state.
     ///
     /// # Panics

@@ -232,6 +232,12 @@ impl NodeFrames {
         &self.linear
     }
 
+    /// Node `node`'s rotation `R(w_I)` at the last update (the identity
+    /// when not warping).
+    pub(super) fn rotation(&self, node: usize) -> &Matrix3<Real> {
+        &self.rotations[node]
+    }
+
     /// Node `node`'s rotation vector `w_I = W_I z` at the last update
     /// (with or without warping: a point cloud's normals turn by it).
     pub(super) fn rotation_vector(&self, node: usize) -> Vector {

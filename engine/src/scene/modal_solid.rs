@@ -8,10 +8,11 @@ use super::error::{check_box, check_positive, check_range, check_vector};
 use super::{Aabb, BuildOptions, Scene, SceneError, ShapeSpec};
 use crate::approx::mls::Order;
 use crate::efg::{
-    EfgError, EfgParams, FixedSurface, Grab, MassForm, Material, ModalParams, ModalSolid, SkinInput,
+    Anchor, EfgError, EfgParams, FixedSurface, Grab, MassForm, Material, ModalParams, ModalSolid,
+    Pose, SkinInput,
 };
 use crate::geometry::read::{self, MeshFormat};
-use crate::geometry::{ImplicitSurface, MeshSdf, PointSurface, PointSurfaceParams, TriMesh};
+use crate::geometry::{Ball, ImplicitSurface, MeshSdf, PointSurface, PointSurfaceParams, TriMesh};
 use crate::math::{Real, Vector, vector};
 use crate::modal::{Damping, Stabilization};
 use nalgebra::Rotation3;
@@ -223,11 +224,12 @@ fn default_surface_subdivisions() -> u32 {
 }
 
 /// The geometry of a modal solid in the world frame: the implicit
-/// surface its octree adapts to, its skin and the mesh anchors cut.
+/// surface its octree adapts to and its skin (for a mesh, the mesh itself,
+/// whose triangles anchors cut; for a box or a sphere, display only).
 struct Geometry {
     implicit: Box<dyn ImplicitSurface>,
     skin: SkinInput,
-    /// `(min, max)` of the skin.
+    /// `(min, max)` of the shape (of its points, for a cloud).
     bounds: (Vector, Vector),
 }
 
@@ -362,22 +364,46 @@ impl ModalSolidSpec {
             .collect();
         let bounds = bounds_of(&vertices);
         let field = format!("{shape_at}.data");
-        let (implicit, normals): (Box<dyn ImplicitSurface>, Vec<Vector>) = if triangles.is_empty() {
-            let cloud = PointSurface::new(&vertices, &normals, PointSurfaceParams::default())
-                .map_err(|e| SceneError::invalid(&field, e.to_string()))?;
-            (Box::new(cloud), normals)
-        } else {
-            let mesh = TriMesh {
-                vertices: vertices.clone(),
-                triangles: triangles.clone(),
-            };
-            let sdf = MeshSdf::new(&mesh).map_err(|e| {
+        // A box or a sphere is its exact shape, whatever its display
+        // surface's resolution: that is only what frames carry.
+        let closed = |mesh: &TriMesh| {
+            MeshSdf::new(mesh).map_err(|e| {
                 SceneError::invalid(
                     &field,
                     format!("the surface must be closed to bound a solid: {e}"),
                 )
-            })?;
-            (Box::new(sdf), Vec::new())
+            })
+        };
+        let (implicit, normals): (Box<dyn ImplicitSurface>, Vec<Vector>) = match &self.shape {
+            ShapeSpec::Box { half_extents } => {
+                let h = vector(*half_extents);
+                let mut cuboid = TriMesh::cuboid(-h, h);
+                cuboid.vertices.iter_mut().for_each(|v| *v = place(v));
+                (Box::new(closed(&cuboid)?), Vec::new())
+            }
+            ShapeSpec::Sphere { radius } => (
+                Box::new(Ball {
+                    centre,
+                    radius: *radius,
+                }),
+                Vec::new(),
+            ),
+            _ if triangles.is_empty() => {
+                let cloud = PointSurface::new(&vertices, &normals, PointSurfaceParams::default())
+                    .map_err(|e| SceneError::invalid(&field, e.to_string()))?;
+                (Box::new(cloud), normals)
+            }
+            _ => {
+                let mesh = TriMesh {
+                    vertices: vertices.clone(),
+                    triangles: triangles.clone(),
+                };
+                (Box::new(closed(&mesh)?), Vec::new())
+            }
+        };
+        let bounds = match self.shape {
+            ShapeSpec::Box { .. } | ShapeSpec::Sphere { .. } => implicit.bounds(),
+            _ => bounds,
         };
         let normals = if normals.is_empty() {
             vec![Vector::zeros(); vertices.len()]
@@ -395,33 +421,83 @@ impl ModalSolidSpec {
         })
     }
 
-    /// The anchored surface: the skin's triangles inside an anchor box
-    /// (their three-point rules), or a point cloud's points inside one,
-    /// each standing for `spacing^2`.
-    fn fixed(&self, geometry: &Geometry) -> FixedSurface {
-        let mut fixed = FixedSurface::default();
+    /// The anchored part of the solid's own boundary, anchor by anchor:
+    /// a box's faces or a sphere inside the anchor box, by the rule sized by
+    /// `cell` ([`FixedSurface::of_box_in_box`]); a mesh's own triangles
+    /// (the mesh is the geometry, and its skin is that mesh untouched)
+    /// with all three corners inside; a point cloud's points inside, each
+    /// standing for `spacing^2`. Never the display surface of a box or a
+    /// sphere, whose `surface_subdivisions` is an output resolution.
+    ///
+    /// # Errors
+    /// An anchor that holds none of the boundary (it would hold nothing,
+    /// and a free body is not what it asks for), or whose part needs more
+    /// points than [`crate::efg::MAX_FIXED_POINTS`].
+    fn fixed(
+        &self,
+        at: &str,
+        geometry: &Geometry,
+        params: &EfgParams,
+    ) -> Result<FixedSurface, SceneError> {
+        let (centre, rotation) = self.pose();
+        let pose = Pose {
+            centre: &centre,
+            rotation: &rotation,
+        };
         let skin = &geometry.skin;
-        for anchor in &self.anchors {
+        let mesh = matches!(self.shape, ShapeSpec::Mesh { .. }).then(|| TriMesh {
+            vertices: skin.vertices.clone(),
+            triangles: skin.triangles.clone(),
+        });
+        let mut fixed = FixedSurface::default();
+        for (k, anchor) in self.anchors.iter().enumerate() {
+            let field = format!("{at}.anchors[{k}]");
             let (min, max) = (vector(anchor.min), vector(anchor.max));
-            if skin.triangles.is_empty() {
-                let area = point_area(&skin.vertices, &geometry.bounds);
-                for v in &skin.vertices {
-                    if (0..3).all(|k| v[k] >= min[k] && v[k] <= max[k]) {
-                        fixed.points.push(*v);
-                        fixed.areas.push(area);
-                    }
+            let inside = Anchor {
+                min: &min,
+                max: &max,
+            };
+            let part = match &self.shape {
+                ShapeSpec::Box { half_extents } => {
+                    FixedSurface::of_box_in_box(&vector(*half_extents), pose, inside, params)
                 }
-            } else {
-                let mesh = TriMesh {
-                    vertices: skin.vertices.clone(),
-                    triangles: skin.triangles.clone(),
-                };
-                let part = FixedSurface::of_mesh_in_box(&mesh, &min, &max);
-                fixed.points.extend(part.points);
-                fixed.areas.extend(part.areas);
+                ShapeSpec::Sphere { radius } => {
+                    FixedSurface::of_sphere_in_box(*radius, pose, inside, params)
+                }
+                _ if skin.triangles.is_empty() => {
+                    let area = point_area(&skin.vertices, &geometry.bounds);
+                    let points: Vec<Vector> = skin
+                        .vertices
+                        .iter()
+                        .filter(|v| (0..3).all(|j| v[j] >= min[j] && v[j] <= max[j]))
+                        .copied()
+                        .collect();
+                    Ok(FixedSurface {
+                        areas: vec![area; points.len()],
+                        points,
+                    })
+                }
+                _ => Ok(mesh.as_ref().map_or_else(FixedSurface::default, |mesh| {
+                    FixedSurface::of_mesh_in_box(mesh, &min, &max)
+                })),
             }
+            .map_err(|e| SceneError::invalid(&field, e.to_string()))?;
+            if part.area() <= 0.0 {
+                let (lo, hi) = geometry.bounds;
+                return Err(SceneError::invalid(
+                    field,
+                    format!(
+                        "holds none of the solid's surface, so it would hold nothing; move it \
+                         to overlap the surface (the solid spans [{:.4}, {:.4}, {:.4}] to \
+                         [{:.4}, {:.4}, {:.4}] m) or remove it",
+                        lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
+                    ),
+                ));
+            }
+            fixed.points.extend(part.points);
+            fixed.areas.extend(part.areas);
         }
-        fixed
+        Ok(fixed)
     }
 }
 
@@ -568,14 +644,8 @@ impl Scene {
         for (k, anchor) in spec.anchors.iter().enumerate() {
             check_box(&format!("{at}.anchors[{k}]"), anchor, 3)?;
         }
-        let fixed = spec.fixed(&geometry);
-        if !spec.anchors.is_empty() && fixed.points.is_empty() {
-            return Err(SceneError::invalid(
-                field("anchors"),
-                "hold none of the solid's surface; move them onto its surface",
-            ));
-        }
         let params = spec.params()?;
+        let fixed = spec.fixed(at, &geometry, &params.efg)?;
         // The host reserves the estimate once the octree stands, before
         // the quadrature, shape functions and matrices are allocated.
         let mut solid = ModalSolid::build_admitted(
@@ -669,5 +739,186 @@ mod tests {
         let message = err.to_string();
         assert!(message.starts_with("systems[0]: "), "{message}");
         assert!(message.contains("1 MB of its 1 MB"), "{message}");
+    }
+
+    /// A steel cantilever, 1 x 0.1 x 0.1 m (L/H = 10) from x = 0, on 2.5
+    /// cm cells, its display surface split `subdivisions` times, held by
+    /// `anchors` (TOML).
+    fn steel_cantilever(subdivisions: u32, anchors: &str) -> (Scene, ModalSolidSpec) {
+        let text = format!(
+            r#"
+            [domain]
+            min = [-0.1, -0.3, -0.3]
+            max = [1.2, 0.3, 0.3]
+            [time]
+            dt = 0.01
+            [[systems]]
+            kind = "modal_solid"
+            shape = {{ type = "box", half_extents = [0.5, 0.05, 0.05] }}
+            position = [0.5, 0.0, 0.0]
+            density = 7850.0
+            young = 2.0e11
+            poisson = 0.3
+            cell = 0.025
+            modes = 6
+            surface_subdivisions = {subdivisions}
+            anchors = {anchors}
+            "#
+        );
+        let scene = Scene::from_toml_str(&text).expect("parses");
+        let SystemSpec::ModalSolid(spec) = &scene.systems[0] else {
+            panic!("a modal solid");
+        };
+        let spec = spec.clone();
+        (scene, spec)
+    }
+
+    /// The face at x = 0 and nothing of the sides (an anchor reaching
+    /// past the face also holds the strips of the side faces inside it).
+    const CLAMP: &str = "[{ min = [-0.001, -0.06, -0.06], max = [0.0, 0.06, 0.06] }]";
+
+    /// The angular frequency of the bending wave of wavenumber `k` in a
+    /// Timoshenko beam: the lower root of
+    /// `E I k^4 - rho A w^2 - rho I w^2 k^2 (1 + E / (kappa G)) + rho^2 I w^4 / (kappa G) = 0`
+    /// (Timoshenko 1921), with Cowper's `kappa`.
+    fn timoshenko_omega(
+        k: Real,
+        (e, rho, nu): (Real, Real, Real),
+        area: Real,
+        inertia: Real,
+    ) -> Real {
+        let kappa = 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu);
+        let kg = kappa * e / (2.0 * (1.0 + nu));
+        let a = rho * rho * inertia / kg;
+        let b = -(rho * area + rho * inertia * k * k * (1.0 + e / kg));
+        let c = e * inertia * k.powi(4);
+        ((-b - (b * b - 4.0 * a * c).sqrt()) / (2.0 * a)).sqrt()
+    }
+
+    /// The clamp is part of the discretisation: a cantilever built at
+    /// display resolutions 0, 1 and 2 sags and rings the same (to 1e-9),
+    /// and close to beam theory. Before the penalty was integrated over
+    /// the box's own faces it took the display triangles, and the tip sag
+    /// moved by more than 10 % between them.
+    #[test]
+    fn the_clamp_does_not_depend_on_the_display_resolution() {
+        let (l, h): (Real, Real) = (1.0, 0.1);
+        let (e, rho, nu): (Real, Real, Real) = (2.0e11, 7850.0, 0.3);
+        let g = 9.81;
+        let (area, inertia) = (h * h, h.powi(4) / 12.0);
+        let q = rho * g * area;
+        let kappa = 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu);
+        let shear = e / (2.0 * (1.0 + nu));
+        let euler_bernoulli = q * l.powi(4) / (8.0 * e * inertia);
+        let timoshenko = euler_bernoulli + q * l * l / (2.0 * kappa * shear * area);
+        let beta_l: Real = 1.875_104_07;
+        let omega_eb = (beta_l / l).powi(2) * (e * inertia / (rho * area)).sqrt();
+        let omega_t = timoshenko_omega(beta_l / l, (e, rho, nu), area, inertia);
+        let mut measured = Vec::new();
+        for subdivisions in [0, 1, 2] {
+            let (scene, spec) = steel_cantilever(subdivisions, CLAMP);
+            let solid = scene
+                .validate_modal_solid("systems[0]", &spec, &BuildOptions::default())
+                .expect("builds");
+            let efg = solid.efg();
+            let u = efg
+                .static_displacement(&efg.body_load(&Vector::new(0.0, -g, 0.0)))
+                .expect("held by the clamp");
+            let nodal: Vec<Vector> = u.chunks(3).map(|c| Vector::new(c[0], c[1], c[2])).collect();
+            let mut at = Vec::new();
+            efg.shape_table(&[Vector::new(l, 0.0, 0.0)])
+                .expect("covered")
+                .interpolate(&nodal, &mut at);
+            let (tip, omega) = (-at[0].y, solid.frequencies()[0]);
+            println!(
+                "surface_subdivisions {subdivisions}: tip {tip:.6e} m (Timoshenko {timoshenko:.6e}, \
+                 {:+.2} %), omega_1 {omega:.4} rad/s (Euler–Bernoulli {omega_eb:.4}, {:+.2} %; \
+                 Timoshenko {omega_t:.4}, {:+.2} %)",
+                100.0 * (tip / timoshenko - 1.0),
+                100.0 * (omega / omega_eb - 1.0),
+                100.0 * (omega / omega_t - 1.0)
+            );
+            measured.push((tip, omega));
+        }
+        let (tip, omega) = measured[0];
+        for (other_tip, other_omega) in &measured[1..] {
+            assert!((other_tip / tip - 1.0).abs() < 1e-9, "{measured:?}");
+            assert!((other_omega / omega - 1.0).abs() < 1e-9, "{measured:?}");
+        }
+        assert!(
+            (tip / timoshenko - 1.0).abs() < 0.05,
+            "{tip} vs {timoshenko}"
+        );
+        assert!((omega / omega_t - 1.0).abs() < 0.05, "{omega} vs {omega_t}");
+    }
+
+    /// Each anchor must hold part of the surface: one beside the beam is
+    /// refused by its own key, not dropped while the other holds the beam.
+    #[test]
+    fn an_anchor_that_holds_nothing_is_refused_naming_it() {
+        let anchors = "[{ min = [-0.001, -0.06, -0.06], max = [0.001, 0.06, 0.06] }, \
+                       { min = [0.4, 0.1, -0.06], max = [0.6, 0.2, 0.06] }]";
+        let (scene, _) = steel_cantilever(0, anchors);
+        let err = scene
+            .validate(&BuildOptions::default())
+            .expect_err("the second anchor holds nothing");
+        let message = err.to_string();
+        println!("{message}");
+        assert!(
+            message.starts_with("systems[0].anchors[1]: holds none of the solid's surface"),
+            "{message}"
+        );
+    }
+
+    /// A sphere is a sphere at every display resolution: its volume is
+    /// the ball's and its anchored cap and first frequency do not move
+    /// with `surface_subdivisions` (the solid was the display icosphere,
+    /// an icosahedron at 0: 40 % short of the ball's volume).
+    #[test]
+    fn a_sphere_does_not_depend_on_the_display_resolution() {
+        let radius: Real = 0.1;
+        let mut measured = Vec::new();
+        for subdivisions in [0, 2] {
+            let text = format!(
+                r#"
+                [domain]
+                min = [-0.2, -0.2, -0.2]
+                max = [0.2, 0.2, 0.2]
+                [time]
+                dt = 0.01
+                [[systems]]
+                kind = "modal_solid"
+                shape = {{ type = "sphere", radius = {radius} }}
+                position = [0.0, 0.0, 0.0]
+                young = 1.0e6
+                cell = 0.04
+                modes = 4
+                surface_subdivisions = {subdivisions}
+                anchors = [{{ min = [-0.2, -0.2, -0.2], max = [0.2, 0.2, -0.05] }}]
+                "#
+            );
+            let scene = Scene::from_toml_str(&text).expect("parses");
+            let SystemSpec::ModalSolid(spec) = &scene.systems[0] else {
+                panic!("a modal solid");
+            };
+            let solid = scene
+                .validate_modal_solid("systems[0]", spec, &BuildOptions::default())
+                .expect("builds");
+            let volume = solid.efg().volume() / (4.0 / 3.0 * std::f64::consts::PI * radius.powi(3));
+            println!(
+                "surface_subdivisions {subdivisions}: volume / ball {volume:.5}, omega_1 {:.4} rad/s",
+                solid.frequencies()[0]
+            );
+            measured.push((volume, solid.frequencies()[0]));
+        }
+        assert!((measured[0].0 - 1.0).abs() < 0.02, "{measured:?}");
+        assert!(
+            (measured[1].1 / measured[0].1 - 1.0).abs() < 1e-9,
+            "{measured:?}"
+        );
+        assert!(
+            (measured[1].0 / measured[0].0 - 1.0).abs() < 1e-12,
+            "{measured:?}"
+        );
     }
 }

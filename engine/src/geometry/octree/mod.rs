@@ -500,19 +500,43 @@ impl Octree {
         self.alpha
     }
 
-    /// The leaf holding `p` (the lower-indexed one on a shared face), or
-    /// `None` outside the root cube.
+    /// The leaf holding `p`, or `None` outside the root cube. A point on a
+    /// face, edge or corner shared by several leaves lies in each of them;
+    /// it is given a non-exterior one where there is one, because only
+    /// those list candidate supports: a point of the solid on the face
+    /// between an interior octant and an exterior one is covered from the
+    /// interior side, and would read as covered by nothing from the
+    /// exterior side. Off shared faces, the one leaf holding it.
     pub fn leaf_at(&self, p: &Vector) -> Option<u32> {
-        let cells = (1u64 << self.depth) as Real;
-        let mut finest = [0u32; 3];
+        let cells = 1u32 << self.depth;
+        // Per axis, the finest cell holding `p` and, on a face between two
+        // of them, the one below as well.
+        let mut options = [[0u32; 2]; 3];
         for k in 0..3 {
-            let t = (p[k] - self.origin[k]) / self.root * cells;
-            if !(t >= 0.0 && t <= cells) {
+            let t = (p[k] - self.origin[k]) / self.root * cells as Real;
+            if !(t >= 0.0 && t <= cells as Real) {
                 return None;
             }
-            finest[k] = (t as u32).min((1u32 << self.depth) - 1);
+            let c = (t as u32).min(cells - 1);
+            options[k] = [c, if c > 0 && c as Real == t { c - 1 } else { c }];
         }
-        self.leaf_covering(self.depth, finest)
+        let mut exterior = None;
+        for pick in 0..8usize {
+            // Each choice of a lower cell once: skip the repeats of axes
+            // with only one.
+            if (0..3).any(|k| pick >> k & 1 == 1 && options[k][0] == options[k][1]) {
+                continue;
+            }
+            let coords: [u32; 3] = std::array::from_fn(|k| options[k][pick >> k & 1]);
+            let Some(leaf) = self.leaf_covering(self.depth, coords) else {
+                continue;
+            };
+            if self.leaves[leaf as usize].kind != OctantKind::Exterior {
+                return Some(leaf);
+            }
+            exterior.get_or_insert(leaf);
+        }
+        exterior
     }
 
     /// The nodes whose supports may cover points of leaf `leaf`: a

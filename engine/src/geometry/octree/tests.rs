@@ -1,32 +1,5 @@
 use super::*;
-use crate::geometry::{MeshSdf, TriMesh};
-
-/// A ball as an exact signed distance.
-struct Ball {
-    centre: Vector,
-    radius: Real,
-}
-
-impl ImplicitSurface for Ball {
-    fn signed_distance(&self, p: &Vector) -> Real {
-        (p - self.centre).norm() - self.radius
-    }
-
-    fn normal(&self, p: &Vector) -> Vector {
-        (p - self.centre).normalize()
-    }
-
-    fn project(&self, p: &Vector) -> Vector {
-        self.centre + self.normal(p) * self.radius
-    }
-
-    fn bounds(&self) -> (Vector, Vector) {
-        (
-            self.centre - Vector::repeat(self.radius),
-            self.centre + Vector::repeat(self.radius),
-        )
-    }
-}
+use crate::geometry::{Ball, MeshSdf, TriMesh};
 
 fn params(cell: Real, interior_levels: u32) -> OctreeParams {
     OctreeParams {
@@ -180,4 +153,57 @@ fn a_cancelled_build_stops() {
         Octree::build(&beam(), &params(0.25, 0), &cancel).expect_err("cancelled"),
         OctreeError::Cancelled
     );
+}
+
+/// A point of the solid on the face between an exterior octant (above it)
+/// and a non-exterior one (below) is given the non-exterior one, whose
+/// candidates cover it; it was given the exterior one, with none.
+///
+/// The ball's top pokes 2e-4 through a face plane of the grid (the origin
+/// is its lowest point less half a cell, so its top lies `cell / 2 + 2 R`
+/// above the origin: 15.5 cells and 2e-4), between the face's corners
+/// (the cap is 0.02 wide, the corners 0.03 away): the octant above has
+/// no corner or centre inside, so it is exterior.
+#[test]
+fn a_point_on_a_face_shared_with_an_exterior_octant_finds_its_supports() {
+    let cell = 0.125;
+    let ball = Ball {
+        centre: Vector::new(0.013, -0.021, 0.007),
+        radius: (15.5 * cell + 2e-4) / 2.0,
+    };
+    let tree = Octree::build(&ball, &params(cell, 2), &Cancel::new()).expect("octree");
+    // On each exterior leaf's lower faces, the point nearest the centre:
+    // where it lies in the ball, the ball crosses that face.
+    let mut found = 0;
+    for (e, leaf) in tree.leaves().iter().enumerate() {
+        if leaf.kind != OctantKind::Exterior {
+            continue;
+        }
+        for k in 0..3 {
+            let mut p = ball
+                .centre
+                .sup(&leaf.min)
+                .inf(&(leaf.min + Vector::repeat(leaf.size)));
+            p[k] = leaf.min[k];
+            let below = p - Vector::ith(k, 1e-9 * leaf.size);
+            if ball.signed_distance(&p) > 0.0
+                || tree
+                    .leaf_at(&below)
+                    .is_none_or(|b| tree.leaves()[b as usize].kind == OctantKind::Exterior)
+            {
+                continue;
+            }
+            found += 1;
+            let at = tree.leaf_at(&p).expect("in the tree");
+            assert_ne!(at as usize, e, "{p:?} on exterior leaf {e}'s face");
+            assert_ne!(
+                tree.leaves()[at as usize].kind,
+                OctantKind::Exterior,
+                "{p:?}"
+            );
+            assert!(!tree.candidates(at).is_empty(), "{p:?}");
+        }
+    }
+    println!("{found} points of the ball on faces of exterior octants");
+    assert!(found > 0, "the ball crosses a face of an exterior octant");
 }
