@@ -330,7 +330,10 @@ mod tests {
         }
         let weakest = 1.0 / (3.0 as Real).sqrt();
         assert!(push(&svk, weakest) < push(&svk, 0.3) && push(&svk, 0.3) < push(&svk, 0.05));
-        assert!(push(&svk, 0.0).abs() < 1e-9, "StVK holds nothing at a stretch of 0");
+        assert!(
+            push(&svk, 0.0).abs() < 1e-9,
+            "StVK holds nothing at a stretch of 0"
+        );
         assert!(push(&snh, 0.0) < push(&snh, weakest) && push(&snh, -0.2) < push(&snh, 0.0));
     }
 }
