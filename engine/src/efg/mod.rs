@@ -55,4 +55,6 @@ mod tests_admission;
 #[cfg(test)]
 mod tests_extremes;
 #[cfg(test)]
+mod tests_paths;
+#[cfg(test)]
 mod tests_warping;

@@ -14,7 +14,7 @@ fn steel_like() -> Material {
 /// The cuboid `[0, l] x [0, h] x [0, h]` with its faces cut into small
 /// triangles (for the penalty's surface integral), and the part of it in
 /// the plane `x = 0`.
-fn beam(l: Real, h: Real) -> (MeshSdf, FixedSurface) {
+pub(super) fn beam(l: Real, h: Real) -> (MeshSdf, FixedSurface) {
     let mesh = TriMesh::cuboid(Vector::zeros(), Vector::new(l, h, h)).subdivided(4);
     let fixed = FixedSurface::of_mesh_in_box(
         &mesh,
@@ -161,7 +161,8 @@ fn a_cantilever_sags_under_gravity_as_beam_theory_says() {
 
 /// `(beta_n L)` of a clamped-free Euler–Bernoulli beam: the roots of
 /// `cos x cosh x = -1` (Timoshenko & Young; Blevins, Table 8-1).
-const CLAMPED_FREE: [Real; 4] = [1.875_104_07, 4.694_091_13, 7.854_757_44, 10.995_540_73];
+pub(super) const CLAMPED_FREE: [Real; 4] =
+    [1.875_104_07, 4.694_091_13, 7.854_757_44, 10.995_540_73];
 
 /// `(beta_n L)` of a free-free beam: the positive roots of
 /// `cos x cosh x = 1` (Blevins, Table 8-1).
@@ -172,7 +173,12 @@ const FREE_FREE: [Real; 2] = [4.730_040_74, 7.853_204_62];
 /// `E I k^4 - rho A w^2 - rho I w^2 k^2 (1 + E / (kappa G)) + rho^2 I w^4 / (kappa G) = 0`
 /// (Timoshenko 1921; exact for a simply supported beam, an approximation
 /// at a cantilever's wavenumbers).
-fn timoshenko_frequency(k: Real, material: &Material, area: Real, inertia: Real) -> Real {
+pub(super) fn timoshenko_frequency(
+    k: Real,
+    material: &Material,
+    area: Real,
+    inertia: Real,
+) -> Real {
     let (e, rho, nu) = (material.young, material.density, material.poisson);
     let kappa = 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu);
     let kg = kappa * e / (2.0 * (1.0 + nu));

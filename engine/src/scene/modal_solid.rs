@@ -126,7 +126,9 @@ pub struct ModalSolidSpec {
     /// Support side over octant side.
     #[serde(default = "default_alpha")]
     pub alpha: Real,
-    /// MLS basis: linear or quadratic.
+    /// MLS basis: linear or quadratic. The quadratic one needs three
+    /// layers of nodes under every point: with it raise `alpha` (4.5
+    /// builds a box, whose corners at 3 see 2 x 2 x 2 nodes).
     #[serde(default = "default_basis")]
     pub basis: Order,
     /// Gauss points per axis of an integration cell, 1 to 5.
