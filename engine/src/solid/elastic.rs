@@ -121,7 +121,7 @@ impl ElasticSolid {
     /// `1/sqrt(3)` and vanishes at 0, so a soft block under its own weight
     /// flattened into one layer of particles (`det F` near 0) and stayed
     /// there as an equilibrium, with nothing in the finite-and-bounded
-    /// checks of [`Self::first_invalid`] to notice.
+    /// checks of `first_invalid` to notice.
     pub const MIN_VOLUME_RATIO: Real = 0.2;
 
     /// The particle squeezed furthest below [`Self::MIN_VOLUME_RATIO`] at
