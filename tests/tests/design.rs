@@ -541,6 +541,10 @@ async fn motion_optimisation_plays_back_along_the_motion() {
         .await
         .expect("valid scene");
     let id = session.id.clone();
+    // The session's own frame: where the column starts.
+    let start = within("latest frame", client.latest_frame(&id))
+        .await
+        .expect("a frame");
     let edits = vec![
         add(keyframe("start", 0.0, [0.0; 3])),
         add(keyframe("middle", 0.5, [0.1, 0.0, 0.0])),
@@ -572,20 +576,26 @@ async fn motion_optimisation_plays_back_along_the_motion() {
     assert_eq!(design.times.last(), Some(&1.0));
     assert!(design.info.converged, "{:?}", design.info);
 
-    // span * rate + 1 frames, in time order, the column moving with the
-    // keyframes: 0.2 m along x by the end.
+    // Up to span * rate + 1 frames, in time order, the column moving with
+    // the keyframes: 0.2 m along x by the end. Frames are drop-not-block,
+    // so a loaded machine may lose some of the burst (waiting for all 11
+    // once timed out in CI): read until the last.
     let mean_x = |frame: &meshless_client::FrameView| {
         let p = frame.field(v1::FieldKind::Position).expect("positions");
         let xs: Vec<f64> = p.values.chunks_exact(3).map(|p| f64::from(p[0])).collect();
         xs.iter().sum::<f64>() / xs.len() as f64
     };
     let mut played = Vec::new();
-    for _ in 0..11 {
-        played.push(
-            within("playback frame", frames.recv())
-                .await
-                .expect("a frame"),
-        );
+    loop {
+        let frame = within("playback frame", frames.recv())
+            .await
+            .expect("a frame");
+        let last = (frame.time - 1.0).abs() < 1e-9;
+        played.push(frame);
+        if last {
+            break;
+        }
+        assert!(played.len() < 11, "no frame at the end of the motion");
     }
     let times: Vec<f64> = played.iter().map(|f| f.time).collect();
     assert!(
@@ -593,10 +603,13 @@ async fn motion_optimisation_plays_back_along_the_motion() {
         "playback times increase: {times:?}"
     );
     assert!(
-        (times[0] - 0.0).abs() < 1e-9 && (times[10] - 1.0).abs() < 1e-9,
-        "{times:?}"
+        times
+            .iter()
+            .all(|t| (t * rate - (t * rate).round()).abs() < 1e-9),
+        "one frame per tenth of a second: {times:?}"
     );
-    let shift = mean_x(&played[10]) - mean_x(&played[0]);
+    let end = played.last().expect("the last frame");
+    let shift = mean_x(end) - mean_x(&start);
     assert!(
         (shift - 0.2).abs() < 0.01,
         "the column ends 0.2 m along x: {shift}"
