@@ -13,6 +13,7 @@
 use meshless_engine::scene::{IntegratorKind, SystemSpec};
 use meshless_engine::solid::LinearSolver;
 use meshless_engine::{BuildOptions, Frame, Scene};
+use meshless_tests::fixture;
 use meshless_validation::design::{Stretch, stretch_params};
 use std::path::PathBuf;
 
@@ -97,15 +98,6 @@ fn shipped(file: &str) -> Scene {
         .join(file);
     let text = std::fs::read_to_string(&path).expect("the shipped scene is readable");
     Scene::from_toml_str(&text).expect("the shipped scene parses")
-}
-
-/// A test fixture scene (`tests/fixtures`), as its file says.
-fn fixture(file: &str) -> Scene {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("fixtures")
-        .join(file);
-    let text = std::fs::read_to_string(&path).expect("the fixture is readable");
-    Scene::from_toml_str(&text).expect("the fixture parses")
 }
 
 /// The shipped cantilever stepped implicitly with `solver`.
@@ -216,7 +208,8 @@ fn implicit_beam_frames_are_bit_identical() {
 /// positions and deformed skin.
 #[test]
 fn small_modal_frames_are_bit_identical() {
-    check("small_modal", &run_scene(&fixture("small_modal.toml"), 10));
+    let scene = Scene::from_toml_str(&fixture("small_modal")).expect("the fixture parses");
+    check("small_modal", &run_scene(&scene, 10));
 }
 
 /// Figure 13's stretch with the volume energy: the design's displacements,

@@ -40,9 +40,9 @@
 //! inverted particle does not break it) and agrees with Hooke's law to
 //! first order, so small-strain results match St Venant–Kirchhoff's. It
 //! was chosen over corotated linear elasticity because it is a true
-//! hyperelastic energy (the implicit solver's Newton steps and energy
-//! watch need one) and needs no polar decomposition, whose rotation is
-//! ill-defined at inversion.
+//! hyperelastic energy (the implicit solver's Newton steps and the
+//! energies frames report need one) and needs no polar decomposition,
+//! whose rotation is ill-defined at inversion.
 
 use crate::math::Real;
 use nalgebra::Matrix3;
