@@ -2,6 +2,7 @@
 //! commands from gRPC handlers and publishing frames and status on zenoh.
 
 mod access;
+mod frame_queue;
 mod interrupt;
 mod optimize;
 mod publish;
@@ -55,8 +56,6 @@ type Reply = oneshot::Sender<Result<v1::SessionStatus, ServiceError>>;
 /// queryable and `GetLatestFrame` (readers).
 pub type LatestFrame = Arc<Mutex<Arc<Frame>>>;
 
-/// Frames queued for zenoh before new ones are dropped.
-const FRAME_QUEUE: usize = 4;
 /// Status changes buffered per watcher.
 const STATUS_EVENTS: usize = 64;
 /// Progress reports queued per optimisation before new ones are dropped.
@@ -265,7 +264,7 @@ impl Session {
         let (status_tx, status) = watch::channel(initial);
         let (events, _) = broadcast::channel(STATUS_EVENTS);
         let latest: LatestFrame = Arc::new(Mutex::new(Arc::new(world.frame())));
-        let (frames_tx, frames_rx) = mpsc::channel(FRAME_QUEUE);
+        let (frames_tx, frames_rx) = frame_queue::frame_queue();
         let (commands, commands_rx) = std::sync::mpsc::channel();
         let interrupts = Arc::new(Interrupts::default());
         let realtime_factor = Arc::new(AtomicU64::new(0f64.to_bits()));

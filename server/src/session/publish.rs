@@ -3,14 +3,14 @@
 //! the latest frame. The compute thread only hands them data.
 
 use super::LatestFrame;
+use super::frame_queue::FrameReceiver;
 use crate::metrics::Metrics;
-use meshless_engine::Frame;
 use meshless_proto::seal::Sealer;
 use meshless_proto::{keys, v1};
 use meshless_wire::frame::frame_to_proto;
 use prost::Message;
 use std::sync::Arc;
-use tokio::sync::{broadcast, mpsc};
+use tokio::sync::broadcast;
 use tokio_util::sync::CancellationToken;
 use zenoh::qos::{CongestionControl, Priority};
 
@@ -38,7 +38,7 @@ impl Outlet {
 }
 
 /// Puts every frame from `frames` until the worker drops its sender.
-pub fn spawn_frames(outlet: Outlet, id: String, mut frames: mpsc::Receiver<Arc<Frame>>) {
+pub fn spawn_frames(outlet: Outlet, id: String, mut frames: FrameReceiver) {
     tokio::spawn(async move {
         let key = keys::frames(&id);
         let publisher = match outlet

@@ -12,6 +12,7 @@
 //! running; every other message waits for the call, in order, so that
 //! the steps of two calls never interleave.
 
+use super::frame_queue::FrameSender;
 use super::interrupt::Interrupts;
 use super::optimize::{self, Channels, OptimizeJob, WarmStart};
 use super::simulate::Progress;
@@ -20,14 +21,14 @@ use super::{Command, LatestFrame, Origin, Reply, SharedDesign, lock};
 use crate::error::{ServiceError, state_name};
 use crate::metrics::Metrics;
 use meshless_engine::efg::Grab;
-use meshless_engine::{BuildOptions, Cancel, Frame, StepError, World};
+use meshless_engine::{BuildOptions, Cancel, StepError, World};
 use meshless_proto::v1::{SessionState, SessionStatus};
 use std::collections::{BTreeMap, VecDeque};
 use std::panic::AssertUnwindSafe;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::time::{Duration, Instant};
-use tokio::sync::{broadcast, mpsc, watch};
+use tokio::sync::{broadcast, watch};
 use tokio_util::sync::CancellationToken;
 
 /// What a run steps towards.
@@ -113,7 +114,7 @@ pub type Queued = (u64, Message);
 pub struct Outputs {
     pub status: watch::Sender<SessionStatus>,
     pub events: broadcast::Sender<SessionStatus>,
-    pub frames: mpsc::Sender<Arc<Frame>>,
+    pub frames: FrameSender,
     pub latest: LatestFrame,
     pub metrics: Arc<Metrics>,
     /// The last step's real-time factor, as `f64` bits.
@@ -868,7 +869,7 @@ mod tests {
         let options = BuildOptions::default();
         let (status, status_rx) = watch::channel(SessionStatus::default());
         let (events, _) = broadcast::channel(4);
-        let (frames, _frames_rx) = mpsc::channel(4);
+        let (frames, _frames_rx) = crate::session::frame_queue::frame_queue();
         let out = Outputs {
             status,
             events,
