@@ -252,6 +252,7 @@ impl Metrics {
             Some(StepError::Collapsed { .. }) => "solid_collapsed",
             Some(StepError::Compressed { .. }) => "compressed",
             Some(StepError::EnergyGained { .. }) => "energy_gained",
+            Some(StepError::SolidEnergyGained { .. }) => "solid_energy_gained",
             // Never a fault: the step is undone, or refused untaken.
             Some(StepError::Cancelled { .. } | StepError::CounterFull { .. }) => return,
             None => "internal",

@@ -45,7 +45,11 @@ fn system_to_proto(system: &SystemState) -> v1::SystemSnapshot {
             energy_start: energy_start.map(|(e, _)| e),
             energy_scale: energy_start.map(|(_, s)| s),
         }),
-        SystemState::Solid { solid, .. } => v1::system_snapshot::Kind::Solid(v1::SolidSnapshot {
+        SystemState::Solid {
+            solid,
+            energy_start,
+            ..
+        } => v1::system_snapshot::Kind::Solid(v1::SolidSnapshot {
             positions: flatten(&solid.positions),
             velocities: flatten(&solid.velocities),
             plastic: solid
@@ -66,6 +70,8 @@ fn system_to_proto(system: &SystemState) -> v1::SystemSnapshot {
                 .map(|(_, v)| v.clone())
                 .unwrap_or_default(),
             escalated: solid.escalated,
+            energy_start: energy_start.map(|(e, _)| e),
+            energy_scale: energy_start.map(|(_, s)| s),
         }),
         SystemState::Modal { state, .. } => v1::system_snapshot::Kind::Modal(v1::ModalSnapshot {
             amplitudes: state.amplitudes.clone(),
@@ -132,16 +138,7 @@ fn system_from_proto(message: v1::SystemSnapshot, field: &str) -> Result<SystemS
                 energy_scale,
             } = f;
             let field = format!("{field}.fluid");
-            let energy_start = match (energy_start, energy_scale) {
-                (Some(e), Some(s)) => Some((e, s)),
-                (None, None) => None,
-                _ => {
-                    return Err(WireError::new(
-                        format!("{field}.energy_start"),
-                        "energy_start and energy_scale come together",
-                    ));
-                }
-            };
+            let energy_start = energy_pair(energy_start, energy_scale, &field)?;
             SystemState::Fluid {
                 index,
                 fluid: FluidSnapshot {
@@ -184,8 +181,11 @@ fn system_from_proto(message: v1::SystemSnapshot, field: &str) -> Result<SystemS
                 rest,
                 volumes,
                 escalated,
+                energy_start,
+                energy_scale,
             } = s;
             let field = format!("{field}.solid");
+            let energy_start = energy_pair(energy_start, energy_scale, &field)?;
             let plastic = if plastic.is_empty() {
                 None
             } else {
@@ -216,9 +216,27 @@ fn system_from_proto(message: v1::SystemSnapshot, field: &str) -> Result<SystemS
                     reference,
                     escalated,
                 },
+                energy_start,
             }
         }
     })
+}
+
+/// An energy watch's start `(E_0, scale)` from its two optional fields,
+/// which come together.
+fn energy_pair(
+    start: Option<Real>,
+    scale: Option<Real>,
+    field: &str,
+) -> Result<Option<(Real, Real)>> {
+    match (start, scale) {
+        (Some(e), Some(s)) => Ok(Some((e, s))),
+        (None, None) => Ok(None),
+        _ => Err(WireError::new(
+            format!("{field}.energy_start"),
+            "energy_start and energy_scale come together",
+        )),
+    }
 }
 
 fn body_from_proto(message: v1::RigidBodySnapshot, field: &str) -> Result<BodyState> {

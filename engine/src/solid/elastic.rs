@@ -2,7 +2,7 @@
 //! and the integrator that advances it (the buffers its steps reuse).
 
 use super::body::{Body, SolidError};
-use super::contact::Obstacles;
+use super::contact::{Obstacles, Penalty};
 use super::integrate::{Integrator, SolidStep};
 use super::material::Hyperelastic;
 use super::params::SolidParams;
@@ -68,6 +68,62 @@ impl ElasticSolid {
     ) -> Result<SolidStep, Cancelled> {
         self.integrator
             .step(&mut self.body, dt, gravity, max_substeps, cancel)
+    }
+
+    /// Mechanical energy under `gravity` after a step of `dt`: kinetic,
+    /// stored (elastic, volume, hourglass, and the implicit contact
+    /// penalty's, which depends on the step) and gravitational
+    /// `-sum m g . x`, J (per metre of depth in 2D).
+    pub fn mechanical_energy(&self, gravity: &Vector, dt: Real) -> Real {
+        let body = &self.body;
+        let p = &body.params;
+        let contact = match (
+            &self.integrator,
+            Penalty::new(&body.obstacles, p.dim, p.spacing, p.young, dt),
+        ) {
+            (Integrator::Implicit(_), Some(penalty)) => body
+                .positions
+                .iter()
+                .zip(&body.masses)
+                .zip(&body.fixed)
+                .filter(|(_, fixed)| !**fixed)
+                .map(|((x, m), _)| penalty.energy(*m, x))
+                .sum(),
+            _ => 0.0,
+        };
+        let gravitational: Real = body
+            .positions
+            .iter()
+            .zip(&body.masses)
+            .map(|(x, m)| -m * gravity.dot(x))
+            .sum();
+        body.kinetic_energy() + body.potential_energy() + contact + gravitational
+    }
+
+    /// The energy scale the world's watch measures gains against:
+    /// `KE + U + M |g| H + M c_p^2 / 1000`, with `U` the stored energy,
+    /// `H` the walls' extent along gravity, or the body's own without
+    /// walls (`world/watch.rs`).
+    pub fn energy_scale(&self, gravity: &Vector) -> Real {
+        let body = &self.body;
+        let (min, max) = body.obstacles.walls.unwrap_or_else(|| {
+            body.positions.iter().fold(
+                (
+                    Vector::repeat(Real::INFINITY),
+                    Vector::repeat(Real::NEG_INFINITY),
+                ),
+                |(lo, hi), x| (lo.inf(x), hi.sup(x)),
+            )
+        });
+        let height: Real = (0..3).map(|a| gravity[a].abs() * (max[a] - min[a])).sum();
+        let mass: Real = body.masses.iter().sum();
+        let wave = body.params.wave_speed();
+        body.kinetic_energy() + body.potential_energy() + mass * height + 1e-3 * mass * wave * wave
+    }
+
+    /// Whether the implicit integrator steps it.
+    pub fn is_implicit(&self) -> bool {
+        matches!(self.integrator, Integrator::Implicit(_))
     }
 
     /// Bytes held by the implicit integrator's last sparse Cholesky factor

@@ -147,6 +147,7 @@ fn build_solids(scene: &Scene, prepared: &mut [Prepared]) -> Vec<SolidEntry> {
                 solid,
                 backup: SolidState::default(),
                 surface,
+                watch: EnergyWatch::default(),
             })
         })
         .collect()
@@ -173,6 +174,7 @@ fn build_modal_solids(scene: &Scene, prepared: &mut [Prepared]) -> Vec<ModalEntr
                 scene_grabs: solid.grabs().to_vec(),
                 solid: *solid,
                 playback: spec.playback,
+                watch: EnergyWatch::default(),
             })
         })
         .collect()

@@ -191,6 +191,27 @@ pub enum StepError {
         /// The step that failed.
         step: u64,
     },
+    /// An elastic solid gained mechanical energy with nothing to supply it
+    /// ([`watch::MAX_ENERGY_GAIN`]).
+    #[error(
+        "the solid in systems[{system}] gained {gained:.3e} J of mechanical energy since it \
+         started ({:.1} % of its scale, beyond the {:.0} % allowed) in step {step}: the step is \
+         adding energy; {advice}", 100.0 * fraction, 100.0 * limit
+    )]
+    SolidEnergyGained {
+        /// Index of the solid's system in the scene.
+        system: usize,
+        /// Joules gained (per metre of depth in 2D).
+        gained: Real,
+        /// The gain as a fraction of the energy scale.
+        fraction: Real,
+        /// The largest fraction allowed.
+        limit: Real,
+        /// What to change, for the solid's integrator and its solve.
+        advice: &'static str,
+        /// The step that failed.
+        step: u64,
+    },
     /// The step's [`Cancel`] was raised before it finished (see
     /// [`World::step_cancellable`]): not a fault, the step can be taken
     /// again.
@@ -369,7 +390,11 @@ impl World {
     /// describe (a deformed start, say).
     pub fn solid_mut(&mut self, system: usize) -> Option<&mut ElasticSolid> {
         match self.system_mut(system)? {
-            System::Solid(s) => Some(&mut s.solid),
+            System::Solid(s) => {
+                // An edited state is a new start for the energy watch.
+                s.watch.restart();
+                Some(&mut s.solid)
+            }
             System::Fluid(_) | System::Modal(_) => None,
         }
     }

@@ -3,6 +3,7 @@
 //! mode playback.
 
 use super::system::{RemoveError, Simulated, StepEnv};
+use super::watch::{EnergyWatch, MAX_ENERGY_GAIN};
 use super::{StepError, StepInfo};
 use crate::efg::{Grab, GrabError, ModalSolid, ModalState};
 use crate::fluid::Invalid;
@@ -26,6 +27,9 @@ pub(crate) struct ModalEntry {
     pub playback: Option<PlaybackSpec>,
     /// The scene's own grabs, which every later set keeps.
     pub scene_grabs: Vec<Grab>,
+    /// The energy the solid started from, which it may not exceed while
+    /// nothing holds it (grabs and playback supply energy).
+    pub watch: EnergyWatch,
 }
 
 impl ModalEntry {
@@ -35,7 +39,10 @@ impl ModalEntry {
     /// [`GrabError`]; the previous grabs then stay.
     pub(crate) fn set_grabs(&mut self, extra: &[Grab]) -> Result<(), GrabError> {
         let all: Vec<Grab> = self.scene_grabs.iter().chain(extra).copied().collect();
-        self.solid.set_grabs(&all)
+        self.solid.set_grabs(&all)?;
+        // Released or newly held: the energy starts again from here.
+        self.watch.restart();
+        Ok(())
     }
 
     /// The grabs besides the scene's.
@@ -108,12 +115,37 @@ impl Simulated for ModalEntry {
     /// length: the integrator is unconditionally stable, so no sub-steps.
     fn step(&mut self, env: &StepEnv, _timer: &mut StageTimer) -> Result<StepInfo, StepError> {
         env.check()?;
+        let watched = self.playback.is_none() && self.solid.grabs().is_empty();
+        if watched {
+            let solid = &self.solid;
+            self.watch.begin_with(|| {
+                (
+                    solid.mechanical_energy(&env.gravity),
+                    solid.energy_scale(&env.gravity),
+                )
+            });
+        }
         if let Some(playback) = self.playback {
             self.play(playback, env.step as Real * env.dt)?;
         } else {
             self.solid
                 .step(env.dt, &env.gravity)
                 .map_err(|_| self.unstable("modal amplitude", Real::INFINITY, env.step))?;
+        }
+        if watched
+            && let Some((gained, fraction)) = self
+                .watch
+                .excess(self.solid.mechanical_energy(&env.gravity))
+        {
+            return Err(StepError::SolidEnergyGained {
+                system: self.index,
+                gained,
+                fraction,
+                limit: MAX_ENERGY_GAIN,
+                advice: "the only source in a modal step is warping turning the load with the nodes: \
+                         lower time.dt or set warping = false",
+                step: env.step,
+            });
         }
         match self.first_invalid() {
             Some(invalid) => Err(StepError::SolidUnstable {

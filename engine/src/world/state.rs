@@ -43,6 +43,8 @@ pub enum SystemState {
         index: usize,
         /// Its particles.
         solid: SolidSnapshot,
+        /// The energy watch's start `(E_0, scale)`, if measured.
+        energy_start: Option<(Real, Real)>,
     },
     /// A modal solid: its reduced state (its grabs belong to whoever set
     /// them, and are set again after a restore).
@@ -182,6 +184,7 @@ impl World {
                 System::Solid(entry) => SystemState::Solid {
                     index: entry.index,
                     solid: entry.solid.snapshot(),
+                    energy_start: entry.watch.start(),
                 },
                 System::Modal(entry) => SystemState::Modal {
                     index: entry.index,
@@ -263,8 +266,19 @@ impl World {
                     }
                     entry.watch.set_start(*energy_start);
                 }
-                (System::Solid(entry), SystemState::Solid { solid, .. }) => {
+                (
+                    System::Solid(entry),
+                    SystemState::Solid {
+                        solid,
+                        energy_start,
+                        ..
+                    },
+                ) => {
                     entry.solid.restore_snapshot(solid).map_err(at)?;
+                    if let Some((e0, scale)) = *energy_start {
+                        check_finite("energy start", &[e0, scale]).map_err(at)?;
+                    }
+                    entry.watch.set_start(*energy_start);
                 }
                 (System::Modal(entry), SystemState::Modal { state, .. }) => {
                     let modes = entry.solid.eigenvalues().len();
@@ -288,6 +302,9 @@ impl World {
                             got: state.amplitudes.len(),
                         })
                     })?;
+                    // Its backward Euler step only loses energy, so the
+                    // watch may start again from the restored state.
+                    entry.watch.restart();
                 }
                 // The kinds were matched above.
                 (System::Fluid(_) | System::Solid(_) | System::Modal(_), _) => {

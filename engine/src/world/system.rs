@@ -367,6 +367,8 @@ pub(crate) struct SolidEntry {
     pub backup: SolidState,
     /// Its embedded surface, when the scene asks for one.
     pub surface: Option<EmbeddedSurface>,
+    /// The energy the solid started from, which it may not exceed.
+    pub watch: EnergyWatch,
 }
 
 impl Simulated for SolidEntry {
@@ -392,6 +394,13 @@ impl Simulated for SolidEntry {
     /// The solid sub-steps itself, reading the flag at each sub-step or
     /// Newton and CG iteration; its state is checked after the step.
     fn step(&mut self, env: &StepEnv, _timer: &mut StageTimer) -> Result<StepInfo, StepError> {
+        let solid = &self.solid;
+        self.watch.begin_with(|| {
+            (
+                solid.mechanical_energy(&env.gravity, env.dt),
+                solid.energy_scale(&env.gravity),
+            )
+        });
         let step = self
             .solid
             .step_cancellable(env.dt, &env.gravity, env.max_substeps, env.cancel)
@@ -425,6 +434,14 @@ impl Simulated for SolidEntry {
                 step: env.step,
             });
         }
+        self.watch.check_solid(
+            &self.solid,
+            self.index,
+            &env.gravity,
+            env.dt,
+            step.unconverged,
+            env.step,
+        )?;
         Ok(info)
     }
 

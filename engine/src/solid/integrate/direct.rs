@@ -77,6 +77,7 @@ impl Direct {
         &mut self,
         body: &Body,
         states: &[StressState],
+        contact: &[Matrix3<Real>],
         dt: Real,
         gradient: &[Vector],
         direction: &mut [Vector],
@@ -94,7 +95,7 @@ impl Direct {
             .flat_map(|&k| gradient[k as usize].iter().take(dim).map(|g| -g));
         let Some(solution) = self.cholesky.solve(
             &pattern.blocks,
-            |n, out| assemble_column(body, states, dt, pattern, n, out),
+            |n, out| assemble_column(body, states, contact, dt, pattern, n, out),
             rhs,
         ) else {
             return false;
@@ -165,6 +166,7 @@ impl Pattern {
 fn assemble_column(
     body: &Body,
     states: &[StressState],
+    contact: &[Matrix3<Real>],
     dt: Real,
     pattern: &Pattern,
     n: usize,
@@ -240,7 +242,7 @@ fn assemble_column(
 
     // The diagonal block is the first: every other row is below it. The
     // dashpots add `c_e n n^T` there and subtract it at the pair's block.
-    let mut diagonal = nalgebra::Matrix3::from_diagonal_element(body.masses[pn]);
+    let mut diagonal = Matrix3::from_diagonal_element(body.masses[pn]) + contact[pn];
     if model.damping > 0.0 {
         let pairs = t
             .gradients
@@ -381,9 +383,18 @@ mod tests {
             // Long enough that stiffness outweighs mass in `H`.
             let dt = 0.05;
             let pattern = Pattern::build(&body).expect("pattern");
+            // Every third particle touches a floor (and, in 3D, a side
+            // wall), with a contact stiffness of a few masses.
+            let contact: Vec<Matrix3<Real>> = (0..body.len())
+                .map(|k| match (k % 3, dim) {
+                    (0, 2) => Matrix3::from_diagonal(&Vector::new(0.0, 3.0, 0.0)) * body.masses[k],
+                    (0, _) => Matrix3::from_diagonal(&Vector::new(2.0, 3.0, 0.0)) * body.masses[k],
+                    _ => Matrix3::zeros(),
+                })
+                .collect();
             let mut values = Vec::new();
             pattern.blocks.assemble(&mut values, |n, out| {
-                assemble_column(&body, &states, dt, &pattern, n, out);
+                assemble_column(&body, &states, &contact, dt, &pattern, n, out);
             });
             let mut seed = 7;
             let p: Vec<Vector> = (0..body.len())
@@ -396,7 +407,7 @@ mod tests {
                 })
                 .collect();
             let assembled = product(&pattern, &values, &p);
-            let matrix_free = hessian_product(&body, &states, dt, &p);
+            let matrix_free = hessian_product(&body, &states, &contact, dt, &p);
             let error = relative_difference(&assembled, &matrix_free, dim);
             assert!(error < 1e-8, "{dim}D: H p differs by {error:e}");
 
@@ -404,7 +415,7 @@ mod tests {
             let mut solver = Direct::default();
             let rhs: Vec<Vector> = matrix_free.iter().map(|v| -v).collect();
             let mut direction = vec![Vector::zeros(); body.len()];
-            assert!(solver.direction(&body, &states, dt, &rhs, &mut direction));
+            assert!(solver.direction(&body, &states, &contact, dt, &rhs, &mut direction));
             let error = relative_difference(&direction, &p, dim);
             assert!(error < 1e-8, "{dim}D: solution differs by {error:e}");
             assert!(solver.factor_bytes() > 0);

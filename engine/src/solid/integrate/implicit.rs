@@ -17,21 +17,27 @@
 //! curvature ends early with the descent made so far; the line search
 //! guarantees `Phi` decreases.
 //!
+//! Contact with obstacles and walls is a penalty energy inside `Phi`
+//! ([`Penalty`]): `U` includes it, `K` its stiffness `k n n^T`, so the
+//! step never ends on a projection that stores strain (`contact.rs`).
+//!
 //! Implicit midpoint ([`ImplicitScheme::Midpoint`]) reuses the same solve:
 //! its midpoint velocity `v_m = v + (dt/2) a(x + (dt/2) v_m)` is a backward
 //! Euler step of `dt / 2`, and `x+ = x + dt v_m`, `v+ = 2 v_m - v` follow.
 
 use super::super::body::Body;
+use super::super::contact::Penalty;
 use super::super::forces::{InternalForces, Split};
 use super::super::material::StressState;
 use super::super::params::{ImplicitParams, ImplicitScheme, LinearSolver, STATIC_PERIODS};
+use super::SolidStep;
 use super::direct::Direct;
-use super::{SolidStep, finish_substep};
 use crate::cancel::{Cancel, Cancelled};
 use crate::linalg::cg::{self, Stopping, Termination};
 use crate::linalg::linop::par_sum;
 use crate::linalg::{LinOp, Parallel, Precond, Space};
 use crate::math::{Real, Vector};
+use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 /// The implicit integrator: its settings, and the solve's vectors kept
@@ -55,6 +61,9 @@ pub(in crate::solid) struct Implicit {
     trial_gradient: Vec<Vector>,
     /// Inverse Jacobi diagonal.
     inverse_diagonal: Vec<Real>,
+    /// `dt^2` times each particle's contact stiffness at the iterate
+    /// (zero away from obstacles).
+    contact: Vec<Matrix3<Real>>,
     /// The Hessian product's scratch.
     product: ProductBuffers,
     cg: cg::Workspace<Vector, Parallel>,
@@ -119,6 +128,7 @@ impl Implicit {
             rhs: Vec::new(),
             trial_gradient: Vec::new(),
             inverse_diagonal: Vec::new(),
+            contact: Vec::new(),
             product: ProductBuffers::default(),
             cg: cg::Workspace::default(),
             direct: Direct::default(),
@@ -140,6 +150,7 @@ impl Implicit {
             v.resize(n, Vector::zeros());
         }
         self.inverse_diagonal.resize(n, 0.0);
+        self.contact.resize(n, Matrix3::zeros());
         self.product.split.resize(n, edges);
     }
 
@@ -186,7 +197,20 @@ impl Implicit {
             .par_iter_mut()
             .zip(&self.v_new)
             .for_each(|(x, v)| *x += v * advance);
-        finish_substep(body, &self.forces.states);
+        let p = &body.params;
+        // Field by field: the penalty reads the obstacles while the
+        // positions move.
+        if let Some(penalty) = Penalty::new(&body.obstacles, p.dim, p.spacing, p.young, h) {
+            penalty.finish(
+                h,
+                body.params.friction,
+                &body.masses,
+                &body.fixed,
+                &mut body.positions,
+                &mut body.velocities,
+            );
+        }
+        body.flow(&self.forces.states);
         Ok(SolidStep {
             min_substep: dt,
             ..report
@@ -223,12 +247,14 @@ impl Implicit {
                 .sum::<Real>()
                 .sqrt();
         let mut first = None;
+        let contact = penalty(body, dt);
         for _ in 0..settings.max_newton_iterations.max(1) {
             cancel.check()?;
             // Phi at the iterate; leaves the forces and states there.
             let phi = objective(
                 body,
                 &mut self.forces,
+                contact.as_ref(),
                 dt,
                 gravity,
                 &self.v_new,
@@ -237,9 +263,11 @@ impl Implicit {
             gradient(
                 body,
                 &self.forces.forces,
+                contact.as_ref(),
                 dt,
                 gravity,
                 &self.v_new,
+                &self.x_new,
                 &mut self.gradient,
             );
             let norm = dot(&self.gradient, &self.gradient).sqrt();
@@ -249,11 +277,13 @@ impl Implicit {
                 break;
             }
             newton += 1;
+            self.contact_stiffness(body, contact.as_ref(), dt);
             let factorises = self.escalated || settings.linear_solver.factorises(body.params.dim);
             let mut direct = factorises
                 && self.direct.direction(
                     body,
                     &self.forces.states,
+                    &self.contact,
                     dt,
                     &self.gradient,
                     &mut self.direction,
@@ -274,6 +304,7 @@ impl Implicit {
                     direct = self.direct.direction(
                         body,
                         &self.forces.states,
+                        &self.contact,
                         dt,
                         &self.gradient,
                         &mut self.direction,
@@ -281,7 +312,7 @@ impl Implicit {
                     fallbacks += u32::from(!direct);
                 }
             }
-            if !self.line_search(body, dt, gravity, phi) {
+            if !self.line_search(body, contact.as_ref(), dt, gravity, phi) {
                 break;
             }
         }
@@ -295,6 +326,17 @@ impl Implicit {
             residual,
             unconverged: residual > settings.newton_tolerance,
         })
+    }
+
+    /// `dt^2 K_c` at the iterate `self.x_new` into `self.contact`.
+    fn contact_stiffness(&mut self, body: &Body, contact: Option<&Penalty<'_>>, dt: Real) {
+        let x = &self.x_new;
+        self.contact.par_iter_mut().enumerate().for_each(|(i, k)| {
+            *k = match contact {
+                Some(c) if !body.fixed[i] => c.stiffness_matrix(body.masses[i], &x[i]) * (dt * dt),
+                _ => Matrix3::zeros(),
+            };
+        });
     }
 
     /// Solves `H d = -grad Phi` into `self.direction` by preconditioned
@@ -314,6 +356,7 @@ impl Implicit {
         let stiffness = body.params.wave_modulus();
         let t = &body.topology;
         let g = t.gradients.all_weights();
+        let contact = &self.contact;
         self.inverse_diagonal
             .par_iter_mut()
             .enumerate()
@@ -327,7 +370,10 @@ impl Implicit {
                         })
                         .sum::<Real>();
                 let m = body.masses[i];
-                *d = 1.0 / (m * (1.0 + 4.0 * dt * model.damping) + dt * dt * stiffness * spread);
+                *d = 1.0
+                    / (m * (1.0 + 4.0 * dt * model.damping)
+                        + dt * dt * stiffness * spread
+                        + contact[i].trace());
             });
         self.rhs
             .par_iter_mut()
@@ -347,6 +393,7 @@ impl Implicit {
         let mut hessian = Hessian {
             body,
             states: &self.forces.states,
+            contact: &self.contact,
             dt,
             buffers: &mut self.product,
         };
@@ -376,7 +423,14 @@ impl Implicit {
     /// of about 1e-6 while an exact (Cholesky) direction would still
     /// converge quadratically. There a trial is judged by the residual
     /// norm instead, which a Newton step near a minimum reduces.
-    fn line_search(&mut self, body: &Body, dt: Real, gravity: &Vector, phi: Real) -> bool {
+    fn line_search(
+        &mut self,
+        body: &Body,
+        contact: Option<&Penalty<'_>>,
+        dt: Real,
+        gravity: &Vector,
+        phi: Real,
+    ) -> bool {
         let slope = dot(&self.gradient, &self.direction).min(0.0);
         let below_rounding = -slope <= ROUNDING * phi.abs();
         let norm = dot(&self.gradient, &self.gradient);
@@ -389,6 +443,7 @@ impl Implicit {
             let value = objective(
                 body,
                 &mut self.forces,
+                contact,
                 dt,
                 gravity,
                 &self.trial,
@@ -401,9 +456,11 @@ impl Implicit {
                         gradient(
                             body,
                             &self.forces.forces,
+                            contact,
                             dt,
                             gravity,
                             &self.trial,
+                            &self.x_new,
                             &mut self.trial_gradient,
                         );
                         dot(&self.trial_gradient, &self.trial_gradient) < norm
@@ -423,6 +480,7 @@ impl Implicit {
 fn objective(
     body: &Body,
     forces: &mut InternalForces,
+    contact: Option<&Penalty<'_>>,
     dt: Real,
     gravity: &Vector,
     v_new: &[Vector],
@@ -434,21 +492,37 @@ fn objective(
         .zip(v_new)
         .for_each(|((out, x), v)| *out = x + v * dt);
     let potential = forces.evaluate(body, Some(x_new), Some(v_new), true);
+    let x_new = &*x_new;
     let kinetic = par_sum(v_new.len(), |i| {
         let (a, b, m) = (&v_new[i], &body.velocities[i], body.masses[i]);
-        0.5 * m * (a - b).norm_squared() - dt * m * gravity.dot(a)
+        let touching = match contact {
+            Some(c) if !body.fixed[i] => c.energy(m, &x_new[i]),
+            _ => 0.0,
+        };
+        0.5 * m * (a - b).norm_squared() - dt * m * gravity.dot(a) + touching
     });
     kinetic + potential + dt * body.model().dissipation(v_new)
 }
 
-/// `grad Phi = M (v+ - v) - dt (f + M g)` with the internal forces `f`
-/// at `v_new`; zero at anchored particles.
+/// The penalty contact of `body` for a solve of step `h`, if it has
+/// obstacles.
+fn penalty(body: &Body, h: Real) -> Option<Penalty<'_>> {
+    let p = &body.params;
+    Penalty::new(&body.obstacles, p.dim, p.spacing, p.young, h)
+}
+
+/// `grad Phi = M (v+ - v) - dt (f + f_c + M g)` with the internal forces
+/// `f` at `v_new` and the contact forces `f_c` at `x_new`; zero at
+/// anchored particles.
+#[allow(clippy::too_many_arguments)]
 fn gradient(
     body: &Body,
     f: &[Vector],
+    contact: Option<&Penalty<'_>>,
     dt: Real,
     gravity: &Vector,
     v_new: &[Vector],
+    x_new: &[Vector],
     out: &mut [Vector],
 ) {
     out.par_iter_mut().enumerate().for_each(|(i, r)| {
@@ -456,7 +530,8 @@ fn gradient(
             Vector::zeros()
         } else {
             let m = body.masses[i];
-            (v_new[i] - body.velocities[i]) * m - (f[i] + gravity * m) * dt
+            let touching = contact.map_or_else(Vector::zeros, |c| c.force(m, &x_new[i]));
+            (v_new[i] - body.velocities[i]) * m - (f[i] + touching + gravity * m) * dt
         };
     });
 }
@@ -466,12 +541,14 @@ fn gradient(
 struct Hessian<'a> {
     body: &'a Body,
     states: &'a [StressState],
+    /// `dt^2 K_c` per particle.
+    contact: &'a [Matrix3<Real>],
     dt: Real,
     buffers: &'a mut ProductBuffers,
 }
 
 impl LinOp<Vector> for Hessian<'_> {
-    /// `y = H p = M p - dt^2 K p - dt f_d(p)`.
+    /// `y = H p = M p - dt^2 K p + dt^2 K_c p - dt f_d(p)`.
     fn apply(&mut self, p: &[Vector], y: &mut [Vector]) {
         let body = self.body;
         let dt = self.dt;
@@ -485,11 +562,12 @@ impl LinOp<Vector> for Hessian<'_> {
         }
         let damped = model.damping > 0.0;
         let damping = &b.damping;
+        let contact = self.contact;
         y.par_iter_mut().enumerate().for_each(|(i, h)| {
             *h = if body.fixed[i] {
                 Vector::zeros()
             } else {
-                let mut v = p[i] * body.masses[i] - *h * (dt * dt);
+                let mut v = p[i] * body.masses[i] - *h * (dt * dt) + contact[i] * p[i];
                 if damped {
                     v -= damping[i] * dt;
                 }
@@ -505,6 +583,7 @@ impl LinOp<Vector> for Hessian<'_> {
 pub(super) fn hessian_product(
     body: &Body,
     states: &[StressState],
+    contact: &[Matrix3<Real>],
     dt: Real,
     p: &[Vector],
 ) -> Vec<Vector> {
@@ -515,6 +594,7 @@ pub(super) fn hessian_product(
     Hessian {
         body,
         states,
+        contact,
         dt,
         buffers: &mut buffers,
     }
