@@ -348,6 +348,51 @@ impl BoxWalls {
         sum
     }
 
+    /// The mirror images the walls near `x` cast (Monaghan's "mirror
+    /// particles"): every reflection across one wall near `x`, or across
+    /// several of them on different axes (the images of the images that
+    /// fill a corner). `visit` gets, per reflection, the planes
+    /// `[axis] = Some(c)` it reflects across (`x_a -> 2 c - x_a`).
+    #[inline]
+    pub fn mirrors(&self, x: &Vector, mut visit: impl FnMut(&[Option<Real>; 3])) {
+        // Per axis: no reflection, or across its lower or upper wall if near.
+        let mut choices = [[None; 3]; 3];
+        let mut counts = [1usize; 3];
+        for a in (0..3).filter(|&a| self.walled[a]) {
+            if x[a] - self.min[a] < self.h {
+                choices[a][counts[a]] = Some(self.min[a]);
+                counts[a] += 1;
+            }
+            if self.max[a] - x[a] < self.h {
+                choices[a][counts[a]] = Some(self.max[a]);
+                counts[a] += 1;
+            }
+        }
+        for i in 0..counts[0] {
+            for j in 0..counts[1] {
+                for k in 0..counts[2] {
+                    if i + j + k > 0 {
+                        visit(&[choices[0][i], choices[1][j], choices[2][k]]);
+                    }
+                }
+            }
+        }
+    }
+
+    /// `x_i - S x_j` for the reflection `S` across `planes` (see
+    /// [`Self::mirrors`]), from `r = x_i - x_j` (periodic along the
+    /// unwalled axes) and the positions along the reflected ones.
+    #[inline]
+    pub fn mirrored(planes: &[Option<Real>; 3], r: &Vector, xi: &Vector, xj: &Vector) -> Vector {
+        let mut image = *r;
+        for (a, plane) in planes.iter().enumerate() {
+            if let Some(c) = plane {
+                image[a] = xi[a] + xj[a] - 2.0 * c;
+            }
+        }
+        image
+    }
+
     /// The pressure acceleration the walls exert on a particle at `x` with
     /// pressure `p` and density `rho`: `-(p / rho^2) grad rho_wall`.
     #[inline]
