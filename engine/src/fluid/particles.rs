@@ -62,11 +62,12 @@ impl FluidParams {
         rest_density / sum
     }
 
-    /// What rigid bodies in this fluid take from it: its spacing, rest
-    /// density and kernels.
+    /// What rigid bodies in this fluid take from it: its spacing, particle
+    /// mass, rest density and kernels.
     pub fn boundary(&self) -> BoundaryParams {
         BoundaryParams {
             spacing: self.spacing,
+            mass: self.mass,
             rest_density: self.eos.rest_density,
             density_kernel: self.density_kernel,
             gradient_kernel: self.gradient_kernel,

@@ -79,6 +79,7 @@ impl PressureSolver for Wcsph {
             if let Some(rigid) = &mut fluid.rigid {
                 rigid.add_forces(
                     &fluid.positions,
+                    &fluid.neighbors,
                     &fluid.velocities,
                     &fluid.densities,
                     Some(&fluid.pressures),
