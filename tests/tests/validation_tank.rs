@@ -162,10 +162,12 @@ fn hydrostatic_error(kernels: &str) -> (f64, f64) {
 /// Hydrostatics, per solver and kernel pair. Per-particle pressures of a
 /// weakly compressible fluid are far noisier than the law (a 1 % density
 /// ripple is `7 K 1 %` Pa); time and layer averages are what `rho_0 g d`
-/// predicts. Measured: WCSPH with the cubic spline pair within 2 % of
-/// `rho_0 g H`; with Müller's poly6/spiky pair about 10 %, its pressure
-/// gradient a quarter steeper than `rho_0 g` (the spiky gradient's lattice
-/// moment against poly6 densities is not 1 at h = 2 dx); DFSPH within 7 %
+/// predicts. Measured: WCSPH with the cubic spline pair within 2.3 % of
+/// `rho_0 g H` (0.6 % before its walls became mirror images, which stand
+/// the column 1.2 cm higher); with Müller's poly6/spiky pair about 6 %
+/// (9 % before), its pressure gradient steeper than `rho_0 g` (the spiky
+/// gradient's lattice moment against poly6 densities is not 1 at h = 2
+/// dx); DFSPH within 2 %
 /// (its pressure is the sum of what its two solves applied), holding the
 /// average density error under its 0.1 % tolerance.
 #[test]
