@@ -417,6 +417,72 @@ mod tests {
         }
     }
 
+    /// The walls' mirror images continue a lattice filling a corner of the
+    /// box (rows at `dx/2, 3dx/2, …` from each wall) as the lattice itself:
+    /// a particle in the first rows, beside one wall, two or three, has
+    /// the rest density from its neighbours and their images, and a
+    /// uniform pressure pushes it nowhere (the tabulated walls' one-sided
+    /// push left it pressed into them). In 2D and 3D.
+    #[test]
+    fn mirror_images_complete_a_lattice_and_balance_a_uniform_pressure() {
+        let spacing = 0.02;
+        for dim in [2, 3] {
+            let kernel = Kernel::new(KernelKind::CubicSpline, dim, 2.0 * spacing);
+            let mass = FluidParams::lattice_mass(spacing, &kernel, 1000.0);
+            let walls = BoxWalls::new(
+                Vector::zeros(),
+                Vector::repeat(1.0),
+                spacing,
+                mass,
+                &kernel,
+                &kernel,
+            );
+            let depth = if dim == 2 { 1 } else { 6 };
+            let lattice: Vec<Vector> = (0..6)
+                .flat_map(|i| (0..6).flat_map(move |j| (0..depth).map(move |k| (i, j, k))))
+                .map(|(i, j, k)| {
+                    let z = if dim == 2 {
+                        0.0
+                    } else {
+                        (k as Real + 0.5) * spacing
+                    };
+                    Vector::new((i as Real + 0.5) * spacing, (j as Real + 0.5) * spacing, z)
+                })
+                .collect();
+            let (p, rho) = (1000.0, 1000.0);
+            for (i, xi) in lattice.iter().enumerate() {
+                // The corner's first two rows: beside one wall, two or three.
+                if (0..dim).any(|a| xi[a] > 2.0 * spacing) {
+                    continue;
+                }
+                let mut density = 0.0;
+                let mut push = Vector::zeros();
+                let mut add = |r: Vector| {
+                    density += mass * kernel.value(r.norm());
+                    push -= kernel.gradient(&r, r.norm()) * (mass * 2.0 * p / (rho * rho));
+                };
+                for xj in &lattice {
+                    add(xi - xj);
+                }
+                walls.mirrors(xi, |planes| {
+                    for xj in &lattice {
+                        add(BoxWalls::mirrored(planes, &(xi - xj), xi, xj));
+                    }
+                });
+                assert!(
+                    (density - 1000.0).abs() < 1e-6 * 1000.0,
+                    "{dim}D, particle {i} at {xi:?}: density {density}"
+                );
+                // One neighbour's term, against which round-off is measured.
+                let scale = kernel.derivative(spacing).abs() * mass * 2.0 * p / (rho * rho);
+                assert!(
+                    push.norm() < 1e-9 * scale,
+                    "{dim}D, particle {i} at {xi:?}: a uniform pressure pushes it by {push:?}"
+                );
+            }
+        }
+    }
+
     /// Positive pressure pushes particles off every wall, and only walls
     /// within the support radius act.
     #[test]
