@@ -321,14 +321,18 @@ fn a_viscous_fluid_in_rigid_rotation_keeps_its_angular_momentum() {
 
 /// Spin-down in a no-slip container (nu = 0.01 m^2/s, R = 0.2 m, support
 /// 3 spacings: the slowest mode decays in R^2 / (j_1^2 nu) = 0.27 s),
-/// against the Bessel series over 0.5 s. Outside the 10 % one would want:
-/// the fluid keeps 58 % of its angular momentum at 0.1 s against the
-/// series' 43 % (worst 16.4 % of L0), its near-wall ring running at 0.115
-/// m/s against 0.066. A rigid body's no-slip term acts through one layer
-/// of boundary samples at the body's own velocity, where the domain walls
-/// integrate every ghost layer with Morris's velocity extrapolation: the
-/// container holds the fluid back too weakly (docs/validation.md).
-/// Asserted: within 20 % of L0 and of Omega R, and slower than free slip.
+/// against the Bessel series over 0.5 s: within 10 % of L0 and 5 % of
+/// Omega R. The container is a rigid body with one layer of boundary
+/// samples; the fluid stands farther off them than a lattice's half
+/// spacing, and their friction at the body's own velocity held the fluid
+/// back too weakly: it kept 58 % of its angular momentum at 0.1 s against
+/// the series' 43 % (worst 16.4 % of L0), its near-wall ring running at
+/// 0.115 m/s against 0.066 (12.3 % of Omega R). The samples' friction is
+/// now scaled to what a ghost lattice filling the neighbourhood's missing
+/// volume, with Morris's extrapolation, would exert (`rigid/ghosts.rs`):
+/// 9.3 % of L0 and 2.7 % of Omega R. What is left is mostly the bulk: at
+/// support 3 Monaghan's form sees 0.91 of the viscosity, and the late
+/// decay runs at 0.95 of the series' rate.
 #[test]
 fn spin_down_follows_the_bessel_series() {
     let nu = 0.01;
@@ -375,10 +379,10 @@ fn spin_down_follows_the_bessel_series() {
         100.0 * worst_profile
     );
     assert!(
-        worst_momentum < 0.2,
+        worst_momentum < 0.10,
         "angular momentum off by {worst_momentum}"
     );
-    assert!(worst_profile < 0.2, "ring velocity off by {worst_profile}");
+    assert!(worst_profile < 0.05, "ring velocity off by {worst_profile}");
     assert!(
         angular_momentum(&world) / start < 0.5,
         "the no-slip container hardly braked the fluid"

@@ -6,6 +6,7 @@
 //! (Guo–Qin, Eq. 12-13).
 
 pub mod kernels;
+pub mod layers;
 pub mod mls;
 pub mod operators;
 pub mod tensor;

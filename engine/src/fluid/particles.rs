@@ -62,11 +62,12 @@ impl FluidParams {
         rest_density / sum
     }
 
-    /// What rigid bodies in this fluid take from it: its spacing, rest
-    /// density and kernels.
+    /// What rigid bodies in this fluid take from it: its spacing, particle
+    /// mass, rest density and kernels.
     pub fn boundary(&self) -> BoundaryParams {
         BoundaryParams {
             spacing: self.spacing,
+            mass: self.mass,
             rest_density: self.eos.rest_density,
             density_kernel: self.density_kernel,
             gradient_kernel: self.gradient_kernel,
@@ -325,6 +326,14 @@ impl Fluid {
     /// `rho_i = sum_j m_j omega(|x_i - x_j|)` (Algorithm 5; poly6 by
     /// default), plus the walls' ghost layers (Eq. 55).
     pub(in crate::fluid) fn compute_densities(&mut self) {
+        self.compute_densities_with(false);
+    }
+
+    /// The densities with the walls' ghost layers tabulated
+    /// (`mirrored = false`, [`BoxWalls::density`]) or made of the fluid's
+    /// own mirror images (`true`, [`BoxWalls::mirrors`]):
+    /// `rho_i = sum_j m_j (omega(|x_i - x_j|) + sum_S omega(|x_i - S x_j|))`.
+    pub(in crate::fluid) fn compute_densities_with(&mut self, mirrored: bool) {
         let (positions, neighbors, kernel, mass, walls, rigid) = (
             &self.positions,
             &self.neighbors,
@@ -337,13 +346,26 @@ impl Fluid {
             .par_iter_mut()
             .enumerate()
             .for_each(|(i, rho)| {
-                *rho = mass
-                    * neighbors
-                        .pairs(i, positions)
-                        .map(|(_, r)| kernel.value_sq(r.norm_squared()))
-                        .sum::<Real>()
-                    + walls.map_or(0.0, |w| w.density(&positions[i]))
-                    + rigid.map_or(0.0, |r| r.density(i, &positions[i]));
+                let xi = positions[i];
+                let own = neighbors
+                    .pairs(i, positions)
+                    .map(|(_, r)| kernel.value_sq(r.norm_squared()))
+                    .sum::<Real>();
+                let wall = match walls {
+                    Some(w) if mirrored => {
+                        let mut sum = 0.0;
+                        w.mirrors(&xi, |planes| {
+                            for (j, r) in neighbors.pairs(i, positions) {
+                                let image = BoxWalls::mirrored(planes, &r, &xi, &positions[j]);
+                                sum += kernel.value_sq(image.norm_squared());
+                            }
+                        });
+                        mass * sum
+                    }
+                    Some(w) => w.density(&xi),
+                    None => 0.0,
+                };
+                *rho = mass * own + wall + rigid.map_or(0.0, |r| r.density(i, &xi));
             });
     }
 

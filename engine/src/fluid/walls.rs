@@ -16,10 +16,28 @@
 //! `-(m / dx^3) (p_i / rho_i^2) Phi_g'(d) n` (`Phi_g` uses the gradient
 //! kernel; `n` is the wall's inward normal), the wall's share of
 //! `-(p_i / rho_i^2) grad rho_i` as in Akinci et al. 2012. That is the force
-//! the wall's density term implies, so walls neither gain nor lose energy;
-//! mirroring the pressure onto the ghosts, as the symmetric form of Eq. 51
-//! would, doubles the push and measurably pumped energy into a resting
-//! tank. Walls take no part in XSPH.
+//! the wall's density term implies, so walls neither gain nor lose energy.
+//! DFSPH pushes off the walls this way (through [`BoxWalls::density_gradient`]).
+//!
+//! That one-sided push is half of what a particle's own symmetric pair
+//! terms miss on the wall's side, so under a uniform pressure it nets a
+//! push into the wall: a settled column's floor row sat at 0.2 spacings
+//! instead of 0.5 and held the column at 1.8 times its hydrostatic
+//! pressure (`validation_tank::floor_rows_read_the_hydrostatic_pressure`).
+//! Mirroring the particle's own pressure onto the ghosts (the symmetric
+//! form of Eq. 51), even with Adami, Hu & Adams's (2012) hydrostatic
+//! correction, balances it (floor row within 9 % of `rho_0 g d`) but is no
+//! force of any energy: an undamped tank gained 12 % of its energy scale
+//! in 0.15 s and faulted. WCSPH therefore uses the fluid's mirror images
+//! instead ([`BoxWalls::mirrors`], Monaghan's mirror particles): every
+//! neighbour `j` of a particle near a wall also stands reflected across
+//! it, at its own pressure and in the density sum, so the walls are the
+//! fluid continued by symmetry. The images enter the density and the
+//! symmetric pressure force alike, which makes them the exact gradient of
+//! the fluid's energy `sum_k m e(rho_k)`: walls still neither gain nor
+//! lose energy, and a uniform pressure balances (floor row within 1 % of
+//! `rho_0 g d`). Reflections across two or three walls fill edges and
+//! corners. Walls take no part in XSPH.
 //!
 //! Walls are free-slip unless the scene makes them no-slip. Then the ghost
 //! lattice also carries velocity, extrapolated as Morris et al. (1997) do
@@ -38,6 +56,7 @@
 
 use super::ViscosityModel;
 use crate::approx::Kernel;
+use crate::approx::layers::{extrapolation, friction_layer, integrate};
 use crate::math::{Real, Vector};
 use std::f64::consts::PI;
 
@@ -74,66 +93,6 @@ struct Friction {
     normal: Vec<Real>,
     /// Each wall's velocity, `[axis][0 below, 1 above]`.
     velocity: [[Vector; 2]; 3],
-}
-
-/// `beta`: the relative velocity of a particle at distance `d` from the
-/// wall and a ghost at `depth` behind it, over the particle's own velocity
-/// relative to the wall, `1 + depth / d`, with `d` no nearer than half a
-/// spacing (where a lattice's first row sits).
-///
-/// Morris et al. cap `beta` at 1.5 to keep particles touching the wall
-/// finite. The cap cuts the extrapolation short for every layer deeper
-/// than half the particle's distance, so the ghosts drag too little and
-/// the flow's no-slip plane lay 0.2 spacings behind the wall, its first
-/// row 54 % fast in a Poiseuille channel (`validation_viscous`). Bounding
-/// `d` instead keeps the extrapolation exact wherever a lattice puts
-/// particles and still finite at the wall.
-fn extrapolation(depth: Real, d: Real, spacing: Real) -> Real {
-    1.0 + depth / d.max(0.5 * spacing)
-}
-
-/// One ghost layer's friction sums at distance `z` from the particle:
-/// `(int x_t^2 g dA, int z^2 g dA)` over the layer's plane (3D) or line
-/// (2D), with `g(r) = W'(r) / (r (r^2 + eta^2))`.
-fn friction_layer(kernel: &Kernel, z: Real) -> (Real, Real) {
-    let h = kernel.support();
-    if z >= h {
-        return (0.0, 0.0);
-    }
-    let eta2 = 0.01 * h * h;
-    let g = |s: Real| {
-        let r2 = s * s + z * z;
-        let r = r2.sqrt();
-        kernel.derivative(r) / (r * (r2 + eta2))
-    };
-    let reach = (h * h - z * z).sqrt();
-    if kernel.dim() == 2 {
-        (
-            2.0 * integrate(0.0, reach, |s| s * s * g(s)),
-            2.0 * z * z * integrate(0.0, reach, g),
-        )
-    } else {
-        (
-            PI * integrate(0.0, reach, |s| s * s * s * g(s)),
-            2.0 * PI * z * z * integrate(0.0, reach, |s| s * g(s)),
-        )
-    }
-}
-
-/// `int_a^b f(x) dx` by 3-point Gauss–Legendre on 64 panels.
-fn integrate(a: Real, b: Real, f: impl Fn(Real) -> Real) -> Real {
-    let panels = 64;
-    let nodes = [-(0.6 as Real).sqrt(), 0.0, (0.6 as Real).sqrt()];
-    let weights = [5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0];
-    let width = (b - a) / panels as Real;
-    let mut sum = 0.0;
-    for p in 0..panels {
-        let mid = a + (p as Real + 0.5) * width;
-        for (x, w) in nodes.iter().zip(weights) {
-            sum += w * 0.5 * width * f(mid + 0.5 * width * x);
-        }
-    }
-    sum
 }
 
 /// `P(z)`: the kernel integrated over the plane (3D) or line (2D) at
@@ -348,8 +307,55 @@ impl BoxWalls {
         sum
     }
 
-    /// The pressure acceleration the walls exert on a particle at `x` with
-    /// pressure `p` and density `rho`: `-(p / rho^2) grad rho_wall`.
+    /// The mirror images the walls near `x` cast (Monaghan's "mirror
+    /// particles"): every reflection across one wall near `x`, or across
+    /// several of them on different axes (the images of the images that
+    /// fill a corner). `visit` gets, per reflection, the planes
+    /// `[axis] = Some(c)` it reflects across (`x_a -> 2 c - x_a`).
+    #[inline]
+    pub fn mirrors(&self, x: &Vector, mut visit: impl FnMut(&[Option<Real>; 3])) {
+        // Per axis: no reflection, or across its lower or upper wall if near.
+        let mut choices = [[None; 3]; 3];
+        let mut counts = [1usize; 3];
+        for a in (0..3).filter(|&a| self.walled[a]) {
+            if x[a] - self.min[a] < self.h {
+                choices[a][counts[a]] = Some(self.min[a]);
+                counts[a] += 1;
+            }
+            if self.max[a] - x[a] < self.h {
+                choices[a][counts[a]] = Some(self.max[a]);
+                counts[a] += 1;
+            }
+        }
+        for i in 0..counts[0] {
+            for j in 0..counts[1] {
+                for k in 0..counts[2] {
+                    if i + j + k > 0 {
+                        visit(&[choices[0][i], choices[1][j], choices[2][k]]);
+                    }
+                }
+            }
+        }
+    }
+
+    /// `x_i - S x_j` for the reflection `S` across `planes` (see
+    /// [`Self::mirrors`]), from `r = x_i - x_j` (periodic along the
+    /// unwalled axes) and the positions along the reflected ones.
+    #[inline]
+    pub fn mirrored(planes: &[Option<Real>; 3], r: &Vector, xi: &Vector, xj: &Vector) -> Vector {
+        let mut image = *r;
+        for (a, plane) in planes.iter().enumerate() {
+            if let Some(c) = plane {
+                image[a] = xi[a] + xj[a] - 2.0 * c;
+            }
+        }
+        image
+    }
+
+    /// The pressure acceleration of the tabulated walls on a particle at
+    /// `x` with pressure `p` and density `rho`: `-(p / rho^2) grad
+    /// rho_wall`, the one-sided term (see the module documentation; WCSPH
+    /// pushes through [`Self::mirrors`] instead).
     #[inline]
     pub fn pressure_acceleration(&self, x: &Vector, p: Real, rho: Real) -> Vector {
         -self.density_gradient(x) * (p / (rho * rho))
@@ -407,6 +413,72 @@ mod tests {
                         "{kind:?} in {dim}D, layer {layer}: density {rho} beside the wall"
                     );
                 }
+            }
+        }
+    }
+
+    /// The walls' mirror images continue a lattice filling a corner of the
+    /// box (rows at `dx/2, 3dx/2, …` from each wall) as the lattice itself:
+    /// a particle in the first rows, beside one wall, two or three, has
+    /// the rest density from its neighbours and their images, and a
+    /// uniform pressure pushes it nowhere (the tabulated walls' one-sided
+    /// push left it pressed into them). In 2D and 3D.
+    #[test]
+    fn mirror_images_complete_a_lattice_and_balance_a_uniform_pressure() {
+        let spacing = 0.02;
+        for dim in [2, 3] {
+            let kernel = Kernel::new(KernelKind::CubicSpline, dim, 2.0 * spacing);
+            let mass = FluidParams::lattice_mass(spacing, &kernel, 1000.0);
+            let walls = BoxWalls::new(
+                Vector::zeros(),
+                Vector::repeat(1.0),
+                spacing,
+                mass,
+                &kernel,
+                &kernel,
+            );
+            let depth = if dim == 2 { 1 } else { 6 };
+            let lattice: Vec<Vector> = (0..6)
+                .flat_map(|i| (0..6).flat_map(move |j| (0..depth).map(move |k| (i, j, k))))
+                .map(|(i, j, k)| {
+                    let z = if dim == 2 {
+                        0.0
+                    } else {
+                        (k as Real + 0.5) * spacing
+                    };
+                    Vector::new((i as Real + 0.5) * spacing, (j as Real + 0.5) * spacing, z)
+                })
+                .collect();
+            let (p, rho) = (1000.0, 1000.0);
+            for (i, xi) in lattice.iter().enumerate() {
+                // The corner's first two rows: beside one wall, two or three.
+                if (0..dim).any(|a| xi[a] > 2.0 * spacing) {
+                    continue;
+                }
+                let mut density = 0.0;
+                let mut push = Vector::zeros();
+                let mut add = |r: Vector| {
+                    density += mass * kernel.value(r.norm());
+                    push -= kernel.gradient(&r, r.norm()) * (mass * 2.0 * p / (rho * rho));
+                };
+                for xj in &lattice {
+                    add(xi - xj);
+                }
+                walls.mirrors(xi, |planes| {
+                    for xj in &lattice {
+                        add(BoxWalls::mirrored(planes, &(xi - xj), xi, xj));
+                    }
+                });
+                assert!(
+                    (density - 1000.0).abs() < 1e-6 * 1000.0,
+                    "{dim}D, particle {i} at {xi:?}: density {density}"
+                );
+                // One neighbour's term, against which round-off is measured.
+                let scale = kernel.derivative(spacing).abs() * mass * 2.0 * p / (rho * rho);
+                assert!(
+                    push.norm() < 1e-9 * scale,
+                    "{dim}D, particle {i} at {xi:?}: a uniform pressure pushes it by {push:?}"
+                );
             }
         }
     }

@@ -215,6 +215,7 @@ impl PressureSolver for Dfsph {
             timer.time(Stage::Viscosity, || {
                 rigid.add_forces(
                     &fluid.positions,
+                    &fluid.neighbors,
                     &fluid.velocities,
                     &fluid.densities,
                     None,

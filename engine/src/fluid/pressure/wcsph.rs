@@ -27,6 +27,7 @@ impl Wcsph {
 
 impl PressureSolver for Wcsph {
     fn init(&mut self, fluid: &mut Fluid) {
+        fluid.compute_densities_with(true);
         compute_pressures(fluid);
     }
 
@@ -59,7 +60,7 @@ impl PressureSolver for Wcsph {
     ) -> Result<(), Cancelled> {
         timer.time(Stage::NeighborSearch, || fluid.find_neighbors());
         timer.time(Stage::Density, || {
-            fluid.compute_densities();
+            fluid.compute_densities_with(true);
             compute_pressures(fluid);
         });
         timer.time(Stage::PressureForce, || {
@@ -78,6 +79,7 @@ impl PressureSolver for Wcsph {
             if let Some(rigid) = &mut fluid.rigid {
                 rigid.add_forces(
                     &fluid.positions,
+                    &fluid.neighbors,
                     &fluid.velocities,
                     &fluid.densities,
                     Some(&fluid.pressures),
@@ -152,10 +154,21 @@ fn pressure_accelerations(
             let pj = pressures[j] / (densities[j] * densities[j]);
             sum += kernel.gradient(&r, r.norm()) * (pi + pj);
         }
-        let wall = walls.map_or(Vector::zeros(), |w| {
-            w.pressure_acceleration(&xi, pressures[i], densities[i])
-        });
-        *a = gravity - sum * mass + wall;
+        // The walls' mirror images of every neighbour, self included, at
+        // the neighbour's own pressure (see `BoxWalls::mirrors`).
+        if let Some(w) = walls {
+            w.mirrors(&xi, |planes| {
+                for (j, r) in neighbors.pairs(i, positions) {
+                    let image = BoxWalls::mirrored(planes, &r, &xi, &positions[j]);
+                    let norm = image.norm();
+                    if norm > 0.0 {
+                        let pj = pressures[j] / (densities[j] * densities[j]);
+                        sum += kernel.gradient(&image, norm) * (pi + pj);
+                    }
+                }
+            });
+        }
+        *a = gravity - sum * mass;
     });
 }
 
