@@ -33,6 +33,7 @@ mod assemble;
 mod body;
 mod boundary;
 mod estimate;
+mod nonlinear;
 mod quadrature;
 mod reduce;
 mod shape;
@@ -43,6 +44,9 @@ pub use assemble::lame;
 pub use body::{Grab, GrabError, ModalParams, ModalSolid, ModalState};
 pub use boundary::{Anchor, MAX_FIXED_POINTS, Pose, TooManyPoints};
 pub use estimate::Estimate;
+pub use nonlinear::{
+    NewtonInfo, NewtonParams, NonlinearError, NonlinearSolver, NonlinearState, Spring,
+};
 pub use quadrature::{MAX_ORDER, Quadrature};
 pub use shape::{CoverError, Row, ShapeTable};
 pub use skin::{DeformedSkin, SkinBuffers, SkinInput};
@@ -54,6 +58,8 @@ mod tests;
 mod tests_admission;
 #[cfg(test)]
 mod tests_extremes;
+#[cfg(test)]
+mod tests_nonlinear;
 #[cfg(test)]
 mod tests_paths;
 #[cfg(test)]
