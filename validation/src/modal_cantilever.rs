@@ -140,6 +140,7 @@ impl ModalCantilever {
         let omega = 1.875_f64.powi(2) / self.length.powi(2)
             * (self.young * h.powi(2) / (12.0 * self.density)).sqrt();
         let params = ModalParams {
+            dynamics: meshless_engine::efg::Dynamics::Modal,
             efg,
             modes: self.modes,
             tolerance: 1e-10,

@@ -41,11 +41,14 @@ mod skin;
 mod solid;
 
 pub use assemble::lame;
-pub use body::{Grab, GrabError, ModalParams, ModalSolid, ModalState};
+pub use body::{
+    Dynamics, Grab, GrabError, ModalParams, ModalSolid, ModalState, MotionError, StepReport,
+};
 pub use boundary::{Anchor, MAX_FIXED_POINTS, Pose, TooManyPoints};
 pub use estimate::Estimate;
 pub use nonlinear::{
-    NewtonInfo, NewtonParams, NonlinearError, NonlinearSolver, NonlinearState, Spring,
+    NewtonInfo, NewtonParams, NonlinearError, NonlinearSolver, NonlinearState, Spring, StepInput,
+    strain_energy_shares,
 };
 pub use quadrature::{MAX_ORDER, Quadrature};
 pub use shape::{CoverError, Row, ShapeTable};

@@ -133,6 +133,19 @@ pub struct Spring {
     pub stiffness: Real,
 }
 
+/// What a step is asked to do: its length (`None`: the static
+/// equilibrium), the nodal load (3 n: gravity's weights and any other)
+/// and the springs.
+#[derive(Debug, Clone, Copy)]
+pub struct StepInput<'a> {
+    /// The time step, or `None` for a static solve.
+    pub h: Option<Real>,
+    /// Nodal forces, 3 per node.
+    pub load: &'a [Real],
+    /// Grabs as springs.
+    pub springs: &'a [Spring],
+}
+
 /// The full state: nodal coefficients and their rates, `3 n` each.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct NonlinearState {
@@ -250,7 +263,7 @@ fn deformation_gradient(row: &super::Row<'_>, u: &[Real]) -> [[Real; 3]; 3] {
 /// The Saint Venant–Kirchhoff energy of an EFG solid's nodal coefficients
 /// and its derivatives, over the solid's Gauss points; scratch held for
 /// reuse from iterate to iterate.
-#[derive(Debug, Default)]
+#[derive(Debug, Clone, Default)]
 pub struct Hyperelastic {
     points: Vec<PointState>,
 }
@@ -346,7 +359,7 @@ impl Hyperelastic {
 /// The scratch of nonlinear steps on one solid: the penalty matrix, the
 /// per-point stresses and tangents, the factorisation and the vectors.
 /// Build it once per solid and reuse it from step to step.
-#[derive(Debug, Default)]
+#[derive(Debug, Clone, Default)]
 pub struct NonlinearSolver {
     penalty: Vec<Real>,
     elastic: Hyperelastic,
@@ -387,6 +400,15 @@ impl NonlinearSolver {
         }
     }
 
+    /// Bytes it holds: the penalty's values, the factor, the per-point
+    /// stresses and tangents and the vectors.
+    pub fn bytes(&self) -> usize {
+        let real = std::mem::size_of::<Real>();
+        (self.penalty.len() + self.gradient.len() + self.work.len() + self.trial.len()) * real
+            + self.cholesky.factor_bytes()
+            + self.elastic.points.len() * std::mem::size_of::<PointState>()
+    }
+
     /// The Saint Venant–Kirchhoff energy `W(u)` (no penalty, no load).
     pub fn strain_energy(&mut self, solid: &EfgSolid, u: &[Real]) -> Real {
         self.elastic.evaluate(solid, u, false)
@@ -409,9 +431,8 @@ impl NonlinearSolver {
         values
     }
 
-    /// One backward-Euler step of `h` (or, with `None`, the static
-    /// equilibrium) from `state` under the nodal `load` (3 n: gravity's
-    /// weights and any other) and `springs`, minimising the incremental
+    /// One backward-Euler step of `input.h` (or, with `None`, the static
+    /// equilibrium) from `state` under `input`'s load and springs, minimising the incremental
     /// potential by Newton's method. On success `state` holds the new
     /// displacements and velocities; an unconverged solve (iteration cap
     /// or a line search that found no decrease) still moves it and says so
@@ -425,17 +446,16 @@ impl NonlinearSolver {
         &mut self,
         solid: &EfgSolid,
         state: &mut NonlinearState,
-        h: Option<Real>,
-        load: &[Real],
-        springs: &[Spring],
+        input: StepInput<'_>,
         params: &NewtonParams,
         cancel: &Cancel,
     ) -> Result<NewtonInfo, NonlinearError> {
+        let StepInput { h, load, springs } = input;
         let dofs = 3 * solid.nodes().len();
-        if let Some(h) = h {
-            if !(h.is_finite() && h > 0.0) {
-                return Err(NonlinearError::BadStep(Brief(h)));
-            }
+        if let Some(h) = h
+            && !(h.is_finite() && h > 0.0)
+        {
+            return Err(NonlinearError::BadStep(Brief(h)));
         }
         for (what, v) in [
             ("load", load),
@@ -659,6 +679,44 @@ impl NonlinearSolver {
         }
         axpy(&mut self.gradient, -1.0, t.load);
     }
+}
+
+/// Each node's share `sum_g phi_I(x_g) w_g psi(F_g)` of the strain energy
+/// `W(u)`: the shape functions sum to one, so the shares sum to `W`.
+pub fn strain_energy_shares(solid: &EfgSolid, u: &[Real]) -> Vec<Real> {
+    let volume = &solid.volume;
+    let lame = assemble::lame(solid.material().young, solid.material().poisson);
+    let energies: Vec<Real> = (0..volume.table.len())
+        .into_par_iter()
+        .map(|q| {
+            let f = deformation_gradient(&volume.table.row(q), u);
+            volume.weights[q] * st_venant_kirchhoff(&f, lame, false).0
+        })
+        .collect();
+    (0..solid.nodes().len())
+        .into_par_iter()
+        .map(|n| {
+            volume
+                .points_of(n)
+                .iter()
+                .map(|&q| {
+                    let row = volume.table.row(q as usize);
+                    row.nodes
+                        .binary_search(&(n as u32))
+                        .map_or(0.0, |i| row.values[i] * energies[q as usize])
+                })
+                .sum()
+        })
+        .collect()
+}
+
+/// `F` at a point from its row and nodal vectors `u`.
+pub(super) fn gradient_at(row: &super::Row<'_>, u: &[Vector]) -> nalgebra::Matrix3<Real> {
+    let mut f = nalgebra::Matrix3::identity();
+    for (&node, g) in row.nodes.iter().zip(row.gradients) {
+        f += u[node as usize] * g.transpose();
+    }
+    f
 }
 
 /// `sum_I phi_I u_I - d` of a spring.

@@ -198,9 +198,11 @@ fn at_small_load_the_nonlinear_tip_is_the_linear_one() {
         .step(
             &solid,
             &mut state,
-            None,
-            &load,
-            &[],
+            StepInput {
+                h: None,
+                load: &load,
+                springs: &[],
+            },
             &NewtonParams::default(),
             &Cancel::new(),
         )
@@ -218,9 +220,11 @@ fn at_small_load_the_nonlinear_tip_is_the_linear_one() {
             .step(
                 &solid,
                 &mut settled,
-                Some(5e-3),
-                &load,
-                &[],
+                StepInput {
+                    h: Some(5e-3),
+                    load: &load,
+                    springs: &[],
+                },
                 &params,
                 &Cancel::new(),
             )
@@ -353,9 +357,11 @@ fn the_nonlinear_efg_cantilever_bent_hard_follows_the_elastica_and_keeps_its_len
             .step(
                 solid,
                 &mut state,
-                None,
-                &f,
-                &[],
+                StepInput {
+                    h: None,
+                    load: &f,
+                    springs: &[],
+                },
                 &NewtonParams {
                     max_iterations: 60,
                     ..NewtonParams::default()

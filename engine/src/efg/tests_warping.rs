@@ -804,6 +804,7 @@ fn a_spinning_warped_block_reports_the_velocity_of_its_turned_nodes() {
         poisson: 0.3,
     };
     let params = ModalParams {
+        dynamics: Dynamics::Modal,
         efg: EfgParams::new(0.5),
         modes: 12,
         tolerance: 1e-10,

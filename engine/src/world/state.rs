@@ -44,8 +44,9 @@ pub enum SystemState {
         /// Its particles.
         solid: SolidSnapshot,
     },
-    /// A modal solid: its reduced state (its grabs belong to whoever set
-    /// them, and are set again after a restore).
+    /// A modal solid: its reduced state, or its full one under nonlinear
+    /// dynamics (its grabs belong to whoever set them, and are set again
+    /// after a restore).
     Modal {
         /// Index of its system in the scene.
         index: usize,
@@ -267,7 +268,8 @@ impl World {
                     entry.solid.restore_snapshot(solid).map_err(at)?;
                 }
                 (System::Modal(entry), SystemState::Modal { state, .. }) => {
-                    let modes = entry.solid.eigenvalues().len();
+                    // Modes, or three per node under nonlinear dynamics.
+                    let modes = entry.solid.state_len();
                     for (what, values) in [
                         ("modal amplitudes", &state.amplitudes),
                         ("modal velocities", &state.velocities),
