@@ -298,8 +298,19 @@ impl ModalSolid {
                 Dynamics::Modal => params.modes,
                 Dynamics::Nonlinear => 0,
             };
-            let estimate = Estimate::of(octree, &params.efg, modes, surface, cancel)
+            let mut estimate = Estimate::of(octree, &params.efg, modes, surface, cancel)
                 .map_err(|_| EfgError::Cancelled)?;
+            if params.dynamics == Dynamics::Nonlinear {
+                // Per Gauss point its stress and tangent; per block of K
+                // the penalty's and the Newton matrix's values (the
+                // factor's fill, as the eigensolver's, is not modelled).
+                let real = std::mem::size_of::<Real>();
+                let extra = estimate
+                    .quadrature_points
+                    .saturating_mul(nonlinear::POINT_BYTES)
+                    .saturating_add(estimate.blocks.saturating_mul(9 * 2 * real));
+                estimate.bytes = estimate.bytes.saturating_add(extra as u64);
+            }
             admit(&estimate).map_err(|reason| EfgError::Refused {
                 estimate: Box::new(estimate),
                 reason,

@@ -165,6 +165,10 @@ impl NonlinearState {
     }
 }
 
+/// Bytes the solver holds per Gauss point (its stress, energy and
+/// tangent), for the admission's estimate.
+pub(super) const POINT_BYTES: usize = std::mem::size_of::<PointState>();
+
 /// `A_aJbL` flattened `[a][J][b][L]`.
 type Tangent = [Real; 81];
 

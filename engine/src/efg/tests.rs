@@ -415,7 +415,7 @@ fn modal_warping_keeps_a_bent_cantilevers_length_where_linear_modes_stretch_it()
 /// linear field, which shortens a beam bent hard by construction: the
 /// shortfall grows with the tip's rotation, measured here and stated in
 /// docs/validation.md. The exact path is the nonlinear EFG dynamics of
-/// Guo–Qin Section 5.1 (issue 30, item 9, open).
+/// Guo–Qin Section 5.1 (`dynamics = "nonlinear"`, `tests_nonlinear.rs`).
 #[test]
 fn modal_warping_shortens_a_beam_bent_hard() {
     let beam = BentBeam::new();
