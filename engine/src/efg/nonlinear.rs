@@ -79,7 +79,8 @@ pub struct NewtonInfo {
     pub iterations: usize,
     /// Whether the last step met the tolerance.
     pub converged: bool,
-    /// `|grad Pi|` at the end, over `|f| + |K_0 u|` (a relative residual).
+    /// `|grad Pi|` at the end, over `|f| + E cell^2` (the load, and the
+    /// force a unit strain puts on an octant's face): a relative residual.
     pub residual: Real,
     /// Factorisations that failed (an indefinite tangent) and were
     /// retried with `sigma M` added.
@@ -600,9 +601,7 @@ impl NonlinearSolver {
         // The points at the final u (the loop may leave them at a trial).
         self.potential(solid, &terms, &u, false);
         self.gradient_into(solid, &terms, &u);
-        let mut ku = vec![0.0; dofs];
-        multiply(solid, solid.stiffness(), &u, &mut ku);
-        let scale = load_norm + ku.iter().map(|f| f * f).sum::<Real>().sqrt();
+        let scale = load_norm + solid.material().young * cell * cell;
         let grad_norm = self.gradient.iter().map(|g| g * g).sum::<Real>().sqrt();
         info.residual = if scale > 0.0 {
             grad_norm / scale

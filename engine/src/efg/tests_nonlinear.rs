@@ -421,3 +421,101 @@ fn the_nonlinear_efg_cantilever_bent_hard_follows_the_elastica_and_keeps_its_len
     }
     assert!(rows.last().is_some_and(|r| r.3.2 > 70.0), "bent hard");
 }
+
+/// Where the tangent is not positive definite the step does not fail:
+/// a free block (its stiffness singular: six rigid motions) squeezed to
+/// 55 % in every direction, past the stretch `1/sqrt(3)` where St
+/// Venant–Kirchhoff stops resisting compression (its tangent indefinite),
+/// and let go statically. The factorisation fails, `sigma M` is added
+/// until it succeeds, and the line search walks the block back to a
+/// stress-free shape.
+#[test]
+fn an_indefinite_tangent_is_shifted_by_the_mass_and_the_solve_recovers() {
+    let solid = block();
+    let u: Vec<Real> = solid
+        .nodes()
+        .iter()
+        .flat_map(|n| {
+            let d = n.position * -0.45;
+            [d[0], d[1], d[2]]
+        })
+        .collect();
+    let mut solver = NonlinearSolver::new(&solid);
+    let start = solver.strain_energy(&solid, &u);
+    let mut state = NonlinearState {
+        displacements: u,
+        velocities: vec![0.0; 3 * solid.nodes().len()],
+    };
+    let load = vec![0.0; state.velocities.len()];
+    let info = solver
+        .step(
+            &solid,
+            &mut state,
+            StepInput {
+                h: None,
+                load: &load,
+                springs: &[],
+            },
+            &NewtonParams {
+                max_iterations: 100,
+                ..NewtonParams::default()
+            },
+            &Cancel::new(),
+        )
+        .expect("a shifted solve");
+    let end = solver.strain_energy(&solid, &state.displacements);
+    println!("squeezed block: energy {start:.3e} -> {end:.3e}, {info:?}");
+    assert!(info.shifts > 0, "the tangent needed a shift: {info:?}");
+    assert!(end < 1e-8 * start, "{end:e} of {start:e}");
+}
+
+/// Bad input is an error naming it, never a panic, and a raised cancel
+/// flag stops the solve; the state is unchanged either way.
+#[test]
+fn bad_steps_and_cancellation_leave_the_state_alone() {
+    let solid = block();
+    let n = 3 * solid.nodes().len();
+    let mut solver = NonlinearSolver::new(&solid);
+    let mut state = NonlinearState::rest(solid.nodes().len());
+    let before = state.clone();
+    let load = vec![1.0; n];
+    let params = NewtonParams::default();
+    let step = |solver: &mut NonlinearSolver,
+                state: &mut NonlinearState,
+                h: Option<Real>,
+                load: &[Real],
+                cancel: &Cancel| {
+        solver.step(
+            &solid,
+            state,
+            StepInput {
+                h,
+                load,
+                springs: &[],
+            },
+            &params,
+            cancel,
+        )
+    };
+    let cancel = Cancel::new();
+    assert!(matches!(
+        step(&mut solver, &mut state, Some(-1.0), &load, &cancel),
+        Err(NonlinearError::BadStep(_))
+    ));
+    assert!(matches!(
+        step(&mut solver, &mut state, Some(0.01), &load[1..], &cancel),
+        Err(NonlinearError::BadVector { what: "load", .. })
+    ));
+    let mut nan = load.clone();
+    nan[4] = Real::NAN;
+    assert!(matches!(
+        step(&mut solver, &mut state, Some(0.01), &nan, &cancel),
+        Err(NonlinearError::BadVector { what: "load", .. })
+    ));
+    cancel.cancel();
+    assert!(matches!(
+        step(&mut solver, &mut state, Some(0.01), &load, &cancel),
+        Err(NonlinearError::Cancelled)
+    ));
+    assert_eq!(state, before);
+}
