@@ -103,7 +103,8 @@ pub enum NonlinearError {
         /// 3 x nodes.
         expected: usize,
     },
-    /// The tangent could not be factored even with the mass added.
+    /// The tangent could not be factored even with the mass added (40
+    /// tenfold shifts in one iteration).
     #[error(
         "the nonlinear EFG tangent could not be factored (still not positive definite with \
          {sigma} M added); use a shorter step or a finer octree"
@@ -508,6 +509,7 @@ impl NonlinearSolver {
             self.gradient_into(solid, &terms, &u);
             let mass_scale = terms.inv_h2 + terms.damping.0 * terms.inv_h;
             let b_scale = terms.damping.1 * terms.inv_h;
+            let mut tries = 0;
             let dir = loop {
                 let elastic = &self.elastic;
                 let penalty = &self.penalty;
@@ -520,8 +522,9 @@ impl NonlinearSolver {
                         spring_column(s, n, out);
                     }
                 };
-                // Pattern-ordered dense terms are added after the column's
-                // own assembly: faer sees one matrix.
+                // The matrices held over the pattern (penalty, mass, rest
+                // stiffness) are added to the assembled tangent before it
+                // is factored.
                 let rhs = self.gradient.iter().map(|g| -g);
                 let solved = self.cholesky.solve_with(
                     solid.pattern(),
@@ -541,7 +544,8 @@ impl NonlinearSolver {
                     Some(d) => break d.to_vec(),
                     None => {
                         info.shifts += 1;
-                        if info.shifts > 40 {
+                        tries += 1;
+                        if tries > 40 {
                             return Err(NonlinearError::Factor {
                                 sigma: Brief(sigma),
                             });
