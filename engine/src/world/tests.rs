@@ -591,19 +591,36 @@ mod modal {
             scale: None,
         };
         spec.anchors.clear();
-        let mut world = scene
-            .build(&BuildOptions::default())
-            .expect("a point cloud builds");
-        let (_, solid) = world.modal_solids().next().expect("a modal solid");
-        assert_eq!(solid.zero_modes(), 6, "a free body");
-        world.step().expect("a stable step");
-        let frame = world.frame();
-        let skin = &frame.solid_surfaces[0];
-        assert_eq!(skin.mesh.vertices.len(), count);
-        assert!(skin.mesh.triangles.is_empty(), "surfels, no triangles");
-        assert!(
-            skin.normals.iter().all(|n| (n.norm() - 1.0).abs() < 1e-9),
-            "unit normals"
-        );
+        for dynamics in [crate::efg::Dynamics::Modal, crate::efg::Dynamics::Nonlinear] {
+            let SystemSpec::ModalSolid(spec) = &mut scene.systems[0] else {
+                panic!("a modal solid");
+            };
+            spec.dynamics = dynamics;
+            let mut world = scene
+                .build(&BuildOptions::default())
+                .expect("a point cloud builds");
+            let (_, solid) = world.modal_solids().next().expect("a modal solid");
+            if dynamics == crate::efg::Dynamics::Modal {
+                assert_eq!(solid.zero_modes(), 6, "a free body");
+            }
+            world.step().expect("a stable step");
+            let frame = world.frame();
+            let skin = &frame.solid_surfaces[0];
+            assert_eq!(skin.mesh.vertices.len(), count);
+            assert!(skin.mesh.triangles.is_empty(), "surfels, no triangles");
+            assert!(
+                skin.normals.iter().all(|n| (n.norm() - 1.0).abs() < 1e-9),
+                "{dynamics:?}: unit normals"
+            );
+            // A free ball falls undeformed: its normals (under nonlinear
+            // dynamics F^-T n, F = I) keep their rest directions.
+            for (n, rest) in skin
+                .normals
+                .iter()
+                .zip(crate::testing::fibonacci_sphere(count))
+            {
+                assert!(n.dot(&rest) > 1.0 - 1e-6, "{dynamics:?}: {n:?} vs {rest:?}");
+            }
+        }
     }
 }
