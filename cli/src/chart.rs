@@ -116,3 +116,81 @@ pub fn draw_and_report(path: &Path, title: &str, y_desc: &str, points: &[Point])
     }
     Ok(())
 }
+
+/// Draws each named series as a line with markers, `y` against `x`.
+/// Returns false, drawing nothing, when no font is available.
+fn lines(
+    path: &Path,
+    title: &str,
+    (x_desc, y_desc): (&str, &str),
+    series: &[(&str, Vec<(f64, f64)>)],
+) -> Result<bool> {
+    if !font() {
+        return Ok(false);
+    }
+    let draw = || -> Result<(), Box<dyn std::error::Error>> {
+        let root = BitMapBackend::new(path, (900, 600)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let all = || series.iter().flat_map(|(_, p)| p.iter());
+        let x_max = all().map(|p| p.0).fold(0.0, f64::max).max(1e-9) * 1.1;
+        let y_min = all().map(|p| p.1).fold(0.0, f64::min);
+        let y_max = all().map(|p| p.1).fold(0.0, f64::max);
+        let pad = 0.1 * (y_max - y_min).max(1e-9);
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 22))
+            .margin(20)
+            .x_label_area_size(45)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..x_max, (y_min - pad)..(y_max + pad))?;
+        chart
+            .configure_mesh()
+            .x_desc(x_desc)
+            .y_desc(y_desc)
+            .label_style(("sans-serif", 15))
+            .draw()?;
+        for (k, (name, points)) in series.iter().enumerate() {
+            let colour = Palette99::pick(k).to_rgba();
+            chart
+                .draw_series(LineSeries::new(
+                    points.iter().copied(),
+                    colour.stroke_width(2),
+                ))?
+                .label(*name)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+            chart.draw_series(points.iter().map(|p| Circle::new(*p, 5, colour.filled())))?;
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 16))
+            .draw()?;
+        root.present()?;
+        Ok(())
+    };
+    draw()
+        .map_err(|e| anyhow::anyhow!("{e}"))
+        .with_context(|| format!("cannot draw {}", path.display()))?;
+    Ok(true)
+}
+
+/// `lines`, then says where the chart went, or why none was drawn.
+///
+/// # Errors
+/// When the PNG or the line cannot be written.
+pub fn lines_and_report(
+    path: &Path,
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    series: &[(&str, Vec<(f64, f64)>)],
+) -> Result<()> {
+    if lines(path, title, (x_desc, y_desc), series)? {
+        outln!("  chart             {}", path.display())?;
+    } else {
+        outln!(
+            "  chart             not drawn: no TrueType font found (set MESHLESS_FONT to a .ttf file)"
+        )?;
+    }
+    Ok(())
+}

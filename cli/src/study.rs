@@ -61,6 +61,9 @@ pub enum Knob {
     ModalWarping,
     /// Modal solid: time step of the released beam, s.
     ModalDt,
+    /// Modal solid: dynamics, modal or nonlinear (released beam; also
+    /// draws the bent beam's length against its tip rotation).
+    ModalDynamics,
     /// Design: particles of the Figure 13 stretch with the volume energy
     /// (`stretch:N`) and of the cube passing a ball (`passage:N`).
     DesignParticles,
@@ -93,6 +96,7 @@ impl Knob {
             Self::ModalModes => "modal_modes",
             Self::ModalWarping => "modal_warping",
             Self::ModalDt => "modal_dt",
+            Self::ModalDynamics => "modal_dynamics",
             Self::DesignParticles => "design_particles",
             Self::DesignTolerance => "design_tolerance",
             Self::DesignAdaptive => "design_adaptive",
@@ -122,6 +126,7 @@ impl Knob {
                 | Self::ModalModes
                 | Self::ModalWarping
                 | Self::ModalDt
+                | Self::ModalDynamics
         )
     }
 
@@ -153,6 +158,7 @@ impl Knob {
             Self::ModalModes => &["6", "12", "32", "64"],
             Self::ModalWarping => &["on", "off"],
             Self::ModalDt => &["0.004", "0.0167", "0.05", "0.2"],
+            Self::ModalDynamics => &["modal", "nonlinear"],
             Self::DesignParticles => &[
                 "stretch:30",
                 "stretch:60",
@@ -218,7 +224,8 @@ impl Knob {
             | Self::ModalBasis
             | Self::ModalModes
             | Self::ModalWarping
-            | Self::ModalDt => {
+            | Self::ModalDt
+            | Self::ModalDynamics => {
                 bail!("{} is a modal-solid knob, not a dam-break one", self.name())
             }
         }

@@ -10,7 +10,8 @@ use crate::chart;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use meshless_engine::approx::mls::Order;
-use meshless_validation::modal_cantilever::{Measure, ModalCantilever, ModalMeasured};
+use meshless_engine::efg::Dynamics;
+use meshless_validation::modal_cantilever::{Measure, ModalCantilever, ModalMeasured, bent_beam};
 use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
@@ -72,6 +73,14 @@ fn setting(name: &str, value: &str) -> Result<(ModalCantilever, Measure)> {
                 other => bail!("modal_warping: {other:?}; use on or off"),
             };
             (ModalCantilever { warping, ..base }, Measure::Released)
+        }
+        "modal_dynamics" => {
+            let dynamics = match value {
+                "modal" => Dynamics::Modal,
+                "nonlinear" => Dynamics::Nonlinear,
+                other => bail!("modal_dynamics: {other:?}; use modal or nonlinear"),
+            };
+            (ModalCantilever { dynamics, ..base }, Measure::Released)
         }
         "modal_dt" => (
             ModalCantilever {
@@ -185,5 +194,59 @@ pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> 
         &format!("|{what} error| [%]"),
         &points,
     )?;
+    if name == "modal_dynamics" {
+        bend(output)?;
+    }
     Ok(())
+}
+
+/// The bent beam's centreline length against its tip rotation, modal
+/// warping against the nonlinear EFG (`bent_beam`), as CSV and PNG.
+fn bend(output: &Path) -> Result<()> {
+    let loads = [1.0, 2.0, 4.0, 8.0, 16.0];
+    let bends = bent_beam(&loads).map_err(|e| anyhow::anyhow!("the bent beam: {e}"))?;
+    outln!("meshless study: a 10 x 1 x 1 m cantilever bent by its weight times 1 to 16")?;
+    outln!("  load   warping: rotation, length    nonlinear EFG: rotation, length")?;
+    let mut csv = String::from(
+        "load,warping_rotation_deg,warping_length_change,nonlinear_rotation_deg,nonlinear_length_change\n",
+    );
+    for b in &bends {
+        writeln!(
+            csv,
+            "{},{:.3},{:.6},{:.3},{:.6}",
+            b.load, b.warping.0, b.warping.1, b.nonlinear.0, b.nonlinear.1
+        )?;
+        outln!(
+            "  {:>4}   {:>8.1} deg {:>+7.2} %      {:>8.1} deg {:>+7.2} %",
+            b.load,
+            b.warping.0,
+            100.0 * b.warping.1,
+            b.nonlinear.0,
+            100.0 * b.nonlinear.1
+        )?;
+    }
+    chart::write_table(&output.join("study_modal_dynamics_bend.csv"), &csv)?;
+    let series = [
+        (
+            "modal warping (24 modes)",
+            bends
+                .iter()
+                .map(|b| (b.warping.0, 100.0 * b.warping.1))
+                .collect::<Vec<_>>(),
+        ),
+        (
+            "nonlinear EFG (Guo-Qin 5.1)",
+            bends
+                .iter()
+                .map(|b| (b.nonlinear.0, 100.0 * b.nonlinear.1))
+                .collect(),
+        ),
+    ];
+    chart::lines_and_report(
+        &output.join("study_modal_dynamics_bend.png"),
+        "bent cantilever: centreline length against tip rotation",
+        "tip rotation [deg]",
+        "centreline length change [%]",
+        &series,
+    )
 }

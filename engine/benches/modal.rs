@@ -100,6 +100,7 @@ fn run(model: &Model) {
     let mut efg = EfgParams::new(model.cell);
     efg.penalty = 1e4;
     let params = ModalParams {
+        dynamics: meshless_engine::efg::Dynamics::Modal,
         efg,
         modes: model.modes,
         tolerance: 1e-10,

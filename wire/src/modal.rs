@@ -7,11 +7,19 @@ use crate::enums::{WireEnum, optional_enum, wire_enum};
 use crate::error::{Result, required};
 use crate::scene::{aabb, shape_from_proto, to_aabb, to_shape, to_vec3, vec3};
 use meshless_engine::approx::mls::Order;
-use meshless_engine::efg::MassForm;
+use meshless_engine::efg::{Dynamics, MassForm};
 use meshless_engine::scene::{
     GrabSpec, ModalSolidSpec, PlaybackSpec, modal_defaults as defaults, solid_defaults,
 };
 use meshless_proto::v1;
+
+wire_enum! {
+    /// How a modal solid moves.
+    Dynamics <-> ModalDynamics, "dynamics" {
+        "modal" => Modal,
+        "nonlinear" => Nonlinear,
+    }
+}
 
 wire_enum! {
     /// The mass matrix of a modal solid.
@@ -73,8 +81,10 @@ pub(crate) fn modal_from_proto(spec: v1::ModalSolidSpec, field: &str) -> Result<
         grabs,
         playback,
         surface_subdivisions,
+        dynamics,
     } = spec;
     Ok(ModalSolidSpec {
+        dynamics: optional_enum(dynamics, Dynamics::Modal, &format!("{field}.dynamics"))?,
         shape: shape_from_proto(shape, &format!("{field}.shape"))?,
         position: vec3(required(position, &format!("{field}.position"))?),
         orientation: orientation.map_or([0.0; 3], vec3),
@@ -145,8 +155,10 @@ pub(crate) fn to_modal(spec: &ModalSolidSpec) -> v1::ModalSolidSpec {
         grabs,
         playback,
         surface_subdivisions,
+        dynamics,
     } = spec;
     v1::ModalSolidSpec {
+        dynamics: Some(dynamics.to_i32()),
         shape: Some(to_shape(shape)),
         position: Some(to_vec3(*position)),
         orientation: Some(to_vec3(*orientation)),
@@ -198,6 +210,7 @@ mod tests {
             panic!("a modal solid");
         };
         spec.mass = MassForm::Lumped;
+        spec.dynamics = Dynamics::Nonlinear;
         spec.basis = Order::Quadratic;
         spec.warping = false;
         spec.grabs.push(GrabSpec {

@@ -63,7 +63,7 @@ impl Integral {
     }
 
     /// The points whose rows hold node `n`.
-    fn points_of(&self, n: usize) -> &[u32] {
+    pub(super) fn points_of(&self, n: usize) -> &[u32] {
         &self.by_node[self.by_node_offsets[n] as usize..self.by_node_offsets[n + 1] as usize]
     }
 

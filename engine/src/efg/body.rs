@@ -9,9 +9,15 @@
 //! costs the state only.
 
 use super::estimate::{Estimate, MATRIX_ENTRY_BYTES, NODE_REALS, SHAPE_ENTRY_BYTES, SurfacePoints};
+use super::nonlinear::{
+    self, NewtonInfo, NewtonParams, NonlinearError, NonlinearSolver, StepInput,
+};
 use super::skin::{DeformedSkin, Skin, SkinBuffers, SkinInput};
 use super::solid::Laps;
-use super::{CoverError, EfgError, EfgParams, EfgSolid, FixedSurface, Material, Row};
+use super::{
+    CoverError, EfgError, EfgParams, EfgSolid, FixedSurface, Material, NonlinearState, Row,
+    ShapeTable, Spring,
+};
 use crate::Cancel;
 use crate::geometry::ImplicitSurface;
 use crate::geometry::octree::Octree;
@@ -20,13 +26,34 @@ use crate::modal::{
     Damping, MAX_CONSTRAINTS, ModalBasis, ModalError, ModalSystem, Stabilization, rotation_integral,
 };
 use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 use std::time::Duration;
+
+/// How a modal solid moves: its reduced, linearised modes, or the full
+/// nonlinear EFG state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Dynamics {
+    /// The lowest modes with modal warping (Section 5.3; Choi & Ko):
+    /// cheap per step, linear strain, which shortens a beam bent hard
+    /// (`modal_warping_shortens_a_beam_bent_hard`).
+    #[default]
+    Modal,
+    /// Every nodal coefficient under Green's strain and the St
+    /// Venant–Kirchhoff energy (Section 5.1, Eq. 18-20; `nonlinear.rs`),
+    /// implicit Newton steps on the consistent mass: exact large
+    /// deformation at the cost of a sparse factorisation per iteration.
+    /// No modes are computed.
+    Nonlinear,
+}
 
 /// The knobs of a modal solid: the discretisation's and the reduced
 /// model's.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ModalParams {
+    /// Reduced modes or the full nonlinear state.
+    pub dynamics: Dynamics,
     /// The EFG discretisation.
     pub efg: EfgParams,
     /// Modes kept, `l` (free bodies' six rigid modes among them).
@@ -90,6 +117,45 @@ pub enum GrabError {
     /// The modal solver refused the rows.
     #[error("{0}")]
     Modal(#[from] ModalError),
+    /// An orientation grab on a solid with nonlinear dynamics.
+    #[error(
+        "grab {index} sets an orientation, which a solid with `dynamics = \"nonlinear\"` does \
+         not hold (its grabs are position springs); hold two or three points instead, or use \
+         `dynamics = \"modal\"`"
+    )]
+    Orientation {
+        /// Its index.
+        index: usize,
+    },
+}
+
+/// Why a modal solid could not step or pose.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MotionError {
+    /// The reduced model failed.
+    #[error(transparent)]
+    Modal(#[from] ModalError),
+    /// The nonlinear solve failed.
+    #[error(transparent)]
+    Nonlinear(#[from] NonlinearError),
+    /// Mode posing on a solid without modes.
+    #[error(
+        "a solid with `dynamics = \"nonlinear\"` computes no modes, so none can be posed or \
+         played back; use `dynamics = \"modal\"`"
+    )]
+    NoModes,
+}
+
+/// What one step did.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StepReport {
+    /// Newton iterations (0 for the modal path, a direct solve).
+    pub iterations: usize,
+    /// Whether the Newton solve met its tolerance (always for the modal
+    /// path).
+    pub converged: bool,
+    /// Its relative residual.
+    pub residual: Real,
 }
 
 /// What never changes after the build.
@@ -100,15 +166,37 @@ struct Precomputed {
     eigenvalues: Vec<Real>,
     zero_modes: usize,
     skin: Option<Skin>,
+    /// The skin's shape functions with their gradients, for a point
+    /// cloud's normals under nonlinear dynamics (`F^-T n`).
+    cloud: Option<ShapeTable>,
     stabilization: Stabilization,
     timings: Vec<(&'static str, Duration)>,
+}
+
+/// The full nonlinear state and its solver's scratch.
+#[derive(Debug, Clone)]
+struct Full {
+    state: NonlinearState,
+    /// `state.displacements` as vectors.
+    displacements: Vec<Vector>,
+    solver: NonlinearSolver,
+    springs: Vec<Spring>,
+    params: NewtonParams,
+    load: Vec<Real>,
+}
+
+/// The state a modal solid steps.
+#[derive(Debug, Clone)]
+enum Motion {
+    Modal(Box<ModalSystem>),
+    Full(Box<Full>),
 }
 
 /// A modal EFG solid: its discretisation, basis and state.
 #[derive(Debug, Clone)]
 pub struct ModalSolid {
     pre: Arc<Precomputed>,
-    system: ModalSystem,
+    motion: Motion,
     grabs: Vec<Grab>,
     /// For each position grab while warping: its first row in the
     /// constraints, the rows `Phi(x_c) W` of its rotation vector and the
@@ -120,12 +208,13 @@ pub struct ModalSolid {
     loads: Vec<Vector>,
 }
 
-/// The reduced state, for a restore or a snapshot.
+/// The state, for a restore or a snapshot: the reduced one (one entry per
+/// mode) or, under [`Dynamics::Nonlinear`], the full one (three per node).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ModalState {
-    /// Modal amplitudes `z`.
+    /// Modal amplitudes `z`, or the nodal displacement coefficients.
     pub amplitudes: Vec<Real>,
-    /// Modal velocities `zdot`.
+    /// Modal velocities `zdot`, or the nodal velocities.
     pub velocities: Vec<Real>,
 }
 
@@ -205,8 +294,23 @@ impl ModalSolid {
             triangles: skin.as_ref().map_or(0, |s| s.triangles.len()),
         };
         let admit_octree = |octree: &Octree| {
-            let estimate = Estimate::of(octree, &params.efg, params.modes, surface, cancel)
+            let modes = match params.dynamics {
+                Dynamics::Modal => params.modes,
+                Dynamics::Nonlinear => 0,
+            };
+            let mut estimate = Estimate::of(octree, &params.efg, modes, surface, cancel)
                 .map_err(|_| EfgError::Cancelled)?;
+            if params.dynamics == Dynamics::Nonlinear {
+                // Per Gauss point its stress and tangent; per block of K
+                // the penalty's and the Newton matrix's values (the
+                // factor's fill, as the eigensolver's, is not modelled).
+                let real = std::mem::size_of::<Real>();
+                let extra = estimate
+                    .quadrature_points
+                    .saturating_mul(nonlinear::POINT_BYTES)
+                    .saturating_add(estimate.blocks.saturating_mul(9 * 2 * real));
+                estimate.bytes = estimate.bytes.saturating_add(extra as u64);
+            }
             admit(&estimate).map_err(|reason| EfgError::Refused {
                 estimate: Box::new(estimate),
                 reason,
@@ -215,10 +319,43 @@ impl ModalSolid {
         let efg =
             EfgSolid::build_admitted(geometry, fixed, material, params.efg, cancel, &admit_octree)?;
         let mut laps = Laps::after(efg.timings().to_vec());
-        let modes = efg.modes(params.modes, params.tolerance, cancel)?;
-        laps.lap("modes");
-        let basis = efg.basis_of(&modes, cancel)?;
-        laps.lap("rotation modes");
+        let (motion, eigenvalues, zero_modes) = match params.dynamics {
+            Dynamics::Modal => {
+                let modes = efg.modes(params.modes, params.tolerance, cancel)?;
+                laps.lap("modes");
+                let basis = efg.basis_of(&modes, cancel)?;
+                laps.lap("rotation modes");
+                let system = ModalSystem::new(basis, params.damping, params.warping);
+                (
+                    Motion::Modal(Box::new(system)),
+                    modes.eigenvalues,
+                    modes.zero_modes,
+                )
+            }
+            Dynamics::Nonlinear => {
+                let n = efg.nodes().len();
+                let solver = NonlinearSolver::new(&efg);
+                laps.lap("penalty");
+                let full = Full {
+                    state: NonlinearState::rest(n),
+                    displacements: vec![Vector::zeros(); n],
+                    solver,
+                    springs: Vec::new(),
+                    params: NewtonParams {
+                        damping: (params.damping.alpha(), params.damping.beta()),
+                        ..NewtonParams::default()
+                    },
+                    load: vec![0.0; 3 * n],
+                };
+                (Motion::Full(Box::new(full)), Vec::new(), 0)
+            }
+        };
+        let cloud = match (&skin, params.dynamics) {
+            (Some(input), Dynamics::Nonlinear) if input.triangles.is_empty() => {
+                Some(efg.shape_table_cancellable(&input.vertices, cancel)?)
+            }
+            _ => None,
+        };
         let skin = skin
             .map(|input| {
                 let table = efg.shape_table_cancellable(&input.vertices, cancel)?;
@@ -228,18 +365,18 @@ impl ModalSolid {
         laps.lap("skin embedding");
         let rest: Vec<Vector> = efg.nodes().iter().map(|n| n.position).collect();
         let n = rest.len();
-        let system = ModalSystem::new(basis, params.damping, params.warping);
         Ok(Self {
             pre: Arc::new(Precomputed {
                 efg,
                 rest,
-                eigenvalues: modes.eigenvalues,
-                zero_modes: modes.zero_modes,
+                eigenvalues,
+                zero_modes,
                 skin,
+                cloud,
                 stabilization: params.stabilization,
                 timings: laps.timings,
             }),
-            system,
+            motion,
             grabs: Vec::new(),
             warped_targets: Vec::new(),
             targets: DVector::zeros(0),
@@ -266,6 +403,17 @@ impl ModalSolid {
             + efg.shape_entries() * SHAPE_ENTRY_BYTES
             + skin
             + n * NODE_REALS * real
+            + match &self.motion {
+                Motion::Modal(_) => 0,
+                Motion::Full(full) => {
+                    full.solver.bytes()
+                        + self
+                            .pre
+                            .cloud
+                            .as_ref()
+                            .map_or(0, |t| t.entries() * SHAPE_ENTRY_BYTES)
+                }
+            }
     }
 
     /// Wall time of each build stage, in order: the discretisation's
@@ -305,9 +453,20 @@ impl ModalSolid {
         self.pre.zero_modes
     }
 
-    /// Whether modal warping is on.
+    /// Whether modal warping is on (never under nonlinear dynamics).
     pub fn warping(&self) -> bool {
-        self.system.warping()
+        match &self.motion {
+            Motion::Modal(system) => system.warping(),
+            Motion::Full(_) => false,
+        }
+    }
+
+    /// Its dynamics.
+    pub fn dynamics(&self) -> Dynamics {
+        match &self.motion {
+            Motion::Modal(_) => Dynamics::Modal,
+            Motion::Full(_) => Dynamics::Nonlinear,
+        }
     }
 
     /// Rest positions of the nodes.
@@ -317,7 +476,10 @@ impl ModalSolid {
 
     /// Nodal displacements at the current state.
     pub fn displacements(&self) -> &[Vector] {
-        self.system.displacements()
+        match &self.motion {
+            Motion::Modal(system) => system.displacements(),
+            Motion::Full(full) => &full.displacements,
+        }
     }
 
     /// Node positions at the current state.
@@ -325,16 +487,23 @@ impl ModalSolid {
         self.pre
             .rest
             .iter()
-            .zip(self.system.displacements())
+            .zip(self.displacements())
             .map(|(x, u)| x + u)
     }
 
     /// Node velocities: the local velocity `Psi_I zdot` turned by the node's
-    /// rotation `R(w_I)` while warping ([`ModalSystem::node_velocity`]).
+    /// rotation `R(w_I)` while warping ([`ModalSystem::node_velocity`]);
+    /// the nodal velocities under nonlinear dynamics.
     pub fn velocities(&self) -> Vec<Vector> {
-        (0..self.len())
-            .map(|i| self.system.node_velocity(i))
-            .collect()
+        match &self.motion {
+            Motion::Modal(system) => (0..self.len()).map(|i| system.node_velocity(i)).collect(),
+            Motion::Full(full) => full
+                .state
+                .velocities
+                .chunks_exact(3)
+                .map(|v| Vector::new(v[0], v[1], v[2]))
+                .collect(),
+        }
     }
 
     /// Lumped node masses (row sums of the consistent mass).
@@ -344,8 +513,16 @@ impl ModalSolid {
 
     /// Each node's share `u_I . (K u)_I / 2` of the strain energy of the
     /// linear displacement `u = Psi z`: they sum to `z^T Lambda z / 2`.
+    /// Under nonlinear dynamics, its share of the St Venant–Kirchhoff
+    /// energy ([`super::strain_energy_shares`]).
     pub fn elastic_energies(&self) -> Vec<Real> {
-        let u = self.system.linear_displacements();
+        let system = match &self.motion {
+            Motion::Modal(system) => system,
+            Motion::Full(full) => {
+                return nonlinear::strain_energy_shares(&self.pre.efg, &full.state.displacements);
+            }
+        };
+        let u = system.linear_displacements();
         let mut ku = faer::Mat::<Real>::zeros(u.len(), 1);
         let efg = &self.pre.efg;
         efg.pattern().multiply(
@@ -359,28 +536,50 @@ impl ModalSolid {
             .collect()
     }
 
-    /// Mechanical energy under gravity `g`: the reduced model's kinetic
-    /// and strain energy `(|zdot|^2 + z^T Lambda z) / 2` (mass-normalised
-    /// modes) and gravity's `-sum_I m_I g . u_I` over the shown
-    /// displacements, J. Exact for linear modes, where the modal load is
+    /// Mechanical energy under gravity `g`, J: gravity's
+    /// `-sum_I m_I g . u_I` over the shown displacements, and for modal
+    /// dynamics the reduced model's kinetic and strain energy
+    /// `(|zdot|^2 + z^T Lambda z) / 2` (mass-normalised modes), for
+    /// nonlinear dynamics the full state's kinetic, Saint Venant–Kirchhoff
+    /// and penalty energy. Exact for linear modes, where the modal load is
     /// `Psi^T M g` and the lumped masses are the consistent mass's row
     /// sums; with warping the load turns with the nodes and this is the
     /// energy of the shown state.
     pub fn mechanical_energy(&self, g: &Vector) -> Real {
-        let z = self.system.amplitudes();
-        let zdot = self.system.velocities();
-        let strain: Real = z
-            .iter()
-            .zip(&self.pre.eigenvalues)
-            .map(|(z, lambda)| lambda * z * z)
-            .sum();
+        let stored = match &self.motion {
+            Motion::Modal(system) => {
+                let strain: Real = system
+                    .amplitudes()
+                    .iter()
+                    .zip(&self.pre.eigenvalues)
+                    .map(|(z, lambda)| lambda * z * z)
+                    .sum();
+                0.5 * (system.velocities().norm_squared() + strain)
+            }
+            Motion::Full(full) => full.solver.stored_energy(&self.pre.efg, &full.state),
+        };
         let gravity: Real = self
             .displacements()
             .iter()
             .zip(self.masses())
             .map(|(u, m)| -m * g.dot(u))
             .sum();
-        0.5 * (zdot.norm_squared() + strain) + gravity
+        stored + gravity
+    }
+
+    /// What to change when a step gained energy, by the dynamics: a
+    /// modal step's only source is warping turning the load; a nonlinear
+    /// one's a Newton solve stopped at its cap.
+    pub fn energy_advice(&self) -> &'static str {
+        match self.motion {
+            Motion::Modal(_) => {
+                "the only source in a modal step is warping turning the load with the nodes: \
+                 lower time.dt or set warping = false"
+            }
+            Motion::Full(_) => {
+                "its Newton solves did not converge or overshot: lower time.dt, or add damping"
+            }
+        }
     }
 
     /// The scale the world's energy watch measures gains against:
@@ -411,15 +610,65 @@ impl ModalSolid {
     /// `p` once the motion settles, at the cost of three 3x3 products per
     /// grab and no refactoring (only the targets move).
     ///
+    /// Under nonlinear dynamics, one backward-Euler step minimised by
+    /// Newton ([`NonlinearSolver::step`]); `cancel` is read per iteration.
+    ///
     /// # Errors
-    /// [`ModalError`] for a bad step or an overflow; the state is then
-    /// unchanged.
-    pub fn step(&mut self, h: Real, g: &Vector) -> Result<(), ModalError> {
+    /// [`MotionError`] for a bad step, an overflow, a failed or cancelled
+    /// solve; the state is then unchanged.
+    pub fn step(&mut self, h: Real, g: &Vector) -> Result<StepReport, MotionError> {
+        self.step_cancellable(h, g, &Cancel::new())
+    }
+
+    /// [`Self::step`] reading `cancel`.
+    ///
+    /// # Errors
+    /// As [`Self::step`].
+    pub fn step_cancellable(
+        &mut self,
+        h: Real,
+        g: &Vector,
+        cancel: &Cancel,
+    ) -> Result<StepReport, MotionError> {
+        let system = match &mut self.motion {
+            Motion::Modal(system) => system,
+            Motion::Full(full) => {
+                let efg = &self.pre.efg;
+                for (f, m) in full.load.chunks_exact_mut(3).zip(efg.node_masses()) {
+                    for (a, f) in f.iter_mut().enumerate() {
+                        *f = g[a] * m;
+                    }
+                }
+                let info: NewtonInfo = full.solver.step(
+                    efg,
+                    &mut full.state,
+                    StepInput {
+                        h: Some(h),
+                        load: &full.load,
+                        springs: &full.springs,
+                    },
+                    &full.params,
+                    cancel,
+                )?;
+                for (d, u) in full
+                    .displacements
+                    .iter_mut()
+                    .zip(full.state.displacements.chunks_exact(3))
+                {
+                    *d = Vector::new(u[0], u[1], u[2]);
+                }
+                return Ok(StepReport {
+                    iterations: info.iterations,
+                    converged: info.converged,
+                    residual: info.residual,
+                });
+            }
+        };
         for (f, m) in self.loads.iter_mut().zip(self.pre.efg.node_masses()) {
             *f = g * *m;
         }
-        if self.system.warping() && !self.warped_targets.is_empty() {
-            let z = self.system.amplitudes();
+        if system.warping() && !self.warped_targets.is_empty() {
+            let z = system.amplitudes();
             for (row, rotation_rows, wanted) in &self.warped_targets {
                 let w = Vector::from_iterator((rotation_rows * z).iter().copied());
                 let linear = rotation_integral(&w)
@@ -429,9 +678,14 @@ impl ModalSolid {
                     self.targets[row + c] = linear[c];
                 }
             }
-            self.system.set_constraint_targets(&self.targets)?;
+            system.set_constraint_targets(&self.targets)?;
         }
-        self.system.step(h, &self.loads)
+        system.step(h, &self.loads)?;
+        Ok(StepReport {
+            iterations: 0,
+            converged: true,
+            residual: 0.0,
+        })
     }
 
     /// Poses mode `mode` at amplitude `amplitude` at rest (the playback
@@ -439,8 +693,12 @@ impl ModalSolid {
     ///
     /// # Errors
     /// [`ModalError`] when the amplitude is not finite; an out-of-range
-    /// mode is a [`ModalError::Shape`].
-    pub fn pose_mode(&mut self, mode: usize, amplitude: Real) -> Result<(), ModalError> {
+    /// mode is a [`ModalError::Shape`]; [`MotionError::NoModes`] under
+    /// nonlinear dynamics.
+    pub fn pose_mode(&mut self, mode: usize, amplitude: Real) -> Result<(), MotionError> {
+        let Motion::Modal(system) = &mut self.motion else {
+            return Err(MotionError::NoModes);
+        };
         let l = self.pre.eigenvalues.len();
         if mode >= l {
             return Err(ModalError::Shape {
@@ -449,19 +707,24 @@ impl ModalSolid {
                 expected_cols: 1,
                 got_rows: mode + 1,
                 got_cols: 1,
-            });
+            }
+            .into());
         }
         let mut z = DVector::zeros(l);
         z[mode] = amplitude;
-        self.system.set_state(&z, &DVector::zeros(l))
+        Ok(system.set_state(&z, &DVector::zeros(l))?)
     }
 
     /// The modal static solution under gravity `g`, at rest: `z_j =
     /// Psi_j^T f / lambda_j` with `f` the nodal weights, for the kept
     /// elastic modes; a rigid mode, which has no static response, at 0.
     /// Truncated to the kept modes, so it measures what reduction costs.
+    /// Empty under nonlinear dynamics, which has no modes.
     pub fn static_state(&self, g: &Vector) -> ModalState {
-        let basis = self.system.basis();
+        let Motion::Modal(system) = &self.motion else {
+            return ModalState::default();
+        };
+        let basis = system.basis();
         let mut work = DVector::zeros(self.pre.eigenvalues.len());
         for (node, m) in self.pre.efg.node_masses().iter().enumerate() {
             work += basis.displacement_block(node) * (g * *m);
@@ -476,24 +739,78 @@ impl ModalSolid {
         }
     }
 
-    /// The reduced state.
+    /// The state: reduced (per mode), or full (per node and axis) under
+    /// nonlinear dynamics.
     pub fn state(&self) -> ModalState {
-        ModalState {
-            amplitudes: self.system.amplitudes().as_slice().to_vec(),
-            velocities: self.system.velocities().as_slice().to_vec(),
+        match &self.motion {
+            Motion::Modal(system) => ModalState {
+                amplitudes: system.amplitudes().as_slice().to_vec(),
+                velocities: system.velocities().as_slice().to_vec(),
+            },
+            Motion::Full(full) => ModalState {
+                amplitudes: full.state.displacements.clone(),
+                velocities: full.state.velocities.clone(),
+            },
         }
     }
 
-    /// Sets the reduced state.
+    /// The length of each vector of [`Self::state`]: the mode count, or
+    /// three per node under nonlinear dynamics.
+    pub fn state_len(&self) -> usize {
+        match &self.motion {
+            Motion::Modal(_) => self.pre.eigenvalues.len(),
+            Motion::Full(_) => 3 * self.len(),
+        }
+    }
+
+    /// Sets the state.
     ///
     /// # Errors
-    /// [`ModalError`] when a vector's length is not the mode count or a
-    /// value is not finite; nothing changes then.
+    /// [`ModalError`] when a vector's length is not [`Self::state_len`]
+    /// or a value is not finite; nothing changes then.
     pub fn set_state(&mut self, state: &ModalState) -> Result<(), ModalError> {
-        self.system.set_state(
-            &DVector::from_column_slice(&state.amplitudes),
-            &DVector::from_column_slice(&state.velocities),
-        )
+        let full = match &mut self.motion {
+            Motion::Modal(system) => {
+                return system.set_state(
+                    &DVector::from_column_slice(&state.amplitudes),
+                    &DVector::from_column_slice(&state.velocities),
+                );
+            }
+            Motion::Full(full) => full,
+        };
+        let expected = full.state.displacements.len();
+        for (what, v) in [
+            ("nonlinear displacements", &state.amplitudes),
+            ("nonlinear velocities", &state.velocities),
+        ] {
+            if v.len() != expected {
+                return Err(ModalError::Shape {
+                    what,
+                    expected_rows: expected,
+                    expected_cols: 1,
+                    got_rows: v.len(),
+                    got_cols: 1,
+                });
+            }
+            if let Some(row) = v.iter().position(|x| !x.is_finite()) {
+                return Err(ModalError::NotFinite {
+                    what,
+                    row,
+                    col: 0,
+                    value: v[row],
+                });
+            }
+        }
+        full.state.displacements.clone_from(&state.amplitudes);
+        full.state.velocities.clone_from(&state.velocities);
+        for (d, u) in full
+            .displacements
+            .iter_mut()
+            .zip(state.amplitudes.chunks_exact(3))
+        {
+            *d = Vector::new(u[0], u[1], u[2]);
+        }
+        Ok(())
     }
 
     /// The grabs in force.
@@ -532,11 +849,42 @@ impl ModalSolid {
                 max: MAX_CONSTRAINTS,
             });
         }
+        let system = match &mut self.motion {
+            Motion::Modal(system) => system,
+            Motion::Full(full) => {
+                let mut springs = Vec::with_capacity(grabs.len());
+                let efg = &self.pre.efg;
+                // As stiff as a hundred octant-sized cubes of the material
+                // in series with nothing: it holds the point to about 1 %
+                // of the deformation of the octant around it.
+                let stiffness = 100.0 * efg.material().young * efg.params().cell;
+                for (index, g) in grabs.iter().enumerate() {
+                    if g.rotation.is_some() {
+                        return Err(GrabError::Orientation { index });
+                    }
+                    let table = efg
+                        .shape_table(std::slice::from_ref(&g.point))
+                        .map_err(|source| GrabError::Outside { index, source })?;
+                    let row = table.row(0);
+                    if let Some(p) = g.position {
+                        springs.push(Spring {
+                            nodes: row.nodes.to_vec(),
+                            values: row.values.to_vec(),
+                            target: p - g.point,
+                            stiffness,
+                        });
+                    }
+                }
+                full.springs = springs;
+                self.grabs = grabs.to_vec();
+                return Ok(());
+            }
+        };
         let l = self.pre.eigenvalues.len();
         let mut a = DMatrix::zeros(rows, l);
         let mut b = DVector::zeros(rows);
         let mut warped_targets = Vec::new();
-        let basis = self.system.basis();
+        let basis = system.basis();
         let mut r = 0;
         for (index, g) in grabs.iter().enumerate() {
             let table = self
@@ -558,17 +906,31 @@ impl ModalSolid {
                 r += 3;
             }
         }
-        self.system
-            .set_constraints(&a, &b, self.pre.stabilization)?;
+        system.set_constraints(&a, &b, self.pre.stabilization)?;
         self.grabs = grabs.to_vec();
         self.warped_targets = warped_targets;
         self.targets = b;
         Ok(())
     }
 
-    /// `|A_c z - b_c|` of the grabs at the current state.
+    /// `|A_c z - b_c|` of the grabs at the current state (under
+    /// nonlinear dynamics, of the springs: `|sum_I phi_I u_I - d|` stacked).
     pub fn grab_violation(&self) -> Real {
-        self.system.constraint_violation()
+        match &self.motion {
+            Motion::Modal(system) => system.constraint_violation(),
+            Motion::Full(full) => full
+                .springs
+                .iter()
+                .map(|s| {
+                    let mut x = -s.target;
+                    for (&n, &phi) in s.nodes.iter().zip(&s.values) {
+                        x += full.displacements[n as usize] * phi;
+                    }
+                    x.norm_squared()
+                })
+                .sum::<Real>()
+                .sqrt(),
+        }
     }
 
     /// The deformed skin: positions and unit normals (recomputed from the
@@ -589,13 +951,21 @@ impl ModalSolid {
     /// skin.
     pub fn skin_into(&self, buffers: &mut SkinBuffers) -> Option<&[[u32; 3]]> {
         let skin = self.pre.skin.as_ref()?;
-        skin.deform_into(&self.system, buffers);
+        match &self.motion {
+            Motion::Modal(system) => skin.deform_into(system, buffers),
+            Motion::Full(full) => {
+                skin.deform_full_into(&full.displacements, self.pre.cloud.as_ref(), buffers);
+            }
+        }
         Some(skin.triangles())
     }
 
     /// Turns modal warping on or off from now on (the same state shown
     /// warped or linear), to measure what warping costs and changes.
+    /// Nothing under nonlinear dynamics.
     pub fn set_warping(&mut self, warping: bool) {
-        self.system.set_warping(warping);
+        if let Motion::Modal(system) = &mut self.motion {
+            system.set_warping(warping);
+        }
     }
 }

@@ -33,6 +33,7 @@ mod assemble;
 mod body;
 mod boundary;
 mod estimate;
+mod nonlinear;
 mod quadrature;
 mod reduce;
 mod shape;
@@ -40,9 +41,15 @@ mod skin;
 mod solid;
 
 pub use assemble::lame;
-pub use body::{Grab, GrabError, ModalParams, ModalSolid, ModalState};
+pub use body::{
+    Dynamics, Grab, GrabError, ModalParams, ModalSolid, ModalState, MotionError, StepReport,
+};
 pub use boundary::{Anchor, MAX_FIXED_POINTS, Pose, TooManyPoints};
 pub use estimate::Estimate;
+pub use nonlinear::{
+    NewtonInfo, NewtonParams, NonlinearError, NonlinearSolver, NonlinearState, Spring, StepInput,
+    strain_energy_shares,
+};
 pub use quadrature::{MAX_ORDER, Quadrature};
 pub use shape::{CoverError, Row, ShapeTable};
 pub use skin::{DeformedSkin, SkinBuffers, SkinInput};
@@ -54,6 +61,8 @@ mod tests;
 mod tests_admission;
 #[cfg(test)]
 mod tests_extremes;
+#[cfg(test)]
+mod tests_nonlinear;
 #[cfg(test)]
 mod tests_paths;
 #[cfg(test)]

@@ -119,6 +119,36 @@ impl Skin {
         }
     }
 
+    /// The positions and unit normals of the skin at the nodal
+    /// displacements `u` of the full nonlinear state: a mesh's normals from
+    /// its deformed triangles, a point cloud's rest normals `n` taken to
+    /// `F^-T n` (normalised; `cloud` holds the vertices' shape functions
+    /// with their gradients, for `F`).
+    pub(super) fn deform_full_into(
+        &self,
+        u: &[Vector],
+        cloud: Option<&ShapeTable>,
+        out: &mut SkinBuffers,
+    ) {
+        let rest = &self.input.vertices;
+        self.sums(u, &mut out.positions, |i| rest[i]);
+        if self.input.triangles.is_empty() {
+            out.normals.clear();
+            out.normals.extend_from_slice(&self.input.normals);
+            if let Some(table) = cloud {
+                out.normals.par_iter_mut().enumerate().for_each(|(i, n)| {
+                    let f = super::nonlinear::gradient_at(&table.row(i), u);
+                    if let Some(inverse) = f.try_inverse() {
+                        *n = (inverse.transpose() * *n).try_normalize(0.0).unwrap_or(*n);
+                    }
+                });
+            }
+        } else {
+            self.rings
+                .normals_into(&out.positions, &mut out.faces, &mut out.normals);
+        }
+    }
+
     /// `base(i) + sum_I phi_I(x_i) u_I` for every vertex.
     fn sums(&self, u: &[Vector], out: &mut Vec<Vector>, base: impl Fn(usize) -> Vector + Sync) {
         weighted_sums(&self.offsets, &self.nodes, &self.values, u, out, base);

@@ -467,6 +467,11 @@ impl EfgSolid {
         &self.node_masses
     }
 
+    /// The fixed regions' surface integral, if any.
+    pub(super) fn fixed_integral(&self) -> Option<&Integral> {
+        self.fixed.as_ref()
+    }
+
     /// The penalty `beta = penalty * E / cell`: force per unit of fixed
     /// area per unit of displacement.
     pub fn penalty_stiffness(&self) -> Real {

@@ -303,16 +303,18 @@ fn a_free_beam_has_six_rigid_modes_then_bends() {
 
 /// The 10 x 1 x 1 m cantilever (E = 5e7 Pa, 24 modes) of the warping
 /// tests, with the shape functions at 41 points of its centreline.
-struct BentBeam {
-    length: Real,
+pub(super) struct BentBeam {
+    pub(super) length: Real,
     basis: crate::modal::ModalBasis,
     masses: Vec<Real>,
-    centreline: Vec<Vector>,
-    table: ShapeTable,
+    pub(super) centreline: Vec<Vector>,
+    pub(super) table: ShapeTable,
+    /// The discretisation (for the nonlinear EFG of the same beam).
+    pub(super) solid: EfgSolid,
 }
 
 impl BentBeam {
-    fn new() -> Self {
+    pub(super) fn new() -> Self {
         let (length, h) = (10.0, 1.0);
         let (sdf, fixed) = beam(length, h);
         let material = Material {
@@ -333,12 +335,13 @@ impl BentBeam {
             masses: solid.node_masses().to_vec(),
             centreline,
             table,
+            solid,
         }
     }
 
     /// The centreline settled statically under `load` times its weight
     /// (heavy damping and long implicit steps), with or without warping.
-    fn settle(&self, load: Real, warping: bool) -> Vec<Vector> {
+    pub(super) fn settle(&self, load: Real, warping: bool) -> Vec<Vector> {
         use crate::modal::{Damping, ModalSystem};
         let gravity: Vec<Vector> = self
             .masses
@@ -356,7 +359,7 @@ impl BentBeam {
     }
 
     /// A deformed centreline's length over the beam's, less one.
-    fn stretch(&self, deformed: &[Vector]) -> Real {
+    pub(super) fn stretch(&self, deformed: &[Vector]) -> Real {
         let length: Real = deformed.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
         length / self.length - 1.0
     }
@@ -412,7 +415,7 @@ fn modal_warping_keeps_a_bent_cantilevers_length_where_linear_modes_stretch_it()
 /// linear field, which shortens a beam bent hard by construction: the
 /// shortfall grows with the tip's rotation, measured here and stated in
 /// docs/validation.md. The exact path is the nonlinear EFG dynamics of
-/// Guo–Qin Section 5.1 (issue 30, item 9, open).
+/// Guo–Qin Section 5.1 (`dynamics = "nonlinear"`, `tests_nonlinear.rs`).
 #[test]
 fn modal_warping_shortens_a_beam_bent_hard() {
     let beam = BentBeam::new();

@@ -22,6 +22,7 @@ fn material() -> Material {
 
 fn params(efg: EfgParams, modes: usize) -> ModalParams {
     ModalParams {
+        dynamics: Dynamics::Modal,
         efg,
         modes,
         tolerance: 1e-8,

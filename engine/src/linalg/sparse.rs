@@ -399,6 +399,19 @@ impl SparseCholesky {
         column: impl Fn(usize, &mut BlockColumn<'_>) + Sync,
         rhs: impl IntoIterator<Item = Real>,
     ) -> Option<&[Real]> {
+        self.solve_with(pattern, column, |_| {}, rhs)
+    }
+
+    /// [`Self::solve`], with `finish` given the assembled values (in the
+    /// pattern's order) before the factorisation: to add matrices held
+    /// assembled over the same pattern (a mass, a penalty).
+    pub fn solve_with(
+        &mut self,
+        pattern: &BlockPattern,
+        column: impl Fn(usize, &mut BlockColumn<'_>) + Sync,
+        finish: impl FnOnce(&mut [Real]),
+        rhs: impl IntoIterator<Item = Real>,
+    ) -> Option<&[Real]> {
         let symbolic = &pattern.symbolic;
         // The values' allocation failing is no solve (the factor's too,
         // in `factorize_into`).
@@ -410,6 +423,7 @@ impl SparseCholesky {
             return None;
         }
         pattern.assemble(&mut self.values, column);
+        finish(&mut self.values);
         let par = faer::get_global_parallelism();
         pattern
             .factorize_into(&self.values, &mut self.factor, par)

@@ -8,8 +8,8 @@ use super::error::{check_box, check_positive, check_range, check_vector};
 use super::{Aabb, BuildOptions, Scene, SceneError, ShapeSpec};
 use crate::approx::mls::Order;
 use crate::efg::{
-    Anchor, EfgError, EfgParams, FixedSurface, Grab, MassForm, Material, ModalParams, ModalSolid,
-    Pose, SkinInput,
+    Anchor, Dynamics, EfgError, EfgParams, FixedSurface, Grab, MassForm, Material, ModalParams,
+    ModalSolid, Pose, SkinInput,
 };
 use crate::geometry::read::{self, MeshFormat};
 use crate::geometry::{Ball, ImplicitSurface, MeshSdf, PointSurface, PointSurfaceParams, TriMesh};
@@ -146,6 +146,13 @@ pub struct ModalSolidSpec {
     /// Penalty of the anchors, in units of `E / cell`.
     #[serde(default = "default_penalty")]
     pub penalty: Real,
+    /// `"modal"` (the default: the lowest modes with warping, cheap per
+    /// step, linear strain) or `"nonlinear"` (the full EFG state under
+    /// Green's strain, Guo–Qin Section 5.1: exact large deformation,
+    /// Newton steps; `modes`, `eigen_tolerance`, `warping` and `playback`
+    /// do not apply, and grabs hold positions only).
+    #[serde(default)]
+    pub dynamics: Dynamics,
     /// Modes kept.
     #[serde(default = "default_modes")]
     pub modes: u32,
@@ -248,6 +255,7 @@ impl ModalSolidSpec {
         efg.mass = self.mass;
         efg.penalty = self.penalty;
         Ok(ModalParams {
+            dynamics: self.dynamics,
             efg,
             modes: self.modes as usize,
             tolerance: self.eigen_tolerance,
@@ -604,6 +612,22 @@ impl Scene {
                 field("surface_subdivisions"),
                 format!("must be in [0, 7], got {}", spec.surface_subdivisions),
             ));
+        }
+        if spec.dynamics == Dynamics::Nonlinear {
+            if spec.playback.is_some() {
+                return Err(SceneError::invalid(
+                    field("playback"),
+                    "plays a mode back, but `dynamics = \"nonlinear\"` computes no modes; use \
+                     `dynamics = \"modal\"` or drop the playback",
+                ));
+            }
+            if let Some(k) = spec.grabs.iter().position(|g| g.rotation.is_some()) {
+                return Err(SceneError::invalid(
+                    field(&format!("grabs[{k}].rotation")),
+                    "`dynamics = \"nonlinear\"` holds grabbed positions only (as stiff \
+                     springs); hold two or three points instead, or use `dynamics = \"modal\"`",
+                ));
+            }
         }
         if let Some(playback) = &spec.playback {
             if playback.mode >= spec.modes {

@@ -5,7 +5,9 @@
 use super::system::{RemoveError, Simulated, StepEnv};
 use super::watch::{EnergyWatch, MAX_ENERGY_GAIN};
 use super::{StepError, StepInfo};
-use crate::efg::{Grab, GrabError, ModalSolid, ModalState};
+use crate::efg::{
+    Grab, GrabError, ModalSolid, ModalState, MotionError, NonlinearError, StepReport,
+};
 use crate::fluid::Invalid;
 use crate::frame::{FieldKind, SolidSurface};
 use crate::geometry::TriMesh;
@@ -125,12 +127,25 @@ impl Simulated for ModalEntry {
                 )
             });
         }
+        let mut report = StepReport {
+            converged: true,
+            ..StepReport::default()
+        };
         if let Some(playback) = self.playback {
             self.play(playback, env.step as Real * env.dt)?;
         } else {
-            self.solid
-                .step(env.dt, &env.gravity)
-                .map_err(|_| self.unstable("modal amplitude", Real::INFINITY, env.step))?;
+            report = self
+                .solid
+                .step_cancellable(env.dt, &env.gravity, env.cancel)
+                .map_err(|e| match e {
+                    MotionError::Nonlinear(NonlinearError::Cancelled) => env.cancelled(),
+                    MotionError::Nonlinear(_) => {
+                        self.unstable("nonlinear displacement", Real::INFINITY, env.step)
+                    }
+                    MotionError::Modal(_) | MotionError::NoModes => {
+                        self.unstable("modal amplitude", Real::INFINITY, env.step)
+                    }
+                })?;
         }
         if watched
             && let Some((gained, fraction)) = self
@@ -142,8 +157,7 @@ impl Simulated for ModalEntry {
                 gained,
                 fraction,
                 limit: MAX_ENERGY_GAIN,
-                advice: "the only source in a modal step is warping turning the load with the nodes: \
-                         lower time.dt or set warping = false",
+                advice: self.solid.energy_advice(),
                 step: env.step,
             });
         }
@@ -158,6 +172,11 @@ impl Simulated for ModalEntry {
             None => {
                 let mut info = StepInfo::start(env.dt);
                 info.substeps = 1;
+                // Nonlinear dynamics: its Newton solve, reported as the
+                // elastic solids' is.
+                info.solid_iterations = u32::try_from(report.iterations).unwrap_or(u32::MAX);
+                info.solid_residual = report.residual;
+                info.unconverged = u32::from(!report.converged);
                 Ok(info)
             }
         }

@@ -46,8 +46,9 @@ pub enum SystemState {
         /// The energy watch's start `(E_0, scale)`, if measured.
         energy_start: Option<(Real, Real)>,
     },
-    /// A modal solid: its reduced state (its grabs belong to whoever set
-    /// them, and are set again after a restore).
+    /// A modal solid: its reduced state, or its full one under nonlinear
+    /// dynamics (its grabs belong to whoever set them, and are set again
+    /// after a restore).
     Modal {
         /// Index of its system in the scene.
         index: usize,
@@ -281,7 +282,8 @@ impl World {
                     entry.watch.set_start(*energy_start);
                 }
                 (System::Modal(entry), SystemState::Modal { state, .. }) => {
-                    let modes = entry.solid.eigenvalues().len();
+                    // Modes, or three per node under nonlinear dynamics.
+                    let modes = entry.solid.state_len();
                     for (what, values) in [
                         ("modal amplitudes", &state.amplitudes),
                         ("modal velocities", &state.velocities),

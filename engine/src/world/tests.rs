@@ -410,6 +410,100 @@ mod modal {
         assert_eq!(a2.frame(), b2.frame());
     }
 
+    /// `dynamics = "nonlinear"` on the same cantilever (soft: its linear
+    /// sag is over a third of its length): no modes, the full state steps
+    /// and sags, frames carry its skin and St Venant–Kirchhoff energy, a
+    /// snapshot carries the full state bit for bit, a position grab holds
+    /// as a spring, and what needs modes (playback, posing, orientation
+    /// grabs) is refused by name.
+    #[test]
+    fn nonlinear_dynamics_steps_the_full_state_and_refuses_what_needs_modes() {
+        use crate::efg::Dynamics;
+        let nonlinear = "dynamics = \"nonlinear\"";
+        let mut world = world(nonlinear);
+        let (_, solid) = world.modal_solids().next().expect("a modal solid");
+        assert_eq!(solid.dynamics(), Dynamics::Nonlinear);
+        assert!(solid.eigenvalues().is_empty(), "no modes are computed");
+        assert_eq!(solid.state_len(), 3 * solid.len());
+        let rest_tip = tip(&world);
+        for _ in 0..5 {
+            world.step().expect("a stable step");
+        }
+        let state = world.state();
+        let mut again = world.clone();
+        let mut restored = self::world(nonlinear).restored(&state).expect("same scene");
+        again.step().expect("a stable step");
+        restored.step().expect("a stable step");
+        assert_eq!(again.frame(), restored.frame(), "the full state restores");
+        for _ in 0..45 {
+            world.step().expect("a stable step");
+        }
+        let frame = world.frame();
+        assert_eq!(frame.unconverged, 0, "every Newton solve converged");
+        let sagged = tip(&world);
+        println!("nonlinear tip {rest_tip:?} -> {sagged:?}");
+        assert!(sagged.y < rest_tip.y - 0.02, "the tip sags: {sagged:?}");
+        // It swings down, so the tip comes closer to the clamp: a
+        // rotation the linear strain would have stretched instead.
+        assert!(sagged.x < rest_tip.x - 2e-3, "{sagged:?}");
+        let energy: f32 = frame
+            .field(crate::frame::FieldKind::ElasticEnergy)
+            .expect("asked for")
+            .values
+            .iter()
+            .sum();
+        assert!(energy > 0.0, "a bent beam stores energy");
+        let skin = &frame.solid_surfaces[0];
+        assert!(skin.normals.iter().all(|n| (n.norm() - 1.0).abs() < 1e-6));
+        let point = Vector::new(0.16, 0.0, 0.0);
+        let target = Vector::new(0.15, 0.03, 0.0);
+        world
+            .set_grabs(
+                0,
+                &[Grab {
+                    point,
+                    position: Some(target),
+                    rotation: None,
+                }],
+            )
+            .expect("a position grab");
+        for _ in 0..40 {
+            world.step().expect("a stable step");
+        }
+        let (_, solid) = world.modal_solids().next().expect("a modal solid");
+        let table = solid.efg().shape_table(&[point]).expect("covered");
+        let mut u = Vec::new();
+        table.interpolate(solid.displacements(), &mut u);
+        let held = point + u[0];
+        println!("nonlinear grab: {held:?}, target {target:?}");
+        assert!(
+            (held - target).norm() < 0.02 * (target - point).norm(),
+            "the spring holds the point: {held:?} vs {target:?}"
+        );
+        let turn = Grab {
+            point,
+            position: None,
+            rotation: Some(Vector::new(0.0, 0.0, 0.3)),
+        };
+        let refused = world
+            .set_grabs(0, &[turn])
+            .expect_err("no orientation grabs");
+        assert!(refused.to_string().contains("dynamics"), "{refused}");
+        let (_, solid) = world.modal_solids().next().expect("a modal solid");
+        let mut posed = solid.clone();
+        let error = posed.pose_mode(0, 1.0).expect_err("no modes to pose");
+        assert!(error.to_string().contains("dynamics"), "{error}");
+        let error = scene(&format!(
+            "{nonlinear}\nplayback = {{ mode = 0, amplitude = 0.5 }}"
+        ))
+        .validate(&BuildOptions::default())
+        .expect_err("playback needs modes");
+        assert!(
+            error.to_string().starts_with("systems[0].playback"),
+            "{error}"
+        );
+    }
+
     #[test]
     fn playback_poses_a_mode_shape() {
         let mut world = world("playback = { mode = 0, amplitude = 0.5 }");
@@ -497,19 +591,36 @@ mod modal {
             scale: None,
         };
         spec.anchors.clear();
-        let mut world = scene
-            .build(&BuildOptions::default())
-            .expect("a point cloud builds");
-        let (_, solid) = world.modal_solids().next().expect("a modal solid");
-        assert_eq!(solid.zero_modes(), 6, "a free body");
-        world.step().expect("a stable step");
-        let frame = world.frame();
-        let skin = &frame.solid_surfaces[0];
-        assert_eq!(skin.mesh.vertices.len(), count);
-        assert!(skin.mesh.triangles.is_empty(), "surfels, no triangles");
-        assert!(
-            skin.normals.iter().all(|n| (n.norm() - 1.0).abs() < 1e-9),
-            "unit normals"
-        );
+        for dynamics in [crate::efg::Dynamics::Modal, crate::efg::Dynamics::Nonlinear] {
+            let SystemSpec::ModalSolid(spec) = &mut scene.systems[0] else {
+                panic!("a modal solid");
+            };
+            spec.dynamics = dynamics;
+            let mut world = scene
+                .build(&BuildOptions::default())
+                .expect("a point cloud builds");
+            let (_, solid) = world.modal_solids().next().expect("a modal solid");
+            if dynamics == crate::efg::Dynamics::Modal {
+                assert_eq!(solid.zero_modes(), 6, "a free body");
+            }
+            world.step().expect("a stable step");
+            let frame = world.frame();
+            let skin = &frame.solid_surfaces[0];
+            assert_eq!(skin.mesh.vertices.len(), count);
+            assert!(skin.mesh.triangles.is_empty(), "surfels, no triangles");
+            assert!(
+                skin.normals.iter().all(|n| (n.norm() - 1.0).abs() < 1e-9),
+                "{dynamics:?}: unit normals"
+            );
+            // A free ball falls undeformed: its normals (under nonlinear
+            // dynamics F^-T n, F = I) keep their rest directions.
+            for (n, rest) in skin
+                .normals
+                .iter()
+                .zip(crate::testing::fibonacci_sphere(count))
+            {
+                assert!(n.dot(&rest) > 1.0 - 1e-6, "{dynamics:?}: {n:?} vs {rest:?}");
+            }
+        }
     }
 }
