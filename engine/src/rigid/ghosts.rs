@@ -18,7 +18,7 @@ const SAMPLES: usize = 512;
 /// form at the body's own velocity. The domain's walls instead integrate
 /// every ghost layer at depths `d_k = (k + 1/2) dx` behind the wall, each
 /// moving so that the pair's relative velocity is `beta_k = 1 + d_k / d`
-/// times the particle's ([`extrapolation`](crate::approx::layers::extrapolation), Morris et al. 1997). The body
+/// times the particle's (`approx::layers::extrapolation`, Morris et al. 1997). The body
 /// makes up for both with a scale per fluid particle: the volume its
 /// neighbourhood misses, weighted as the friction weighs it,
 /// `C_miss = C_full - sum_j (m / rho_j) phi(r_ij)` with
