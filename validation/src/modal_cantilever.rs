@@ -17,8 +17,8 @@
 use meshless_engine::Cancel;
 use meshless_engine::approx::mls::Order;
 use meshless_engine::efg::{
-    Dynamics, EfgParams, EfgSolid, FixedSurface, Material, ModalParams, ModalSolid, NewtonParams,
-    NonlinearSolver, NonlinearState, StepInput,
+    Dynamics, EfgParams, EfgSolid, FixedSurface, Material, ModalParams, ModalSolid,
+    NonlinearSolver, NonlinearState,
 };
 use meshless_engine::geometry::{MeshSdf, TriMesh};
 use meshless_engine::math::{Real, Vector};
@@ -357,20 +357,7 @@ pub fn bent_beam(loads: &[Real]) -> Result<Vec<Bend>, String> {
         let warping = shape(efg, warped.displacements())?;
         let weight = efg.body_load(&g);
         let info = solver
-            .step(
-                efg,
-                &mut state,
-                StepInput {
-                    h: None,
-                    load: &weight,
-                    springs: &[],
-                },
-                &NewtonParams {
-                    max_iterations: 60,
-                    ..NewtonParams::default()
-                },
-                &Cancel::new(),
-            )
+            .solve_static(efg, &mut state, &weight, 60)
             .map_err(|e| e.to_string())?;
         if !info.converged {
             return Err(format!(

@@ -452,6 +452,31 @@ impl NonlinearSolver {
         values
     }
 
+    /// The static equilibrium under `load` alone (no springs, no
+    /// cancel), from `state`, in at most `max_iterations` Newton
+    /// iterations: [`Self::step`] with no time step.
+    ///
+    /// # Errors
+    /// As [`Self::step`].
+    pub fn solve_static(
+        &mut self,
+        solid: &EfgSolid,
+        state: &mut NonlinearState,
+        load: &[Real],
+        max_iterations: usize,
+    ) -> Result<NewtonInfo, NonlinearError> {
+        let input = StepInput {
+            h: None,
+            load,
+            springs: &[],
+        };
+        let params = NewtonParams {
+            max_iterations,
+            ..NewtonParams::default()
+        };
+        self.step(solid, state, input, &params, &Cancel::new())
+    }
+
     /// One backward-Euler step of `input.h` (or, with `None`, the static
     /// equilibrium) from `state` under `input`'s load and springs, minimising the incremental
     /// potential by Newton's method. On success `state` holds the new

@@ -195,16 +195,11 @@ fn at_small_load_the_nonlinear_tip_is_the_linear_one() {
     let mut solver = NonlinearSolver::new(&solid);
     let mut state = NonlinearState::rest(solid.nodes().len());
     let info = solver
-        .step(
+        .solve_static(
             &solid,
             &mut state,
-            StepInput {
-                h: None,
-                load: &load,
-                springs: &[],
-            },
-            &NewtonParams::default(),
-            &Cancel::new(),
+            &load,
+            NewtonParams::default().max_iterations,
         )
         .expect("a static solve");
     let static_tip = tip_of(&solid, &state.displacements, tip) - tip;
@@ -354,20 +349,7 @@ fn the_nonlinear_efg_cantilever_bent_hard_follows_the_elastica_and_keeps_its_len
         let f: Vec<Real> = weight.iter().map(|f| f * load).collect();
         let clock = Instant::now();
         let info = solver
-            .step(
-                solid,
-                &mut state,
-                StepInput {
-                    h: None,
-                    load: &f,
-                    springs: &[],
-                },
-                &NewtonParams {
-                    max_iterations: 60,
-                    ..NewtonParams::default()
-                },
-                &Cancel::new(),
-            )
+            .solve_static(solid, &mut state, &f, 60)
             .expect("a static solve");
         let time = clock.elapsed();
         let mut d = Vec::new();
@@ -448,20 +430,7 @@ fn an_indefinite_tangent_is_shifted_by_the_mass_and_the_solve_recovers() {
     };
     let load = vec![0.0; state.velocities.len()];
     let info = solver
-        .step(
-            &solid,
-            &mut state,
-            StepInput {
-                h: None,
-                load: &load,
-                springs: &[],
-            },
-            &NewtonParams {
-                max_iterations: 100,
-                ..NewtonParams::default()
-            },
-            &Cancel::new(),
-        )
+        .solve_static(&solid, &mut state, &load, 100)
         .expect("a shifted solve");
     let end = solver.strain_energy(&solid, &state.displacements);
     println!("squeezed block: energy {start:.3e} -> {end:.3e}, {info:?}");

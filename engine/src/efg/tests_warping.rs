@@ -903,20 +903,7 @@ fn the_bent_beam_three_ways_length_tip_and_time_per_step() {
     let mut solver = NonlinearSolver::new(solid);
     let mut state = NonlinearState::rest(solid.nodes().len());
     let info = solver
-        .step(
-            solid,
-            &mut state,
-            StepInput {
-                h: None,
-                load: &weight,
-                springs: &[],
-            },
-            &NewtonParams {
-                max_iterations: 60,
-                ..NewtonParams::default()
-            },
-            &Cancel::new(),
-        )
+        .solve_static(solid, &mut state, &weight, 60)
         .expect("a static solve");
     assert!(info.converged, "{info:?}");
     let mut d = Vec::new();
