@@ -33,6 +33,11 @@ pub enum FieldKind {
     /// equation, `m int_rho0^rho p / rho^2 drho` (0 for DFSPH, which has no
     /// equation of state).
     ElasticEnergy,
+    /// Each particle's stable id within its system (an integer): kept
+    /// while other particles leave or join, so a client follows a particle
+    /// from frame to frame. Frames carry ids as integers, in
+    /// [`Frame::ids`], not among the real-valued [`Frame::fields`].
+    Id,
 }
 
 impl FieldKind {
@@ -45,7 +50,8 @@ impl FieldKind {
             | Self::Mass
             | Self::Volume
             | Self::KineticEnergy
-            | Self::ElasticEnergy => 1,
+            | Self::ElasticEnergy
+            | Self::Id => 1,
         }
     }
 
@@ -60,7 +66,14 @@ impl FieldKind {
             Self::Volume => "volume",
             Self::KineticEnergy => "kinetic_energy",
             Self::ElasticEnergy => "elastic_energy",
+            Self::Id => "id",
         }
+    }
+
+    /// Whether the field's values are integers ([`Self::Id`]), carried in
+    /// [`Frame::ids`] rather than as f32 in [`Frame::fields`].
+    pub fn is_integer(self) -> bool {
+        self == Self::Id
     }
 }
 
@@ -98,8 +111,12 @@ pub struct Frame {
     pub unconverged: u32,
     /// Particles over all systems: the length of each field.
     pub particle_count: usize,
-    /// Positions first, then the requested fields in scene order.
+    /// Positions first, then the requested real-valued fields in scene
+    /// order.
     pub fields: Vec<FieldData>,
+    /// Each particle's stable id within its system, in the order of
+    /// `fields`, when the scene's output names [`FieldKind::Id`].
+    pub ids: Option<Vec<u32>>,
     /// Every rigid body's pose, in scene order (empty without bodies).
     pub bodies: Vec<BodyPose>,
     /// The fluid's surface, when the scene asks for it (`output.surface`).

@@ -182,6 +182,8 @@ pub fn frame_from_proto(frame: v1::Frame) -> Result<Frame> {
         unconverged,
         particle_count,
         fields,
+        // Integer payloads are read in the frame-ids change.
+        ids: None,
         bodies,
         surface,
         solids,

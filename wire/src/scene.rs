@@ -35,6 +35,7 @@ wire_enum! {
         "volume" => Volume,
         "kinetic_energy" => KineticEnergy,
         "elastic_energy" => ElasticEnergy,
+        "id" => Id,
     }
 }
 

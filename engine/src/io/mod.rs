@@ -83,6 +83,7 @@ pub(crate) mod test_frame {
             surface: None,
             solids: Vec::new(),
             solid_surfaces: Vec::new(),
+            ids: None,
         }
     }
 }

@@ -507,6 +507,7 @@ impl World {
         let fields = self
             .frame_fields
             .iter()
+            .filter(|kind| !kind.is_integer())
             .map(|&kind| FieldData {
                 kind,
                 components: kind.components(),
@@ -524,6 +525,10 @@ impl World {
             unconverged: self.last_step.unconverged,
             particle_count: self.particle_count(),
             fields,
+            ids: self
+                .frame_fields
+                .contains(&FieldKind::Id)
+                .then(|| self.particle_ids()),
             bodies: self.body_poses(),
             surface: self.fluid_entry().and_then(FluidEntry::surface_mesh),
             solids: self.solid_ranges(),
@@ -618,6 +623,15 @@ impl World {
             system.simulated().write_field(kind, &mut values);
         }
         values
+    }
+
+    /// Each particle's stable id within its system, in frame order.
+    pub fn particle_ids(&self) -> Vec<u32> {
+        let mut ids = Vec::with_capacity(self.particle_count());
+        for system in &self.systems {
+            system.simulated().write_ids(&mut ids);
+        }
+        ids
     }
 
     fn fluid_entry(&self) -> Option<&FluidEntry> {

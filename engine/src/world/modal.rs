@@ -220,7 +220,14 @@ impl Simulated for ModalEntry {
             FieldKind::ElasticEnergy => {
                 out.extend(solid.elastic_energies().into_iter().map(|e| e as f32));
             }
+            // Exact below 2^24; frames carry ids as integers.
+            FieldKind::Id => out.extend((0..solid.len()).map(|id| id as f32)),
         }
+    }
+
+    /// Nodes never change: their ids are their indices.
+    fn write_ids(&self, out: &mut Vec<u32>) {
+        out.extend(0..self.solid.len() as u32);
     }
 
     fn mark_removed(&mut self, _ids: &[usize]) -> Result<(), RemoveError> {

@@ -175,6 +175,10 @@ pub(crate) trait Simulated {
     /// particle, in the order frames list its particles.
     fn write_field(&self, kind: FieldKind, out: &mut Vec<f32>);
 
+    /// Appends each particle's stable id, in the order of
+    /// [`Self::write_field`].
+    fn write_ids(&self, out: &mut Vec<u32>);
+
     /// Marks particles for removal at the start of the next step.
     fn mark_removed(&mut self, ids: &[usize]) -> Result<(), RemoveError>;
 }
@@ -336,6 +340,7 @@ impl Simulated for FluidEntry {
             FieldKind::KineticEnergy => fluid.in_id_order(out, |k| {
                 [(0.5 * fluid.params.mass * fluid.velocities[k].norm_squared()) as f32]
             }),
+            FieldKind::Id => fluid.in_id_order(out, |k| [fluid.ids()[k] as f32]),
             FieldKind::ElasticEnergy => {
                 let stored = self.fluid.pressure().has_equation_of_state();
                 fluid.in_id_order(out, |k| {
@@ -348,6 +353,12 @@ impl Simulated for FluidEntry {
                 })
             }
         }
+    }
+
+    fn write_ids(&self, out: &mut Vec<u32>) {
+        let mut ids = self.fluid.fluid().ids().to_vec();
+        ids.sort_unstable();
+        out.extend(ids);
     }
 
     fn mark_removed(&mut self, ids: &[usize]) -> Result<(), RemoveError> {
@@ -482,7 +493,14 @@ impl Simulated for SolidEntry {
             FieldKind::ElasticEnergy => {
                 out.extend(solid.elastic_energies().into_iter().map(|e| e as f32));
             }
+            // Exact below 2^24; frames carry ids as integers.
+            FieldKind::Id => out.extend((0..solid.len()).map(|id| id as f32)),
         }
+    }
+
+    /// A solid's particles never change: their ids are their indices.
+    fn write_ids(&self, out: &mut Vec<u32>) {
+        out.extend(0..self.solid.len() as u32);
     }
 
     fn mark_removed(&mut self, _ids: &[usize]) -> Result<(), RemoveError> {

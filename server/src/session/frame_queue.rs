@@ -137,6 +137,7 @@ mod tests {
             surface: None,
             solids: Vec::new(),
             solid_surfaces: Vec::new(),
+            ids: None,
         })
     }
 
