@@ -1,33 +1,38 @@
 //! The running world: the systems a scene built, the clock, and the step.
 //!
-//! `system.rs` holds the systems (the fluid, the elastic solids) behind
-//! one small trait, each addressed by its index in the scene, with the
-//! removal masks of systems whose particle counts change; `build.rs`
-//! turns a scene into a world. A step runs in named stages: between-step
-//! changes of the particle slots (removals, sorting), then each system in
-//! turn (the fluid first, then the solids in scene order), then the clock.
+//! `system/` holds the systems, one adapter per kind (fluid, elastic
+//! solid, modal solid) behind one small trait, each addressed by its
+//! index in the scene; the world reaches them only through that trait (or
+//! a typed accessor where a caller needs the kind). `build.rs` turns a
+//! scene into a world, `state.rs` a world into a snapshot and back,
+//! `controls.rs` holds the runtime controls (grabs), `outcome.rs` what a
+//! step reports. A step runs in named stages: between-step changes of the
+//! particle slots (removals, sorting), then each system in turn (the
+//! fluid first, then the solids in scene order), then the clock.
 
 mod build;
-mod modal;
+mod controls;
+mod outcome;
 mod state;
 mod system;
 #[cfg(test)]
 mod tests;
 pub mod watch;
 
+pub use controls::GrabsError;
+pub use outcome::{StepError, StepInfo};
 pub use state::{StateError, SystemState, WorldState};
 pub use system::RemoveError;
 
 use crate::cancel::Cancel;
-use crate::efg::{Grab, GrabError, ModalSolid};
+use crate::efg::ModalSolid;
 use crate::fluid::Fluid;
 use crate::frame::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
 use crate::math::{Real, vector};
-use crate::scene::{Scene, shape_axes};
+use crate::scene::Scene;
 use crate::solid::ElasticSolid;
-use crate::solid::embedded::{DeformedSurface, EmbeddingMethod};
 use crate::stats::StageTimer;
-use system::{FluidEntry, StepEnv, System};
+use system::{StepEnv, System};
 
 /// Where a world is in time.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -36,224 +41,6 @@ pub struct Clock {
     pub step: u64,
     /// Simulated time, s.
     pub time: Real,
-}
-
-/// How the last step was carried out.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct StepInfo {
-    /// Sub-steps the step was split into.
-    pub substeps: u32,
-    /// Shortest sub-step, s.
-    pub min_substep: Real,
-    /// Whether `max_substeps` capped the split, so sub-steps exceeded the
-    /// stability limit.
-    pub capped: bool,
-    /// Pressure-solver iterations over all sub-steps (0 for WCSPH).
-    pub solver_iterations: u32,
-    /// Worst average density error after a sub-step's pressure solve
-    /// (fraction of rho_0; 0 for WCSPH).
-    pub density_error: Real,
-    /// Of `solver_iterations`, the implicit solids' Newton and CG
-    /// iterations.
-    pub solid_iterations: u32,
-    /// The implicit solids' worst final Newton residual (relative; see
-    /// `SolidStep::residual`).
-    pub solid_residual: Real,
-    /// Solves that stopped at their iteration cap above their tolerance:
-    /// DFSPH pressure solves and implicit solids' Newton solves. Nonzero
-    /// means the step is not as accurate as the scene asked.
-    pub unconverged: u32,
-}
-
-impl StepInfo {
-    /// A step of `dt` before any system took part in it.
-    fn start(dt: Real) -> Self {
-        Self {
-            substeps: 0,
-            min_substep: dt,
-            capped: false,
-            solver_iterations: 0,
-            density_error: 0.0,
-            solid_iterations: 0,
-            solid_residual: 0.0,
-            unconverged: 0,
-        }
-    }
-
-    /// Adds one system's share: the most sub-steps and the shortest of
-    /// any system, the iterations of all.
-    fn merge(&mut self, system: &StepInfo) {
-        self.substeps = self.substeps.max(system.substeps);
-        self.min_substep = self.min_substep.min(system.min_substep);
-        self.capped |= system.capped;
-        self.solver_iterations += system.solver_iterations;
-        self.density_error = self.density_error.max(system.density_error);
-        self.solid_iterations += system.solid_iterations;
-        self.solid_residual = self.solid_residual.max(system.solid_residual);
-        self.unconverged += system.unconverged;
-    }
-}
-
-/// A step failed; the world is left as it was before the step.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum StepError {
-    /// The fluid blew up.
-    #[error(
-        "the {quantity} of particle {particle} left its valid range ({value:e}) in sub-step \
-         {substep} of step {step}; the simulation is unstable: lower time.dt, time.cfl or the \
-         stiffness, or raise time.max_substeps"
-    )]
-    Unstable {
-        /// What left its range ("position", "velocity", ...).
-        quantity: &'static str,
-        /// The particle's id (or a body's index among the fluid's bodies).
-        particle: usize,
-        /// The offending value (a norm for vectors).
-        value: f64,
-        /// The step that failed.
-        step: u64,
-        /// The sub-step of it that failed, from 1.
-        substep: u32,
-    },
-    /// An elastic solid blew up.
-    #[error(
-        "the {quantity} of particle {particle} (of the solid in systems[{system}]) left its \
-         valid range ({value:e}) in step {step}; the solid is unstable: lower time.dt or its \
-         cfl, raise time.max_substeps, or set integrator = \"implicit\""
-    )]
-    SolidUnstable {
-        /// Index of the solid's system in the scene.
-        system: usize,
-        /// What left its range ("position", "velocity", ...).
-        quantity: &'static str,
-        /// The particle, in the solid's order.
-        particle: usize,
-        /// The offending value (a norm for vectors).
-        value: f64,
-        /// The step that failed.
-        step: u64,
-    },
-    /// An elastic solid's particle was squeezed to a sliver of its volume
-    /// or turned inside out ([`crate::solid::ElasticSolid::MIN_VOLUME_RATIO`]).
-    #[error(
-        "particle {particle} of the solid in systems[{system}] was squeezed to {ratio:.3} of its \
-         volume in step {step} (below the {limit} a solid allows; 0 or less is inside out): the \
-         solid collapsed; {advice}"
-    )]
-    Collapsed {
-        /// Index of the solid's system in the scene.
-        system: usize,
-        /// The particle, in the solid's order.
-        particle: usize,
-        /// Its volume ratio `det F`.
-        ratio: f64,
-        /// The smallest ratio allowed.
-        limit: f64,
-        /// What to change, for the solid's material.
-        advice: &'static str,
-        /// The step that failed.
-        step: u64,
-    },
-    /// A fluid particle was compressed beyond the band a fluid allows
-    /// ([`watch::MAX_COMPRESSION`]).
-    #[error(
-        "the density of fluid particle {particle} reached {ratio:.3} times the rest density in \
-         step {step}, beyond the {limit} a fluid allows: the pressure solve is not holding the \
-         fluid; lower time.dt or raise time.max_substeps, raise the stiffness (wcsph) or lower \
-         density_tolerance (dfsph)"
-    )]
-    Compressed {
-        /// The particle's id.
-        particle: usize,
-        /// Its density over the rest density.
-        ratio: Real,
-        /// The largest ratio allowed.
-        limit: Real,
-        /// The step that failed.
-        step: u64,
-    },
-    /// The fluid gained mechanical energy with nothing to supply it
-    /// ([`watch::MAX_ENERGY_GAIN`]).
-    #[error(
-        "the fluid's mechanical energy rose by {gained:.3e} J since it started ({:.1} % of its \
-         scale, beyond the {:.0} % allowed) in step {step}, with no moving wall or body to supply \
-         it: the scheme is adding energy; {advice}", 100.0 * fraction, 100.0 * limit
-    )]
-    EnergyGained {
-        /// Joules gained (per metre of depth in 2D).
-        gained: Real,
-        /// What to change, for the fluid's pressure solver.
-        advice: &'static str,
-        /// The gain as a fraction of the energy scale.
-        fraction: Real,
-        /// The largest fraction allowed.
-        limit: Real,
-        /// The step that failed.
-        step: u64,
-    },
-    /// An elastic solid gained mechanical energy with nothing to supply it
-    /// ([`watch::MAX_ENERGY_GAIN`]).
-    #[error(
-        "the solid in systems[{system}] gained {gained:.3e} J of mechanical energy since it \
-         started ({:.1} % of its scale, beyond the {:.0} % allowed) in step {step}: the step is \
-         adding energy; {advice}", 100.0 * fraction, 100.0 * limit
-    )]
-    SolidEnergyGained {
-        /// Index of the solid's system in the scene.
-        system: usize,
-        /// Joules gained (per metre of depth in 2D).
-        gained: Real,
-        /// The gain as a fraction of the energy scale.
-        fraction: Real,
-        /// The largest fraction allowed.
-        limit: Real,
-        /// What to change, for the solid's integrator and its solve.
-        advice: &'static str,
-        /// The step that failed.
-        step: u64,
-    },
-    /// The step's [`Cancel`] was raised before it finished (see
-    /// [`World::step_cancellable`]): not a fault, the step can be taken
-    /// again.
-    #[error("step {step} was cancelled before it finished; the world is as it was before the step")]
-    Cancelled {
-        /// The step that was cancelled (steps completed plus one).
-        step: u64,
-    },
-    /// The step counter is at its largest value (a restored snapshot can
-    /// put it there): one more step would wrap it to 0, and frames,
-    /// checkpoints and progress would count from there. Refused before
-    /// anything changes.
-    #[error(
-        "the world is at step {step}, the largest step count there is, and takes no more steps \
-         (the counter never wraps); reset the session or restore an earlier snapshot"
-    )]
-    CounterFull {
-        /// The step the world is at: [`u64::MAX`].
-        step: u64,
-    },
-}
-
-/// Why grabs were refused; the previous ones stay.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum GrabsError {
-    /// The system is not a modal solid.
-    #[error(
-        "systems[{system}] is not a modal solid of this world; grabs hold points of a system \
-         with kind = \"modal_solid\""
-    )]
-    NotModal {
-        /// The index asked for.
-        system: usize,
-    },
-    /// The solid refused a grab.
-    #[error("systems[{system}]: {source}")]
-    Grab {
-        /// The solid's index.
-        system: usize,
-        /// Why.
-        source: GrabError,
-    },
 }
 
 /// State of one scene: its systems and clock. Stepped by [`World::step`].
@@ -293,16 +80,19 @@ impl World {
 
     /// The fluid, if the scene has one.
     pub fn fluid(&self) -> Option<&Fluid> {
-        self.fluid_entry().map(|f| f.fluid.fluid())
+        self.systems
+            .iter()
+            .find_map(System::as_fluid)
+            .map(|f| f.fluid.fluid())
     }
 
     /// The fluid, to set up an initial state a scene cannot describe (a
     /// velocity field, say) before stepping.
     pub fn fluid_mut(&mut self) -> Option<&mut Fluid> {
-        self.systems.iter_mut().find_map(|s| match s {
-            System::Fluid(f) => Some(f.fluid.fluid_mut()),
-            System::Solid(_) | System::Modal(_) => None,
-        })
+        self.systems
+            .iter_mut()
+            .find_map(System::as_fluid_mut)
+            .map(|f| f.fluid.fluid_mut())
     }
 
     /// Particles of every system: the fluid's, then each solid's in scene
@@ -316,87 +106,27 @@ impl World {
 
     /// The elastic solids with their system indices, in scene order.
     pub fn solids(&self) -> impl Iterator<Item = (usize, &ElasticSolid)> {
-        self.systems.iter().filter_map(|s| match s {
-            System::Solid(s) => Some((s.index, &s.solid)),
-            System::Fluid(_) | System::Modal(_) => None,
-        })
+        self.systems
+            .iter()
+            .filter_map(System::as_solid)
+            .map(|s| (s.index, &s.solid))
     }
 
     /// The modal solids with their system indices, in scene order.
     pub fn modal_solids(&self) -> impl Iterator<Item = (usize, &ModalSolid)> {
-        self.systems.iter().filter_map(|s| match s {
-            System::Modal(m) => Some((m.index, &m.solid)),
-            System::Fluid(_) | System::Solid(_) => None,
-        })
-    }
-
-    /// Holds `grabs` on the modal solid of system `system` besides the
-    /// scene's own (Section 5.3.3), replacing those set before; they act
-    /// from the next step.
-    ///
-    /// # Errors
-    /// [`GrabsError`] when `system` is not a modal solid or a grab is
-    /// refused; the previous grabs then stay.
-    pub fn set_grabs(&mut self, system: usize, grabs: &[Grab]) -> Result<(), GrabsError> {
-        match self.system_mut(system) {
-            Some(System::Modal(m)) => m
-                .set_grabs(grabs)
-                .map_err(|source| GrabsError::Grab { system, source }),
-            _ => Err(GrabsError::NotModal { system }),
-        }
-    }
-
-    /// [`Self::set_grabs`] for every modal solid at once, all or nothing:
-    /// `grabs` by system (a modal solid it does not name holds only the
-    /// scene's grabs).
-    ///
-    /// # Errors
-    /// [`GrabsError`] for the first system refused; every solid then
-    /// keeps the grabs it had.
-    pub fn set_all_grabs(
-        &mut self,
-        grabs: &std::collections::BTreeMap<usize, Vec<Grab>>,
-    ) -> Result<(), GrabsError> {
-        if let Some(&system) = grabs
-            .keys()
-            .find(|s| !self.modal_solids().any(|(m, _)| m == **s))
-        {
-            return Err(GrabsError::NotModal { system });
-        }
-        let mut done: Vec<(usize, Vec<Grab>)> = Vec::new();
-        for system in &mut self.systems {
-            let System::Modal(m) = system else { continue };
-            let before = m.extra_grabs().to_vec();
-            let wanted = grabs.get(&m.index).map_or(&[][..], Vec::as_slice);
-            if let Err(source) = m.set_grabs(wanted) {
-                let failed = m.index;
-                for (index, previous) in done {
-                    if let Some(System::Modal(m)) = self.system_mut(index) {
-                        // They held before: they hold again.
-                        let _ = m.set_grabs(&previous);
-                    }
-                }
-                return Err(GrabsError::Grab {
-                    system: failed,
-                    source,
-                });
-            }
-            done.push((m.index, before));
-        }
-        Ok(())
+        self.systems
+            .iter()
+            .filter_map(System::as_modal)
+            .map(|m| (m.index, &m.solid))
     }
 
     /// The solid of system `system`, to set up a state a scene cannot
     /// describe (a deformed start, say).
     pub fn solid_mut(&mut self, system: usize) -> Option<&mut ElasticSolid> {
-        match self.system_mut(system)? {
-            System::Solid(s) => {
-                // An edited state is a new start for the energy watch.
-                s.watch.restart();
-                Some(&mut s.solid)
-            }
-            System::Fluid(_) | System::Modal(_) => None,
-        }
+        let entry = self.system_mut(system)?.as_solid_mut()?;
+        // An edited state is a new start for the energy watch.
+        entry.watch.restart();
+        Some(&mut entry.solid)
     }
 
     /// Marks particles of system `system` (its index in the scene) for
@@ -530,7 +260,10 @@ impl World {
                 .contains(&FieldKind::Id)
                 .then(|| self.particle_ids()),
             bodies: self.body_poses(),
-            surface: self.fluid_entry().and_then(FluidEntry::surface_mesh),
+            surface: self
+                .systems
+                .iter()
+                .find_map(|s| s.simulated().fluid_surface()),
             solids: self.solid_ranges(),
             solid_surfaces: self.solid_surfaces(),
         }
@@ -538,63 +271,20 @@ impl World {
 
     /// Pose and velocity of every rigid body, in scene order.
     pub fn body_poses(&self) -> Vec<BodyPose> {
-        let Some(rigid) = self.fluid().and_then(Fluid::bodies) else {
-            return Vec::new();
-        };
-        rigid
-            .bodies()
-            .iter()
-            .map(|b| {
-                // The frame the scene gave the shape in, about the centre.
-                let q = (b.state.orientation * shape_axes(&b.shape).inverse()).into_inner();
-                BodyPose {
-                    system: b.system,
-                    position: b.state.position.into(),
-                    orientation: [q.i, q.j, q.k, q.w],
-                    velocity: b.state.velocity.into(),
-                    angular_velocity: b.state.angular_velocity.into(),
-                }
-            })
-            .collect()
+        let mut poses = Vec::new();
+        for system in &self.systems {
+            system.simulated().write_body_poses(&mut poses);
+        }
+        poses
     }
 
-    /// The deformed surface of every solid that embeds one.
+    /// The deformed surface of every solid that embeds one, in scene
+    /// order (the order the solids step in).
     pub fn solid_surfaces(&self) -> Vec<SolidSurface> {
-        let mut gradients = Vec::new();
-        let modal = self.systems.iter().filter_map(|s| match s {
-            System::Modal(m) => m.surface(),
-            System::Fluid(_) | System::Solid(_) => None,
-        });
-        let mut surfaces: Vec<SolidSurface> = self
-            .systems
+        self.systems
             .iter()
-            .filter_map(|s| match s {
-                System::Solid(s) => Some(s),
-                System::Fluid(_) | System::Modal(_) => None,
-            })
-            .filter_map(|s| {
-                let surface = s.surface.as_ref()?;
-                if surface.method() == EmbeddingMethod::Gradients {
-                    s.solid.displacement_gradients(&mut gradients);
-                } else {
-                    gradients.clear();
-                }
-                let mut deformed = DeformedSurface::new();
-                // Lengths match by construction: the surface was built
-                // from this solid's particles.
-                surface
-                    .update(&s.solid.positions, &gradients, &mut deformed)
-                    .ok()?;
-                Some(SolidSurface {
-                    system: s.index,
-                    mesh: deformed.to_mesh(surface.triangles()),
-                    normals: deformed.normals,
-                })
-            })
-            .chain(modal)
-            .collect();
-        surfaces.sort_by_key(|s| s.system);
-        surfaces
+            .filter_map(|s| s.simulated().solid_surface())
+            .collect()
     }
 
     /// Where each solid's particles sit in the frame's fields.
@@ -602,10 +292,11 @@ impl World {
         let mut first = 0;
         let mut ranges = Vec::new();
         for system in &self.systems {
-            let count = system.simulated().particle_count();
-            if let System::Solid(_) | System::Modal(_) = system {
+            let system = system.simulated();
+            let count = system.particle_count();
+            if system.is_solid() {
                 ranges.push(SolidRange {
-                    system: system.simulated().index(),
+                    system: system.index(),
                     first,
                     count,
                 });
@@ -632,13 +323,6 @@ impl World {
             system.simulated().write_ids(&mut ids);
         }
         ids
-    }
-
-    fn fluid_entry(&self) -> Option<&FluidEntry> {
-        self.systems.iter().find_map(|s| match s {
-            System::Fluid(f) => Some(f.as_ref()),
-            System::Solid(_) | System::Modal(_) => None,
-        })
     }
 
     /// The system at index `system` of the scene, if it is one the world

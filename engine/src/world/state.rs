@@ -4,13 +4,13 @@
 //! into a world built from the same scene makes that world step on, bit
 //! for bit, as the one it was taken from.
 
-use super::system::System;
+use super::system::{Simulated, System};
 use super::{Clock, World};
 use crate::efg::ModalState;
 use crate::fluid::FluidSnapshot;
 use crate::math::Real;
 use crate::scene::{Checked, Footprint, Scene, SceneError};
-use crate::snapshot::{SnapshotError, check_finite};
+use crate::snapshot::SnapshotError;
 use crate::solid::SolidSnapshot;
 
 /// Everything a world's next steps read from its past.
@@ -66,6 +66,15 @@ impl SystemState {
             }
         }
     }
+
+    /// What the system is, as [`Simulated::kind_name`] says it.
+    pub fn kind_name(&self) -> &'static str {
+        match self {
+            Self::Fluid { .. } => "fluid",
+            Self::Solid { .. } => "solid",
+            Self::Modal { .. } => "modal solid",
+        }
+    }
 }
 
 /// Why a state cannot be restored into a world.
@@ -107,6 +116,16 @@ pub enum StateError {
     },
 }
 
+impl StateError {
+    /// A state of another kind than `system`'s.
+    pub(crate) fn kind(system: &dyn Simulated, state: &SystemState) -> Self {
+        Self::Systems {
+            expected: describe(std::iter::once((system.kind_name(), system.index()))),
+            got: describe(std::iter::once((state.kind_name(), state.index()))),
+        }
+    }
+}
+
 /// "fluid 0, solid 1" for a list of systems.
 fn describe<'a>(systems: impl Iterator<Item = (&'static str, usize)> + 'a) -> String {
     let names: Vec<String> = systems.map(|(k, i)| format!("{k} {i}")).collect();
@@ -123,7 +142,11 @@ fn describe<'a>(systems: impl Iterator<Item = (&'static str, usize)> + 'a) -> St
 /// the pile; returns the neighbour pairs they make, by estimate. A scene
 /// without a fluid has nothing to check (the systems' mismatch is
 /// reported by [`World::restored`]).
-fn check_layout(scene: &Scene, system: usize, fluid: &FluidSnapshot) -> Result<Real, StateError> {
+pub(crate) fn check_layout(
+    scene: &Scene,
+    system: usize,
+    fluid: &FluidSnapshot,
+) -> Result<Real, StateError> {
     let Some(spec) = scene.fluid() else {
         return Ok(0.0);
     };
@@ -172,30 +195,13 @@ impl Checked {
 impl World {
     /// The world's state, for a snapshot (call between steps).
     pub fn state(&self) -> WorldState {
-        let systems = self
-            .systems
-            .iter()
-            .map(|system| match system {
-                System::Fluid(entry) => SystemState::Fluid {
-                    index: entry.index,
-                    fluid: entry.fluid.snapshot(),
-                    removals: entry.removal.marked_ids(),
-                    energy_start: entry.watch.start(),
-                },
-                System::Solid(entry) => SystemState::Solid {
-                    index: entry.index,
-                    solid: entry.solid.snapshot(),
-                    energy_start: entry.watch.start(),
-                },
-                System::Modal(entry) => SystemState::Modal {
-                    index: entry.index,
-                    state: entry.solid.state(),
-                },
-            })
-            .collect();
         WorldState {
             clock: self.clock,
-            systems,
+            systems: self
+                .systems
+                .iter()
+                .map(|s| s.simulated().capture())
+                .collect(),
         }
     }
 
@@ -208,28 +214,19 @@ impl World {
     /// systems, counts, ids, values that are not finite, or fluid
     /// positions the scene's own checks refuse.
     pub fn restored(mut self, state: &WorldState) -> Result<World, StateError> {
-        let kinds = |s: &System| match s {
-            System::Fluid(f) => ("fluid", f.index),
-            System::Solid(s) => ("solid", s.index),
-            System::Modal(m) => ("modal solid", m.index),
-        };
-        let state_kinds = |s: &SystemState| match s {
-            SystemState::Fluid { index, .. } => ("fluid", *index),
-            SystemState::Solid { index, .. } => ("solid", *index),
-            SystemState::Modal { index, .. } => ("modal solid", *index),
-        };
+        let kinds = |s: &System| (s.simulated().kind_name(), s.simulated().index());
+        let state_kinds = |s: &SystemState| (s.kind_name(), s.index());
         let matches = self.systems.len() == state.systems.len()
             && self
                 .systems
                 .iter()
                 .zip(&state.systems)
                 .all(|(a, b)| kinds(a) == state_kinds(b));
-        let mismatch = StateError::Systems {
-            expected: describe(self.systems.iter().map(kinds)),
-            got: describe(state.systems.iter().map(state_kinds)),
-        };
         if !matches {
-            return Err(mismatch);
+            return Err(StateError::Systems {
+                expected: describe(self.systems.iter().map(kinds)),
+                got: describe(state.systems.iter().map(state_kinds)),
+            });
         }
         if !state.clock.time.is_finite() {
             return Err(StateError::Time {
@@ -237,82 +234,7 @@ impl World {
             });
         }
         for (system, saved) in self.systems.iter_mut().zip(&state.systems) {
-            let at = |source| StateError::System {
-                system: saved.index(),
-                source,
-            };
-            match (system, saved) {
-                (
-                    System::Fluid(entry),
-                    SystemState::Fluid {
-                        fluid,
-                        removals,
-                        energy_start,
-                        ..
-                    },
-                ) => {
-                    check_layout(&self.scene, entry.index, fluid)?;
-                    entry.fluid.restore_snapshot(fluid).map_err(at)?;
-                    let ids: Vec<usize> = removals.iter().map(|&id| id as usize).collect();
-                    let count = fluid.ids.len();
-                    entry.removal.mark(entry.index, count, &ids).map_err(|_| {
-                        at(SnapshotError::Length {
-                            what: "removals (ids beyond the particle count)",
-                            expected: count,
-                            got: ids.iter().copied().max().map_or(0, |m| m + 1),
-                        })
-                    })?;
-                    if let Some((e0, scale)) = *energy_start {
-                        check_finite("energy start", &[e0, scale]).map_err(at)?;
-                    }
-                    entry.watch.set_start(*energy_start);
-                }
-                (
-                    System::Solid(entry),
-                    SystemState::Solid {
-                        solid,
-                        energy_start,
-                        ..
-                    },
-                ) => {
-                    entry.solid.restore_snapshot(solid).map_err(at)?;
-                    if let Some((e0, scale)) = *energy_start {
-                        check_finite("energy start", &[e0, scale]).map_err(at)?;
-                    }
-                    entry.watch.set_start(*energy_start);
-                }
-                (System::Modal(entry), SystemState::Modal { state, .. }) => {
-                    // Modes, or three per node under nonlinear dynamics.
-                    let modes = entry.solid.state_len();
-                    for (what, values) in [
-                        ("modal amplitudes", &state.amplitudes),
-                        ("modal velocities", &state.velocities),
-                    ] {
-                        if values.len() != modes {
-                            return Err(at(SnapshotError::Length {
-                                what,
-                                expected: modes,
-                                got: values.len(),
-                            }));
-                        }
-                        check_finite(what, values).map_err(at)?;
-                    }
-                    entry.solid.set_state(state).map_err(|_| {
-                        at(SnapshotError::Length {
-                            what: "modal state",
-                            expected: modes,
-                            got: state.amplitudes.len(),
-                        })
-                    })?;
-                    // Its backward Euler step only loses energy, so the
-                    // watch may start again from the restored state.
-                    entry.watch.restart();
-                }
-                // The kinds were matched above.
-                (System::Fluid(_) | System::Solid(_) | System::Modal(_), _) => {
-                    return Err(mismatch);
-                }
-            }
+            system.simulated_mut().restore_state(saved, &self.scene)?;
         }
         self.clock = state.clock;
         Ok(self)

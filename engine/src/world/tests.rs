@@ -4,7 +4,7 @@
 //! where they were. A system that cannot remove particles says so, and a
 //! rejected request marks nothing.
 
-use super::system::RemovalMask;
+use super::system::simulated::RemovalMask;
 use super::{RemoveError, World};
 use crate::frame::Frame;
 use crate::scene::{BuildOptions, Scene, SolverKind, SystemSpec};

@@ -1,19 +1,20 @@
 //! A modal EFG solid as the world keeps it: the adapter between
-//! [`ModalSolid`] and the world's [`Simulated`] trait, with the scene's
-//! mode playback.
+//! [`ModalSolid`] (discretised and reduced by its scene check) and the
+//! world's [`Simulated`] trait, with the scene's mode playback and grabs.
 
-use super::system::{RemoveError, Simulated, StepEnv};
-use super::watch::{EnergyWatch, MAX_ENERGY_GAIN};
-use super::{StepError, StepInfo};
+use super::simulated::{Invalid, RemoveError, Simulated, StepEnv};
 use crate::efg::{
     Grab, GrabError, ModalSolid, ModalState, MotionError, NonlinearError, StepReport,
 };
-use crate::fluid::Invalid;
 use crate::frame::{FieldKind, SolidSurface};
 use crate::geometry::TriMesh;
 use crate::math::{Real, Vector};
-use crate::scene::PlaybackSpec;
+use crate::scene::{ModalSolidSpec, PlaybackSpec, Scene};
+use crate::snapshot::{SnapshotError, check_finite};
 use crate::stats::StageTimer;
+use crate::world::outcome::{StepError, StepInfo};
+use crate::world::state::{StateError, SystemState};
+use crate::world::watch::{EnergyWatch, MAX_ENERGY_GAIN};
 use std::f64::consts::TAU;
 
 /// A modal solid of the scene.
@@ -52,19 +53,6 @@ impl ModalEntry {
         &self.solid.grabs()[self.scene_grabs.len().min(self.solid.grabs().len())..]
     }
 
-    /// The deformed skin, for a frame.
-    pub(crate) fn surface(&self) -> Option<SolidSurface> {
-        let skin = self.solid.skin()?;
-        Some(SolidSurface {
-            system: self.index,
-            mesh: TriMesh {
-                vertices: skin.positions,
-                triangles: skin.triangles.to_vec(),
-            },
-            normals: skin.normals,
-        })
-    }
-
     /// The playback's pose at time `t`: the mode at `amplitude sin(omega
     /// t)`, a rigid mode at 1 Hz.
     fn play(&mut self, playback: PlaybackSpec, t: Real) -> Result<(), StepError> {
@@ -95,6 +83,14 @@ impl ModalEntry {
 impl Simulated for ModalEntry {
     fn index(&self) -> usize {
         self.index
+    }
+
+    fn kind_name(&self) -> &'static str {
+        "modal solid"
+    }
+
+    fn is_solid(&self) -> bool {
+        true
     }
 
     fn particle_count(&self) -> usize {
@@ -235,5 +231,76 @@ impl Simulated for ModalEntry {
             system: self.index,
             kind: "a modal solid",
         })
+    }
+
+    /// The deformed skin.
+    fn solid_surface(&self) -> Option<SolidSurface> {
+        let skin = self.solid.skin()?;
+        Some(SolidSurface {
+            system: self.index,
+            mesh: TriMesh {
+                vertices: skin.positions,
+                triangles: skin.triangles.to_vec(),
+            },
+            normals: skin.normals,
+        })
+    }
+
+    /// Its reduced state, or its full one under nonlinear dynamics (its
+    /// grabs belong to whoever set them, and are set again after a
+    /// restore).
+    fn capture(&self) -> SystemState {
+        SystemState::Modal {
+            index: self.index,
+            state: self.solid.state(),
+        }
+    }
+
+    fn restore_state(&mut self, saved: &SystemState, _scene: &Scene) -> Result<(), StateError> {
+        let SystemState::Modal { state, .. } = saved else {
+            return Err(StateError::kind(self, saved));
+        };
+        let at = |source| StateError::System {
+            system: self.index,
+            source,
+        };
+        // Modes, or three per node under nonlinear dynamics.
+        let modes = self.solid.state_len();
+        for (what, values) in [
+            ("modal amplitudes", &state.amplitudes),
+            ("modal velocities", &state.velocities),
+        ] {
+            if values.len() != modes {
+                return Err(at(SnapshotError::Length {
+                    what,
+                    expected: modes,
+                    got: values.len(),
+                }));
+            }
+            check_finite(what, values).map_err(at)?;
+        }
+        self.solid.set_state(state).map_err(|_| {
+            at(SnapshotError::Length {
+                what: "modal state",
+                expected: modes,
+                got: state.amplitudes.len(),
+            })
+        })?;
+        // Its backward Euler step only loses energy, so the watch may
+        // start again from the restored state.
+        self.watch.restart();
+        Ok(())
+    }
+}
+
+/// The modal solid of system `index`, as its check built it.
+pub(super) fn build(index: usize, spec: &ModalSolidSpec, solid: ModalSolid) -> ModalEntry {
+    ModalEntry {
+        index,
+        backup: solid.state(),
+        scene_grabs: solid.grabs().to_vec(),
+        solid,
+        playback: spec.playback,
+        watch: EnergyWatch::default(),
     }
 }

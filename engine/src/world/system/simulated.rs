@@ -1,0 +1,222 @@
+//! The seam between the world and its systems: the [`Simulated`] trait,
+//! what every system of a step shares ([`StepEnv`]), the report of an
+//! invalid value, and the particle-change types. It imports no kind of
+//! system; each kind's adapter (`fluid.rs`, `solid.rs`, `modal.rs`)
+//! implements the trait by calling the system's own methods, so that the
+//! systems never import the world.
+
+use crate::cancel::Cancel;
+use crate::frame::{BodyPose, FieldKind, SolidSurface};
+use crate::geometry::TriMesh;
+use crate::math::{Real, Vector};
+use crate::scene::Scene;
+use crate::stats::StageTimer;
+use crate::world::outcome::{StepError, StepInfo};
+use crate::world::state::{StateError, SystemState};
+
+/// What every system of a step shares: the step's length, gravity and
+/// limits, its number (for errors), and the flag that stops it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct StepEnv<'a> {
+    /// Time advanced, s.
+    pub dt: Real,
+    /// m/s^2.
+    pub gravity: Vector,
+    /// Courant number of the fluid's stability limit.
+    pub cfl: Real,
+    /// Upper bound on a system's sub-steps.
+    pub max_substeps: u32,
+    /// The step being taken (steps completed plus one).
+    pub step: u64,
+    /// Read before every sub-step (and by the solids' solvers); once
+    /// raised the system returns [`StepError::Cancelled`].
+    pub cancel: &'a Cancel,
+}
+
+impl StepEnv<'_> {
+    /// The error of this step cancelled.
+    pub(crate) fn cancelled(&self) -> StepError {
+        StepError::Cancelled { step: self.step }
+    }
+
+    /// [`StepError::Cancelled`] once the step's flag is raised.
+    pub(crate) fn check(&self) -> Result<(), StepError> {
+        self.cancel.check().map_err(|_| self.cancelled())
+    }
+}
+
+/// Why particles cannot be removed; nothing was marked.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum RemoveError {
+    /// The index names no system the world steps.
+    #[error(
+        "systems[{system}] is not a particle system of this world; name the index of the \
+         scene's fluid (rigid bodies belong to the fluid)"
+    )]
+    NoSystem {
+        /// The index asked for.
+        system: usize,
+    },
+    /// The system keeps a fixed set of particles.
+    #[error(
+        "systems[{system}] is {kind}, which cannot remove particles yet; remove particles \
+         from the scene's fluid"
+    )]
+    Unsupported {
+        /// Index of the system in the scene.
+        system: usize,
+        /// What the system is.
+        kind: &'static str,
+    },
+    /// An id is not one of the system's particles.
+    #[error(
+        "systems[{system}] has no particle with id {particle}: its {count} particles have ids \
+         below {count}"
+    )]
+    NoParticle {
+        /// Index of the system in the scene.
+        system: usize,
+        /// The id asked for.
+        particle: usize,
+        /// The system's particle count.
+        count: usize,
+    },
+}
+
+/// Particles of one system marked for removal, by id: kept from the
+/// request to the start of the next step, where the system drops them all
+/// at once.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct RemovalMask {
+    /// One flag per particle id; empty while nothing is marked.
+    marked: Vec<bool>,
+}
+
+impl RemovalMask {
+    /// Marks `ids` of a system of `count` particles, after checking all
+    /// of them: on error nothing is marked.
+    pub(crate) fn mark(
+        &mut self,
+        system: usize,
+        count: usize,
+        ids: &[usize],
+    ) -> Result<(), RemoveError> {
+        if let Some(&particle) = ids.iter().find(|&&id| id >= count) {
+            return Err(RemoveError::NoParticle {
+                system,
+                particle,
+                count,
+            });
+        }
+        if ids.is_empty() {
+            return Ok(());
+        }
+        self.marked.resize(count, false);
+        for &id in ids {
+            self.marked[id] = true;
+        }
+        Ok(())
+    }
+
+    /// The ids marked, in order.
+    pub(crate) fn marked_ids(&self) -> Vec<u32> {
+        (0..self.marked.len() as u32)
+            .filter(|&id| self.marked[id as usize])
+            .collect()
+    }
+
+    /// The flags, if anything is marked, leaving the mask empty.
+    pub(crate) fn take(&mut self) -> Option<Vec<bool>> {
+        (!self.marked.is_empty()).then(|| std::mem::take(&mut self.marked))
+    }
+}
+
+/// A particle value that left its valid range, as a system reports it
+/// (for a fluid's body, `particle` is the body's index among its bodies).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Invalid {
+    /// What left its range ("position", "velocity", "displacement", ...).
+    pub quantity: &'static str,
+    /// The particle, by its id in the system.
+    pub particle: usize,
+    /// The offending value (a norm for vectors).
+    pub value: Real,
+}
+
+/// What the world asks of each system. Everything kind-specific the
+/// world does (step, save, frames, surfaces, snapshots, particle changes)
+/// goes through here, so that [`crate::world::World`] holds no loop over
+/// one kind.
+pub(crate) trait Simulated {
+    /// Index of the system in the scene.
+    fn index(&self) -> usize;
+
+    /// What the system is, for people ("fluid", "solid", "modal solid"),
+    /// as snapshots and errors name it.
+    fn kind_name(&self) -> &'static str;
+
+    /// Particles the system holds: its share of a frame's fields.
+    fn particle_count(&self) -> usize;
+
+    /// Whether frames list the system's particles as a solid's
+    /// ([`crate::frame::Frame::solids`]).
+    fn is_solid(&self) -> bool;
+
+    /// Between steps: applies the particle changes marked since the last
+    /// step and anything else that changes the particle slots.
+    fn start_step(&mut self);
+
+    /// Keeps the state a failed step goes back to.
+    fn save(&mut self);
+
+    /// Goes back to the state kept by [`Self::save`].
+    fn restore(&mut self);
+
+    /// Advances by `env.dt` in sub-steps within the system's stability
+    /// limit, checking its state at its chokepoints and `env.cancel`
+    /// before each sub-step (and iteration of a solve). A failed or
+    /// cancelled step is reported, not undone: the world restores every
+    /// system.
+    fn step(&mut self, env: &StepEnv, timer: &mut StageTimer) -> Result<StepInfo, StepError>;
+
+    /// The first particle value that left its valid range, if any.
+    fn first_invalid(&self) -> Option<Invalid>;
+
+    /// Appends the system's values of a field, `kind.components()` per
+    /// particle, in the order frames list its particles. A field the
+    /// system has no physics for is filled (documented at each arm), so
+    /// every field spans all particles.
+    fn write_field(&self, kind: FieldKind, out: &mut Vec<f32>);
+
+    /// Appends each particle's stable id, in the order of
+    /// [`Self::write_field`].
+    fn write_ids(&self, out: &mut Vec<u32>);
+
+    /// The system's deformed surface, for a frame's `solid_surfaces`.
+    fn solid_surface(&self) -> Option<SolidSurface> {
+        None
+    }
+
+    /// The free surface of a fluid, for a frame's `surface`.
+    fn fluid_surface(&self) -> Option<TriMesh> {
+        None
+    }
+
+    /// Appends the poses of the rigid bodies the system carries.
+    fn write_body_poses(&self, _out: &mut Vec<BodyPose>) {}
+
+    /// Marks particles for removal at the start of the next step.
+    fn mark_removed(&mut self, ids: &[usize]) -> Result<(), RemoveError>;
+
+    /// The system's state, for a snapshot (between steps).
+    fn capture(&self) -> SystemState;
+
+    /// Moves the system to `state`, taken from a system of the same kind
+    /// and index (the caller matched them), after checking it against
+    /// `scene`.
+    ///
+    /// # Errors
+    /// [`StateError`] when the state does not fit; the system may then be
+    /// partly changed, and the caller drops the whole world.
+    fn restore_state(&mut self, state: &SystemState, scene: &Scene) -> Result<(), StateError>;
+}
