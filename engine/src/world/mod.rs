@@ -13,6 +13,7 @@
 mod build;
 mod controls;
 mod outcome;
+mod saved;
 mod state;
 mod system;
 #[cfg(test)]
@@ -21,27 +22,18 @@ pub mod watch;
 
 pub use controls::GrabsError;
 pub use outcome::{StepError, StepInfo};
-pub use state::{StateError, SystemState, WorldState};
+pub use saved::{Clock, StateError, SystemState, WorldState};
 pub use system::RemoveError;
 
 use crate::cancel::Cancel;
 use crate::efg::ModalSolid;
 use crate::fluid::Fluid;
 use crate::frame::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
-use crate::math::{Real, vector};
+use crate::math::vector;
 use crate::scene::Scene;
 use crate::solid::ElasticSolid;
 use crate::stats::StageTimer;
 use system::{StepEnv, System};
-
-/// Where a world is in time.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Clock {
-    /// Steps completed.
-    pub step: u64,
-    /// Simulated time, s.
-    pub time: Real,
-}
 
 /// State of one scene: its systems and clock. Stepped by [`World::step`].
 #[derive(Debug, Clone)]

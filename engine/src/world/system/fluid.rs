@@ -21,7 +21,7 @@ use crate::snapshot::{SnapshotError, check_finite};
 use crate::stats::StageTimer;
 use crate::surface::SurfaceExtractor;
 use crate::world::outcome::{StepError, StepInfo};
-use crate::world::state::{StateError, SystemState, check_layout};
+use crate::world::saved::{StateError, SystemState, check_layout};
 use crate::world::watch::EnergyWatch;
 
 /// The fluid of a scene as the world keeps it.
@@ -220,7 +220,7 @@ impl Simulated for FluidEntry {
             ..
         } = state
         else {
-            return Err(StateError::kind(self, state));
+            return Err(StateError::kind((self.kind_name(), self.index), state));
         };
         let at = |source| StateError::System {
             system: self.index,

@@ -13,7 +13,7 @@ use crate::scene::{ModalSolidSpec, PlaybackSpec, Scene};
 use crate::snapshot::{SnapshotError, check_finite};
 use crate::stats::StageTimer;
 use crate::world::outcome::{StepError, StepInfo};
-use crate::world::state::{StateError, SystemState};
+use crate::world::saved::{StateError, SystemState};
 use crate::world::watch::{EnergyWatch, MAX_ENERGY_GAIN};
 use std::f64::consts::TAU;
 
@@ -258,7 +258,7 @@ impl Simulated for ModalEntry {
 
     fn restore_state(&mut self, saved: &SystemState, _scene: &Scene) -> Result<(), StateError> {
         let SystemState::Modal { state, .. } = saved else {
-            return Err(StateError::kind(self, saved));
+            return Err(StateError::kind((self.kind_name(), self.index), saved));
         };
         let at = |source| StateError::System {
             system: self.index,

@@ -12,7 +12,7 @@ use crate::math::{Real, Vector};
 use crate::scene::Scene;
 use crate::stats::StageTimer;
 use crate::world::outcome::{StepError, StepInfo};
-use crate::world::state::{StateError, SystemState};
+use crate::world::saved::{StateError, SystemState};
 
 /// What every system of a step shares: the step's length, gravity and
 /// limits, its number (for errors), and the flag that stops it.

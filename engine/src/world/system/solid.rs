@@ -11,7 +11,7 @@ use crate::solid::embedded::{DeformedSurface, EmbeddedSurface, EmbeddingMethod};
 use crate::solid::{ElasticSolid, Obstacle, Obstacles, SolidState};
 use crate::stats::StageTimer;
 use crate::world::outcome::{StepError, StepInfo};
-use crate::world::state::{StateError, SystemState};
+use crate::world::saved::{StateError, SystemState};
 use crate::world::watch::EnergyWatch;
 
 /// An elastic solid of the scene as the world keeps it.
@@ -201,7 +201,7 @@ impl Simulated for SolidEntry {
             ..
         } = state
         else {
-            return Err(StateError::kind(self, state));
+            return Err(StateError::kind((self.kind_name(), self.index), state));
         };
         let at = |source| StateError::System {
             system: self.index,
