@@ -50,11 +50,14 @@ pub enum SnapshotError {
         /// What the solid allows.
         limit: u64,
     },
-    /// The particle ids are not each id below the count once.
-    #[error("the particle ids are not a permutation of 0..{count}")]
+    /// The particle ids are not distinct ids below `next_id`.
+    #[error(
+        "the particle ids are not a permutation of distinct ids below next_id ({next_id}), the ids \
+         the fluid has given"
+    )]
     Ids {
-        /// The particle count.
-        count: usize,
+        /// The id the next particle would get.
+        next_id: u32,
     },
 }
 

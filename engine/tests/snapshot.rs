@@ -157,6 +157,9 @@ fn removals_done_and_pending_carry_over() {
     };
     assert_eq!(fluid.ids.len(), built - 3);
     assert_eq!(removals, &[3, 4]);
+    // Ids are stable: the snapshot keeps the gaps and the ids given.
+    assert_eq!(fluid.next_id as usize, built);
+    assert!(fluid.ids.iter().all(|id| ![0, 5, 17].contains(id)));
 }
 
 /// A 2D solid beam, clamped at one end, with the given extra settings.

@@ -44,6 +44,7 @@ fn system_to_proto(system: &SystemState) -> v1::SystemSnapshot {
             removals: removals.clone(),
             energy_start: energy_start.map(|(e, _)| e),
             energy_scale: energy_start.map(|(_, s)| s),
+            next_id: Some(fluid.next_id),
         }),
         SystemState::Solid {
             solid,
@@ -136,12 +137,14 @@ fn system_from_proto(message: v1::SystemSnapshot, field: &str) -> Result<SystemS
                 removals,
                 energy_start,
                 energy_scale,
+                next_id,
             } = f;
             let field = format!("{field}.fluid");
             let energy_start = energy_pair(energy_start, energy_scale, &field)?;
             SystemState::Fluid {
                 index,
                 fluid: FluidSnapshot {
+                    next_id: next_id.unwrap_or(ids.len().try_into().unwrap_or(u32::MAX)),
                     ids,
                     positions: vectors(positions, &format!("{field}.positions"))?,
                     velocities: vectors(velocities, &format!("{field}.velocities"))?,

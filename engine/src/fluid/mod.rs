@@ -159,17 +159,22 @@ impl FluidSystem {
         solver.rebuild(&self.fluid);
     }
 
-    /// Removes the particles whose id `removed` marks (one flag per
-    /// particle), renumbering the survivors' ids in order, and recomputes
+    /// Removes the particles whose id `removed` marks (one flag per id
+    /// below [`Fluid::next_id`]); the survivors keep their ids. Recomputes
     /// the survivors' densities, pressures and solver factors, as after
     /// bodies attach. Call between steps, never during one.
     ///
     /// # Panics
-    /// If `removed` does not hold one flag per particle.
+    /// If `removed` does not hold one flag per id.
     pub fn remove(&mut self, removed: &[bool]) {
-        assert_eq!(removed.len(), self.fluid.len(), "one flag per particle");
+        assert_eq!(
+            removed.len(),
+            self.fluid.next_id as usize,
+            "one flag per id"
+        );
+        let slots = self.fluid.len();
         let kept = self.fluid.retain(removed);
-        self.pressure.solver_mut().follow(&kept, removed.len());
+        self.pressure.solver_mut().follow(&kept, slots);
         self.refresh();
     }
 

@@ -105,9 +105,17 @@ pub struct Fluid {
     /// Periodic axes of the domain, when the scene names any.
     pub(in crate::fluid) periodic: Option<Periodic>,
     pub(in crate::fluid) neighbors: NeighborList,
-    /// Each slot's particle id (its index in the scene's order): the
-    /// arrays are kept in Z order (see `reorder.rs`).
+    /// Each slot's particle id (its index in the scene's order, kept
+    /// while others leave): the arrays are kept in Z order (see
+    /// `reorder.rs`).
     pub(in crate::fluid) ids: Vec<u32>,
+    /// Each slot's rank among the live ids, the place frames list it at;
+    /// empty while the ids are exactly `0..len` (no particle removed), when
+    /// the rank is the id.
+    pub(in crate::fluid) ranks: Vec<u32>,
+    /// The id the next particle would get: ids are never reused, so a
+    /// particle keeps its identity from frame to frame.
+    pub(in crate::fluid) next_id: u32,
     pub(in crate::fluid) substeps_since_reorder: u32,
     pub(in crate::fluid) max_acceleration: Real,
     /// What the last sub-step's pressure solve achieved.
@@ -155,6 +163,8 @@ impl Fluid {
             periodic,
             neighbors: NeighborList::default(),
             ids: (0..n as u32).collect(),
+            ranks: Vec::new(),
+            next_id: n as u32,
             substeps_since_reorder: 0,
             max_acceleration: 0.0,
             last_solve: SolveInfo::default(),

@@ -10,8 +10,10 @@
 //! repeated every [`Fluid::REORDER_EVERY`] sub-steps; `ids` keeps each
 //! slot's particle id so frames and errors speak of particles, not slots.
 //!
-//! Ids are always `0..n`: removing particles renumbers the survivors in
-//! their id order, so frames stay dense.
+//! Ids are stable: a removed particle's id is never reused and the
+//! survivors keep theirs, so a client follows a particle by id from frame
+//! to frame. Frames list particles in id order; once ids have gaps, each
+//! slot's rank among the live ids says where.
 
 use super::{Fluid, FluidSystem};
 use crate::math::Vector;
@@ -51,31 +53,62 @@ impl Fluid {
         order
     }
 
-    /// Keeps the particles whose id `removed` does not mark, in their slot
-    /// order, and renumbers their ids in id order. Returns the kept slots
-    /// (slot `k` now holds what slot `kept[k]` held). Neighbour lists and
-    /// densities are stale until the caller rebuilds them.
+    /// Keeps the particles whose id `removed` does not mark (one flag per
+    /// id below [`Self::next_id`]), in their slot order; the survivors
+    /// keep their ids. Returns the kept slots (slot `k` now holds what slot
+    /// `kept[k]` held). Neighbour lists and densities are stale until the
+    /// caller rebuilds them.
     pub(in crate::fluid) fn retain(&mut self, removed: &[bool]) -> Vec<u32> {
-        let kept: Vec<u32> = (0..self.ids.len() as u32)
+        let slots = self.ids.len();
+        let kept: Vec<u32> = (0..slots as u32)
             .filter(|&slot| !removed[self.ids[slot as usize] as usize])
             .collect();
-        // Each surviving id's rank among the survivors.
-        let mut next = 0;
-        let renumbered: Vec<u32> = removed
-            .iter()
-            .map(|&gone| {
-                let id = next;
-                next += u32::from(!gone);
-                id
-            })
-            .collect();
-        self.gather_slots(&kept, removed.len());
+        self.gather_slots(&kept, slots);
         // Scratch, overwritten before it is read: only its length counts.
         self.smoothed_velocities.truncate(kept.len());
-        for id in &mut self.ids {
-            *id = renumbered[*id as usize];
-        }
+        self.rank_ids();
         kept
+    }
+
+    /// Each slot's rank among the live ids, or nothing while the ids are
+    /// `0..len` (their own ranks).
+    pub(in crate::fluid) fn rank_ids(&mut self) {
+        self.ranks.clear();
+        if self.next_id as usize == self.ids.len() {
+            return;
+        }
+        let mut by_id: Vec<u32> = (0..self.ids.len() as u32).collect();
+        by_id.sort_unstable_by_key(|&slot| self.ids[slot as usize]);
+        self.ranks.resize(self.ids.len(), 0);
+        for (rank, &slot) in by_id.iter().enumerate() {
+            self.ranks[slot as usize] = rank as u32;
+        }
+    }
+
+    /// The id the next particle would get; every id below it was given
+    /// once, and those of removed particles are never given again.
+    pub fn next_id(&self) -> u32 {
+        self.next_id
+    }
+
+    /// Whether a particle with id `id` is in the fluid.
+    pub fn is_live(&self, id: usize) -> bool {
+        id < self.next_id as usize && self.slot_of(id).is_some()
+    }
+
+    /// The slot of the particle with id `id`.
+    fn slot_of(&self, id: usize) -> Option<usize> {
+        self.ids.iter().position(|&k| k as usize == id)
+    }
+
+    /// Where frames list the particle in `slot`: its rank among the live
+    /// ids.
+    fn rank(&self, slot: usize) -> usize {
+        if self.ranks.is_empty() {
+            self.ids[slot] as usize
+        } else {
+            self.ranks[slot] as usize
+        }
     }
 
     /// Moves the per-slot state of `slots` slots to the slots `order`
@@ -87,35 +120,35 @@ impl Fluid {
         gather(&mut self.pressures, order, slots);
         gather(&mut self.accelerations, order, slots);
         gather(&mut self.ids, order, slots);
+        gather(&mut self.ranks, order, slots);
     }
 
-    /// Each slot's particle id: the particle's index in the scene's order.
+    /// Each slot's particle id: the particle's index in the scene's order,
+    /// kept while others leave.
     pub fn ids(&self) -> &[u32] {
         &self.ids
     }
 
     /// One value of `N` scalars per particle, in particle-id order:
-    /// `value(slot)` is read for each slot and written where its id puts
-    /// it, straight into the `N` values per particle appended to `out`.
-    pub fn in_id_order<const N: usize>(
+    /// `value(slot)` is read for each slot and written where its id's
+    /// rank puts it, straight into the `N` values per particle appended
+    /// to `out`.
+    pub fn in_id_order<T: Copy + Default, const N: usize>(
         &self,
-        out: &mut Vec<f32>,
-        value: impl Fn(usize) -> [f32; N],
+        out: &mut Vec<T>,
+        value: impl Fn(usize) -> [T; N],
     ) {
         let start = out.len();
-        out.resize(start + self.ids.len() * N, 0.0);
-        for (slot, &id) in self.ids.iter().enumerate() {
-            let at = start + id as usize * N;
+        out.resize(start + self.ids.len() * N, T::default());
+        for slot in 0..self.ids.len() {
+            let at = start + self.rank(slot) * N;
             out[at..at + N].copy_from_slice(&value(slot));
         }
     }
 
     /// The position of the particle with id `id`.
     pub fn position_of(&self, id: usize) -> Option<Vector> {
-        self.ids
-            .iter()
-            .position(|&k| k as usize == id)
-            .map(|slot| self.positions[slot])
+        self.slot_of(id).map(|slot| self.positions[slot])
     }
 }
 

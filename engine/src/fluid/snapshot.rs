@@ -13,8 +13,11 @@ use crate::snapshot::{SnapshotError, check_finite, check_length, check_vectors};
 /// fluid's own (Z) order.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FluidSnapshot {
-    /// Each slot's particle id: a permutation of `0..len`.
+    /// Each slot's particle id: distinct, each below `next_id`.
     pub ids: Vec<u32>,
+    /// The id the next particle would get (ids of removed particles are
+    /// never given again).
+    pub next_id: u32,
     /// Positions, m.
     pub positions: Vec<Vector>,
     /// Velocities, m/s.
@@ -38,7 +41,14 @@ impl FluidSnapshot {
     /// Whether the snapshot fits a fluid built with `built` particles and
     /// `bodies` rigid bodies whose solver keeps `warm` warm-start values
     /// per particle.
-    fn check(&self, built: usize, bodies: usize, warm: usize) -> Result<(), SnapshotError> {
+    /// Ids run below `id_space`, the ids the fluid was built with.
+    fn check(
+        &self,
+        built: usize,
+        id_space: u32,
+        bodies: usize,
+        warm: usize,
+    ) -> Result<(), SnapshotError> {
         let n = self.ids.len();
         if n > built {
             return Err(SnapshotError::TooMany {
@@ -46,11 +56,22 @@ impl FluidSnapshot {
                 limit: built,
             });
         }
-        let mut seen = vec![false; n];
+        if self.next_id > id_space || (self.next_id as usize) < n {
+            return Err(SnapshotError::Invalid {
+                what: "next_id",
+                index: 0,
+                value: f64::from(self.next_id),
+            });
+        }
+        let mut seen = vec![false; self.next_id as usize];
         for &id in &self.ids {
             match seen.get_mut(id as usize) {
                 Some(slot) if !*slot => *slot = true,
-                _ => return Err(SnapshotError::Ids { count: n }),
+                _ => {
+                    return Err(SnapshotError::Ids {
+                        next_id: self.next_id,
+                    });
+                }
             }
         }
         check_vectors("positions", &self.positions, n)?;
@@ -107,6 +128,7 @@ impl FluidSystem {
         }
         FluidSnapshot {
             ids: fluid.ids.clone(),
+            next_id: fluid.next_id,
             positions: fluid.positions.clone(),
             velocities: fluid.velocities.clone(),
             densities: fluid.densities.clone(),
@@ -131,16 +153,21 @@ impl FluidSystem {
         let mut warm = Vec::new();
         self.pressure.solver().save(&mut warm);
         let per_particle = warm.len().checked_div(built).unwrap_or(0);
-        state.check(built, bodies, per_particle)?;
+        state.check(built, self.fluid.next_id, bodies, per_particle)?;
         let n = state.ids.len();
         if n < built {
-            // Drop the surplus particles, so every per-slot buffer,
-            // the solver's included, has `n` slots.
-            let removed: Vec<bool> = (0..built).map(|id| id >= n).collect();
+            // Drop the surplus particles (the last slots), so every
+            // per-slot buffer, the solver's included, has `n` slots.
+            let mut removed = vec![false; self.fluid.next_id as usize];
+            for &id in &self.fluid.ids[n..] {
+                removed[id as usize] = true;
+            }
             self.remove(&removed);
         }
         let fluid = &mut self.fluid;
         fluid.ids.clone_from(&state.ids);
+        fluid.next_id = state.next_id;
+        fluid.rank_ids();
         fluid.positions.clone_from(&state.positions);
         fluid.velocities.clone_from(&state.velocities);
         fluid.densities.clone_from(&state.densities);

@@ -123,9 +123,10 @@ impl World {
 
     /// Marks particles of system `system` (its index in the scene) for
     /// removal, by particle id; they leave at the start of the next step,
-    /// never during one, and frames until then still carry them. Then the
-    /// survivors' ids are renumbered in order (frames stay dense), and
-    /// their densities and pressures are those of the new neighbourhoods.
+    /// never during one, and frames until then still carry them. The
+    /// survivors keep their ids (a removed id is never given again), frames
+    /// list them in id order, and their densities and pressures are those
+    /// of the new neighbourhoods.
     /// A step that fails after removing them keeps the removal: the
     /// removal is part of the state the step started from.
     ///

@@ -6,12 +6,19 @@
 
 use super::system::simulated::RemovalMask;
 use super::{RemoveError, World};
-use crate::frame::Frame;
+use crate::frame::{FieldKind, Frame};
 use crate::scene::{BuildOptions, Scene, SolverKind, SystemSpec};
 
 /// A 2D tank: a 6 x 6 block of fluid (systems[0]) beside an elastic box
 /// (systems[1]), and, with `body`, a floating disc (systems[2]).
 fn world(solver: SolverKind, body: bool) -> World {
+    scene(solver, body)
+        .build(&BuildOptions::default())
+        .expect("the scene is valid")
+}
+
+/// The scene of [`world`].
+fn scene(solver: SolverKind, body: bool) -> Scene {
     let mut text = String::from(
         r#"
         dimension = 2
@@ -51,8 +58,6 @@ fn world(solver: SolverKind, body: bool) -> World {
         fluid.solver = solver;
     }
     scene
-        .build(&BuildOptions::default())
-        .expect("the scene is valid")
 }
 
 fn fluid_len(world: &World) -> usize {
@@ -74,7 +79,7 @@ fn distance(a: [f32; 3], b: [f32; 3]) -> f32 {
 }
 
 /// With either solver: removed particles are still in every frame until
-/// the next step, then gone; the survivors are renumbered in order and
+/// the next step, then gone; the survivors keep their order in frames and
 /// are where they were (one step of 0.5 ms moves a resting particle by
 /// micrometres, a wrong survivor would be a spacing away); the solid's
 /// range starts where the smaller fluid ends.
@@ -125,6 +130,65 @@ fn removed_fluid_particles_leave_at_the_next_step() {
             world.step().expect("the smaller fluid steps on");
         }
     }
+}
+
+/// Ids are stable: frames that name the id field list each survivor with
+/// the id it was built with, in id order, through removals in two steps
+/// and the Z-order sorts between them (every 32 sub-steps); an id gone is
+/// refused, a survivor is removed by its own id, and a particle is followed
+/// by id from frame to frame.
+#[test]
+fn particles_keep_their_ids_through_removals_and_sorts() {
+    let mut scene = scene(SolverKind::Dfsph, false);
+    scene.output.fields.push(FieldKind::Id);
+    let mut world = scene.build(&BuildOptions::default()).expect("world");
+    let n = fluid_len(&world);
+    let ids = |frame: &Frame| frame.ids.clone().expect("ids named");
+    let first = world.frame();
+    assert_eq!(first.ids.as_ref().map(Vec::len), Some(first.particle_count));
+    assert_eq!(ids(&first)[..n], (0..n as u32).collect::<Vec<_>>()[..]);
+    let followed = n as u32 / 2;
+    world.remove_particles(0, &[0, 3, 9]).expect("live ids");
+    for _ in 0..40 {
+        world.step().expect("stable");
+    }
+    let (count, ids_now) = (fluid_len(&world), ids(&world.frame()));
+    assert_eq!(count, n - 3);
+    let expected: Vec<u32> = (0..n as u32).filter(|id| ![0, 3, 9].contains(id)).collect();
+    assert_eq!(
+        ids_now[..count],
+        expected[..],
+        "survivors keep their ids, in id order"
+    );
+    assert_eq!(
+        world.remove_particles(0, &[3]),
+        Err(RemoveError::NoParticle {
+            system: 0,
+            particle: 3,
+            count: n
+        }),
+        "an id gone names no particle"
+    );
+    let before = world.frame();
+    let at = |frame: &Frame, id: u32| {
+        let row = ids(frame).iter().position(|&k| k == id).expect("listed");
+        assert!(row < frame.solids[0].first, "a fluid row");
+        position(frame, row)
+    };
+    world.remove_particles(0, &[4, n - 1]).expect("live ids");
+    world.step().expect("stable");
+    let after = world.frame();
+    assert_eq!(fluid_len(&world), n - 5);
+    // The fluid's rows come first; the solid's ids are its own.
+    let fluid_ids = &ids(&after)[..n - 5];
+    assert!(!fluid_ids.contains(&4) && !fluid_ids.contains(&(n as u32 - 1)));
+    assert_eq!(ids(&after)[n - 5..], ids(&first)[n..], "the solid's ids");
+    let moved = distance(at(&after, followed), at(&before, followed));
+    assert!(
+        moved < 1e-3,
+        "particle {followed} followed by id moved {moved} m"
+    );
+    assert_eq!(world.fluid().expect("fluid").next_id(), n as u32);
 }
 
 /// DFSPH around a floating body: the solver's scratch and the body

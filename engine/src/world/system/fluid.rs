@@ -130,7 +130,8 @@ impl Simulated for FluidEntry {
     }
 
     fn write_field(&self, kind: FieldKind, out: &mut Vec<f32>) {
-        // Frames list particles by id, whatever order the fluid keeps.
+        // Frames list particles in id order, whatever order the fluid
+        // keeps.
         let fluid = self.fluid.fluid();
         let vectors = |v: &[Vector], out: &mut Vec<f32>| {
             fluid.in_id_order(out, |k| v[k].map(|c| c as f32).into())
@@ -164,13 +165,29 @@ impl Simulated for FluidEntry {
     }
 
     fn write_ids(&self, out: &mut Vec<u32>) {
-        let mut ids = self.fluid.fluid().ids().to_vec();
-        ids.sort_unstable();
-        out.extend(ids);
+        let fluid = self.fluid.fluid();
+        fluid.in_id_order(out, |k| [fluid.ids()[k]]);
     }
 
+    /// Ids are checked against the live particles: an id already gone
+    /// (or marked and gone at the next step) names no particle.
     fn mark_removed(&mut self, ids: &[usize]) -> Result<(), RemoveError> {
-        let count = self.particle_count();
+        let fluid = self.fluid.fluid();
+        let count = fluid.next_id() as usize;
+        let mut live = vec![false; count];
+        for &id in fluid.ids() {
+            live[id as usize] = true;
+        }
+        if let Some(&particle) = ids
+            .iter()
+            .find(|&&id| !live.get(id).copied().unwrap_or(false))
+        {
+            return Err(RemoveError::NoParticle {
+                system: self.index,
+                particle,
+                count,
+            });
+        }
         self.removal.mark(self.index, count, ids)
     }
 
@@ -222,17 +239,16 @@ impl Simulated for FluidEntry {
         else {
             return Err(StateError::kind((self.kind_name(), self.index), state));
         };
-        let at = |source| StateError::System {
-            system: self.index,
-            source,
-        };
+        let system = self.index;
+        let at = |source| StateError::System { system, source };
         check_layout(scene, self.index, fluid)?;
         self.fluid.restore_snapshot(fluid).map_err(at)?;
         let ids: Vec<usize> = removals.iter().map(|&id| id as usize).collect();
-        let count = fluid.ids.len();
-        self.removal.mark(self.index, count, &ids).map_err(|_| {
+        let count = fluid.next_id as usize;
+        self.removal = RemovalMask::default();
+        self.mark_removed(&ids).map_err(|_| {
             at(SnapshotError::Length {
-                what: "removals (ids beyond the particle count)",
+                what: "removals (ids of no particle)",
                 expected: count,
                 got: ids.iter().copied().max().map_or(0, |m| m + 1),
             })

@@ -70,15 +70,15 @@ pub enum RemoveError {
     },
     /// An id is not one of the system's particles.
     #[error(
-        "systems[{system}] has no particle with id {particle}: its {count} particles have ids \
-         below {count}"
+        "systems[{system}] has no particle with id {particle}: its ids run below {count}, and \
+         the id of a particle removed is never given again"
     )]
     NoParticle {
         /// Index of the system in the scene.
         system: usize,
         /// The id asked for.
         particle: usize,
-        /// The system's particle count.
+        /// The ids the system has given: its particles' ids run below it.
         count: usize,
     },
 }
