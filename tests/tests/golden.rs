@@ -1,5 +1,6 @@
-//! Golden runs: the shipped dam break, the shipped jelly drop, the small
-//! modal beam of the fixtures and the tutorial's Figure 13 stretch, on one
+//! Golden runs: the shipped dam break, jelly drop, floating box, beams
+//! (elastic and modal), the small modal beam of the fixtures and the
+//! tutorial's Figure 13 stretch, on one
 //! thread, give the same bits as when their golden files were written.
 //!
 //! Refactors that only move code must not change a single floating-point
@@ -210,6 +211,14 @@ fn implicit_beam_frames_are_bit_identical() {
 fn small_modal_frames_are_bit_identical() {
     let scene = Scene::from_toml_str(&fixture("small_modal")).expect("the fixture parses");
     check("small_modal", &run_scene(&scene, 10));
+}
+
+/// The shipped modal beam (Guo–Qin's Table 1 bar: 1,008 EFG nodes in 64
+/// modes with warping, clamped, sagging under gravity): its build and 10
+/// frames of 1/60 s.
+#[test]
+fn modal_beam_frames_are_bit_identical() {
+    check("modal_beam", &run_scene(&shipped("modal_beam.toml"), 10));
 }
 
 /// Figure 13's stretch with the volume energy: the design's displacements,
