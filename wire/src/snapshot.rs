@@ -29,6 +29,7 @@ fn system_to_proto(system: &SystemState) -> v1::SystemSnapshot {
         SystemState::Fluid {
             fluid,
             removals,
+            insertions,
             energy_start,
             ..
         } => v1::system_snapshot::Kind::Fluid(v1::FluidSnapshot {
@@ -45,6 +46,8 @@ fn system_to_proto(system: &SystemState) -> v1::SystemSnapshot {
             energy_start: energy_start.map(|(e, _)| e),
             energy_scale: energy_start.map(|(_, s)| s),
             next_id: Some(fluid.next_id),
+            insert_positions: flatten(&insertions.iter().map(|p| p.0).collect::<Vec<_>>()),
+            insert_velocities: flatten(&insertions.iter().map(|p| p.1).collect::<Vec<_>>()),
         }),
         SystemState::Solid {
             solid,
@@ -138,6 +141,8 @@ fn system_from_proto(message: v1::SystemSnapshot, field: &str) -> Result<SystemS
                 energy_start,
                 energy_scale,
                 next_id,
+                insert_positions,
+                insert_velocities,
             } = f;
             let field = format!("{field}.fluid");
             let energy_start = energy_pair(energy_start, energy_scale, &field)?;
@@ -160,6 +165,21 @@ fn system_from_proto(message: v1::SystemSnapshot, field: &str) -> Result<SystemS
                         .collect::<Result<_>>()?,
                 },
                 removals,
+                insertions: {
+                    let x = vectors(insert_positions, &format!("{field}.insert_positions"))?;
+                    let v = vectors(insert_velocities, &format!("{field}.insert_velocities"))?;
+                    if x.len() != v.len() {
+                        return Err(WireError::new(
+                            format!("{field}.insert_velocities"),
+                            format!(
+                                "holds {} vectors; give one per new particle ({})",
+                                v.len(),
+                                x.len()
+                            ),
+                        ));
+                    }
+                    x.into_iter().zip(v).collect()
+                },
                 energy_start,
             }
         }

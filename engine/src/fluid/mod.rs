@@ -159,30 +159,60 @@ impl FluidSystem {
         solver.rebuild(&self.fluid);
     }
 
-    /// Removes the particles whose id `removed` marks (one flag per id
-    /// below [`Fluid::next_id`]); the survivors keep their ids. Recomputes
-    /// the survivors' densities, pressures and solver factors, as after
-    /// bodies attach. Call between steps, never during one.
-    ///
-    /// # Panics
-    /// If `removed` does not hold one flag per id.
-    pub fn remove(&mut self, removed: &[bool]) {
-        assert_eq!(
-            removed.len(),
-            self.fluid.next_id as usize,
-            "one flag per id"
-        );
+    /// Removes the particles whose ids `removed` lists (sorted; an id of
+    /// no particle is passed over); the survivors keep their ids.
+    /// Recomputes the survivors' densities, pressures and solver factors,
+    /// as after bodies attach. Call between steps, never during one.
+    pub fn remove(&mut self, removed: &[u32]) {
         let slots = self.fluid.len();
         let kept = self.fluid.retain(removed);
         self.pressure.solver_mut().follow(&kept, slots);
         self.refresh();
     }
 
-    /// Neighbours, densities and what the solver derives from them, from
-    /// scratch.
+    /// Adds particles at `positions` moving at `velocities` (as many of
+    /// each), with the next ids in order, and recomputes every particle's
+    /// density, pressure and solver factors in the new neighbourhoods (a
+    /// new particle's warm start is zero). Call between steps, never
+    /// during one. Returns the first new id.
+    ///
+    /// # Errors
+    /// [`IdsExhausted`] when the new ids would pass `u32::MAX`; nothing is
+    /// added then.
+    pub fn insert(
+        &mut self,
+        positions: &[Vector],
+        velocities: &[Vector],
+    ) -> Result<u32, IdsExhausted> {
+        let count = positions.len().min(velocities.len());
+        if u32::try_from(count)
+            .ok()
+            .and_then(|k| self.fluid.next_id.checked_add(k))
+            .is_none()
+        {
+            return Err(IdsExhausted {
+                next_id: self.fluid.next_id,
+            });
+        }
+        let first = self.fluid.append(&positions[..count], &velocities[..count]);
+        self.refresh();
+        Ok(first)
+    }
+
+    /// Neighbours, densities and what the solver derives from them
+    /// (sized to the particles), from scratch.
     fn refresh(&mut self) {
         self.fluid.find_neighbors();
         self.fluid.compute_densities();
         self.pressure.solver_mut().init(&mut self.fluid);
     }
+}
+
+/// A fluid has given every id a `u32` holds: ids are never reused, so it
+/// takes no new particle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("the fluid has given {next_id} particle ids, the most it can; it takes no new particle")]
+pub struct IdsExhausted {
+    /// The id the next particle would get.
+    pub next_id: u32,
 }

@@ -53,21 +53,45 @@ impl Fluid {
         order
     }
 
-    /// Keeps the particles whose id `removed` does not mark (one flag per
-    /// id below [`Self::next_id`]), in their slot order; the survivors
-    /// keep their ids. Returns the kept slots (slot `k` now holds what slot
-    /// `kept[k]` held). Neighbour lists and densities are stale until the
-    /// caller rebuilds them.
-    pub(in crate::fluid) fn retain(&mut self, removed: &[bool]) -> Vec<u32> {
+    /// Keeps the particles whose id is not in `removed` (sorted), in their
+    /// slot order; the survivors keep their ids. Returns the kept slots
+    /// (slot `k` now holds what slot `kept[k]` held). Neighbour lists and
+    /// densities are stale until the caller rebuilds them.
+    pub(in crate::fluid) fn retain(&mut self, removed: &[u32]) -> Vec<u32> {
         let slots = self.ids.len();
         let kept: Vec<u32> = (0..slots as u32)
-            .filter(|&slot| !removed[self.ids[slot as usize] as usize])
+            .filter(|&slot| removed.binary_search(&self.ids[slot as usize]).is_err())
             .collect();
         self.gather_slots(&kept, slots);
         // Scratch, overwritten before it is read: only its length counts.
         self.smoothed_velocities.truncate(kept.len());
         self.rank_ids();
         kept
+    }
+
+    /// Appends particles at `positions` moving at `velocities`, with the
+    /// next ids in order, at rest density and pressure zero until the
+    /// caller recomputes them. Returns the first new id.
+    pub(in crate::fluid) fn append(&mut self, positions: &[Vector], velocities: &[Vector]) -> u32 {
+        let first = self.next_id;
+        let n = self.ids.len() + positions.len();
+        self.positions.extend_from_slice(positions);
+        self.velocities.extend_from_slice(velocities);
+        self.densities.resize(n, self.params.eos.rest_density);
+        self.pressures.resize(n, 0.0);
+        self.accelerations.resize(n, Vector::zeros());
+        if !self.smoothed_velocities.is_empty() {
+            // Scratch: only its length counts.
+            self.smoothed_velocities.resize(n, Vector::zeros());
+        }
+        self.ids.extend(first..first + positions.len() as u32);
+        self.next_id = first + positions.len() as u32;
+        // The new ids are the largest: they rank last.
+        if !self.ranks.is_empty() {
+            let live = self.ranks.len() as u32;
+            self.ranks.extend(live..live + positions.len() as u32);
+        }
+        first
     }
 
     /// Each slot's rank among the live ids, or nothing while the ids are

@@ -41,14 +41,7 @@ impl FluidSnapshot {
     /// Whether the snapshot fits a fluid built with `built` particles and
     /// `bodies` rigid bodies whose solver keeps `warm` warm-start values
     /// per particle.
-    /// Ids run below `id_space`, the ids the fluid was built with.
-    fn check(
-        &self,
-        built: usize,
-        id_space: u32,
-        bodies: usize,
-        warm: usize,
-    ) -> Result<(), SnapshotError> {
+    fn check(&self, built: usize, bodies: usize, warm: usize) -> Result<(), SnapshotError> {
         let n = self.ids.len();
         if n > built {
             return Err(SnapshotError::TooMany {
@@ -56,23 +49,15 @@ impl FluidSnapshot {
                 limit: built,
             });
         }
-        if self.next_id > id_space || (self.next_id as usize) < n {
-            return Err(SnapshotError::Invalid {
-                what: "next_id",
-                index: 0,
-                value: f64::from(self.next_id),
+        // Sorted, not flagged: `next_id` grows with every particle ever
+        // added, so memory follows the particles, not the ids given.
+        let mut sorted = self.ids.clone();
+        sorted.sort_unstable();
+        let distinct = sorted.windows(2).all(|w| w[0] < w[1]);
+        if !distinct || sorted.last().is_some_and(|&last| last >= self.next_id) {
+            return Err(SnapshotError::Ids {
+                next_id: self.next_id,
             });
-        }
-        let mut seen = vec![false; self.next_id as usize];
-        for &id in &self.ids {
-            match seen.get_mut(id as usize) {
-                Some(slot) if !*slot => *slot = true,
-                _ => {
-                    return Err(SnapshotError::Ids {
-                        next_id: self.next_id,
-                    });
-                }
-            }
         }
         check_vectors("positions", &self.positions, n)?;
         check_vectors("velocities", &self.velocities, n)?;
@@ -153,15 +138,13 @@ impl FluidSystem {
         let mut warm = Vec::new();
         self.pressure.solver().save(&mut warm);
         let per_particle = warm.len().checked_div(built).unwrap_or(0);
-        state.check(built, self.fluid.next_id, bodies, per_particle)?;
+        state.check(built, bodies, per_particle)?;
         let n = state.ids.len();
         if n < built {
             // Drop the surplus particles (the last slots), so every
             // per-slot buffer, the solver's included, has `n` slots.
-            let mut removed = vec![false; self.fluid.next_id as usize];
-            for &id in &self.fluid.ids[n..] {
-                removed[id as usize] = true;
-            }
+            let mut removed = self.fluid.ids[n..].to_vec();
+            removed.sort_unstable();
             self.remove(&removed);
         }
         let fluid = &mut self.fluid;

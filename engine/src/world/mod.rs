@@ -23,13 +23,13 @@ pub mod watch;
 pub use controls::GrabsError;
 pub use outcome::{StepError, StepInfo};
 pub use saved::{Clock, StateError, SystemState, WorldState};
-pub use system::RemoveError;
+pub use system::{InsertError, RemoveError};
 
 use crate::cancel::Cancel;
 use crate::efg::ModalSolid;
 use crate::fluid::Fluid;
 use crate::frame::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
-use crate::math::vector;
+use crate::math::{Real, Vector, vector};
 use crate::scene::Scene;
 use crate::solid::ElasticSolid;
 use crate::stats::StageTimer;
@@ -139,6 +139,37 @@ impl World {
             .ok_or(RemoveError::NoSystem { system })?
             .simulated_mut()
             .mark_removed(ids)
+    }
+
+    /// Adds particles to system `system` (its index in the scene) at
+    /// `positions` moving at `velocities`: they join at the start of the
+    /// next step, after that step's removals, never during one, and get
+    /// the ids returned (the next ids in order; ids are never reused).
+    /// A new particle's density and pressure are those of its
+    /// neighbourhood, and every neighbour's are recomputed with it. In 2D
+    /// the z components are dropped.
+    ///
+    /// # Errors
+    /// [`InsertError`] when the scene has no particle system at `system`,
+    /// when that system cannot take particles, when a position lies
+    /// outside the domain or crowds others (as the scene's own particles
+    /// would), a velocity is not finite, or the system would hold more
+    /// particles than it was built with; nothing is queued then.
+    pub fn insert_particles(
+        &mut self,
+        system: usize,
+        positions: &[[Real; 3]],
+        velocities: &[[Real; 3]],
+    ) -> Result<std::ops::Range<u32>, InsertError> {
+        let positions: Vec<Vector> = positions.iter().map(|&x| vector(x)).collect();
+        let velocities: Vec<Vector> = velocities.iter().map(|&v| vector(v)).collect();
+        let scene = &self.scene;
+        self.systems
+            .iter_mut()
+            .find(|s| s.simulated().index() == system)
+            .ok_or(InsertError::NoSystem { system })?
+            .simulated_mut()
+            .mark_inserted(scene, &positions, &velocities)
     }
 
     /// Advances by `scene.time.dt`, split into sub-steps that respect the

@@ -6,7 +6,7 @@
 
 use crate::efg::ModalState;
 use crate::fluid::FluidSnapshot;
-use crate::math::Real;
+use crate::math::{Real, Vector};
 use crate::scene::{Scene, SceneError};
 use crate::snapshot::SnapshotError;
 use crate::solid::SolidSnapshot;
@@ -41,6 +41,9 @@ pub enum SystemState {
         fluid: FluidSnapshot,
         /// Particle ids marked for removal at the next step.
         removals: Vec<u32>,
+        /// New particles (position, velocity) queued for the next step, in
+        /// the order they get their ids.
+        insertions: Vec<(Vector, Vector)>,
         /// The energy watch's start `(E_0, scale)`, if measured.
         energy_start: Option<(Real, Real)>,
     },
@@ -112,6 +115,14 @@ pub enum StateError {
         system: usize,
         /// The check that failed, naming the position.
         source: SceneError,
+    },
+    /// The new particles a snapshot queued are not ones the system takes.
+    #[error("systems[{system}]: the queued insertions are refused: {reason}")]
+    Insertions {
+        /// Index of the system in the scene.
+        system: usize,
+        /// Why, as the insertion would have been refused.
+        reason: String,
     },
     /// One system's state does not fit it.
     #[error("systems[{system}]: {source}")]

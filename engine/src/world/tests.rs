@@ -4,8 +4,8 @@
 //! where they were. A system that cannot remove particles says so, and a
 //! rejected request marks nothing.
 
-use super::system::simulated::RemovalMask;
-use super::{RemoveError, World};
+use super::system::simulated::ParticleChanges;
+use super::{InsertError, RemoveError, World};
 use crate::frame::{FieldKind, Frame};
 use crate::scene::{BuildOptions, Scene, SolverKind, SystemSpec};
 
@@ -191,6 +191,91 @@ fn particles_keep_their_ids_through_removals_and_sorts() {
     assert_eq!(world.fluid().expect("fluid").next_id(), n as u32);
 }
 
+/// Particles come and go in one run: a fluid takes new particles (up to
+/// the count it was built with) after removals, they get the next ids and
+/// join at the next step where they were put; bad ones are refused with
+/// nothing queued; a solid takes none; a snapshot taken with changes
+/// queued restores and continues bit for bit.
+#[test]
+fn new_particles_join_at_the_next_step_with_the_next_ids() {
+    let mut scene = scene(SolverKind::Dfsph, false);
+    scene.output.fields.push(FieldKind::Id);
+    let mut world = scene.build(&BuildOptions::default()).expect("world");
+    let n = fluid_len(&world);
+    assert!(
+        matches!(
+            world.insert_particles(0, &[[0.5, 0.9, 0.0]], &[[0.0; 3]]),
+            Err(InsertError::Capacity { capacity, .. }) if capacity == n
+        ),
+        "a full fluid takes none"
+    );
+    world.remove_particles(0, &[1, 2]).expect("live ids");
+    let refused = [
+        world.insert_particles(0, &[[2.0, 0.5, 0.0]], &[[0.0; 3]]),
+        world.insert_particles(0, &[[0.5, 0.9, 0.0]], &[[f64::NAN, 0.0, 0.0]]),
+        world.insert_particles(0, &[[0.5, 0.9, 0.0]], &[]),
+        world.insert_particles(0, &[[0.5, 0.9, 0.0]; 3], &[[0.0; 3]; 3]),
+        world.insert_particles(1, &[[0.5, 0.9, 0.0]], &[[0.0; 3]]),
+        world.insert_particles(7, &[[0.5, 0.9, 0.0]], &[[0.0; 3]]),
+    ];
+    let messages: Vec<String> = refused
+        .iter()
+        .map(|r| r.as_ref().err().map(ToString::to_string).expect("refused"))
+        .collect();
+    assert!(
+        messages[0].contains("outside the domain"),
+        "{}",
+        messages[0]
+    );
+    assert!(messages[1].contains("not finite"), "{}", messages[1]);
+    assert!(messages[2].contains("one velocity per"), "{}", messages[2]);
+    assert!(messages[3].contains("more than the"), "{}", messages[3]);
+    assert!(
+        messages[4].contains("cannot take new particles"),
+        "{}",
+        messages[4]
+    );
+    assert!(
+        messages[5].contains("not a particle system"),
+        "{}",
+        messages[5]
+    );
+    let ids = world
+        .insert_particles(
+            0,
+            &[[0.5, 0.9, 0.0], [0.55, 0.9, 0.0]],
+            &[[0.0, -1.0, 0.0]; 2],
+        )
+        .expect("room for two after two removals");
+    assert_eq!(ids, n as u32..n as u32 + 2);
+    // A snapshot with the changes queued continues as the world does.
+    let state = world.state();
+    let mut restored = scene
+        .build(&BuildOptions::default())
+        .expect("world")
+        .restored(&state)
+        .expect("restores");
+    for _ in 0..3 {
+        world.step().expect("stable");
+        restored.step().expect("stable");
+        assert_eq!(world.frame(), restored.frame(), "bit for bit");
+    }
+    let frame = world.frame();
+    assert_eq!(fluid_len(&world), n);
+    let fluid_ids = &frame.ids.as_ref().expect("ids")[..n];
+    assert_eq!(
+        fluid_ids[n - 2..],
+        [n as u32, n as u32 + 1],
+        "new ids rank last"
+    );
+    assert!(!fluid_ids.contains(&1) && !fluid_ids.contains(&2));
+    let y = position(&frame, n - 2)[1];
+    assert!(
+        (0.8..0.9).contains(&y),
+        "the new particle falls from 0.9 m: {y}"
+    );
+}
+
 /// DFSPH around a floating body: the solver's scratch and the body
 /// coupling follow the smaller fluid, which keeps stepping.
 #[test]
@@ -265,12 +350,12 @@ fn rejected_removals_say_why_and_mark_nothing() {
 /// The mask accumulates marks until taken, and is empty after.
 #[test]
 fn the_mask_collects_marks_until_taken() {
-    let mut mask = RemovalMask::default();
-    assert_eq!(mask.take(), None);
+    let mut mask = ParticleChanges::default();
+    assert!(mask.take().is_empty());
     mask.mark(0, 4, &[1]).expect("in range");
     mask.mark(0, 4, &[3, 1]).expect("in range");
-    assert_eq!(mask.take(), Some(vec![false, true, false, true]));
-    assert_eq!(mask.take(), None);
+    assert_eq!(mask.take().marked_ids(), vec![1, 3]);
+    assert!(mask.take().is_empty());
 }
 
 /// Modal EFG solids in a world: built from a scene, stepped, listed in

@@ -2,7 +2,7 @@
 //! its spec, stepped in sub-steps within its stability limit, its frame
 //! fields in particle-id order, its particles removed between steps.
 
-use super::simulated::{Invalid, RemovalMask, RemoveError, Simulated, StepEnv};
+use super::simulated::{InsertError, Invalid, ParticleChanges, RemoveError, Simulated, StepEnv};
 use crate::approx::Kernel;
 use crate::expression::VectorField;
 use crate::fluid::{
@@ -38,8 +38,11 @@ pub(crate) struct FluidEntry {
     pub bounds: (Vector, Vector),
     /// Meshes the fluid's surface into each frame, when the scene asks.
     pub surface: Option<SurfaceExtractor>,
-    /// Particles to remove at the start of the next step.
-    pub removal: RemovalMask,
+    /// Particles to remove and to add at the start of the next step.
+    pub changes: ParticleChanges,
+    /// The most particles it may hold: as many as it was built with, the
+    /// memory its scene was admitted with.
+    pub capacity: usize,
     /// The energy the fluid started from, which it may not exceed.
     pub watch: EnergyWatch,
 }
@@ -62,8 +65,15 @@ impl Simulated for FluidEntry {
     }
 
     fn start_step(&mut self) {
-        if let Some(removed) = self.removal.take() {
-            self.fluid.remove(&removed);
+        if !self.changes.is_empty() {
+            let (removed, positions, velocities) = self.changes.take().into_parts();
+            if !removed.is_empty() {
+                self.fluid.remove(&removed);
+            }
+            if !positions.is_empty() {
+                // The ids were checked when the particles were queued.
+                let _ = self.fluid.insert(&positions, &velocities);
+            }
             self.watch.restart();
         }
         self.fluid.reorder_if_due();
@@ -188,7 +198,81 @@ impl Simulated for FluidEntry {
                 count,
             });
         }
-        self.removal.mark(self.index, count, ids)
+        self.changes.mark(self.index, count, ids)
+    }
+
+    /// New particles must lie in the domain, not crowd (as the scene's
+    /// own particles), move at finite velocities, and fit the fluid's
+    /// capacity after the changes already queued.
+    fn mark_inserted(
+        &mut self,
+        scene: &Scene,
+        positions: &[Vector],
+        velocities: &[Vector],
+    ) -> Result<std::ops::Range<u32>, InsertError> {
+        let system = self.index;
+        if positions.len() != velocities.len() {
+            return Err(InsertError::Lengths {
+                positions: positions.len(),
+                velocities: velocities.len(),
+            });
+        }
+        let (queued, _) = self.changes.inserted();
+        let count = (self.particle_count() + queued.len() + positions.len())
+            .saturating_sub(self.changes.removed_count());
+        if count > self.capacity {
+            return Err(InsertError::Capacity {
+                system,
+                count,
+                capacity: self.capacity,
+            });
+        }
+        let next_id = self.fluid.fluid().next_id();
+        let first = u32::try_from(queued.len())
+            .ok()
+            .and_then(|q| next_id.checked_add(q));
+        let end = first.and_then(|f| f.checked_add(u32::try_from(positions.len()).ok()?));
+        let (Some(first), Some(end)) = (first, end) else {
+            return Err(InsertError::IdsExhausted { system, next_id });
+        };
+        let invalid = |reason: String| InsertError::Invalid { system, reason };
+        if let Some(i) = velocities
+            .iter()
+            .position(|v| !v.iter().all(|c| c.is_finite()))
+        {
+            return Err(invalid(format!(
+                "velocities[{i}] is not finite; give each new particle a finite velocity"
+            )));
+        }
+        let spec = scene.fluid().ok_or(InsertError::NoSystem { system })?;
+        let planar = scene.dimension == 2;
+        let flat = |x: &Vector| [x.x, x.y, if planar { 0.0 } else { x.z }];
+        scene
+            .check_fluid_positions(spec, queued.iter().chain(positions).map(flat), &|i| match i
+                .checked_sub(queued.len())
+            {
+                Some(i) => format!("positions[{i}]"),
+                None => format!("an earlier queued particle ({i})"),
+            })
+            .map_err(|e| invalid(e.to_string()))?;
+        let planar_vectors = |v: &[Vector]| -> Vec<Vector> {
+            v.iter()
+                .map(|x| {
+                    if planar {
+                        Vector::new(x.x, x.y, 0.0)
+                    } else {
+                        *x
+                    }
+                })
+                .collect()
+        };
+        self.changes
+            .insert(&planar_vectors(positions), &planar_vectors(velocities));
+        Ok(first..end)
+    }
+
+    fn kind_article(&self) -> &'static str {
+        "a fluid"
     }
 
     /// The colour field with each particle's volume `m / rho_i` from the
@@ -224,7 +308,11 @@ impl Simulated for FluidEntry {
         SystemState::Fluid {
             index: self.index,
             fluid: self.fluid.snapshot(),
-            removals: self.removal.marked_ids(),
+            removals: self.changes.marked_ids(),
+            insertions: {
+                let (x, v) = self.changes.inserted();
+                x.iter().copied().zip(v.iter().copied()).collect()
+            },
             energy_start: self.watch.start(),
         }
     }
@@ -233,6 +321,7 @@ impl Simulated for FluidEntry {
         let SystemState::Fluid {
             fluid,
             removals,
+            insertions,
             energy_start,
             ..
         } = state
@@ -245,7 +334,7 @@ impl Simulated for FluidEntry {
         self.fluid.restore_snapshot(fluid).map_err(at)?;
         let ids: Vec<usize> = removals.iter().map(|&id| id as usize).collect();
         let count = fluid.next_id as usize;
-        self.removal = RemovalMask::default();
+        self.changes = ParticleChanges::default();
         self.mark_removed(&ids).map_err(|_| {
             at(SnapshotError::Length {
                 what: "removals (ids of no particle)",
@@ -253,6 +342,13 @@ impl Simulated for FluidEntry {
                 got: ids.iter().copied().max().map_or(0, |m| m + 1),
             })
         })?;
+        let (positions, velocities): (Vec<Vector>, Vec<Vector>) =
+            insertions.iter().copied().unzip();
+        self.mark_inserted(scene, &positions, &velocities)
+            .map_err(|e| StateError::Insertions {
+                system,
+                reason: e.to_string(),
+            })?;
         if let Some((e0, scale)) = *energy_start {
             check_finite("energy start", &[e0, scale]).map_err(at)?;
         }
@@ -424,6 +520,7 @@ pub(super) fn build(
         grid.clone(),
         periodic,
     );
+    let fluid_len = fluid.fluid().len();
     if let Some(force) = parse(&spec.body_force) {
         fluid.set_body_force(force);
     }
@@ -452,7 +549,8 @@ pub(super) fn build(
         backup: FluidState::default(),
         bounds: (min, max),
         surface,
-        removal: RemovalMask::default(),
+        changes: ParticleChanges::default(),
+        capacity: fluid_len,
         watch: EnergyWatch::default(),
     }
 }

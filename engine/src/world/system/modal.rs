@@ -93,6 +93,10 @@ impl Simulated for ModalEntry {
         true
     }
 
+    fn kind_article(&self) -> &'static str {
+        "a modal solid"
+    }
+
     fn particle_count(&self) -> usize {
         self.solid.len()
     }
@@ -229,7 +233,7 @@ impl Simulated for ModalEntry {
     fn mark_removed(&mut self, _ids: &[usize]) -> Result<(), RemoveError> {
         Err(RemoveError::Unsupported {
             system: self.index,
-            kind: "a modal solid",
+            kind: self.kind_article(),
         })
     }
 

@@ -83,18 +83,94 @@ pub enum RemoveError {
     },
 }
 
-/// Particles of one system marked for removal, by id: kept from the
-/// request to the start of the next step, where the system drops them all
-/// at once.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct RemovalMask {
-    /// One flag per particle id; empty while nothing is marked.
-    marked: Vec<bool>,
+/// Why particles cannot be added; nothing was queued.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum InsertError {
+    /// The index names no system the world steps.
+    #[error(
+        "systems[{system}] is not a particle system of this world; name the index of the \
+         scene's fluid"
+    )]
+    NoSystem {
+        /// The index asked for.
+        system: usize,
+    },
+    /// The system keeps a fixed set of particles.
+    #[error(
+        "systems[{system}] is {kind}, which cannot take new particles; add particles to the \
+         scene's fluid"
+    )]
+    Unsupported {
+        /// Index of the system in the scene.
+        system: usize,
+        /// What the system is.
+        kind: &'static str,
+    },
+    /// Positions and velocities differ in number.
+    #[error(
+        "{positions} positions but {velocities} velocities: give one velocity per new particle"
+    )]
+    Lengths {
+        /// Positions given.
+        positions: usize,
+        /// Velocities given.
+        velocities: usize,
+    },
+    /// The system would hold more particles than the memory its scene
+    /// was admitted with allows.
+    #[error(
+        "systems[{system}] would hold {count} particles, more than the {capacity} it was built \
+         with (the memory the scene was admitted with); remove particles first or add fewer"
+    )]
+    Capacity {
+        /// Index of the system in the scene.
+        system: usize,
+        /// Particles it would hold after the step's changes.
+        count: usize,
+        /// The most it may hold.
+        capacity: usize,
+    },
+    /// A new particle is not one the scene could hold.
+    #[error("systems[{system}]: {reason}")]
+    Invalid {
+        /// Index of the system in the scene.
+        system: usize,
+        /// What is wrong, naming the particle (`positions[i]`,
+        /// `velocities[i]`).
+        reason: String,
+    },
+    /// The system has given every id a `u32` holds (ids are never
+    /// reused).
+    #[error(
+        "systems[{system}] has given {next_id} particle ids, the most it can; it takes no new \
+         particle"
+    )]
+    IdsExhausted {
+        /// Index of the system in the scene.
+        system: usize,
+        /// The id the next particle would get.
+        next_id: u32,
+    },
 }
 
-impl RemovalMask {
-    /// Marks `ids` of a system of `count` particles, after checking all
-    /// of them: on error nothing is marked.
+/// The particle changes of one system asked for since its last step:
+/// removals by id and new particles, kept from the request to the start
+/// of the next step, where the system applies them all at once (removals
+/// first, then the new particles in order), never inside a solve.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct ParticleChanges {
+    /// Ids to remove, sorted and distinct.
+    removed: Vec<u32>,
+    /// New particles' positions, in the order they get their ids.
+    inserted_positions: Vec<Vector>,
+    /// New particles' velocities.
+    inserted_velocities: Vec<Vector>,
+}
+
+impl ParticleChanges {
+    /// Marks `ids` of a system whose ids run below `count` for removal,
+    /// after checking all of them: on error nothing is marked. (Whether
+    /// an id below `count` is a live particle is the system's check.)
     pub(crate) fn mark(
         &mut self,
         system: usize,
@@ -108,26 +184,51 @@ impl RemovalMask {
                 count,
             });
         }
-        if ids.is_empty() {
-            return Ok(());
-        }
-        self.marked.resize(count, false);
-        for &id in ids {
-            self.marked[id] = true;
-        }
+        // Below `count`, itself an id count: each fits a u32.
+        self.removed.extend(ids.iter().map(|&id| id as u32));
+        self.removed.sort_unstable();
+        self.removed.dedup();
         Ok(())
     }
 
-    /// The ids marked, in order.
-    pub(crate) fn marked_ids(&self) -> Vec<u32> {
-        (0..self.marked.len() as u32)
-            .filter(|&id| self.marked[id as usize])
-            .collect()
+    /// Queues new particles (checked by the caller).
+    pub(crate) fn insert(&mut self, positions: &[Vector], velocities: &[Vector]) {
+        self.inserted_positions.extend_from_slice(positions);
+        self.inserted_velocities.extend_from_slice(velocities);
     }
 
-    /// The flags, if anything is marked, leaving the mask empty.
-    pub(crate) fn take(&mut self) -> Option<Vec<bool>> {
-        (!self.marked.is_empty()).then(|| std::mem::take(&mut self.marked))
+    /// The ids marked for removal, in order.
+    pub(crate) fn marked_ids(&self) -> Vec<u32> {
+        self.removed.clone()
+    }
+
+    /// How many ids are marked for removal.
+    pub(crate) fn removed_count(&self) -> usize {
+        self.removed.len()
+    }
+
+    /// The new particles queued: positions and velocities.
+    pub(crate) fn inserted(&self) -> (&[Vector], &[Vector]) {
+        (&self.inserted_positions, &self.inserted_velocities)
+    }
+
+    /// The changes, leaving none queued.
+    pub(crate) fn take(&mut self) -> Self {
+        std::mem::take(self)
+    }
+
+    /// Whether nothing is queued.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.removed.is_empty() && self.inserted_positions.is_empty()
+    }
+
+    /// The removals and the new particles, taken apart.
+    pub(crate) fn into_parts(self) -> (Vec<u32>, Vec<Vector>, Vec<Vector>) {
+        (
+            self.removed,
+            self.inserted_positions,
+            self.inserted_velocities,
+        )
     }
 }
 
@@ -207,6 +308,23 @@ pub(crate) trait Simulated {
 
     /// Marks particles for removal at the start of the next step.
     fn mark_removed(&mut self, ids: &[usize]) -> Result<(), RemoveError>;
+
+    /// Queues new particles for the start of the next step, after
+    /// checking them against `scene`; returns the ids they will get.
+    fn mark_inserted(
+        &mut self,
+        _scene: &Scene,
+        _positions: &[Vector],
+        _velocities: &[Vector],
+    ) -> Result<std::ops::Range<u32>, InsertError> {
+        Err(InsertError::Unsupported {
+            system: self.index(),
+            kind: self.kind_article(),
+        })
+    }
+
+    /// The kind with its article, for errors ("an elastic solid").
+    fn kind_article(&self) -> &'static str;
 
     /// The system's state, for a snapshot (between steps).
     fn capture(&self) -> SystemState;

@@ -42,6 +42,10 @@ impl Simulated for SolidEntry {
         true
     }
 
+    fn kind_article(&self) -> &'static str {
+        "an elastic solid"
+    }
+
     fn particle_count(&self) -> usize {
         self.solid.len()
     }
@@ -161,7 +165,7 @@ impl Simulated for SolidEntry {
     fn mark_removed(&mut self, _ids: &[usize]) -> Result<(), RemoveError> {
         Err(RemoveError::Unsupported {
             system: self.index,
-            kind: "an elastic solid",
+            kind: self.kind_article(),
         })
     }
 
