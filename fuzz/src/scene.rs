@@ -3,7 +3,7 @@
 //! admission check a server runs before it allocates anything.
 
 use crate::echo::assert_quotes_briefly;
-use meshless_engine::scene::{MeshFiles, SystemSpec};
+use meshless_engine::scene::MeshFiles;
 use meshless_engine::{BuildOptions, Scene};
 use meshless_proto::v1;
 use meshless_wire::scene::{scene_from_proto, scene_to_proto};
@@ -68,12 +68,14 @@ const MAX_CHECKED_SUBDIVISIONS: u32 = 2;
 /// `engine/src/world/tests.rs`, their protocol round trip in
 /// `wire/src/modal.rs`.
 fn fine_surface(scene: &Scene) -> bool {
-    scene.systems.iter().any(|system| match system {
-        SystemSpec::Solid(solid) => solid.surface.as_ref().is_some_and(|surface| {
-            (MAX_CHECKED_SUBDIVISIONS + 1..=7).contains(&surface.subdivisions)
-        }),
-        SystemSpec::ModalSolid(_) => true,
-        SystemSpec::Fluid(_) | SystemSpec::RigidBody(_) => false,
+    scene.systems.iter().any(|system| {
+        system.as_modal_solid().is_some()
+            || system
+                .as_solid()
+                .and_then(|solid| solid.surface.as_ref())
+                .is_some_and(|surface| {
+                    (MAX_CHECKED_SUBDIVISIONS + 1..=7).contains(&surface.subdivisions)
+                })
     })
 }
 

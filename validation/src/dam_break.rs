@@ -102,11 +102,7 @@ pub enum ColumnError {
 
 /// The first system of `scene`, when it is a fluid.
 fn first_fluid(scene: &Scene) -> Option<&FluidSpec> {
-    match scene.systems.first() {
-        Some(SystemSpec::Fluid(fluid)) => Some(fluid),
-        Some(SystemSpec::RigidBody(_) | SystemSpec::Solid(_) | SystemSpec::ModalSolid(_))
-        | None => None,
-    }
+    scene.systems.first().and_then(SystemSpec::as_fluid)
 }
 
 /// The column width `a` of a dam-break scene, checking that its first

@@ -52,7 +52,7 @@ impl DesignTarget {
                  solids"
             ),
         };
-        let Some(SystemSpec::Solid(spec)) = scene.systems.get(system) else {
+        let Some(spec) = scene.systems.get(system).and_then(SystemSpec::as_solid) else {
             return Err(not_solid());
         };
         let solid = world

@@ -253,6 +253,68 @@ pub enum SystemSpec {
     ModalSolid(ModalSolidSpec),
 }
 
+impl SystemSpec {
+    /// The kind as scene files spell it (`kind = "..."`).
+    pub fn kind_name(&self) -> &'static str {
+        match self {
+            Self::Fluid(_) => "fluid",
+            Self::RigidBody(_) => "rigid_body",
+            Self::Solid(_) => "solid",
+            Self::ModalSolid(_) => "modal_solid",
+        }
+    }
+
+    /// The shape the system fills or is (a fluid fills blocks: none).
+    pub fn shape(&self) -> Option<&ShapeSpec> {
+        match self {
+            Self::RigidBody(RigidBodySpec { shape, .. })
+            | Self::Solid(SolidSpec { shape, .. })
+            | Self::ModalSolid(ModalSolidSpec { shape, .. }) => Some(shape),
+            Self::Fluid(_) => None,
+        }
+    }
+
+    /// The fluid, if this is one.
+    pub fn as_fluid(&self) -> Option<&FluidSpec> {
+        match self {
+            Self::Fluid(fluid) => Some(fluid),
+            Self::RigidBody(_) | Self::Solid(_) | Self::ModalSolid(_) => None,
+        }
+    }
+
+    /// [`Self::as_fluid`], to change it.
+    pub fn as_fluid_mut(&mut self) -> Option<&mut FluidSpec> {
+        match self {
+            Self::Fluid(fluid) => Some(fluid),
+            Self::RigidBody(_) | Self::Solid(_) | Self::ModalSolid(_) => None,
+        }
+    }
+
+    /// The elastic solid, if this is one.
+    pub fn as_solid(&self) -> Option<&SolidSpec> {
+        match self {
+            Self::Solid(solid) => Some(solid),
+            Self::Fluid(_) | Self::RigidBody(_) | Self::ModalSolid(_) => None,
+        }
+    }
+
+    /// The modal solid, if this is one.
+    pub fn as_modal_solid(&self) -> Option<&ModalSolidSpec> {
+        match self {
+            Self::ModalSolid(solid) => Some(solid),
+            Self::Fluid(_) | Self::RigidBody(_) | Self::Solid(_) => None,
+        }
+    }
+
+    /// The rigid body, if this is one.
+    pub fn as_rigid_body(&self) -> Option<&RigidBodySpec> {
+        match self {
+            Self::RigidBody(body) => Some(body),
+            Self::Fluid(_) | Self::Solid(_) | Self::ModalSolid(_) => None,
+        }
+    }
+}
+
 impl<'de> Deserialize<'de> for SystemSpec {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         use serde::de::Error;
@@ -576,9 +638,7 @@ impl Scene {
         let mut prepared = Vec::with_capacity(self.systems.len());
         for (s, system) in self.systems.iter().enumerate() {
             prepared.push(Prepared::Nothing);
-            if let SystemSpec::RigidBody(RigidBodySpec { shape, .. })
-            | SystemSpec::Solid(SolidSpec { shape, .. })
-            | SystemSpec::ModalSolid(ModalSolidSpec { shape, .. }) = system
+            if let Some(shape) = system.shape()
                 && let ShapeSpec::Mesh {
                     data: Some(data), ..
                 } = shape
@@ -667,10 +727,7 @@ impl Scene {
 
     /// The scene's fluid, if it has one.
     pub fn fluid(&self) -> Option<&FluidSpec> {
-        self.systems.iter().find_map(|s| match s {
-            SystemSpec::Fluid(f) => Some(f),
-            SystemSpec::RigidBody(_) | SystemSpec::Solid(_) | SystemSpec::ModalSolid(_) => None,
-        })
+        self.systems.iter().find_map(SystemSpec::as_fluid)
     }
 
     /// Whether the scene holds an elastic solid.
