@@ -356,6 +356,16 @@ impl<'de> Deserialize<'de> for SystemSpec {
     }
 }
 
+/// What a system's check reads of the scene around it: the dimension
+/// and the domain, not the other systems.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SceneContext<'a> {
+    /// 2 or 3.
+    pub dimension: usize,
+    /// The simulation domain.
+    pub domain: &'a Aabb,
+}
+
 /// A validated scene with what validation made (each body's engine
 /// shape, each solid's particles and surface, the memory estimate), ready
 /// to build.
@@ -632,6 +642,10 @@ impl Scene {
                 "is empty; name at least one system (kind = \"fluid\")",
             ));
         }
+        let context = SceneContext {
+            dimension: self.dimension,
+            domain: &self.domain,
+        };
         let mut fluids = 0;
         let mut solid_particles = 0.0;
         let mut footprint = Footprint::default();
@@ -677,11 +691,8 @@ impl Scene {
                     prepared[s] = Prepared::Body(shape);
                 }
                 SystemSpec::Solid(solid) => {
-                    let sampled = self.validate_solid(
-                        &format!("systems[{s}]"),
-                        solid,
-                        options.max_particles,
-                    )?;
+                    let sampled =
+                        solid.prepare(&format!("systems[{s}]"), &context, options.max_particles)?;
                     let count = sampled.particles.len();
                     solid_particles += count as f64;
                     footprint.add_solid(
@@ -693,8 +704,7 @@ impl Scene {
                     prepared[s] = Prepared::Solid(sampled);
                 }
                 SystemSpec::ModalSolid(spec) => {
-                    let solid =
-                        self.validate_modal_solid(&format!("systems[{s}]"), spec, options)?;
+                    let solid = spec.prepare(&format!("systems[{s}]"), &context, options)?;
                     solid_particles += solid.len() as f64;
                     footprint.add_modal_solid(&solid);
                     prepared[s] = Prepared::Modal(Box::new(solid));

@@ -5,7 +5,7 @@
 //! world exists).
 
 use super::error::{check_box, check_positive, check_range, check_vector};
-use super::{Aabb, BuildOptions, Scene, SceneError, ShapeSpec};
+use super::{Aabb, BuildOptions, SceneContext, SceneError, ShapeSpec};
 use crate::approx::mls::Order;
 use crate::efg::{
     Anchor, Dynamics, EfgError, EfgParams, FixedSurface, Grab, MassForm, Material, ModalParams,
@@ -529,15 +529,18 @@ fn bounds_of(points: &[Vector]) -> (Vector, Vector) {
     )
 }
 
-impl Scene {
-    /// Checks a modal solid and builds it.
-    pub(super) fn validate_modal_solid(
+impl ModalSolidSpec {
+    /// Checks the modal solid against `context` and builds it: the
+    /// octree, the EFG assembly and the modes, the expensive part of its
+    /// admission.
+    pub(super) fn prepare(
         &self,
         at: &str,
-        spec: &ModalSolidSpec,
+        context: &SceneContext,
         options: &BuildOptions,
     ) -> Result<ModalSolid, SceneError> {
-        if self.dimension != 3 {
+        let spec = self;
+        if context.dimension != 3 {
             return Err(SceneError::invalid(
                 at,
                 "modal solids are 3D only; set dimension = 3",
@@ -660,7 +663,7 @@ impl Scene {
             });
         }
         for a in 0..3 {
-            if min[a] < self.domain.min[a] || max[a] > self.domain.max[a] {
+            if min[a] < context.domain.min[a] || max[a] > context.domain.max[a] {
                 return Err(SceneError::invalid(
                     field("position"),
                     "the solid reaches outside the domain; move it or enlarge the domain",

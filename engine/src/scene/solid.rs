@@ -1,8 +1,9 @@
 //! Elastic solids in a scene: the TOML/protocol description and its
 //! validation (the world's builder makes the engine solid of it).
 
+use super::body::checked_shape;
 use super::error::{check_box, check_positive, check_range, check_vector};
-use super::{Aabb, Scene, SceneError, ShapeSpec, shape_pose};
+use super::{Aabb, SceneContext, SceneError, ShapeSpec, shape_pose};
 use crate::approx::mls::Order;
 use crate::geometry::Shape;
 use crate::geometry::TriMesh;
@@ -277,15 +278,17 @@ impl SolidSpec {
     }
 }
 
-impl Scene {
-    /// Checks a solid; returns its engine shape and particle count.
-    pub(super) fn validate_solid(
+impl SolidSpec {
+    /// Checks the solid against `context` and samples its particles and
+    /// surface for the build.
+    pub(super) fn prepare(
         &self,
         at: &str,
-        solid: &SolidSpec,
+        context: &SceneContext,
         max_particles: u64,
     ) -> Result<SampledSolid, SceneError> {
-        let dim = self.dimension;
+        let solid = self;
+        let dim = context.dimension;
         let shape_at = format!("{at}.shape");
         if matches!(solid.shape, ShapeSpec::Plane { .. }) {
             return Err(SceneError::invalid(
@@ -293,7 +296,7 @@ impl Scene {
                 "a solid must be bounded; use a box, sphere, capsule or closed mesh",
             ));
         }
-        let shape = self.checked_shape(&shape_at, &solid.shape)?;
+        let shape = checked_shape(&shape_at, &solid.shape, dim)?;
         check_vector(&format!("{at}.position"), solid.position)?;
         check_vector(&format!("{at}.orientation"), solid.orientation)?;
         check_vector(&format!("{at}.velocity"), solid.velocity)?;
@@ -436,8 +439,9 @@ impl Scene {
         }
         let radius = 0.5 * solid.spacing;
         if let Some((x, _)) = particles.iter().find(|(x, _)| {
-            (0..dim)
-                .any(|a| x[a] < self.domain.min[a] + radius || x[a] > self.domain.max[a] - radius)
+            (0..dim).any(|a| {
+                x[a] < context.domain.min[a] + radius || x[a] > context.domain.max[a] - radius
+            })
         }) {
             return Err(SceneError::invalid(
                 format!("{at}.position"),
