@@ -704,7 +704,7 @@ impl ModalSolidSpec {
 
 #[cfg(test)]
 mod tests {
-    use super::super::SystemSpec;
+    use super::super::{Scene, SystemSpec};
     use super::*;
 
     fn beam(cell: Real) -> Scene {
