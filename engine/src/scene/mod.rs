@@ -642,10 +642,7 @@ impl Scene {
                 "is empty; name at least one system (kind = \"fluid\")",
             ));
         }
-        let context = SceneContext {
-            dimension: self.dimension,
-            domain: &self.domain,
-        };
+        let context = self.context();
         let mut fluids = 0;
         let mut solid_particles = 0.0;
         let mut footprint = Footprint::default();
@@ -733,6 +730,14 @@ impl Scene {
             }
         }
         Ok((prepared, footprint))
+    }
+
+    /// What a system's check reads of the scene around it.
+    pub(crate) fn context(&self) -> SceneContext<'_> {
+        SceneContext {
+            dimension: self.dimension,
+            domain: &self.domain,
+        }
     }
 
     /// The scene's fluid, if it has one.

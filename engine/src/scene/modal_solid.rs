@@ -846,8 +846,8 @@ mod tests {
         let mut measured = Vec::new();
         for subdivisions in [0, 1, 2] {
             let (scene, spec) = steel_cantilever(subdivisions, CLAMP);
-            let solid = scene
-                .validate_modal_solid("systems[0]", &spec, &BuildOptions::default())
+            let solid = spec
+                .prepare("systems[0]", &scene.context(), &BuildOptions::default())
                 .expect("builds");
             let efg = solid.efg();
             let u = efg
@@ -930,8 +930,8 @@ mod tests {
             let SystemSpec::ModalSolid(spec) = &scene.systems[0] else {
                 panic!("a modal solid");
             };
-            let solid = scene
-                .validate_modal_solid("systems[0]", spec, &BuildOptions::default())
+            let solid = spec
+                .prepare("systems[0]", &scene.context(), &BuildOptions::default())
                 .expect("builds");
             let volume = solid.efg().volume() / (4.0 / 3.0 * std::f64::consts::PI * radius.powi(3));
             println!(
