@@ -57,13 +57,3 @@ pub use solid::{EfgError, EfgParams, EfgSolid, FixedSurface, MassForm, Material}
 
 #[cfg(test)]
 mod tests;
-#[cfg(test)]
-mod tests_admission;
-#[cfg(test)]
-mod tests_extremes;
-#[cfg(test)]
-mod tests_nonlinear;
-#[cfg(test)]
-mod tests_paths;
-#[cfg(test)]
-mod tests_warping;

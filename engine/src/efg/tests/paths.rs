@@ -5,10 +5,10 @@
 //! static tip under gravity, the first bending frequency of a Timoshenko
 //! beam, and the total mass `rho V`.
 
-use super::tests::{CLAMPED_FREE, beam, timoshenko_frequency};
-use super::*;
-use crate::Cancel;
+use super::super::*;
+use super::{CLAMPED_FREE, beam, timoshenko_frequency};
 use crate::approx::mls::Order;
+use crate::cancel::Cancel;
 use crate::math::{Real, Vector};
 use std::time::Instant;
 

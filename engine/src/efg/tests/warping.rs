@@ -4,9 +4,9 @@
 //! rotations for a free body, and the manipulation constraints of
 //! Guo–Qin Section 5.3.3 on a cantilever's tip.
 
-use super::nonlinear::{NewtonParams, NonlinearSolver, NonlinearState, StepInput};
-use super::*;
-use crate::Cancel;
+use super::super::nonlinear::{NewtonParams, NonlinearSolver, NonlinearState, StepInput};
+use super::super::*;
+use crate::cancel::Cancel;
 use crate::geometry::{MeshSdf, TriMesh};
 use crate::linalg::eigen::Modes;
 use crate::math::{Real, Vector};
@@ -706,7 +706,7 @@ fn a_grabbed_cantilever_tip_reaches_its_position_and_orientation() {
 ///   rows before) missed it by 2.6e-2 to 5.0e-2.
 #[test]
 fn an_orientation_grab_reads_the_curl_of_the_field_at_its_point() {
-    use super::body::GrabRows;
+    use super::super::body::GrabRows;
     use crate::approx::mls::Order;
     let mesh = TriMesh::cuboid(Vector::zeros(), Vector::new(1.0, 0.5, 0.5));
     let sdf = MeshSdf::new(&mesh).expect("closed");
@@ -885,7 +885,7 @@ fn a_spinning_warped_block_reports_the_velocity_of_its_turned_nodes() {
 /// (two discretisations; warping's lies farther). No timing is asserted.
 #[test]
 fn the_bent_beam_three_ways_length_tip_and_time_per_step() {
-    use super::tests::BentBeam;
+    use super::BentBeam;
     use std::time::Instant;
     let load = 4.0;
     let beam = BentBeam::new();

@@ -3,8 +3,8 @@
 //! tiny time steps, a plate thinner than the octree's cells, and a solid
 //! built from a noisy oriented point cloud.
 
-use super::*;
-use crate::Cancel;
+use super::super::*;
+use crate::cancel::Cancel;
 use crate::geometry::{
     ImplicitSurface, MeshSdf, OctreeError, PointSurface, PointSurfaceParams, TriMesh,
 };

@@ -1,7 +1,14 @@
 use super::*;
-use crate::Cancel;
+use crate::cancel::Cancel;
 use crate::geometry::{ImplicitSurface, MeshSdf, TriMesh};
 use crate::math::{Real, Vector};
+
+// The longer suites, each its own file; the beams and tables they share live here.
+mod admission;
+mod extremes;
+mod nonlinear;
+mod paths;
+mod warping;
 
 fn steel_like() -> Material {
     Material {
@@ -14,7 +21,7 @@ fn steel_like() -> Material {
 /// The cuboid `[0, l] x [0, h] x [0, h]` with its faces cut into small
 /// triangles (for the penalty's surface integral), and the part of it in
 /// the plane `x = 0`.
-pub(super) fn beam(l: Real, h: Real) -> (MeshSdf, FixedSurface) {
+fn beam(l: Real, h: Real) -> (MeshSdf, FixedSurface) {
     let mesh = TriMesh::cuboid(Vector::zeros(), Vector::new(l, h, h)).subdivided(4);
     let fixed = FixedSurface::of_mesh_in_box(
         &mesh,
@@ -161,8 +168,7 @@ fn a_cantilever_sags_under_gravity_as_beam_theory_says() {
 
 /// `(beta_n L)` of a clamped-free Euler–Bernoulli beam: the roots of
 /// `cos x cosh x = -1` (Timoshenko & Young; Blevins, Table 8-1).
-pub(super) const CLAMPED_FREE: [Real; 4] =
-    [1.875_104_07, 4.694_091_13, 7.854_757_44, 10.995_540_73];
+const CLAMPED_FREE: [Real; 4] = [1.875_104_07, 4.694_091_13, 7.854_757_44, 10.995_540_73];
 
 /// `(beta_n L)` of a free-free beam: the positive roots of
 /// `cos x cosh x = 1` (Blevins, Table 8-1).
@@ -173,12 +179,7 @@ const FREE_FREE: [Real; 2] = [4.730_040_74, 7.853_204_62];
 /// `E I k^4 - rho A w^2 - rho I w^2 k^2 (1 + E / (kappa G)) + rho^2 I w^4 / (kappa G) = 0`
 /// (Timoshenko 1921; exact for a simply supported beam, an approximation
 /// at a cantilever's wavenumbers).
-pub(super) fn timoshenko_frequency(
-    k: Real,
-    material: &Material,
-    area: Real,
-    inertia: Real,
-) -> Real {
+fn timoshenko_frequency(k: Real, material: &Material, area: Real, inertia: Real) -> Real {
     let (e, rho, nu) = (material.young, material.density, material.poisson);
     let kappa = 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu);
     let kg = kappa * e / (2.0 * (1.0 + nu));
@@ -303,18 +304,18 @@ fn a_free_beam_has_six_rigid_modes_then_bends() {
 
 /// The 10 x 1 x 1 m cantilever (E = 5e7 Pa, 24 modes) of the warping
 /// tests, with the shape functions at 41 points of its centreline.
-pub(super) struct BentBeam {
-    pub(super) length: Real,
+struct BentBeam {
+    length: Real,
     basis: crate::modal::ModalBasis,
     masses: Vec<Real>,
-    pub(super) centreline: Vec<Vector>,
-    pub(super) table: ShapeTable,
+    centreline: Vec<Vector>,
+    table: ShapeTable,
     /// The discretisation (for the nonlinear EFG of the same beam).
-    pub(super) solid: EfgSolid,
+    solid: EfgSolid,
 }
 
 impl BentBeam {
-    pub(super) fn new() -> Self {
+    fn new() -> Self {
         let (length, h) = (10.0, 1.0);
         let (sdf, fixed) = beam(length, h);
         let material = Material {
@@ -341,7 +342,7 @@ impl BentBeam {
 
     /// The centreline settled statically under `load` times its weight
     /// (heavy damping and long implicit steps), with or without warping.
-    pub(super) fn settle(&self, load: Real, warping: bool) -> Vec<Vector> {
+    fn settle(&self, load: Real, warping: bool) -> Vec<Vector> {
         use crate::modal::{Damping, ModalSystem};
         let gravity: Vec<Vector> = self
             .masses
@@ -359,7 +360,7 @@ impl BentBeam {
     }
 
     /// A deformed centreline's length over the beam's, less one.
-    pub(super) fn stretch(&self, deformed: &[Vector]) -> Real {
+    fn stretch(&self, deformed: &[Vector]) -> Real {
         let length: Real = deformed.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
         length / self.length - 1.0
     }
@@ -415,7 +416,7 @@ fn modal_warping_keeps_a_bent_cantilevers_length_where_linear_modes_stretch_it()
 /// linear field, which shortens a beam bent hard by construction: the
 /// shortfall grows with the tip's rotation, measured here and stated in
 /// docs/validation.md. The exact path is the nonlinear EFG dynamics of
-/// Guo–Qin Section 5.1 (`dynamics = "nonlinear"`, `tests_nonlinear.rs`).
+/// Guo–Qin Section 5.1 (`dynamics = "nonlinear"`, `nonlinear.rs`).
 #[test]
 fn modal_warping_shortens_a_beam_bent_hard() {
     let beam = BentBeam::new();

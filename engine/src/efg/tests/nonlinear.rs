@@ -4,9 +4,9 @@
 //! does not share: the linear static deflection at small load, and the
 //! Euler elastica of a cantilever bent hard, integrated by shooting here.
 
-use super::tests::{BentBeam, beam};
-use super::*;
-use crate::Cancel;
+use super::super::*;
+use super::{BentBeam, beam};
+use crate::cancel::Cancel;
 use crate::math::{Real, Vector};
 use nalgebra::Rotation3;
 use std::time::Instant;

@@ -4,8 +4,8 @@
 //! and a cancel flag raised inside the long loops (quadrature, shape
 //! functions, assembly) stops the build there.
 
-use super::*;
-use crate::Cancel;
+use super::super::*;
+use crate::cancel::Cancel;
 use crate::geometry::octree::{Octree, OctreeParams};
 use crate::geometry::{ImplicitSurface, MeshSdf, TriMesh};
 use crate::math::{Real, Vector};
