@@ -23,9 +23,9 @@
 //! while the conditioning grows with it; the tests measure both ends.
 
 use super::shape::ShapeTable;
+use crate::cancel::{Cancel, Cancelled};
 use crate::linalg::{BlockColumn, BlockPattern};
 use crate::math::{Real, Vector};
-use crate::{Cancel, Cancelled};
 use rayon::prelude::*;
 
 /// The Lamé parameters `(lambda, mu)` of Young's modulus `e` and Poisson's

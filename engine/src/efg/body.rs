@@ -18,7 +18,7 @@ use super::{
     CoverError, EfgError, EfgParams, EfgSolid, FixedSurface, Material, NonlinearState, Row,
     ShapeTable, Spring,
 };
-use crate::Cancel;
+use crate::cancel::Cancel;
 use crate::geometry::ImplicitSurface;
 use crate::geometry::octree::Octree;
 use crate::math::{Real, Vector};

@@ -28,9 +28,9 @@
 
 use super::quadrature::Quadrature;
 use super::solid::EfgParams;
+use crate::cancel::{Cancel, Cancelled};
 use crate::geometry::octree::{OctantKind, Octree};
 use crate::math::{Real, Vector};
-use crate::{Cancel, Cancelled};
 use rayon::prelude::*;
 
 /// Nodes per parallel task of the coupling count, each with its own

@@ -44,7 +44,7 @@
 
 use super::EfgSolid;
 use super::assemble::{self, Integral};
-use crate::Cancel;
+use crate::cancel::Cancel;
 use crate::linalg::{BlockColumn, SparseCholesky};
 use crate::math::{Brief, Real, Vector};
 use rayon::prelude::*;

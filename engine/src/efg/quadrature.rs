@@ -10,10 +10,10 @@
 //! bought, at `refinement^3` times the points in every boundary octant
 //! (the tests measure the volume of a ball both ways).
 
+use crate::cancel::{Cancel, Cancelled};
 use crate::geometry::ImplicitSurface;
 use crate::geometry::octree::{Octant, OctantKind, Octree};
 use crate::math::{Real, Vector};
-use crate::{Cancel, Cancelled};
 use rayon::prelude::*;
 
 /// Most Gauss points per axis of a cell.

@@ -9,7 +9,7 @@
 //! gradients per node, evaluated once.
 
 use super::solid::{EfgError, EfgSolid, MassForm};
-use crate::Cancel;
+use crate::cancel::Cancel;
 use crate::linalg::eigen::{self, EigenParams, Mass, Modes};
 use crate::math::{Real, Vector};
 use crate::modal::ModalBasis;

@@ -13,9 +13,9 @@
 //! precondition rather than a silent drop of order.
 
 use super::EfgError;
-use crate::Cancel;
 use crate::approx::mls::{Mls, MlsParams, Order, ShapeFunctions};
 use crate::approx::tensor::tensor_weight;
+use crate::cancel::Cancel;
 use crate::geometry::octree::Octree;
 use crate::math::{Brief, Real, Vector};
 use rayon::prelude::*;

@@ -5,8 +5,8 @@
 use super::assemble::{self, Integral};
 use super::quadrature::{MAX_ORDER, Quadrature};
 use super::shape::{CoverError, ShapeTable};
-use crate::Cancel;
 use crate::approx::mls::Order;
+use crate::cancel::Cancel;
 use crate::geometry::octree::{Node, Octree, OctreeError, OctreeParams};
 use crate::geometry::{ImplicitSurface, TriMesh};
 use crate::linalg::{BlockPattern, SparseCholesky};
@@ -24,7 +24,7 @@ pub enum MassForm {
     /// Its row sums on the diagonal: cheaper to factor and never couples
     /// nodes, at the price of lower frequencies. The test
     /// `the_lumped_mass_weighs_the_cantilever_and_lowers_its_frequency`
-    /// (`efg/tests_paths.rs`) measures it: the same total mass `rho V`,
+    /// (`efg/tests/paths.rs`) measures it: the same total mass `rho V`,
     /// and the first bending frequency of an L/H = 10 cantilever on H/4
     /// octants 0.08 % below the consistent mass's.
     Lumped,
@@ -45,7 +45,7 @@ pub struct EfgParams {
     /// one needs three layers of nodes under every point, which the
     /// paper's `alpha = 3` does not give by a box's corners (2 x 2 x 2
     /// nodes: the build is refused as uncovered); the box cantilever of
-    /// `efg/tests_paths.rs` builds at `alpha = 4.5`.
+    /// `efg/tests/paths.rs` builds at `alpha = 4.5`.
     pub basis: Order,
     /// Gauss points per axis of an integration cell (1..=5).
     pub quadrature_order: usize,

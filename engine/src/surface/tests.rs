@@ -321,8 +321,10 @@ fn frames_carry_a_surface_only_when_asked() {
         [[systems.blocks]]
         region = { min = [0.0, 0.0, 0.0], max = [0.2, 0.2, 0.2] }
     "#;
-    let scene = crate::Scene::from_toml_str(text).expect("valid");
-    let mut world = scene.build(&crate::BuildOptions::default()).expect("world");
+    let scene = crate::scene::Scene::from_toml_str(text).expect("valid");
+    let mut world = scene
+        .build(&crate::scene::BuildOptions::default())
+        .expect("world");
     world.step().expect("a step");
     let mesh = world.frame().surface.expect("asked for");
     assert_closed_and_oriented(&mesh);
@@ -336,6 +338,8 @@ fn frames_carry_a_surface_only_when_asked() {
 
     let mut plain = scene.clone();
     plain.output.surface = None;
-    let world = plain.build(&crate::BuildOptions::default()).expect("world");
+    let world = plain
+        .build(&crate::scene::BuildOptions::default())
+        .expect("world");
     assert_eq!(world.frame().surface, None);
 }

@@ -38,7 +38,7 @@
 //! covering supports among that leaf's list: O(1) for a bounded depth.
 
 use super::ImplicitSurface;
-use crate::Cancel;
+use crate::cancel::Cancel;
 use crate::math::{Brief, Real, Vector};
 use std::collections::HashMap;
 
