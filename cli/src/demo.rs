@@ -130,7 +130,7 @@ async fn drive(
     outln!("meshless demo: {}", session.name)?;
     outln!(
         "  particles         {}",
-        crate::command::particle_summary(session.particle_count, &solids)
+        crate::summary::particle_summary(session.particle_count, &solids)
     )?;
     outln!(
         "  simulated         {:.3} s in {} steps",

@@ -25,6 +25,7 @@ mod optimise;
 mod output;
 #[cfg(feature = "embedded")]
 mod run;
+mod server_arg;
 mod session;
 #[cfg(feature = "embedded")]
 mod study;
@@ -34,6 +35,7 @@ mod study_design;
 mod study_modal;
 #[cfg(feature = "embedded")]
 mod study_solid;
+mod summary;
 mod watch;
 
 use clap::Parser;

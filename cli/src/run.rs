@@ -139,7 +139,7 @@ fn summarise(args: &RunArgs, world: &World, steps: u64, totals: &Totals, wall: f
         .collect();
     outln!(
         "  particles         {}",
-        crate::command::particle_summary(world.particle_count() as u64, &solids)
+        crate::summary::particle_summary(world.particle_count() as u64, &solids)
     )?;
     outln!(
         "  simulated         {:.3} s in {steps} steps ({substeps} sub-steps)",

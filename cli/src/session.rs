@@ -1,6 +1,6 @@
 //! `meshless session …`: one subcommand per gRPC call.
 
-use crate::command::ServerArg;
+use crate::server_arg::ServerArg;
 use anyhow::{Context, Result};
 use clap::Subcommand;
 use indicatif::{ProgressBar, ProgressStyle};

@@ -234,12 +234,9 @@ impl Knob {
 }
 
 fn fluid(scene: &mut Scene) -> Result<&mut FluidSpec> {
-    match scene.systems.first_mut() {
-        Some(SystemSpec::Fluid(fluid)) => Ok(fluid),
-        Some(SystemSpec::RigidBody(_) | SystemSpec::Solid(_) | SystemSpec::ModalSolid(_))
-        | None => {
-            bail!("the scene's first system is no fluid to study")
-        }
+    match scene.systems.first_mut().and_then(SystemSpec::as_fluid_mut) {
+        Some(fluid) => Ok(fluid),
+        None => bail!("the scene's first system is no fluid to study"),
     }
 }
 

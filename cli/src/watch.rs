@@ -2,7 +2,7 @@
 //! and how many samples on its key were dropped (undecodable, malformed or
 //! naming another session: see `meshless_client::Frames`).
 
-use crate::command::ServerArg;
+use crate::server_arg::ServerArg;
 use anyhow::Result;
 use meshless_client::ZenohLink;
 use std::time::{Duration, Instant};
@@ -74,7 +74,7 @@ pub async fn watch(args: WatchArgs) -> Result<()> {
                 match &last {
                     Some((step, time, particles, solids)) => outln!(
                         "{rate:6.1} frames/s  step {step:>8}  t = {time:9.4} s  particles {}  dropped {dropped}",
-                        crate::command::particle_summary(*particles as u64, solids)
+                        crate::summary::particle_summary(*particles as u64, solids)
                     )?,
                     None => outln!("{rate:6.1} frames/s  (no frame yet)  dropped {dropped}")?,
                 }

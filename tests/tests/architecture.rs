@@ -206,6 +206,38 @@ fn engine_modules_import_downward_only() {
         ("rigid", &["crate::world", "crate::scene"]),
         ("solid", &["crate::world", "crate::scene"]),
         ("linalg", &["crate::world", "crate::scene"]),
+        (
+            "efg",
+            &[
+                "crate::world",
+                "crate::scene",
+                "crate::fluid",
+                "crate::design",
+            ],
+        ),
+        (
+            "modal",
+            &[
+                "crate::world",
+                "crate::scene",
+                "crate::fluid",
+                "crate::solid",
+                "crate::efg",
+                "crate::design",
+            ],
+        ),
+        (
+            "geometry",
+            &[
+                "crate::world",
+                "crate::scene",
+                "crate::fluid",
+                "crate::solid",
+                "crate::efg",
+                "crate::modal",
+                "crate::design",
+            ],
+        ),
     ];
     for (dir, forbidden) in rules {
         for (path, text) in engine_sources(dir) {
@@ -218,4 +250,114 @@ fn engine_modules_import_downward_only() {
             }
         }
     }
+}
+
+/// The names `engine/src/lib.rs` re-exports at the crate root (`pub use
+/// home::{A, B};`), read from its text.
+fn crate_root_reexports() -> BTreeSet<String> {
+    let lib = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../engine/src/lib.rs");
+    let text = std::fs::read_to_string(&lib)
+        .unwrap_or_else(|e| panic!("cannot read {}: {e}", lib.display()));
+    let mut names = BTreeSet::new();
+    let mut rest = text.as_str();
+    while let Some(at) = rest.find("pub use ") {
+        let tail = &rest[at + "pub use ".len()..];
+        let end = tail.find(';').expect("a `pub use` ends with `;`");
+        let item = &tail[..end];
+        let list = match item.find('{') {
+            Some(open) => &item[open + 1..item.rfind('}').expect("a closed group")],
+            None => item.rsplit("::").next().expect("a path"),
+        };
+        for name in list.split(',') {
+            let name = name.rsplit(" as ").next().expect("a name").trim();
+            if !name.is_empty() {
+                names.insert(name.to_string());
+            }
+        }
+        rest = &tail[end + 1..];
+    }
+    assert!(
+        names.contains("World"),
+        "lib.rs re-exports World: {names:?}"
+    );
+    names
+}
+
+/// The first path segment of each entry of a `crate::{...}` group that
+/// starts at `group` (just after the `{`), nested groups skipped.
+fn group_heads(group: &str) -> Vec<&str> {
+    let mut heads = Vec::new();
+    let (mut depth, mut start) = (0usize, 0usize);
+    for (i, c) in group.char_indices() {
+        match c {
+            '{' => depth += 1,
+            '}' if depth == 0 => {
+                heads.push(&group[start..i]);
+                break;
+            }
+            '}' => depth -= 1,
+            ',' if depth == 0 => {
+                heads.push(&group[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    heads
+        .into_iter()
+        .map(|entry| entry.trim().split("::").next().unwrap_or("").trim())
+        .map(|head| head.split(" as ").next().unwrap_or("").trim())
+        .filter(|head| !head.is_empty())
+        .collect()
+}
+
+/// Engine modules import a type from its home module (`crate::world::World`),
+/// never through the crate-root re-export (`crate::World`): the re-exports
+/// are the public face of the crate, and a module that reaches up to the
+/// root for them hides the real edge (and can close a loop through
+/// `lib.rs`) from anyone reading its imports. Comment lines (doc links)
+/// are not imports and are skipped.
+#[test]
+fn engine_modules_do_not_import_crate_root_reexports() {
+    let names = crate_root_reexports();
+    let mut offenders = Vec::new();
+    for (path, text) in engine_sources("") {
+        if path.ends_with("lib.rs") && path.parent().is_some_and(|p| p.ends_with("src")) {
+            continue;
+        }
+        let code: String = text
+            .lines()
+            .filter(|line| !line.trim_start().starts_with("//"))
+            .collect::<Vec<_>>()
+            .join("\n");
+        let mut rest = code.as_str();
+        while let Some(at) = rest.find("crate::") {
+            let after = &rest[at + "crate::".len()..];
+            let preceded = rest[..at]
+                .chars()
+                .next_back()
+                .is_some_and(|c| c.is_alphanumeric() || c == '_' || c == ':');
+            if !preceded {
+                let heads = if let Some(group) = after.strip_prefix('{') {
+                    group_heads(group)
+                } else {
+                    let end = after
+                        .find(|c: char| !(c.is_alphanumeric() || c == '_'))
+                        .unwrap_or(after.len());
+                    vec![&after[..end]]
+                };
+                for head in heads {
+                    if names.contains(head) {
+                        offenders.push(format!("{}: crate::{head}", path.display()));
+                    }
+                }
+            }
+            rest = after;
+        }
+    }
+    assert!(
+        offenders.is_empty(),
+        "engine modules import crate-root re-exports; import from the home module instead:\n{}",
+        offenders.join("\n")
+    );
 }
