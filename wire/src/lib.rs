@@ -2,7 +2,8 @@
 //!
 //! The one place where the `meshless.v1` protocol ([`meshless_proto`]) and
 //! the engine ([`meshless_engine`]) meet, both directions, one module per
-//! proto file: [`scene`] (`scene.proto`), [`frame`] (`frame.proto`) and
+//! proto file: [`scene`] (`scene.proto`, a file per system kind inside),
+//! [`frame`] (`frame.proto`) and
 //! [`design`] (`design.proto`). `simulation.proto` holds only the
 //! service's own messages (sessions, status, server info), which the
 //! server builds itself.
@@ -19,7 +20,6 @@ pub mod design;
 pub mod enums;
 mod error;
 pub mod frame;
-pub mod modal;
 pub mod scene;
 pub mod snapshot;
 

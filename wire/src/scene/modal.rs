@@ -3,9 +3,9 @@
 //! optional fields take the scene file's defaults
 //! ([`meshless_engine::scene::modal_defaults`]).
 
+use super::geometry::{aabb, shape_from_proto, to_aabb, to_shape, to_vec3, vec3};
 use crate::enums::{WireEnum, optional_enum, wire_enum};
 use crate::error::{Result, required};
-use crate::scene::{aabb, shape_from_proto, to_aabb, to_shape, to_vec3, vec3};
 use meshless_engine::approx::mls::Order;
 use meshless_engine::efg::{Dynamics, MassForm};
 use meshless_engine::scene::{
@@ -30,7 +30,7 @@ wire_enum! {
 }
 
 /// The engine grab of a `Grab` message at `field`.
-pub fn grab_from_proto(grab: v1::Grab, field: &str) -> Result<GrabSpec> {
+fn grab_from_proto(grab: v1::Grab, field: &str) -> Result<GrabSpec> {
     let v1::Grab {
         point,
         position,
@@ -44,7 +44,7 @@ pub fn grab_from_proto(grab: v1::Grab, field: &str) -> Result<GrabSpec> {
 }
 
 /// The `Grab` message of an engine grab.
-pub fn to_grab(grab: &GrabSpec) -> v1::Grab {
+fn to_grab(grab: &GrabSpec) -> v1::Grab {
     v1::Grab {
         point: Some(to_vec3(grab.point)),
         position: grab.position.map(to_vec3),
@@ -53,7 +53,7 @@ pub fn to_grab(grab: &GrabSpec) -> v1::Grab {
 }
 
 /// The engine spec of a `ModalSolidSpec` at `field`.
-pub(crate) fn modal_from_proto(spec: v1::ModalSolidSpec, field: &str) -> Result<ModalSolidSpec> {
+pub(super) fn modal_from_proto(spec: v1::ModalSolidSpec, field: &str) -> Result<ModalSolidSpec> {
     let v1::ModalSolidSpec {
         shape,
         position,
@@ -127,7 +127,7 @@ pub(crate) fn modal_from_proto(spec: v1::ModalSolidSpec, field: &str) -> Result<
 
 /// Destructured whole, so a new engine field fails to build here until it
 /// crosses the protocol.
-pub(crate) fn to_modal(spec: &ModalSolidSpec) -> v1::ModalSolidSpec {
+pub(super) fn to_modal(spec: &ModalSolidSpec) -> v1::ModalSolidSpec {
     let ModalSolidSpec {
         shape,
         position,
