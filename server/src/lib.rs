@@ -20,6 +20,7 @@ mod listener;
 mod metrics;
 mod metrics_http;
 mod metrics_layer;
+mod metrics_live;
 mod pubsub;
 mod registry;
 mod service;
@@ -162,7 +163,10 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         }
         None => None,
     };
-    metrics.watch(&registry, checkpoints.clone());
+    metrics.watch(Box::new(metrics_live::LiveCollector::new(
+        &registry,
+        checkpoints.clone(),
+    )));
     let metrics_addr = match config.metrics_addr {
         Some(addr) => Some(
             metrics_http::serve(

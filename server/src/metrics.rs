@@ -1,30 +1,25 @@
 //! Prometheus metrics: what the sessions compute (steps, sub-steps,
 //! solver iterations, time per solver stage, faults), what they publish
 //! (frames, bytes, frames dropped under congestion), what callers ask
-//! (RPCs by method and code, with latency), and, computed at each scrape
-//! from the sessions themselves, what they are now (sessions by state,
-//! particles, real-time factor, checkpoint age). Gauges computed at scrape
-//! time never keep a deleted session's labels.
+//! (RPCs by method and code, with latency), and the gauges of what the
+//! sessions are now, which `metrics_live.rs` computes at each scrape. This
+//! file knows no session, registry or checkpoint, so that all of them can
+//! count into it without an import loop.
 //!
 //! Served as the Prometheus text format at `GET /metrics` on
 //! `--metrics-addr` (docs/operations.md lists every metric).
 
-use crate::checkpoint::Checkpoints;
-use crate::error::state_name;
-use crate::registry::Registry as Sessions;
 use meshless_engine::StepError;
 use meshless_engine::stats::{Stage, StageTimer};
-use meshless_proto::v1::SessionState;
 use prometheus_client::collector::Collector;
-use prometheus_client::encoding::{DescriptorEncoder, EncodeLabelSet, EncodeMetric};
+use prometheus_client::encoding::{DescriptorEncoder, EncodeLabelSet};
 use prometheus_client::metrics::counter::Counter;
 use prometheus_client::metrics::family::Family;
-use prometheus_client::metrics::gauge::ConstGauge;
 use prometheus_client::metrics::histogram::{Histogram, exponential_buckets};
 use prometheus_client::registry::Registry;
 use std::sync::atomic::AtomicU64;
-use std::sync::{Arc, OnceLock, Weak};
-use std::time::{Duration, SystemTime};
+use std::sync::{Arc, OnceLock};
+use std::time::Duration;
 
 type FloatCounter = Counter<f64, AtomicU64>;
 
@@ -79,15 +74,9 @@ pub struct Metrics {
     checkpoint_failures: Counter,
     rpcs: Family<RpcLabel, Counter>,
     rpc_seconds: Family<MethodLabel, Histogram, fn() -> Histogram>,
-    /// Filled in once the sessions exist (they need the metrics first).
-    live: Arc<OnceLock<Live>>,
-}
-
-/// What the scrape-time gauges read.
-#[derive(Debug)]
-struct Live {
-    sessions: Weak<Sessions>,
-    checkpoints: Option<Arc<Checkpoints>>,
+    /// The scrape-time gauges (`metrics_live.rs`), set once the sessions
+    /// exist (they need the metrics first).
+    live: Arc<OnceLock<Box<dyn Collector>>>,
 }
 
 impl Metrics {
@@ -183,7 +172,7 @@ impl Metrics {
             rpc_seconds.clone(),
         );
         let live = Arc::new(OnceLock::new());
-        registry.register_collector(Box::new(LiveCollector(live.clone())));
+        registry.register_collector(Box::new(Deferred(live.clone())));
         Self {
             registry,
             steps,
@@ -206,12 +195,10 @@ impl Metrics {
         }
     }
 
-    /// Gives the scrape-time gauges the sessions and checkpoints to read.
-    pub fn watch(&self, sessions: &Arc<Sessions>, checkpoints: Option<Arc<Checkpoints>>) {
-        let _ = self.live.set(Live {
-            sessions: Arc::downgrade(sessions),
-            checkpoints,
-        });
+    /// Adds the gauges computed at each scrape from what the sessions are
+    /// now (`metrics_live.rs`); the first call wins.
+    pub fn watch(&self, live: Box<dyn Collector>) {
+        let _ = self.live.set(live);
     }
 
     /// Records one completed step: its wall time, the simulated time it
@@ -320,86 +307,17 @@ impl Default for Metrics {
     }
 }
 
-/// The gauges of what the sessions are now, read at each scrape.
+/// The scrape-time gauges, once [`Metrics::watch`] has given them:
+/// nothing is encoded before.
 #[derive(Debug)]
-struct LiveCollector(Arc<OnceLock<Live>>);
+struct Deferred(Arc<OnceLock<Box<dyn Collector>>>);
 
-#[derive(Debug, Clone, Hash, PartialEq, Eq, EncodeLabelSet)]
-struct StateLabel {
-    state: &'static str,
-}
-
-#[derive(Debug, Clone, Hash, PartialEq, Eq, EncodeLabelSet)]
-struct SessionLabel {
-    session: String,
-}
-
-impl Collector for LiveCollector {
-    fn encode(&self, mut encoder: DescriptorEncoder) -> Result<(), std::fmt::Error> {
-        let Some(live) = self.0.get() else {
-            return Ok(());
-        };
-        if let Some(sessions) = live.sessions.upgrade() {
-            let sessions = sessions.list();
-            let states = [
-                SessionState::Idle,
-                SessionState::Running,
-                SessionState::Paused,
-                SessionState::Finished,
-                SessionState::Faulted,
-            ];
-            let mut family = encoder.encode_descriptor(
-                "sessions",
-                "Sessions held, by state",
-                None,
-                ConstGauge::new(0i64).metric_type(),
-            )?;
-            for state in states {
-                let count = sessions
-                    .iter()
-                    .filter(|s| s.status().state == state as i32)
-                    .count();
-                ConstGauge::new(count as i64).encode(family.encode_family(&StateLabel {
-                    state: state_name(state),
-                })?)?;
-            }
-            let particles: usize = sessions.iter().map(|s| s.particle_count).sum();
-            let gauge = ConstGauge::new(particles as i64);
-            gauge.encode(encoder.encode_descriptor(
-                "particles",
-                "Particles of all sessions",
-                None,
-                gauge.metric_type(),
-            )?)?;
-            // One label per session: bounded by --max-sessions.
-            let mut family = encoder.encode_descriptor(
-                "realtime_factor",
-                "Simulated seconds per wall-clock second of each session's last step",
-                None,
-                ConstGauge::new(0.0f64).metric_type(),
-            )?;
-            for session in &sessions {
-                ConstGauge::new(session.realtime_factor()).encode(family.encode_family(
-                    &SessionLabel {
-                        session: session.id.clone(),
-                    },
-                )?)?;
-            }
+impl Collector for Deferred {
+    fn encode(&self, encoder: DescriptorEncoder) -> Result<(), std::fmt::Error> {
+        match self.0.get() {
+            Some(live) => live.encode(encoder),
+            None => Ok(()),
         }
-        if let Some(at) = live.checkpoints.as_ref().and_then(|c| c.last_round()) {
-            let age = SystemTime::now()
-                .duration_since(at)
-                .unwrap_or_default()
-                .as_secs_f64();
-            let gauge = ConstGauge::new(age);
-            gauge.encode(encoder.encode_descriptor(
-                "checkpoint_age_seconds",
-                "Seconds since the last checkpoint round finished",
-                None,
-                gauge.metric_type(),
-            )?)?;
-        }
-        Ok(())
     }
 }
 
@@ -441,6 +359,7 @@ const METHODS: &[&str] = &[
     "SimulateSteps",
     "Snapshot",
     "Restore",
+    "ChangeParticles",
 ];
 
 /// The method label of a request path.

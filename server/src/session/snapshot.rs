@@ -5,7 +5,7 @@
 //! before a session is touched, so a refused blob changes nothing.
 
 use super::optimize::WarmStart;
-use super::worker::RunTarget;
+use super::run_target::RunTarget;
 use super::{DesignState, Session, lock};
 use crate::error::ServiceError;
 use meshless_engine::design::{self, ConstraintSet, Edit};
