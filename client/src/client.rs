@@ -593,6 +593,44 @@ impl Client {
             .await?
             .into_inner())
     }
+
+    /// Removes the particles of system `system` whose ids `remove` lists
+    /// and adds new ones at `positions` moving at `velocities`, all or
+    /// nothing, from the session's next step. Returns the session and the
+    /// ids the new particles get (the next ids in order; a frame's `id`
+    /// field names every particle, [`crate::FrameView::ids`]).
+    ///
+    /// # Errors
+    /// `INVALID_ARGUMENT` naming what is wrong (an unknown system or id, a
+    /// position outside the domain, a velocity that is not finite);
+    /// `RESOURCE_EXHAUSTED` past the particles the session was created
+    /// with. Nothing changes then.
+    pub async fn change_particles(
+        &self,
+        id: &str,
+        system: u32,
+        remove: &[u32],
+        positions: &[[f64; 3]],
+        velocities: &[[f64; 3]],
+    ) -> Result<(v1::Session, std::ops::Range<u32>)> {
+        let vec3 = |&[x, y, z]: &[f64; 3]| v1::Vec3 { x, y, z };
+        let answer = self
+            .grpc()
+            .change_particles(v1::ChangeParticlesRequest {
+                session_id: id.to_owned(),
+                system,
+                remove: remove.to_vec(),
+                insert_positions: positions.iter().map(vec3).collect(),
+                insert_velocities: velocities.iter().map(vec3).collect(),
+            })
+            .await?
+            .into_inner();
+        let first = answer.first_inserted_id;
+        let session = answer
+            .session
+            .ok_or_else(|| ClientError::Decode("ChangeParticles answered no session".into()))?;
+        Ok((session, first..first.saturating_add(answer.inserted)))
+    }
 }
 
 #[cfg(test)]

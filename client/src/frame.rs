@@ -178,9 +178,14 @@ pub struct FrameView {
     /// Solves of the last step that stopped at their iteration cap above
     /// their tolerance.
     pub unconverged: u32,
-    /// The particle fields: position first, then the scene's
+    /// The real-valued particle fields: position first, then the scene's
     /// `output.fields`, each once.
     pub fields: Vec<FieldView>,
+    /// Each particle's stable id within its system, row for row with
+    /// `fields`, when the scene's `output.fields` names `id`: a particle
+    /// keeps its id from frame to frame while others leave or join, so
+    /// this is how a client follows one.
+    pub ids: Option<Vec<u32>>,
     /// Every rigid body's pose, in scene order (empty without bodies).
     pub bodies: Vec<v1::BodyPose>,
     /// The fluid's surface, when the scene's output asks for one.
@@ -256,22 +261,24 @@ impl FrameView {
             capped,
             unconverged,
         } = header;
-        let fields = fields
-            .into_iter()
-            .map(|field| {
-                let kind = field_kind(&field, particle_count)?;
-                let values = field
-                    .data
-                    .chunks_exact(4)
-                    .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-                    .collect();
-                Ok(FieldView {
+        let mut real = Vec::with_capacity(fields.len());
+        let mut ids = None;
+        for field in fields {
+            let kind = field_kind(&field, particle_count)?;
+            let words = field.data.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]);
+            if kind == v1::FieldKind::Id {
+                if ids.is_some() {
+                    return Err(ClientError::Decode("two id fields in one frame".into()));
+                }
+                ids = Some(words.map(u32::from_le_bytes).collect());
+            } else {
+                real.push(FieldView {
                     kind,
                     components: field.components as usize,
-                    values,
-                })
-            })
-            .collect::<Result<_, ClientError>>()?;
+                    values: words.map(f32::from_le_bytes).collect(),
+                });
+            }
+        }
         check_solids(&solids, particle_count)?;
         Ok(Self {
             session_id,
@@ -284,7 +291,8 @@ impl FrameView {
             density_error,
             capped,
             unconverged,
-            fields,
+            fields: real,
+            ids,
             bodies,
             surface: surface.map(SurfaceView::from_proto).transpose()?,
             solids,
@@ -295,9 +303,25 @@ impl FrameView {
         })
     }
 
-    /// The field of a kind, if the frame carries it.
+    /// The real-valued field of a kind, if the frame carries it (ids are
+    /// in [`FrameView::ids`]).
     pub fn field(&self, kind: v1::FieldKind) -> Option<&FieldView> {
         self.fields.iter().find(|f| f.kind == kind)
+    }
+
+    /// The row of the particle with `id`, if the frame carries ids and
+    /// that particle: ids within a system are unique, so `system`'s rows
+    /// (`None`: the fluid's, before the first solid's) narrow the search.
+    pub fn row_of(&self, system: Option<u32>, id: u32) -> Option<usize> {
+        let ids = self.ids.as_ref()?;
+        let rows = match system {
+            Some(system) => {
+                let range = self.solids.iter().find(|r| r.system == system)?;
+                range.first as usize..(range.first + range.count) as usize
+            }
+            None => 0..self.solids.first().map_or(ids.len(), |r| r.first as usize),
+        };
+        rows.clone().find(|&row| ids[row] == id)
     }
 }
 
@@ -315,9 +339,10 @@ fn header_particles(header: &v1::FrameHeader) -> Result<usize, ClientError> {
     usize::try_from(count).map_err(|_| ClientError::Decode(format!("particle count {count}")))
 }
 
-/// A field's kind, after checking its scalar type and that its bytes are
-/// exactly `particle_count` x `components` f32s (the product checked for
-/// overflow: both counts come from the sender).
+/// A field's kind, after checking its scalar type (u32 for ids, f32 for
+/// the rest) and that its bytes are exactly `particle_count` x
+/// `components` 4-byte scalars (the product checked for overflow: both
+/// counts come from the sender).
 fn field_kind(field: &v1::FieldData, particle_count: usize) -> Result<v1::FieldKind, ClientError> {
     let v1::FieldData {
         kind,
@@ -327,9 +352,14 @@ fn field_kind(field: &v1::FieldData, particle_count: usize) -> Result<v1::FieldK
     } = field;
     let kind = v1::FieldKind::try_from(*kind)
         .map_err(|_| ClientError::Decode(format!("unknown field kind {kind}")))?;
-    if *scalar != v1::ScalarType::F32 as i32 {
+    let expected_scalar = if kind == v1::FieldKind::Id {
+        v1::ScalarType::U32
+    } else {
+        v1::ScalarType::F32
+    };
+    if *scalar != expected_scalar as i32 {
         return Err(ClientError::Decode(format!(
-            "field {kind:?} has scalar type {scalar}, expected f32"
+            "field {kind:?} has scalar type {scalar}, expected {expected_scalar:?}"
         )));
     }
     let expected = (*components as usize)
@@ -400,6 +430,49 @@ mod tests {
         assert_eq!(frame.step, 3);
         let density = frame.field(v1::FieldKind::Density).expect("density");
         assert_eq!(density.values, vec![0.5, 0.5]);
+    }
+
+    /// `wire(particles, ..)` with an id field of `ids` before the density
+    /// and the last `solid` particles in a solid's range.
+    fn with_ids(ids: &[u32], solid: u64) -> v1::Frame {
+        let n = ids.len() as u64;
+        let mut frame = wire(n, 4 * ids.len());
+        frame.fields.insert(
+            0,
+            v1::FieldData {
+                kind: v1::FieldKind::Id as i32,
+                components: 1,
+                scalar: v1::ScalarType::U32 as i32,
+                data: ids.iter().flat_map(|id| id.to_le_bytes()).collect(),
+            },
+        );
+        frame.solids.push(v1::SolidRange {
+            system: 1,
+            first: n - solid,
+            count: solid,
+        });
+        frame
+    }
+
+    #[test]
+    fn ids_decode_as_integers_and_find_their_rows() {
+        let frame =
+            FrameView::decode(&with_ids(&[0, 2, 7, 0, 1], 2).encode_to_vec()).expect("valid");
+        assert_eq!(frame.ids.as_deref(), Some(&[0, 2, 7, 0, 1][..]));
+        assert_eq!(frame.fields.len(), 1, "ids are not among the real fields");
+        assert_eq!(frame.row_of(None, 7), Some(2));
+        assert_eq!(frame.row_of(None, 1), None, "id 1 is the solid's");
+        assert_eq!(frame.row_of(Some(1), 0), Some(3));
+        assert_eq!(frame.row_of(Some(1), 1), Some(4));
+        assert_eq!(frame.row_of(Some(4), 0), None, "no system 4");
+        let mut as_real = with_ids(&[0, 1], 1);
+        as_real.fields[0].scalar = v1::ScalarType::F32 as i32;
+        let err = FrameView::from_proto(as_real).expect_err("ids are u32");
+        assert!(err.to_string().contains("expected U32"), "{err}");
+        let mut twice = with_ids(&[0, 1], 1);
+        twice.fields.push(twice.fields[0].clone());
+        let err = FrameView::from_proto(twice).expect_err("ids once");
+        assert!(err.to_string().contains("two id fields"), "{err}");
     }
 
     #[test]

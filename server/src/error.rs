@@ -4,6 +4,7 @@
 
 use meshless_engine::SceneError;
 use meshless_engine::design::DesignError;
+use meshless_engine::world::{ChangeError, InsertError, RemoveError};
 use meshless_proto::snapshot::BlobError;
 use meshless_proto::v1::SessionState;
 use meshless_wire::WireError;
@@ -23,6 +24,9 @@ pub enum ServiceError {
     NoDesign(String),
     #[error(transparent)]
     Design(#[from] DesignError),
+    /// A ChangeParticles request the world refused.
+    #[error(transparent)]
+    Particles(#[from] ChangeError),
     #[error("cannot {action} session {session_id} while it is {state}; {hint}")]
     WrongState {
         session_id: String,
@@ -140,6 +144,21 @@ impl ServiceError {
                 | DesignError::Surface(_) => Code::InvalidArgument,
                 DesignError::Diverged { .. } => Code::Aborted,
                 DesignError::Cancelled { .. } => Code::Cancelled,
+            },
+            Self::Particles(change) => match change {
+                ChangeError::Insert(InsertError::Capacity { .. }) => Code::ResourceExhausted,
+                ChangeError::Insert(InsertError::IdsExhausted { .. }) => Code::ResourceExhausted,
+                ChangeError::Remove(
+                    RemoveError::NoSystem { .. }
+                    | RemoveError::Unsupported { .. }
+                    | RemoveError::NoParticle { .. },
+                )
+                | ChangeError::Insert(
+                    InsertError::NoSystem { .. }
+                    | InsertError::Unsupported { .. }
+                    | InsertError::Lengths { .. }
+                    | InsertError::Invalid { .. },
+                ) => Code::InvalidArgument,
             },
             Self::WrongState { .. }
             | Self::Faulted { .. }

@@ -8,8 +8,8 @@ use crate::error::ServiceError;
 use crate::metrics::Metrics;
 use crate::registry::Registry;
 use crate::session::{
-    Access, Command, Decoded, OptimizeJob, Problem, RunTarget, Session, Simulate, check_observers,
-    check_simulate, encode_snapshot, grpc_deadline,
+    Access, Command, Decoded, OptimizeJob, ParticleChange, Problem, RunTarget, Session, Simulate,
+    check_observers, check_simulate, encode_snapshot, grpc_deadline,
 };
 use meshless_engine::Scene;
 use meshless_engine::design::{Constraint, Edit};
@@ -579,5 +579,40 @@ impl Simulation for SimulationService {
         );
         self.metrics.restore();
         Ok(Response::new(session.to_proto()))
+    }
+
+    async fn change_particles(
+        &self,
+        request: Request<v1::ChangeParticlesRequest>,
+    ) -> Reply<v1::ChangeParticlesResponse> {
+        let caller = caller(&request)?;
+        let v1::ChangeParticlesRequest {
+            session_id,
+            system,
+            remove,
+            insert_positions,
+            insert_velocities,
+        } = request.into_inner();
+        if remove.is_empty() && insert_positions.is_empty() && insert_velocities.is_empty() {
+            return Err(ServiceError::invalid(
+                "remove",
+                "the request changes nothing: name ids to remove or positions to insert",
+            )
+            .into());
+        }
+        let session = self.drive(&session_id, &caller, "change the particles of")?;
+        let xyz = |v: v1::Vec3| [v.x, v.y, v.z];
+        let change = ParticleChange {
+            system: system as usize,
+            remove: remove.into_iter().map(|id| id as usize).collect(),
+            positions: insert_positions.into_iter().map(xyz).collect(),
+            velocities: insert_velocities.into_iter().map(xyz).collect(),
+        };
+        let inserted = session.change_particles(change).await?;
+        Ok(Response::new(v1::ChangeParticlesResponse {
+            session: Some(session.to_proto()),
+            first_inserted_id: inserted.start,
+            inserted: inserted.end - inserted.start,
+        }))
     }
 }

@@ -453,3 +453,110 @@ async fn solids_stream_frames_whose_ranges_cover_their_particles() {
     assert_eq!(over_grpc, last);
     link.close().await;
 }
+
+/// The position of the particle `id` of `system` (`None`: the fluid) in a
+/// frame, found by its id.
+fn position_of(frame: &FrameView, system: Option<u32>, id: u32) -> Option<[f32; 3]> {
+    let row = frame.row_of(system, id)?;
+    let p = &frame
+        .field(v1::FieldKind::Position)
+        .expect("positions")
+        .values;
+    Some([p[3 * row], p[3 * row + 1], p[3 * row + 2]])
+}
+
+/// Particles leave and join a served fluid mid-run, and a client follows
+/// them by id over zenoh: survivors keep their ids (the fluid's and the
+/// solid's), new particles get the next ids where they were put, and a
+/// refused change (a solid's particles, an unknown id, a position outside
+/// the domain) answers INVALID_ARGUMENT and queues nothing.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn particles_leave_and_join_and_clients_follow_them_by_id() {
+    let server = ServerProcess::spawn(&[]).await.expect("server starts");
+    let client = server.client().await.expect("client");
+    let info = within("server info", client.server_info())
+        .await
+        .expect("info");
+    let scene = tank_and_solid().replace(
+        r#"fields = ["velocity", "density"]"#,
+        r#"fields = ["id", "velocity", "density"]"#,
+    );
+    let session = within("create", client.create_session_toml(&scene))
+        .await
+        .expect("valid scene");
+    let id = session.id.clone();
+    let link = within("zenoh connect", ZenohLink::connect(&info.zenoh_locators))
+        .await
+        .expect("zenoh link");
+    let frames = within("frame subscription", link.frames(&id))
+        .await
+        .expect("frames");
+    within("step", client.step(&id, 1)).await.expect("step");
+    let before = loop {
+        let frame = within("frame 1", frames.recv()).await.expect("frame");
+        if frame.step == 1 {
+            break frame;
+        }
+    };
+    let ids = before.ids.clone().expect("the scene names ids");
+    let fluid = before.solids[0].first as usize;
+    assert_eq!(fluid, 125);
+    assert_eq!(ids[..fluid], (0..125).collect::<Vec<u32>>());
+    let followed = position_of(&before, None, 60).expect("fluid particle 60");
+    let solid_5 = position_of(&before, Some(1), 5).expect("solid particle 5");
+
+    let refused = [
+        client.change_particles(&id, 1, &[0], &[], &[]).await,
+        client.change_particles(&id, 0, &[1, 999], &[], &[]).await,
+        client
+            .change_particles(&id, 0, &[1], &[[0.1, 0.9, 0.1]], &[[0.0; 3]])
+            .await,
+    ];
+    for (result, mentions) in refused.into_iter().zip([
+        "cannot remove particles",
+        "no particle with id 999",
+        "outside",
+    ]) {
+        let status = meshless_tests::rpc_status(result.expect_err(mentions));
+        assert_eq!(status.code(), tonic::Code::InvalidArgument, "{status:?}");
+        assert!(status.message().contains(mentions), "{}", status.message());
+    }
+    let (_, inserted) = within(
+        "change",
+        client.change_particles(&id, 0, &[1, 2, 124], &[[0.1, 0.35, 0.1]], &[[0.0; 3]]),
+    )
+    .await
+    .expect("a valid change");
+    assert_eq!(inserted, 125..126);
+
+    within("step", client.step(&id, 1)).await.expect("step");
+    let after = within("frame 2", frames.recv()).await.expect("frame");
+    assert_eq!(after.step, 2);
+    let fluid_after = after.solids[0].first as usize;
+    assert_eq!(fluid_after, 123, "three left, one joined");
+    let mut expected: Vec<u32> = (0..126).filter(|i| ![1, 2, 124].contains(i)).collect();
+    let mut got = after.ids.as_ref().expect("ids")[..fluid_after].to_vec();
+    got.sort_unstable();
+    expected.sort_unstable();
+    assert_eq!(got, expected);
+    let moved = |a: [f32; 3], b: [f32; 3]| {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x - y).powi(2))
+            .sum::<f32>()
+            .sqrt()
+    };
+    let now = position_of(&after, None, 60).expect("60 stays");
+    assert!(moved(now, followed) < 0.01, "{followed:?} -> {now:?}");
+    let joined = position_of(&after, None, 125).expect("the new particle");
+    assert!(moved(joined, [0.1, 0.35, 0.1]) < 0.01, "{joined:?}");
+    let solid_now = position_of(&after, Some(1), 5).expect("solid particle 5");
+    assert!(
+        moved(solid_now, solid_5) < 0.01,
+        "{solid_5:?} -> {solid_now:?}"
+    );
+    let over_grpc = within("latest over gRPC", client.latest_frame(&id))
+        .await
+        .expect("frame");
+    assert_eq!(over_grpc, after);
+}

@@ -202,13 +202,14 @@ mod tests {
         assert_eq!(SolverKind::choices(), "wcsph or dfsph");
         assert_eq!(
             FieldKind::choices(),
-            "position, velocity, density, pressure, mass, volume, kinetic_energy or elastic_energy"
+            "position, velocity, density, pressure, mass, volume, kinetic_energy, elastic_energy \
+             or id"
         );
         let err = required_enum::<FieldKind>(0, "output.fields[0]").expect_err("unspecified");
         assert_eq!(
             err.to_string(),
             "output.fields[0]: unknown field kind 0; use position, velocity, density, pressure, \
-             mass, volume, kinetic_energy or elastic_energy"
+             mass, volume, kinetic_energy, elastic_energy or id"
         );
         assert_eq!(
             enum_or(0, MotionKind::Dynamic, "motion"),

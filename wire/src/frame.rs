@@ -1,5 +1,6 @@
 //! Conversions of the frame messages (`frame.proto`): an engine frame on
-//! the wire, each field as packed little-endian f32, and back, for
+//! the wire, each real field as packed little-endian f32 and the particle
+//! ids as packed little-endian u32 (right after the positions), and back, for
 //! programs that write wire frames with the engine's exporters (`meshless
 //! demo`). The way back checks every length, so a malformed frame is an
 //! error naming its field rather than a short or shifted one.
@@ -13,8 +14,32 @@ use meshless_engine::math::Vector;
 use meshless_engine::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
 use meshless_proto::v1;
 
-/// A frame on the wire: each field as packed little-endian f32.
+/// A frame on the wire: each real field as packed little-endian f32, the
+/// ids (when the frame has them) as packed little-endian u32 right after
+/// the positions, where the engine's field list names them.
 pub fn frame_to_proto(session_id: &str, frame: &Frame) -> v1::Frame {
+    let mut fields: Vec<v1::FieldData> = frame
+        .fields
+        .iter()
+        .map(|f| v1::FieldData {
+            kind: f.kind.to_i32(),
+            components: f.components as u32,
+            scalar: v1::ScalarType::F32 as i32,
+            data: f.values.iter().flat_map(|v| v.to_le_bytes()).collect(),
+        })
+        .collect();
+    if let Some(ids) = &frame.ids {
+        let at = usize::from(frame.fields.first().map(|f| f.kind) == Some(FieldKind::Position));
+        fields.insert(
+            at,
+            v1::FieldData {
+                kind: FieldKind::Id.to_i32(),
+                components: 1,
+                scalar: v1::ScalarType::U32 as i32,
+                data: ids.iter().flat_map(|id| id.to_le_bytes()).collect(),
+            },
+        );
+    }
     v1::Frame {
         header: Some(v1::FrameHeader {
             session_id: session_id.to_owned(),
@@ -27,18 +52,9 @@ pub fn frame_to_proto(session_id: &str, frame: &Frame) -> v1::Frame {
             density_error: frame.density_error,
             capped: frame.capped,
             unconverged: frame.unconverged,
-            fields: frame.fields.iter().map(|f| f.kind.to_i32()).collect(),
+            fields: fields.iter().map(|f| f.kind).collect(),
         }),
-        fields: frame
-            .fields
-            .iter()
-            .map(|f| v1::FieldData {
-                kind: f.kind.to_i32(),
-                components: f.components as u32,
-                scalar: v1::ScalarType::F32 as i32,
-                data: f.values.iter().flat_map(|v| v.to_le_bytes()).collect(),
-            })
-            .collect(),
+        fields,
         bodies: frame
             .bodies
             .iter()
@@ -147,11 +163,21 @@ pub fn frame_from_proto(frame: v1::Frame) -> Result<Frame> {
             format!("{particle_count} particles do not fit this machine's memory"),
         )
     })?;
-    let fields = fields
-        .into_iter()
-        .enumerate()
-        .map(|(i, field)| field_from_proto(field, particle_count, &format!("fields[{i}]")))
-        .collect::<Result<_>>()?;
+    let mut real = Vec::with_capacity(fields.len());
+    let mut ids = None;
+    for (i, field) in fields.into_iter().enumerate() {
+        let path = format!("fields[{i}]");
+        match field_from_proto(field, particle_count, &path)? {
+            Unpacked::Real(field) => real.push(field),
+            Unpacked::Ids(values) if ids.is_none() => ids = Some(values),
+            Unpacked::Ids(_) => {
+                return Err(WireError::new(
+                    format!("{path}.kind"),
+                    "a second id field; a frame carries its ids once",
+                ));
+            }
+        }
+    }
     let bodies = bodies
         .into_iter()
         .enumerate()
@@ -181,9 +207,8 @@ pub fn frame_from_proto(frame: v1::Frame) -> Result<Frame> {
         capped,
         unconverged,
         particle_count,
-        fields,
-        // Integer payloads are read in the frame-ids change.
-        ids: None,
+        fields: real,
+        ids,
         bodies,
         surface,
         solids,
@@ -191,8 +216,15 @@ pub fn frame_from_proto(frame: v1::Frame) -> Result<Frame> {
     })
 }
 
-/// A field of `particles` particles, its packed f32 values unpacked.
-fn field_from_proto(field: v1::FieldData, particles: usize, path: &str) -> Result<FieldData> {
+/// A wire field unpacked: real values, or the particles' ids.
+enum Unpacked {
+    Real(FieldData),
+    Ids(Vec<u32>),
+}
+
+/// A field of `particles` particles, its packed values unpacked: f32 for
+/// every kind but [`FieldKind::Id`], u32 for the ids.
+fn field_from_proto(field: v1::FieldData, particles: usize, path: &str) -> Result<Unpacked> {
     let v1::FieldData {
         kind,
         components,
@@ -200,12 +232,18 @@ fn field_from_proto(field: v1::FieldData, particles: usize, path: &str) -> Resul
         data,
     } = field;
     let kind = required_enum::<FieldKind>(kind, &format!("{path}.kind"))?;
-    if scalar != v1::ScalarType::F32 as i32 {
+    let (expected_scalar, name) = if kind.is_integer() {
+        (v1::ScalarType::U32, "u32")
+    } else {
+        (v1::ScalarType::F32, "f32")
+    };
+    if scalar != expected_scalar as i32 {
         return Err(WireError::new(
             format!("{path}.scalar"),
             format!(
-                "scalar type {scalar}; this build reads f32 ({}) only",
-                v1::ScalarType::F32 as i32
+                "scalar type {scalar}; a {} field is {name} ({})",
+                kind.name(),
+                expected_scalar as i32
             ),
         ));
     }
@@ -235,14 +273,15 @@ fn field_from_proto(field: v1::FieldData, particles: usize, path: &str) -> Resul
             ),
         ));
     }
-    let values = data
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect();
-    Ok(FieldData {
-        kind,
-        components,
-        values,
+    let words = data.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]);
+    Ok(if kind.is_integer() {
+        Unpacked::Ids(words.map(u32::from_le_bytes).collect())
+    } else {
+        Unpacked::Real(FieldData {
+            kind,
+            components,
+            values: words.map(f32::from_le_bytes).collect(),
+        })
     })
 }
 
@@ -431,6 +470,7 @@ mod tests {
             method: EmbeddingMethod::ShapeFunctions,
             subdivisions: 1,
         });
+        jelly.output.fields.push(FieldKind::Id);
         for scene in [scene, jelly] {
             let frame = scene
                 .build(&BuildOptions::default())
@@ -452,6 +492,40 @@ mod tests {
             }
             assert_eq!(back, expected, "{}", scene.name);
         }
+    }
+
+    /// Ids travel as u32 right after the positions, and a frame whose ids
+    /// are mislabelled or doubled is refused.
+    #[test]
+    fn ids_follow_the_positions_as_integers() {
+        let mut scene = dam_break();
+        scene.output.fields.push(FieldKind::Id);
+        let frame = scene
+            .build(&BuildOptions::default())
+            .expect("valid")
+            .frame();
+        let ids = frame.ids.clone().expect("the scene names ids");
+        let wire = frame_to_proto("s", &frame);
+        let header = wire.header.as_ref().expect("header");
+        assert_eq!(header.fields[1], FieldKind::Id.to_i32());
+        assert_eq!(wire.fields[1].scalar, v1::ScalarType::U32 as i32);
+        let last = ids.len() - 1;
+        let at = 4 * last;
+        let bytes = wire.fields[1].data[at..at + 4].try_into().expect("4 bytes");
+        assert_eq!(u32::from_le_bytes(bytes), ids[last]);
+        let back = frame_from_proto(wire.clone()).expect("round trip");
+        assert_eq!(back.ids.as_deref(), Some(ids.as_slice()));
+        assert_eq!(back.fields, frame.fields);
+        refused(&wire, "fields[1].scalar", |f| {
+            f.fields[1].scalar = v1::ScalarType::F32 as i32;
+        });
+        refused(&wire, "fields[0].scalar", |f| {
+            f.fields[0].scalar = v1::ScalarType::U32 as i32;
+        });
+        refused(&wire, "fields[2].kind", |f| {
+            let again = f.fields[1].clone();
+            f.fields.insert(2, again);
+        });
     }
 
     /// `frame` with `change` made is refused, naming `path`.

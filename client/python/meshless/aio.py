@@ -17,6 +17,7 @@ from .connection import (
     Connection,
     Pem,
     Scene,
+    change_particles_request,
     constraint_edits,
     create_session_request,
     deadline,
@@ -392,3 +393,22 @@ class AsyncClient:
             snapshot, "" if session is None else session_id_of(session), observers
         )
         return await self._unary(self._stub.Restore, request, timeout)
+
+    async def change_particles(
+        self,
+        session: Any,
+        system: int = 0,
+        *,
+        remove: Iterable[int] = (),
+        positions: Iterable[Iterable[float]] = (),
+        velocities: Iterable[Iterable[float]] = (),
+        timeout: float | None = None,
+    ) -> tuple[Any, range]:
+        """Removes and adds particles (see
+        :meth:`meshless.Client.change_particles`)."""
+        request = change_particles_request(
+            session_id_of(session), system, remove, positions, velocities
+        )
+        answer = await self._unary(self._stub.ChangeParticles, request, timeout)
+        first = answer.first_inserted_id
+        return answer.session, range(first, first + answer.inserted)

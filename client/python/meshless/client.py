@@ -14,6 +14,7 @@ from .connection import (
     Connection,
     Pem,
     Scene,
+    change_particles_request,
     constraint_edits,
     create_session_request,
     deadline,
@@ -468,3 +469,29 @@ class Client:
             snapshot, "" if session is None else session_id_of(session), observers
         )
         return self._unary(self._stub.Restore, request, timeout)
+
+    def change_particles(
+        self,
+        session: Any,
+        system: int = 0,
+        *,
+        remove: Iterable[int] = (),
+        positions: Iterable[Iterable[float]] = (),
+        velocities: Iterable[Iterable[float]] = (),
+        timeout: float | None = None,
+    ) -> tuple[Any, range]:
+        """Removes the particles of system ``system`` (the scene's index of
+        the fluid) whose ids ``remove`` lists and adds new ones at
+        ``positions`` moving at ``velocities`` (``[x, y, z]`` rows), all or
+        nothing, from the session's next step. Returns the ``Session`` and
+        the ``range`` of ids the new particles get; a frame's ``ids``
+        (``output.fields = ["id"]``) names every particle, so a particle
+        is followed from frame to frame by its id. INVALID_ARGUMENT names
+        what is wrong; RESOURCE_EXHAUSTED past the particles the session
+        was created with; nothing changes then."""
+        request = change_particles_request(
+            session_id_of(session), system, remove, positions, velocities
+        )
+        answer = self._unary(self._stub.ChangeParticles, request, timeout)
+        first = answer.first_inserted_id
+        return answer.session, range(first, first + answer.inserted)

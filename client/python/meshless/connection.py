@@ -177,6 +177,34 @@ def restore_request(
     return request
 
 
+def change_particles_request(
+    session_id: str,
+    system: int,
+    remove: Iterable[int] = (),
+    positions: Iterable[Iterable[float]] = (),
+    velocities: Iterable[Iterable[float]] = (),
+) -> Any:
+    """A ``ChangeParticlesRequest``: ids to remove, and new particles'
+    positions and velocities as ``[x, y, z]`` rows (numpy arrays work)."""
+    from .v1 import scene_pb2
+    from .v1 import simulation_pb2 as pb
+
+    def vec3s(rows: Iterable[Iterable[float]]) -> list[Any]:
+        out = []
+        for row in rows:
+            x, y, z = (float(c) for c in row)
+            out.append(scene_pb2.Vec3(x=x, y=y, z=z))
+        return out
+
+    return pb.ChangeParticlesRequest(
+        session_id=session_id,
+        system=system,
+        remove=[int(i) for i in remove],
+        insert_positions=vec3s(positions),
+        insert_velocities=vec3s(velocities),
+    )
+
+
 def session_id_of(session: Any) -> str:
     """A session id from an id or a ``Session`` message."""
     return session if isinstance(session, str) else session.id

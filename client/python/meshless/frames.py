@@ -89,6 +89,12 @@ class Frame:
     array per field, the surface when the scene asks for one, rigid bodies'
     poses, the rows of each elastic solid and the surfaces solids embed.
 
+    ``ids``: each particle's stable id within its system, ``(n,)`` uint32
+    row for row with the fields, when the scene's ``output.fields`` names
+    ``id`` (a particle keeps its id while others leave or join, so
+    ``np.nonzero(frame.ids[frame.solids[0].rows] == 7)`` finds solid 0's
+    particle 7 in any frame).
+
     The arrays are read-only views into the payload (no copy); ``header``
     is the ``meshless.v1.FrameHeader`` message, with the last step's
     sub-step size, solver iterations, density error and flags.
@@ -100,6 +106,7 @@ class Frame:
     particle_count: int
     substeps: int
     fields: dict[str, np.ndarray] = field(default_factory=dict)
+    ids: np.ndarray | None = None
     surface: Surface | None = None
     bodies: list[Body] = field(default_factory=list)
     solids: list[SolidRange] = field(default_factory=list)
@@ -273,15 +280,28 @@ def unpack_frame(message: Any, payload: bytes | None = None) -> Frame:
     if len(field_spans) != len(message.fields) or len(solid_spans) != len(message.solid_surfaces):
         raise ValueError("frame: the wire scan and the parsed message disagree")
     fields = {}
+    ids = None
     for f, span in zip(message.fields, field_spans):
-        name = scene_pb2.FieldKind.Name(f.kind).removeprefix("FIELD_KIND_").lower()
-        if f.scalar != frame_pb2.SCALAR_TYPE_F32:
-            raise ValueError(f"field {name}: scalar type {f.scalar}, expected f32")
+        try:
+            name = scene_pb2.FieldKind.Name(f.kind).removeprefix("FIELD_KIND_").lower()
+        except ValueError as e:
+            raise ValueError(f"unknown field kind {f.kind}") from e
+        is_id = f.kind == scene_pb2.FIELD_KIND_ID
+        scalar, dtype = (
+            (frame_pb2.SCALAR_TYPE_U32, "<u4") if is_id else (frame_pb2.SCALAR_TYPE_F32, "<f4")
+        )
+        if f.scalar != scalar:
+            raise ValueError(f"field {name}: scalar type {f.scalar}, expected {dtype}")
         data = _merged(payload, [span], _FIELD_DATA)
         size = data[1] - data[0]
         if f.components == 0 or size != 4 * f.components * n:
             raise ValueError(f"field {name}: {size} bytes, expected {4 * f.components * n}")
-        fields[name] = _view(payload, data, "<f4", f.components)
+        if name in fields or (is_id and ids is not None):
+            raise ValueError(f"field {name} twice in one frame")
+        if is_id:
+            ids = np.ndarray((n,), dtype=dtype, buffer=payload, offset=data[0])
+        else:
+            fields[name] = _view(payload, data, dtype, f.components)
     solids = [SolidRange(system=r.system, first=r.first, count=r.count) for r in message.solids]
     for r in solids:
         if r.first + r.count > n:
@@ -309,6 +329,7 @@ def unpack_frame(message: Any, payload: bytes | None = None) -> Frame:
         particle_count=n,
         substeps=header.substeps,
         fields=fields,
+        ids=ids,
         surface=surface,
         bodies=[decode_body(pose) for pose in message.bodies],
         solids=solids,
@@ -323,7 +344,8 @@ def decode_frame(data: bytes) -> Frame:
     Raises ``ValueError`` for every malformed payload: bytes that are no
     ``Frame`` message, a frame without a header or whose header names no
     session, an unknown field kind, a field whose size does not match the
-    particle count or whose scalar type is not f32, a solid's rows past
+    particle count or whose scalar type is not f32 (u32 for ids), a field
+    given twice, a solid's rows past
     the last particle, or an inconsistent surface.
     """
     data = bytes(data) if not isinstance(data, bytes) else data

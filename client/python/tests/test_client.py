@@ -278,6 +278,10 @@ def test_the_views_hold_what_protobuf_parses_even_from_mangled_payloads():
     for kind, components in ((scene_pb2.FIELD_KIND_POSITION, 3), (scene_pb2.FIELD_KIND_PRESSURE, 1)):
         f = message.fields.add(kind=kind, components=components, scalar=frame_pb2.SCALAR_TYPE_F32)
         f.data = np.arange(4 * components, dtype="<f4").tobytes()
+    ids = message.fields.add(
+        kind=scene_pb2.FIELD_KIND_ID, components=1, scalar=frame_pb2.SCALAR_TYPE_U32
+    )
+    ids.data = np.array([0, 1, 5, 9], dtype="<u4").tobytes()
     triangle = np.array([[0, 1, 2]], dtype="<u4").tobytes()
     message.surface.vertices = np.ones((3, 3), dtype="<f4").tobytes()
     message.surface.triangles = triangle
@@ -305,11 +309,15 @@ def test_the_views_hold_what_protobuf_parses_even_from_mangled_payloads():
             continue
         decoded += 1
         parsed = frame_pb2.Frame.FromString(data)
-        # A kind given twice: the last one's data, as decode_frame keeps.
+        # decode_frame refuses a kind given twice, so each is here once.
         expected = {
             scene_pb2.FieldKind.Name(f.kind).removeprefix("FIELD_KIND_").lower(): f.data
             for f in parsed.fields
         }
+        if frame.ids is not None:
+            assert frame.ids.dtype == np.dtype("<u4")
+            assert frame.ids.tobytes() == expected.pop("id")
+            assert frame.ids.base is data
         assert set(frame.fields) == set(expected)
         for name, array in frame.fields.items():
             assert array.tobytes() == expected[name], name

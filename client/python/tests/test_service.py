@@ -141,6 +141,43 @@ def test_the_client_wrapper_drives_a_session(server):
         assert error.value.code == grpc.StatusCode.NOT_FOUND
 
 
+def test_particles_leave_and_join_and_are_followed_by_id(server):
+    """ChangeParticles over gRPC: survivors keep their ids, new particles
+    get the next ones, a refused change queues nothing."""
+    from meshless import Client, MeshlessError
+
+    scene = SCENE.replace('fields = ["velocity"', 'fields = ["id", "velocity"')
+    with Client(server.grpc_target) as client:
+        session = client.create_session(scene)
+        client.step(session.id, 1)
+        before = client.latest_frame(session.id)
+        assert before.ids is not None and before.ids.dtype == np.uint32
+        assert sorted(before.ids) == list(range(96)) and "id" not in before.fields
+        followed = before.positions[before.ids == 50][0]
+        _, new = client.change_particles(
+            session.id, 0, remove=[3, 7], positions=[[0.4, 0.4, 0.4]], velocities=[[0, -1, 0]]
+        )
+        assert new == range(96, 97)
+        with pytest.raises(MeshlessError) as refused:
+            client.change_particles(
+                session.id, 0, remove=[9], positions=[[2.0, 0.1, 0.1]], velocities=[[0, 0, 0]]
+            )
+        assert refused.value.code == grpc.StatusCode.INVALID_ARGUMENT
+        with pytest.raises(MeshlessError) as full:
+            client.change_particles(
+                session.id, 0, positions=[[0.4, 0.4, 0.3], [0.3, 0.4, 0.4]], velocities=[[0, 0, 0]] * 2
+            )
+        assert full.value.code == grpc.StatusCode.RESOURCE_EXHAUSTED, full.value
+        client.step(session.id, 1)
+        after = client.latest_frame(session.id)
+        assert sorted(after.ids) == sorted(set(range(97)) - {3, 7}), "9 stays: refused"
+        moved = np.linalg.norm(after.positions[after.ids == 50][0] - followed)
+        assert moved < 0.01, moved
+        joined = after.positions[after.ids == 96][0]
+        assert np.linalg.norm(joined - [0.4, 0.4, 0.4]) < 0.02, joined
+        client.delete_session(session.id)
+
+
 def test_frames_carry_the_surface_the_scene_asks_for(server):
     from meshless.v1 import simulation_pb2 as pb
 

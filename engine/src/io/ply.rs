@@ -1,5 +1,6 @@
-//! Binary little-endian PLY point clouds: one vertex element with x, y, z
-//! and one property per scalar component of the other fields.
+//! Binary little-endian PLY point clouds: one vertex element with x, y, z,
+//! the particle id (`uint`) when the frame has ids, and one property per
+//! scalar component of the other fields.
 
 use crate::frame::Frame;
 use crate::scene::FieldKind;
@@ -33,6 +34,9 @@ pub fn write_ply(out: &mut impl Write, frame: &Frame) -> io::Result<()> {
         for name in names {
             writeln!(out, "property float {name}")?;
         }
+        if field.kind == FieldKind::Position && frame.ids.is_some() {
+            writeln!(out, "property uint id")?;
+        }
     }
     writeln!(out, "end_header")?;
     for i in 0..frame.particle_count {
@@ -40,6 +44,9 @@ pub fn write_ply(out: &mut impl Write, frame: &Frame) -> io::Result<()> {
             let c = field.components;
             for v in &field.values[i * c..(i + 1) * c] {
                 out.write_all(&v.to_le_bytes())?;
+            }
+            if let (FieldKind::Position, Some(ids)) = (field.kind, &frame.ids) {
+                out.write_all(&ids[i].to_le_bytes())?;
             }
         }
     }
@@ -68,5 +75,26 @@ mod tests {
             .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
             .collect();
         assert_eq!(body, vec![0.0, 1.0, 2.0, 1000.0, 3.0, 4.0, 5.0, 1001.5]);
+    }
+
+    #[test]
+    fn ply_puts_the_id_after_the_position() {
+        let mut frame = two_particles();
+        frame.ids = Some(vec![4, 9]);
+        let mut bytes = Vec::new();
+        write_ply(&mut bytes, &frame).expect("write");
+        let text = String::from_utf8_lossy(&bytes);
+        assert!(text.contains("property float z\nproperty uint id\nproperty float density\n"));
+        let header_end = bytes
+            .windows(11)
+            .position(|w| w == b"end_header\n")
+            .expect("header")
+            + 11;
+        let second = &bytes[header_end + 20..header_end + 40];
+        assert_eq!(u32::from_le_bytes(second[12..16].try_into().expect("4")), 9);
+        assert_eq!(
+            f32::from_le_bytes(second[16..20].try_into().expect("4")),
+            1001.5
+        );
     }
 }

@@ -1,6 +1,6 @@
 //! Legacy VTK polydata (binary, big-endian as the format requires): points,
 //! one vertex cell per particle so ParaView draws them, and every other
-//! field as point data.
+//! field as point data (the particle ids as `unsigned_int`).
 
 use crate::frame::Frame;
 use crate::scene::FieldKind;
@@ -48,8 +48,16 @@ pub fn write_vtk(out: &mut impl Write, frame: &Frame) -> io::Result<()> {
         .iter()
         .filter(|f| f.kind != FieldKind::Position)
         .collect();
-    if !data.is_empty() {
+    if !data.is_empty() || frame.ids.is_some() {
         writeln!(out, "POINT_DATA {n}")?;
+        if let Some(ids) = &frame.ids {
+            writeln!(out, "SCALARS id unsigned_int 1")?;
+            writeln!(out, "LOOKUP_TABLE default")?;
+            for id in ids {
+                out.write_all(&id.to_be_bytes())?;
+            }
+            writeln!(out)?;
+        }
         for field in data {
             match field.components {
                 3 => writeln!(out, "VECTORS {} float", field.kind.name())?,
@@ -88,5 +96,21 @@ mod tests {
             + marker.len();
         let y1 = f32::from_be_bytes(bytes[start + 16..start + 20].try_into().expect("4 bytes"));
         assert_eq!(y1, 4.0);
+    }
+
+    #[test]
+    fn vtk_writes_ids_as_unsigned_ints() {
+        let mut frame = two_particles();
+        frame.ids = Some(vec![4, 9]);
+        let mut bytes = Vec::new();
+        write_vtk(&mut bytes, &frame).expect("write");
+        let marker = b"SCALARS id unsigned_int 1\nLOOKUP_TABLE default\n";
+        let start = bytes
+            .windows(marker.len())
+            .position(|w| w == marker)
+            .expect("ids")
+            + marker.len();
+        let id1 = u32::from_be_bytes(bytes[start + 4..start + 8].try_into().expect("4 bytes"));
+        assert_eq!(id1, 9);
     }
 }

@@ -23,7 +23,7 @@ pub mod watch;
 pub use controls::GrabsError;
 pub use outcome::{StepError, StepInfo};
 pub use saved::{Clock, StateError, SystemState, WorldState};
-pub use system::{InsertError, RemoveError};
+pub use system::{ChangeError, InsertError, RemoveError};
 
 use crate::cancel::Cancel;
 use crate::efg::ModalSolid;
@@ -170,6 +170,40 @@ impl World {
             .ok_or(InsertError::NoSystem { system })?
             .simulated_mut()
             .mark_inserted(scene, &positions, &velocities)
+    }
+
+    /// Removes particles of system `system` by id and adds new ones, all
+    /// or nothing: [`Self::remove_particles`] then
+    /// [`Self::insert_particles`] (so a removal frees room for a new
+    /// particle), both taking effect at the start of the next step.
+    /// Returns the ids the new particles get.
+    ///
+    /// # Errors
+    /// [`ChangeError`] with the removal's or the insertion's error; the
+    /// changes queued before the call are then as they were.
+    pub fn change_particles(
+        &mut self,
+        system: usize,
+        remove: &[usize],
+        positions: &[[Real; 3]],
+        velocities: &[[Real; 3]],
+    ) -> Result<std::ops::Range<u32>, ChangeError> {
+        let before = self
+            .system_mut(system)
+            .and_then(|s| s.simulated_mut().pending_changes().map(|c| c.clone()));
+        if !remove.is_empty() {
+            self.remove_particles(system, remove)?;
+        }
+        self.insert_particles(system, positions, velocities)
+            .map_err(|e| {
+                let pending = self
+                    .system_mut(system)
+                    .and_then(|s| s.simulated_mut().pending_changes());
+                if let (Some(pending), Some(before)) = (pending, before) {
+                    *pending = before;
+                }
+                e.into()
+            })
     }
 
     /// Advances by `scene.time.dt`, split into sub-steps that respect the

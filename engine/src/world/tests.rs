@@ -5,7 +5,7 @@
 //! rejected request marks nothing.
 
 use super::system::simulated::ParticleChanges;
-use super::{InsertError, RemoveError, World};
+use super::{ChangeError, InsertError, RemoveError, World};
 use crate::frame::{FieldKind, Frame};
 use crate::scene::{BuildOptions, Scene, SolverKind, SystemSpec};
 
@@ -274,6 +274,39 @@ fn new_particles_join_at_the_next_step_with_the_next_ids() {
         (0.8..0.9).contains(&y),
         "the new particle falls from 0.9 m: {y}"
     );
+}
+
+/// A change of particles is all or nothing: a removal with a refused
+/// insertion queues neither, and the removal makes room for the insertion
+/// of the same request.
+#[test]
+fn a_change_of_particles_is_all_or_nothing() {
+    let mut world = world(SolverKind::Dfsph, false);
+    let n = fluid_len(&world);
+    let outside = world.change_particles(0, &[1, 2], &[[2.0, 0.5, 0.0]], &[[0.0; 3]]);
+    assert!(
+        matches!(
+            outside,
+            Err(ChangeError::Insert(InsertError::Invalid { .. }))
+        ),
+        "{outside:?}"
+    );
+    let unknown = world.change_particles(0, &[1, n + 5], &[], &[]);
+    assert!(
+        matches!(
+            unknown,
+            Err(ChangeError::Remove(RemoveError::NoParticle { .. }))
+        ),
+        "{unknown:?}"
+    );
+    world.step().expect("stable");
+    assert_eq!(fluid_len(&world), n, "nothing was removed");
+    let ids = world
+        .change_particles(0, &[1], &[[0.5, 0.9, 0.0]], &[[0.0; 3]])
+        .expect("the removal frees room for the new particle");
+    assert_eq!(ids, n as u32..n as u32 + 1);
+    world.step().expect("stable");
+    assert_eq!(fluid_len(&world), n);
 }
 
 /// DFSPH around a floating body: the solver's scratch and the body

@@ -6,6 +6,7 @@ mod frame_queue;
 mod interrupt;
 mod optimize;
 mod publish;
+mod run_target;
 mod simulate;
 mod snapshot;
 mod worker;
@@ -25,10 +26,11 @@ use tokio_util::sync::CancellationToken;
 pub use access::{Access, check_observers};
 pub use optimize::{OptimizeJob, Problem};
 pub use publish::Outlet;
+pub use run_target::RunTarget;
 use simulate::Progress;
 pub use simulate::{Simulate, check_request as check_simulate, grpc_deadline};
 pub use snapshot::{Decoded, Resumed, encode as encode_snapshot, unfit as snapshot_unfit};
-pub use worker::RunTarget;
+pub use worker::ParticleChange;
 use worker::{Message, Queued};
 
 /// A request to the compute thread; applied between steps, except that
@@ -409,6 +411,23 @@ impl Session {
         design.constraints = next;
         design.revision += 1;
         Ok(design.constraints.iter().cloned().collect())
+    }
+
+    /// Queues a change of particles for the next step, between two steps
+    /// (a run goes on); returns the ids the new particles get.
+    ///
+    /// # Errors
+    /// [`ServiceError::Particles`] for a change the world refuses (nothing
+    /// is queued then), [`ServiceError::Faulted`] for a faulted session.
+    pub async fn change_particles(
+        &self,
+        change: ParticleChange,
+    ) -> Result<std::ops::Range<u32>, ServiceError> {
+        let (reply, answer) = oneshot::channel();
+        self.mailbox
+            .send(Message::Particles(change, reply), false)
+            .map_err(|Gone| self.gone())?;
+        answer.await.map_err(|_| self.gone())?
     }
 
     /// The constraints in name order.

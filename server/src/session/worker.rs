@@ -15,6 +15,7 @@
 use super::frame_queue::FrameSender;
 use super::interrupt::Interrupts;
 use super::optimize::{self, Channels, OptimizeJob, WarmStart};
+use super::run_target::RunTarget;
 use super::simulate::Progress;
 use super::snapshot::{Captured, Resumed, ResumedSession};
 use super::{Command, LatestFrame, Origin, Reply, SharedDesign, lock};
@@ -30,61 +31,6 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::time::{Duration, Instant};
 use tokio::sync::{broadcast, watch};
 use tokio_util::sync::CancellationToken;
-
-/// What a run steps towards.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RunTarget {
-    /// Simulated time to stop at; `None` runs until paused.
-    pub until: Option<f64>,
-    /// Simulated seconds per wall-clock second; `None` is unpaced.
-    pub realtime_factor: Option<f64>,
-}
-
-/// Real-time factors a paced run accepts. Outside, pacing means nothing a
-/// user can watch: a millionth of real time is 11 days per simulated
-/// second, and above a million times the run is unpaced in all but name.
-const REALTIME_FACTORS: std::ops::RangeInclusive<f64> = 1e-6..=1e6;
-
-impl RunTarget {
-    /// A run's end time as `Run` accepts it; a restored run target passes
-    /// the same check, since a snapshot is input like a request.
-    ///
-    /// # Errors
-    /// [`ServiceError::InvalidArgument`] for a time that is not finite
-    /// and positive.
-    pub fn check_until(time: f64) -> Result<f64, ServiceError> {
-        if time.is_finite() && time > 0.0 {
-            Ok(time)
-        } else {
-            Err(ServiceError::invalid(
-                "until_time",
-                format!("must be a finite time > 0 s, got {time}"),
-            ))
-        }
-    }
-
-    /// A run's pacing as `Run` accepts it: 0 or unset is unpaced.
-    ///
-    /// # Errors
-    /// [`ServiceError::InvalidArgument`] for a factor outside
-    /// [`REALTIME_FACTORS`] (negative, NaN, vanishing or huge).
-    pub fn check_realtime_factor(factor: Option<f64>) -> Result<Option<f64>, ServiceError> {
-        match factor {
-            Some(0.0) | None => Ok(None),
-            Some(f) if REALTIME_FACTORS.contains(&f) => Ok(Some(f)),
-            Some(f) => Err(ServiceError::invalid(
-                "realtime_factor",
-                format!(
-                    "must be 0 (as fast as possible) or in [{:e}, {:e}] simulated seconds per \
-                     second, got {}",
-                    REALTIME_FACTORS.start(),
-                    REALTIME_FACTORS.end(),
-                    meshless_engine::math::Brief(f)
-                ),
-            )),
-        }
-    }
-}
 
 /// A message to the compute thread.
 #[derive(Debug)]
@@ -102,8 +48,28 @@ pub enum Message {
         BTreeMap<usize, Vec<Grab>>,
         tokio::sync::oneshot::Sender<Result<(), ServiceError>>,
     ),
+    /// Removes and adds particles from the next step (see
+    /// [`ParticleChange`]); a run goes on.
+    Particles(
+        ParticleChange,
+        tokio::sync::oneshot::Sender<Result<std::ops::Range<u32>, ServiceError>>,
+    ),
     /// Stop and exit; sent on delete and server shutdown.
     Shutdown,
+}
+
+/// A `ChangeParticles` request: which particles of which system leave by
+/// id, and the new ones' positions and velocities.
+#[derive(Debug)]
+pub struct ParticleChange {
+    /// The system's index in the scene.
+    pub system: usize,
+    /// Ids of the particles to remove.
+    pub remove: Vec<usize>,
+    /// Where the new particles start, m.
+    pub positions: Vec<[f64; 3]>,
+    /// Their velocities, m/s.
+    pub velocities: Vec<[f64; 3]>,
 }
 
 /// A message with its number in the channel's order (see `interrupt.rs`).
@@ -309,6 +275,12 @@ impl Worker {
                     let result = self.guarded(|w| w.set_grabs(&grabs)).and_then(|r| r);
                     let _ = reply.send(result);
                 }
+                Some((_, Message::Particles(change, reply))) => {
+                    let result = self
+                        .guarded(|w| w.change_particles(&change))
+                        .and_then(|r| r);
+                    let _ = reply.send(result);
+                }
                 Some((_, Message::Shutdown)) => break,
                 None if self.cancel.is_cancelled() => break,
                 None => {
@@ -467,6 +439,26 @@ impl Worker {
                 field: "edits".into(),
                 message: e.to_string(),
             })
+    }
+
+    /// Queues a change of particles for the next step; refused while
+    /// faulted (the world is the last good one, which a reset replaces).
+    fn change_particles(
+        &mut self,
+        change: &ParticleChange,
+    ) -> Result<std::ops::Range<u32>, ServiceError> {
+        if self.state == SessionState::Faulted {
+            return Err(self.refuse("change the particles of", "reset it first"));
+        }
+        let ParticleChange {
+            system,
+            remove,
+            positions,
+            velocities,
+        } = change;
+        Ok(self
+            .world
+            .change_particles(*system, remove, positions, velocities)?)
     }
 
     /// Swaps in a restored world, unless running; a faulted session may
@@ -647,6 +639,9 @@ impl Worker {
                 }
                 Message::Grabs(grabs, reply) => {
                     let _ = reply.send(self.set_grabs(&grabs));
+                }
+                Message::Particles(change, reply) => {
+                    let _ = reply.send(self.change_particles(&change));
                 }
                 Message::Restore(_, reply) => {
                     let _ = reply.send(Err(ServiceError::Stepping {

@@ -201,6 +201,10 @@ impl Simulated for FluidEntry {
         self.changes.mark(self.index, count, ids)
     }
 
+    fn pending_changes(&mut self) -> Option<&mut ParticleChanges> {
+        Some(&mut self.changes)
+    }
+
     /// New particles must lie in the domain, not crowd (as the scene's
     /// own particles), move at finite velocities, and fit the fluid's
     /// capacity after the changes already queued.

@@ -24,7 +24,7 @@ use crate::scene::{MotionKind, Prepared, RigidBodySpec, Scene, SystemSpec, body_
 use crate::solid::Obstacle;
 use fluid::FluidEntry;
 use modal::ModalEntry;
-pub use simulated::{InsertError, RemoveError};
+pub use simulated::{ChangeError, InsertError, RemoveError};
 pub(crate) use simulated::{Simulated, StepEnv};
 use solid::SolidEntry;
 

@@ -153,6 +153,18 @@ pub enum InsertError {
     },
 }
 
+/// Why a change of particles (removals and new particles together) was
+/// refused: the removal's or the insertion's error.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ChangeError {
+    /// The removal was refused.
+    #[error(transparent)]
+    Remove(#[from] RemoveError),
+    /// The new particles were refused.
+    #[error(transparent)]
+    Insert(#[from] InsertError),
+}
+
 /// The particle changes of one system asked for since its last step:
 /// removals by id and new particles, kept from the request to the start
 /// of the next step, where the system applies them all at once (removals
@@ -308,6 +320,13 @@ pub(crate) trait Simulated {
 
     /// Marks particles for removal at the start of the next step.
     fn mark_removed(&mut self, ids: &[usize]) -> Result<(), RemoveError>;
+
+    /// The changes queued for the next step, for a system whose particles
+    /// change (`None`: a fixed set), so that a caller can put them back
+    /// when a later part of one request is refused.
+    fn pending_changes(&mut self) -> Option<&mut ParticleChanges> {
+        None
+    }
 
     /// Queues new particles for the start of the next step, after
     /// checking them against `scene`; returns the ids they will get.
