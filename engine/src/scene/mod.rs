@@ -37,7 +37,7 @@ pub use solid::{
     AnchorSpec, IntegratorKind, SolidSpec, SolidSurfaceSpec, defaults as solid_defaults,
 };
 
-use crate::Cancel;
+use crate::cancel::Cancel;
 use crate::approx::KernelKind;
 use crate::efg::ModalSolid;
 use crate::geometry::Shape;

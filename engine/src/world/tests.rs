@@ -397,7 +397,7 @@ mod modal {
     use crate::efg::Grab;
     use crate::math::{Real, Vector};
     use crate::scene::{BuildOptions, Scene, SceneError};
-    use crate::{GrabsError, World};
+    use crate::world::{GrabsError, World};
 
     /// A 16 x 4 x 4 cm cantilever on 2 cm cells (a few hundred nodes),
     /// clamped at x = 0, with `extra` appended to its system table.
@@ -736,7 +736,7 @@ mod modal {
         }
         assert!(matches!(
             fine.validate(&options),
-            Err(crate::SceneError::TooFine { .. })
+            Err(crate::scene::SceneError::TooFine { .. })
         ));
     }
 
