@@ -1,6 +1,7 @@
 //! Per-stage counters of a world's step: how often each pass ran and how
-//! long it took. They make "a scene pays only for what it names" testable
-//! and show where the time goes.
+//! long it took, for every system kind (the fluid's passes, then the
+//! elastic solids' and the modal solids'). They make "a scene pays only
+//! for what it names" testable and show where the time goes.
 
 use std::time::Instant;
 
@@ -23,11 +24,25 @@ pub enum Stage {
     Xsph,
     /// Time integration and the bodies' motion.
     Integrate,
+    /// An elastic solid's internal forces: MLS deformation gradients,
+    /// stresses and their forces (explicit sub-steps).
+    SolidForces,
+    /// An implicit elastic solid's Newton solve: assembly and linear
+    /// solves.
+    SolidSolve,
+    /// An elastic solid's velocity and position update.
+    SolidIntegrate,
+    /// An elastic solid's contact with obstacles and walls, and its
+    /// plastic flow.
+    SolidContact,
+    /// A modal solid's step: the reduced (or, under nonlinear dynamics,
+    /// the full Newton) solve, or its playback.
+    ModalSolve,
 }
 
 impl Stage {
     /// Every stage, in pipeline order.
-    pub const ALL: [Stage; 8] = [
+    pub const ALL: [Stage; 13] = [
         Stage::NeighborSearch,
         Stage::Density,
         Stage::PressureForce,
@@ -36,6 +51,11 @@ impl Stage {
         Stage::Viscosity,
         Stage::Xsph,
         Stage::Integrate,
+        Stage::SolidForces,
+        Stage::SolidSolve,
+        Stage::SolidIntegrate,
+        Stage::SolidContact,
+        Stage::ModalSolve,
     ];
 
     /// The stage's name for people.
@@ -49,6 +69,11 @@ impl Stage {
             Stage::Viscosity => "viscosity",
             Stage::Xsph => "XSPH",
             Stage::Integrate => "integration",
+            Stage::SolidForces => "solid forces",
+            Stage::SolidSolve => "solid implicit solve",
+            Stage::SolidIntegrate => "solid integration",
+            Stage::SolidContact => "solid contact",
+            Stage::ModalSolve => "modal solve",
         }
     }
 }

@@ -506,3 +506,61 @@ region = {{ min = [0.8, 0.8, 0.0], max = [1.2, 1.2, 0.0] }}
     assert!(monaghan < 1e-12, "{monaghan}");
     assert!(morris > 1e-7 && morris > 1e6 * monaghan, "{morris}");
 }
+
+/// Every system kind counts its own stages, and a scene counts only those
+/// of the kinds it names: an explicit solid its forces, integration and
+/// contact; an implicit one its Newton solve too; a modal solid its modal
+/// solve; the fluid none of theirs.
+#[test]
+fn each_kind_counts_its_own_stages() {
+    let solid_stages = [
+        Stage::SolidForces,
+        Stage::SolidSolve,
+        Stage::SolidIntegrate,
+        Stage::SolidContact,
+    ];
+    let fluid_stages = [Stage::NeighborSearch, Stage::Density, Stage::Integrate];
+    let runs = |world: &World, stages: &[Stage]| -> Vec<u64> {
+        stages.iter().map(|&s| world.stages().get(s).runs).collect()
+    };
+
+    let mut fluid = build(&dam_break());
+    fluid.step().expect("step");
+    assert_eq!(runs(&fluid, &solid_stages), [0; 4]);
+    assert_eq!(runs(&fluid, &[Stage::ModalSolve]), [0]);
+
+    let mut jelly = Scene::from_toml_str(include_str!("../../scenes/jelly_drop.toml"))
+        .expect("the shipped scene parses");
+    let mut explicit = build(&jelly);
+    explicit.step().expect("step");
+    let counted = runs(&explicit, &solid_stages);
+    assert!(
+        counted[0] > 0 && counted[2] == counted[0] && counted[3] == counted[0],
+        "one forces, integration and contact pass per sub-step: {counted:?}"
+    );
+    assert_eq!(counted[1], 0, "an explicit solid solves nothing");
+    assert_eq!(runs(&explicit, &fluid_stages), [0; 3]);
+    let SystemSpec::Solid(solid) = &mut jelly.systems[0] else {
+        panic!("the jelly is a solid")
+    };
+    solid.integrator = meshless_engine::scene::IntegratorKind::Implicit;
+    let mut implicit = build(&jelly);
+    implicit.step().expect("step");
+    let counted = runs(&implicit, &solid_stages);
+    assert_eq!(counted, [0, 1, 1, 1], "one Newton solve per implicit step");
+    let seconds = world_seconds(&implicit, Stage::SolidSolve);
+    assert!(seconds > 0.0, "{seconds}");
+
+    let modal = Scene::from_toml_str(include_str!("../../tests/fixtures/small_modal.toml"))
+        .expect("the fixture parses");
+    let mut modal = build(&modal);
+    for _ in 0..3 {
+        modal.step().expect("step");
+    }
+    assert_eq!(runs(&modal, &[Stage::ModalSolve]), [3]);
+    assert_eq!(runs(&modal, &solid_stages), [0; 4]);
+}
+
+fn world_seconds(world: &World, stage: Stage) -> f64 {
+    world.stages().get(stage).seconds
+}

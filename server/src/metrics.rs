@@ -332,6 +332,11 @@ fn stage_key(stage: Stage) -> &'static str {
         Stage::Viscosity => "viscosity",
         Stage::Xsph => "xsph",
         Stage::Integrate => "integrate",
+        Stage::SolidForces => "solid_forces",
+        Stage::SolidSolve => "solid_solve",
+        Stage::SolidIntegrate => "solid_integrate",
+        Stage::SolidContact => "solid_contact",
+        Stage::ModalSolve => "modal_solve",
     }
 }
 

@@ -143,3 +143,37 @@ async fn the_metrics_move_with_the_work() {
     assert!(!gone.contains(&session.id), "{gone}");
     assert_eq!(value(&gone, "meshless_particles"), 0.0);
 }
+
+/// Solids and modal solids report where their steps go, as fluids do: a
+/// stage counter per kind moves with that kind's sessions.
+#[tokio::test]
+async fn every_kind_reports_its_stages() {
+    let server = ServerProcess::spawn(&["--metrics-addr", "127.0.0.1:0"])
+        .await
+        .expect("server");
+    let url = server.metrics_url.clone().expect("a metrics address");
+    let client = server.client().await.expect("client");
+    for scene in [
+        meshless_tests::small_solid_scene(),
+        meshless_tests::small_modal_scene(),
+    ] {
+        let session = within("create", client.create_session_toml(&scene))
+            .await
+            .expect("created");
+        within("step", client.step(&session.id, 2))
+            .await
+            .expect("stepped");
+    }
+    let text = scrape(&url).await;
+    for stage in [
+        "solid_forces",
+        "solid_integrate",
+        "solid_contact",
+        "modal_solve",
+    ] {
+        let series = format!("meshless_stage_seconds_total{{stage=\"{stage}\"}}");
+        assert!(value(&text, &series) > 0.0, "{series} did not move");
+    }
+    let fluid = "meshless_stage_seconds_total{stage=\"density\"}";
+    assert_eq!(value(&text, fluid), 0.0, "no fluid, no fluid stage");
+}

@@ -37,8 +37,8 @@ pub use solid::{
     AnchorSpec, IntegratorKind, SolidSpec, SolidSurfaceSpec, defaults as solid_defaults,
 };
 
-use crate::cancel::Cancel;
 use crate::approx::KernelKind;
+use crate::cancel::Cancel;
 use crate::efg::ModalSolid;
 use crate::geometry::Shape;
 use crate::geometry::read::parser_message;

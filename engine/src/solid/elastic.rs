@@ -8,6 +8,7 @@ use super::material::Hyperelastic;
 use super::params::SolidParams;
 use crate::cancel::{Cancel, Cancelled};
 use crate::math::{Real, Vector};
+use crate::stats::StageTimer;
 use nalgebra::Matrix3;
 use std::ops::{Deref, DerefMut};
 
@@ -49,12 +50,19 @@ impl ElasticSolid {
     /// explicit sub-steps.
     pub fn step(&mut self, dt: Real, gravity: &Vector, max_substeps: u32) -> SolidStep {
         // A flag no one else holds is never raised.
-        self.step_cancellable(dt, gravity, max_substeps, &Cancel::new())
-            .unwrap_or_default()
+        self.step_cancellable(
+            dt,
+            gravity,
+            max_substeps,
+            &Cancel::new(),
+            &mut StageTimer::default(),
+        )
+        .unwrap_or_default()
     }
 
     /// [`Self::step`], stopping at the next sub-step, Newton or CG
-    /// iteration once `cancel` is raised.
+    /// iteration once `cancel` is raised, each pass counted in `timer`
+    /// (the `Solid*` stages).
     ///
     /// # Errors
     /// [`Cancelled`]; the state may then be part-way through the step:
@@ -65,9 +73,10 @@ impl ElasticSolid {
         gravity: &Vector,
         max_substeps: u32,
         cancel: &Cancel,
+        timer: &mut StageTimer,
     ) -> Result<SolidStep, Cancelled> {
         self.integrator
-            .step(&mut self.body, dt, gravity, max_substeps, cancel)
+            .step(&mut self.body, dt, gravity, max_substeps, cancel, timer)
     }
 
     /// Mechanical energy under `gravity` after a step of `dt`: kinetic,

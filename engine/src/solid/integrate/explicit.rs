@@ -9,6 +9,7 @@ use super::super::forces::InternalForces;
 use super::{SolidStep, finish_substep};
 use crate::cancel::{Cancel, Cancelled};
 use crate::math::{Real, Vector};
+use crate::stats::{Stage, StageTimer};
 use rayon::prelude::*;
 
 /// The explicit integrator: its Courant number and the force buffers.
@@ -39,6 +40,7 @@ impl Explicit {
         gravity: &Vector,
         max_substeps: u32,
         cancel: &Cancel,
+        timer: &mut StageTimer,
     ) -> Result<SolidStep, Cancelled> {
         let limit = body.params.stable_dt(self.cfl);
         let wanted = (dt / limit).ceil().max(1.0);
@@ -46,7 +48,7 @@ impl Explicit {
         let sub = dt / count;
         for _ in 0..count as u32 {
             cancel.check()?;
-            self.substep(body, sub, gravity);
+            self.substep(body, sub, gravity, timer);
         }
         Ok(SolidStep {
             substeps: count as u32,
@@ -58,20 +60,26 @@ impl Explicit {
 
     /// One symplectic Euler sub-step: forces at the current state,
     /// velocities, then positions.
-    fn substep(&mut self, body: &mut Body, dt: Real, gravity: &Vector) {
-        self.forces
-            .evaluate(body, None, Some(&body.velocities), false);
+    fn substep(&mut self, body: &mut Body, dt: Real, gravity: &Vector, timer: &mut StageTimer) {
+        timer.time(Stage::SolidForces, || {
+            self.forces
+                .evaluate(body, None, Some(&body.velocities), false);
+        });
         let forces = &self.forces.forces;
-        body.velocities
-            .par_iter_mut()
-            .zip(body.positions.par_iter_mut())
-            .zip(forces.par_iter().zip(&body.masses).zip(&body.fixed))
-            .for_each(|((v, x), ((f, m), fixed))| {
-                if !fixed {
-                    *v += (f / *m + gravity) * dt;
-                    *x += *v * dt;
-                }
-            });
-        finish_substep(body, &self.forces.states);
+        timer.time(Stage::SolidIntegrate, || {
+            body.velocities
+                .par_iter_mut()
+                .zip(body.positions.par_iter_mut())
+                .zip(forces.par_iter().zip(&body.masses).zip(&body.fixed))
+                .for_each(|((v, x), ((f, m), fixed))| {
+                    if !fixed {
+                        *v += (f / *m + gravity) * dt;
+                        *x += *v * dt;
+                    }
+                });
+        });
+        timer.time(Stage::SolidContact, || {
+            finish_substep(body, &self.forces.states);
+        });
     }
 }

@@ -37,6 +37,7 @@ use crate::linalg::cg::{self, Stopping, Termination};
 use crate::linalg::linop::par_sum;
 use crate::linalg::{LinOp, Parallel, Precond, Space};
 use crate::math::{Real, Vector};
+use crate::stats::{Stage, StageTimer};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
@@ -168,6 +169,7 @@ impl Implicit {
         dt: Real,
         gravity: &Vector,
         cancel: &Cancel,
+        timer: &mut StageTimer,
     ) -> Result<SolidStep, Cancelled> {
         // Midpoint: a backward Euler solve over `dt / 2` gives the
         // midpoint velocity `v_m`; then `x+ = x + dt v_m`,
@@ -183,34 +185,41 @@ impl Implicit {
                 (h, h)
             }
         };
-        let report = self.solve(body, h, gravity, cancel)?;
-        match self.settings.scheme {
-            ImplicitScheme::BackwardEuler => body.velocities.clone_from(&self.v_new),
-            ImplicitScheme::Midpoint => body
-                .velocities
+        let report = timer.time(Stage::SolidSolve, || self.solve(body, h, gravity, cancel))?;
+        let scheme = self.settings.scheme;
+        let v_new = &self.v_new;
+        timer.time(Stage::SolidIntegrate, || {
+            match scheme {
+                ImplicitScheme::BackwardEuler => body.velocities.clone_from(v_new),
+                ImplicitScheme::Midpoint => body
+                    .velocities
+                    .par_iter_mut()
+                    .zip(v_new)
+                    .for_each(|(v, v_mid)| *v = v_mid * 2.0 - *v),
+                ImplicitScheme::Static => {}
+            }
+            body.positions
                 .par_iter_mut()
-                .zip(&self.v_new)
-                .for_each(|(v, v_mid)| *v = v_mid * 2.0 - *v),
-            ImplicitScheme::Static => {}
-        }
-        body.positions
-            .par_iter_mut()
-            .zip(&self.v_new)
-            .for_each(|(x, v)| *x += v * advance);
-        let p = &body.params;
-        // Field by field: the penalty reads the obstacles while the
-        // positions move.
-        if let Some(penalty) = Penalty::new(&body.obstacles, p.dim, p.spacing, p.young, h) {
-            penalty.finish(
-                h,
-                body.params.friction,
-                &body.masses,
-                &body.fixed,
-                &mut body.positions,
-                &mut body.velocities,
-            );
-        }
-        body.flow(&self.forces.states);
+                .zip(v_new)
+                .for_each(|(x, v)| *x += v * advance);
+        });
+        let states = &self.forces.states;
+        timer.time(Stage::SolidContact, || {
+            let p = &body.params;
+            // Field by field: the penalty reads the obstacles while the
+            // positions move.
+            if let Some(penalty) = Penalty::new(&body.obstacles, p.dim, p.spacing, p.young, h) {
+                penalty.finish(
+                    h,
+                    body.params.friction,
+                    &body.masses,
+                    &body.fixed,
+                    &mut body.positions,
+                    &mut body.velocities,
+                );
+            }
+            body.flow(states);
+        });
         Ok(SolidStep {
             min_substep: dt,
             ..report

@@ -21,6 +21,7 @@ use super::material::StressState;
 use super::params;
 use crate::cancel::{Cancel, Cancelled};
 use crate::math::{Real, Vector};
+use crate::stats::StageTimer;
 use explicit::Explicit;
 use implicit::Implicit;
 
@@ -83,10 +84,11 @@ impl Integrator {
         gravity: &Vector,
         max_substeps: u32,
         cancel: &Cancel,
+        timer: &mut StageTimer,
     ) -> Result<SolidStep, Cancelled> {
         match self {
-            Self::Explicit(e) => e.step(body, dt, gravity, max_substeps, cancel),
-            Self::Implicit(i) => i.step(body, dt, gravity, cancel),
+            Self::Explicit(e) => e.step(body, dt, gravity, max_substeps, cancel, timer),
+            Self::Implicit(i) => i.step(body, dt, gravity, cancel, timer),
         }
     }
 

@@ -11,7 +11,7 @@ use crate::geometry::TriMesh;
 use crate::math::{Real, Vector};
 use crate::scene::{ModalSolidSpec, PlaybackSpec, Scene};
 use crate::snapshot::{SnapshotError, check_finite};
-use crate::stats::StageTimer;
+use crate::stats::{Stage, StageTimer};
 use crate::world::outcome::{StepError, StepInfo};
 use crate::world::saved::{StateError, SystemState};
 use crate::world::watch::{EnergyWatch, MAX_ENERGY_GAIN};
@@ -115,7 +115,7 @@ impl Simulated for ModalEntry {
 
     /// One implicit modal step (Eq. 31, or Eq. 33 with grabs) of any
     /// length: the integrator is unconditionally stable, so no sub-steps.
-    fn step(&mut self, env: &StepEnv, _timer: &mut StageTimer) -> Result<StepInfo, StepError> {
+    fn step(&mut self, env: &StepEnv, timer: &mut StageTimer) -> Result<StepInfo, StepError> {
         env.check()?;
         let watched = self.playback.is_none() && self.solid.grabs().is_empty();
         if watched {
@@ -132,11 +132,15 @@ impl Simulated for ModalEntry {
             ..StepReport::default()
         };
         if let Some(playback) = self.playback {
-            self.play(playback, env.step as Real * env.dt)?;
+            timer.time(Stage::ModalSolve, || {
+                self.play(playback, env.step as Real * env.dt)
+            })?;
         } else {
-            report = self
-                .solid
-                .step_cancellable(env.dt, &env.gravity, env.cancel)
+            let solid = &mut self.solid;
+            report = timer
+                .time(Stage::ModalSolve, || {
+                    solid.step_cancellable(env.dt, &env.gravity, env.cancel)
+                })
                 .map_err(|e| match e {
                     MotionError::Nonlinear(NonlinearError::Cancelled) => env.cancelled(),
                     MotionError::Nonlinear(_) => {

@@ -63,7 +63,7 @@ impl Simulated for SolidEntry {
 
     /// The solid sub-steps itself, reading the flag at each sub-step or
     /// Newton and CG iteration; its state is checked after the step.
-    fn step(&mut self, env: &StepEnv, _timer: &mut StageTimer) -> Result<StepInfo, StepError> {
+    fn step(&mut self, env: &StepEnv, timer: &mut StageTimer) -> Result<StepInfo, StepError> {
         let solid = &self.solid;
         self.watch.begin_with(|| {
             (
@@ -73,7 +73,7 @@ impl Simulated for SolidEntry {
         });
         let step = self
             .solid
-            .step_cancellable(env.dt, &env.gravity, env.max_substeps, env.cancel)
+            .step_cancellable(env.dt, &env.gravity, env.max_substeps, env.cancel, timer)
             .map_err(|_| env.cancelled())?;
         let info = StepInfo {
             substeps: step.substeps,
