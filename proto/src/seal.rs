@@ -164,17 +164,32 @@ impl Sealer {
     /// into the sealed payload's buffer and encrypted in place, so a frame
     /// of tens of megabytes is never copied.
     pub fn seal(&self, key_expr: &str, message: &impl Message) -> Vec<u8> {
+        self.seal_with(key_expr, message.encoded_len(), |out| {
+            message.encode(out).expect("a Vec grows to any message");
+        })
+    }
+
+    /// An already encoded message sealed for `key_expr`: the same payload
+    /// as [`Self::seal`] of the message, for a sender that encodes once
+    /// and seals per key (the server's frames, encoded once per step).
+    pub fn seal_encoded(&self, key_expr: &str, encoded: &[u8]) -> Vec<u8> {
+        self.seal_with(key_expr, encoded.len(), |out| {
+            out.extend_from_slice(encoded);
+        })
+    }
+
+    /// Header, the `len` plain bytes `write` appends, encrypted in place,
+    /// and the tag.
+    fn seal_with(&self, key_expr: &str, len: usize, write: impl FnOnce(&mut Vec<u8>)) -> Vec<u8> {
         // 2^64 payloads would take millennia at any rate a server reaches,
         // so the counter never wraps to a used nonce.
         let counter = self.counter.fetch_add(1, Ordering::Relaxed);
         let mut nonce = [0; NONCE_LEN];
         nonce[4..].copy_from_slice(&counter.to_be_bytes());
-        let mut out = Vec::with_capacity(HEADER_LEN + message.encoded_len() + TAG_LEN);
+        let mut out = Vec::with_capacity(HEADER_LEN + len + TAG_LEN);
         out.push(VERSION);
         out.extend_from_slice(&nonce);
-        message
-            .encode(&mut out)
-            .expect("a Vec grows to any message");
+        write(&mut out);
         let tag = self
             .key
             .key
@@ -249,6 +264,16 @@ mod tests {
         let sealer = Sealer::generate().expect("random");
         let a = sealer.seal("k", &status(1));
         let b = sealer.seal("k", &status(1));
+        let encoded = sealer.seal_encoded("k", &status(1).encode_to_vec());
+        assert_eq!(encoded.len(), a.len());
+        assert_eq!(
+            sealer
+                .key()
+                .open("k", &mut encoded.clone())
+                .map(|(c, p)| (c, p.to_vec())),
+            Ok((3, status(1).encode_to_vec())),
+            "an encoded message seals as the message does"
+        );
         assert_ne!(a[1..HEADER_LEN], b[1..HEADER_LEN], "nonces differ");
         assert_ne!(a, b, "the same message seals differently");
         let key = sealer.key();

@@ -28,6 +28,9 @@ mod session;
 mod tls;
 
 pub use config::{ServerConfig, ZenohMode, ZenohPublishers};
+/// A frame as a session encodes it once for all its readers (public for
+/// the load bench, which measures it against encoding per reader).
+pub use session::EncodedFrame;
 
 use anyhow::{Context, Result};
 use meshless_proto::v1::{self, simulation_server::SimulationServer};

@@ -17,7 +17,6 @@ use meshless_proto::v1::{self, simulation_server::Simulation};
 use meshless_wire::design::{
     constraint_to_proto, design_params_from_proto, edit_from_proto, motion_params_from_proto,
 };
-use meshless_wire::frame::frame_to_proto;
 use meshless_wire::scene::scene_from_proto;
 use std::sync::Arc;
 use tokio::sync::{broadcast, mpsc};
@@ -371,11 +370,14 @@ impl Simulation for SimulationService {
         let id = request.into_inner().session_id;
         let session = self.read(&id, &caller)?;
         let frame = session.latest_frame();
-        let id = session.id.clone();
-        // Encoding a large frame is CPU work: keep it off the I/O threads.
-        let message = tokio::task::spawn_blocking(move || frame_to_proto(&id, &frame))
+        // Encoded once on the compute thread; decoding copies tens of
+        // megabytes at a million particles, kept off the I/O threads.
+        let message = tokio::task::spawn_blocking(move || frame.to_proto())
             .await
-            .map_err(|e| ServiceError::Internal(format!("frame encoding failed: {e}")))?;
+            .map_err(|e| ServiceError::Internal(format!("frame decoding failed: {e}")))?
+            .map_err(|e| {
+                ServiceError::Internal(format!("the latest frame does not decode: {e}"))
+            })?;
         Ok(Response::new(message))
     }
 

@@ -8,7 +8,7 @@ mod smoke;
 use anyhow::{Context, Result};
 use meshless_client::Client;
 use meshless_load::frames::Payload;
-use meshless_load::{frames, rpc, slow_subscriber};
+use meshless_load::{frame_cost, frames, rpc, slow_subscriber};
 use meshless_server::ServerConfig;
 use std::time::Duration;
 
@@ -35,6 +35,7 @@ fn main() -> Result<()> {
         .build()?;
     load_runtime.block_on(async {
         rpc_table(&url).await?;
+        frame_cost_table()?;
         frames_table().await?;
         slow_subscriber_table(&url, &zenoh).await
     })?;
@@ -144,6 +145,42 @@ async fn frames_table() -> Result<()> {
             plain.frames_per_s(),
             sealed.frames_per_s(),
             sealed.frames_per_s() / plain.frames_per_s().max(f64::MIN_POSITIVE)
+        );
+    }
+    Ok(())
+}
+
+/// The server's CPU per frame and reader, before and after frames were
+/// encoded once, in this run (ms, medians).
+fn frame_cost_table() -> Result<()> {
+    let counts = smoke::pick::<&[usize]>(&[100_000, 1_000_000], &[1_000]);
+    let reps = smoke::pick(15, 3);
+    println!(
+        "\nThe server's frame path per frame (ms, median of {reps}): before, each reader \
+         converts and encodes; now the compute thread encodes once and readers copy, seal or \
+         decode\n"
+    );
+    println!(
+        "| particles | frame MB | before: put | now: encode once | now: put | before: sealed put \
+         | now: sealed put | before: GetLatestFrame | now: GetLatestFrame | runtime frames/s \
+         before | now |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    for &particles in counts {
+        let c = frame_cost::measure(particles, reps)?;
+        println!(
+            "| {particles} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.0} \
+             | {:.0} |",
+            c.frame_bytes as f64 / 1e6,
+            c.before_put,
+            c.encode_once,
+            c.after_put,
+            c.before_sealed,
+            c.after_sealed,
+            c.before_get,
+            c.after_get,
+            1e3 / c.before_put.max(f64::MIN_POSITIVE),
+            1e3 / c.after_put.max(f64::MIN_POSITIVE),
         );
     }
     Ok(())

@@ -11,12 +11,17 @@
 //!   to a subscriber that unpacks them (goal: 1M-particle frames at 60 a
 //!   second);
 //! - [`slow_subscriber`]: a session's steps per second with and without a
-//!   subscriber that cannot keep up, as a ratio (goal: at least 0.98).
+//!   subscriber that cannot keep up, as a ratio (goal: at least 0.98);
+//! - [`frame_cost`]: what a frame of 100k and 1M particles costs the
+//!   server's async runtime per reader (publisher, latest-frame query,
+//!   `GetLatestFrame`), converted and encoded per reader as before issue
+//!   31 and encoded once on the compute thread as now, in the same run.
 //!
 //! The server is the real one, started in this process on its own tokio
 //! runtime (`meshless_server::start`) and reached over TCP, so the bench
 //! needs no binary built beforehand. Nothing here asserts a figure.
 
+pub mod frame_cost;
 pub mod frames;
 pub mod rpc;
 pub mod slow_subscriber;

@@ -8,7 +8,7 @@
 //! queue deep and keeps large ones few; a frame over the whole budget
 //! still goes when the queue is empty, so no scene is too large to stream.
 
-use meshless_engine::Frame;
+use super::encoded::EncodedFrame;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use tokio::sync::mpsc;
@@ -32,27 +32,15 @@ pub fn frame_queue() -> (FrameSender, FrameReceiver) {
     )
 }
 
-/// Bytes a frame holds: its fields and surfaces, the bulk of what is
-/// encoded.
-fn frame_bytes(frame: &Frame) -> usize {
-    let fields: usize = frame.fields.iter().map(|f| f.values.len() * 4).sum();
-    let mesh = |vertices: usize, triangles: usize| vertices * 24 + triangles * 12;
-    let surface = frame
-        .surface
-        .as_ref()
-        .map_or(0, |m| mesh(m.vertices.len(), m.triangles.len()));
-    let solids: usize = frame
-        .solid_surfaces
-        .iter()
-        .map(|s| mesh(s.mesh.vertices.len(), s.mesh.triangles.len()))
-        .sum();
-    fields + surface + solids + 64
+/// Bytes a queued frame holds.
+fn frame_bytes(frame: &EncodedFrame) -> usize {
+    frame.bytes().len()
 }
 
 /// The compute thread's end.
 #[derive(Debug)]
 pub struct FrameSender {
-    tx: mpsc::Sender<Arc<Frame>>,
+    tx: mpsc::Sender<Arc<EncodedFrame>>,
     queued: Arc<AtomicUsize>,
 }
 
@@ -67,7 +55,7 @@ pub enum Dropped {
 
 impl FrameSender {
     /// Queues `frame` unless the publisher is a budget behind; never waits.
-    pub fn try_send(&self, frame: Arc<Frame>) -> Result<(), Dropped> {
+    pub fn try_send(&self, frame: Arc<EncodedFrame>) -> Result<(), Dropped> {
         let bytes = frame_bytes(&frame);
         let queued = self.queued.load(Ordering::Acquire);
         if queued > 0 && queued + bytes > MAX_BYTES {
@@ -86,7 +74,7 @@ impl FrameSender {
     /// Queues `frame`, waiting for room in the count (not the bytes): for
     /// the few frames where each one matters. Call from a thread outside
     /// the runtime.
-    pub fn blocking_send(&self, frame: Arc<Frame>) -> Result<(), Dropped> {
+    pub fn blocking_send(&self, frame: Arc<EncodedFrame>) -> Result<(), Dropped> {
         let bytes = frame_bytes(&frame);
         self.queued.fetch_add(bytes, Ordering::AcqRel);
         self.tx.blocking_send(frame).map_err(|_| {
@@ -99,13 +87,13 @@ impl FrameSender {
 /// The publisher's end.
 #[derive(Debug)]
 pub struct FrameReceiver {
-    rx: mpsc::Receiver<Arc<Frame>>,
+    rx: mpsc::Receiver<Arc<EncodedFrame>>,
     queued: Arc<AtomicUsize>,
 }
 
 impl FrameReceiver {
     /// The next frame, or `None` once the worker has dropped its end.
-    pub async fn recv(&mut self) -> Option<Arc<Frame>> {
+    pub async fn recv(&mut self) -> Option<Arc<EncodedFrame>> {
         let frame = self.rx.recv().await?;
         self.queued.fetch_sub(frame_bytes(&frame), Ordering::AcqRel);
         Some(frame)
@@ -115,30 +103,33 @@ impl FrameReceiver {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use meshless_engine::{FieldData, FieldKind};
+    use meshless_engine::{FieldData, FieldKind, Frame};
 
-    fn frame(particles: usize) -> Arc<Frame> {
-        Arc::new(Frame {
-            step: 0,
-            time: 0.0,
-            substeps: 1,
-            substep_dt: 0.0,
-            solver_iterations: 0,
-            density_error: 0.0,
-            capped: false,
-            unconverged: 0,
-            particle_count: particles,
-            fields: vec![FieldData {
-                kind: FieldKind::Position,
-                components: 3,
-                values: vec![0.0; 3 * particles],
-            }],
-            bodies: Vec::new(),
-            surface: None,
-            solids: Vec::new(),
-            solid_surfaces: Vec::new(),
-            ids: None,
-        })
+    fn frame(particles: usize) -> Arc<EncodedFrame> {
+        Arc::new(EncodedFrame::encode(
+            "s",
+            &Frame {
+                step: 0,
+                time: 0.0,
+                substeps: 1,
+                substep_dt: 0.0,
+                solver_iterations: 0,
+                density_error: 0.0,
+                capped: false,
+                unconverged: 0,
+                particle_count: particles,
+                fields: vec![FieldData {
+                    kind: FieldKind::Position,
+                    components: 3,
+                    values: vec![0.0; 3 * particles],
+                }],
+                bodies: Vec::new(),
+                surface: None,
+                solids: Vec::new(),
+                solid_surfaces: Vec::new(),
+                ids: None,
+            },
+        ))
     }
 
     #[test]

@@ -2,6 +2,7 @@
 //! commands from gRPC handlers and publishing frames and status on zenoh.
 
 mod access;
+mod encoded;
 mod frame_queue;
 mod interrupt;
 mod optimize;
@@ -15,7 +16,7 @@ use crate::error::ServiceError;
 use interrupt::Interrupts;
 use meshless_engine::Cancel;
 use meshless_engine::design::{self, Constraint, ConstraintSet, Context, Edit};
-use meshless_engine::{BuildOptions, Frame, Scene, World};
+use meshless_engine::{BuildOptions, Scene, World};
 use meshless_proto::{keys, v1};
 use meshless_wire::scene::scene_echo_to_proto;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -24,6 +25,7 @@ use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use tokio_util::sync::CancellationToken;
 
 pub use access::{Access, check_observers};
+pub use encoded::EncodedFrame;
 pub use optimize::{OptimizeJob, Problem};
 pub use publish::Outlet;
 pub use run_target::RunTarget;
@@ -56,7 +58,7 @@ type Reply = oneshot::Sender<Result<v1::SessionStatus, ServiceError>>;
 
 /// The most recent frame, shared by the worker (writer) and the latest
 /// queryable and `GetLatestFrame` (readers).
-pub type LatestFrame = Arc<Mutex<Arc<Frame>>>;
+pub type LatestFrame = Arc<Mutex<Arc<EncodedFrame>>>;
 
 /// Status changes buffered per watcher.
 const STATUS_EVENTS: usize = 64;
@@ -265,7 +267,10 @@ impl Session {
         };
         let (status_tx, status) = watch::channel(initial);
         let (events, _) = broadcast::channel(STATUS_EVENTS);
-        let latest: LatestFrame = Arc::new(Mutex::new(Arc::new(world.frame())));
+        let latest: LatestFrame = Arc::new(Mutex::new(Arc::new(EncodedFrame::encode(
+            &id,
+            &world.frame(),
+        ))));
         let (frames_tx, frames_rx) = frame_queue::frame_queue();
         let (commands, commands_rx) = std::sync::mpsc::channel();
         let interrupts = Arc::new(Interrupts::default());
@@ -514,7 +519,7 @@ impl Session {
         self.events.subscribe()
     }
 
-    pub fn latest_frame(&self) -> Arc<Frame> {
+    pub fn latest_frame(&self) -> Arc<EncodedFrame> {
         self.latest
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)

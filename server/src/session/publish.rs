@@ -1,13 +1,13 @@
-//! Zenoh side of a session: tokio tasks that encode and put frames (drop
-//! on congestion), put status changes (reliable), and answer queries for
-//! the latest frame. The compute thread only hands them data.
+//! Zenoh side of a session: tokio tasks that put frames (drop on
+//! congestion), put status changes (reliable), and answer queries for the
+//! latest frame. The compute thread hands them frames already encoded
+//! (`encoded.rs`): here they are only sealed per key, or copied.
 
 use super::LatestFrame;
 use super::frame_queue::FrameReceiver;
 use crate::metrics::Metrics;
 use meshless_proto::seal::Sealer;
 use meshless_proto::{keys, v1};
-use meshless_wire::frame::frame_to_proto;
 use prost::Message;
 use std::sync::Arc;
 use tokio::sync::broadcast;
@@ -35,6 +35,17 @@ impl Outlet {
         self.metrics.sent(bytes.len());
         bytes
     }
+
+    /// An encoded message as it is put on `key`: sealed for `key` when
+    /// the session seals, else the same bytes.
+    fn payload_encoded(&self, key: &str, encoded: &[u8]) -> Vec<u8> {
+        let bytes = match &self.sealer {
+            Some(sealer) => sealer.seal_encoded(key, encoded),
+            None => encoded.to_vec(),
+        };
+        self.metrics.sent(bytes.len());
+        bytes
+    }
 }
 
 /// Puts every frame from `frames` until the worker drops its sender.
@@ -55,11 +66,11 @@ pub fn spawn_frames(outlet: Outlet, id: String, mut frames: FrameReceiver) {
             }
         };
         while let Some(frame) = frames.recv().await {
-            let bytes = outlet.payload(&key, &frame_to_proto(&id, &frame));
+            let bytes = outlet.payload_encoded(&key, frame.bytes());
             match publisher.put(bytes).await {
                 Ok(()) => outlet.metrics.frame_published(),
                 Err(e) => {
-                    tracing::warn!(session = %id, step = frame.step, "frame not published: {e}");
+                    tracing::warn!(session = %id, step = frame.step(), "frame not published: {e}");
                 }
             }
         }
@@ -130,7 +141,7 @@ pub fn spawn_latest(outlet: Outlet, id: String, latest: LatestFrame, cancel: Can
                 .lock()
                 .unwrap_or_else(std::sync::PoisonError::into_inner)
                 .clone();
-            let bytes = outlet.payload(&key, &frame_to_proto(&id, &frame));
+            let bytes = outlet.payload_encoded(&key, frame.bytes());
             if let Err(e) = query.reply(key.clone(), bytes).await {
                 tracing::warn!(session = %id, "latest-frame reply failed: {e}");
             }

@@ -12,6 +12,7 @@
 //! running; every other message waits for the call, in order, so that
 //! the steps of two calls never interleave.
 
+use super::encoded::EncodedFrame;
 use super::frame_queue::FrameSender;
 use super::interrupt::Interrupts;
 use super::optimize::{self, Channels, OptimizeJob, WarmStart};
@@ -385,7 +386,8 @@ impl Worker {
             for frame in solved.playback {
                 // Waits for the publisher rather than dropping: playback
                 // frames are few and each one matters.
-                if self.out.frames.blocking_send(Arc::new(frame)).is_err() {
+                let frame = Arc::new(EncodedFrame::encode(&self.id, &frame));
+                if self.out.frames.blocking_send(frame).is_err() {
                     self.dropped_frames += 1;
                     self.out.metrics.frame_dropped();
                 }
@@ -788,10 +790,11 @@ impl Worker {
         }
     }
 
-    /// Hands the current frame to the publisher, dropping it when the
-    /// publisher is behind: a slow network never slows the simulation.
+    /// Hands the current frame to the publisher, encoded here once for
+    /// every reader, dropping it when the publisher is behind: a slow
+    /// network never slows the simulation.
     fn publish_frame(&mut self) {
-        let frame = Arc::new(self.world.frame());
+        let frame = Arc::new(EncodedFrame::encode(&self.id, &self.world.frame()));
         *self
             .out
             .latest
@@ -869,7 +872,10 @@ mod tests {
             status,
             events,
             frames,
-            latest: Arc::new(std::sync::Mutex::new(Arc::new(world.frame()))),
+            latest: Arc::new(std::sync::Mutex::new(Arc::new(EncodedFrame::encode(
+                "s",
+                &world.frame(),
+            )))),
             metrics: Arc::new(Metrics::new()),
             realtime_factor: Arc::default(),
         };
