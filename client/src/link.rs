@@ -637,7 +637,7 @@ mod tests {
                 kind: v1::FieldKind::Position as i32,
                 components: 3,
                 scalar: v1::ScalarType::F32 as i32,
-                data: vec![0; 12],
+                data: vec![0; 12].into(),
             }],
             ..Default::default()
         }
@@ -687,7 +687,8 @@ mod tests {
         assert_eq!(refusal(&key, b"\x78\x01"), Some(DropReason::Malformed));
         assert_eq!(refusal(&key, b""), Some(DropReason::Malformed));
         let mut short = frame("abc", 3);
-        short.fields[0].data.pop();
+        let len = short.fields[0].data.len();
+        short.fields[0].data.truncate(len - 1);
         assert_eq!(
             refusal(&key, &short.encode_to_vec()),
             Some(DropReason::Malformed)

@@ -88,7 +88,7 @@ fn forged_frame(session_id: &str, step: u64) -> v1::Frame {
             kind: v1::FieldKind::Position as i32,
             components: 3,
             scalar: v1::ScalarType::F32 as i32,
-            data: vec![0; 12],
+            data: vec![0; 12].into(),
         }],
         ..Default::default()
     }

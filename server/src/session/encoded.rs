@@ -9,12 +9,13 @@ use meshless_engine::Frame;
 use meshless_proto::v1;
 use meshless_wire::frame::frame_to_proto;
 use prost::Message;
+use prost::bytes::Bytes;
 
 /// One frame's wire bytes and the step it shows.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct EncodedFrame {
     step: u64,
-    bytes: Vec<u8>,
+    bytes: Bytes,
 }
 
 impl EncodedFrame {
@@ -23,7 +24,7 @@ impl EncodedFrame {
     pub fn encode(session_id: &str, frame: &Frame) -> Self {
         Self {
             step: frame.step,
-            bytes: frame_to_proto(session_id, frame).encode_to_vec(),
+            bytes: frame_to_proto(session_id, frame).encode_to_vec().into(),
         }
     }
 
@@ -37,13 +38,13 @@ impl EncodedFrame {
         &self.bytes
     }
 
-    /// The message back, for `GetLatestFrame` (a copy of the bytes, no
-    /// conversion).
+    /// The message back, for `GetLatestFrame`: its fields' data are
+    /// slices of these bytes, not copies, and no conversion runs.
     ///
     /// # Errors
     /// A decoding error, which bytes this type encoded never give.
     pub fn to_proto(&self) -> Result<v1::Frame, prost::DecodeError> {
-        v1::Frame::decode(self.bytes.as_slice())
+        v1::Frame::decode(self.bytes.clone())
     }
 }
 
@@ -62,9 +63,13 @@ mod tests {
             .frame();
         let encoded = EncodedFrame::encode("s-1", &frame);
         assert_eq!(encoded.step(), 0);
-        assert_eq!(
-            encoded.to_proto().expect("decodes"),
-            frame_to_proto("s-1", &frame)
+        let decoded = encoded.to_proto().expect("decodes");
+        assert_eq!(decoded, frame_to_proto("s-1", &frame));
+        let data = &decoded.fields[0].data;
+        let inside = encoded.bytes().as_ptr_range();
+        assert!(
+            inside.contains(&data.as_ptr()),
+            "the positions are a slice of the encoded frame, not a copy"
         );
     }
 }
