@@ -177,8 +177,9 @@ pub enum StepError {
         /// The step that failed.
         step: u64,
     },
-    /// The step's [`Cancel`] was raised before it finished (see
-    /// [`World::step_cancellable`]): not a fault, the step can be taken
+    /// The step's [`Cancel`](crate::cancel::Cancel) was raised before it
+    /// finished (see
+    /// [`World::step_cancellable`](crate::world::World::step_cancellable)): not a fault, the step can be taken
     /// again.
     #[error("step {step} was cancelled before it finished; the world is as it was before the step")]
     Cancelled {
