@@ -37,5 +37,5 @@ pub use cancel::{Cancel, Cancelled, RaiseOnDrop};
 pub use frame::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
 pub use scene::{Budget, BuildOptions, Scene, SceneError};
 pub use world::{
-    Clock, GrabsError, StateError, StepError, StepInfo, SystemState, World, WorldState,
+    Clock, ControlError, Controls, StateError, StepError, StepInfo, SystemState, World, WorldState,
 };

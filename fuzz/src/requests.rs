@@ -13,8 +13,9 @@ use meshless_engine::design::{ConstraintSet, Edit, check_params};
 use meshless_engine::scene::MeshFiles;
 use meshless_proto::v1;
 use meshless_wire::design::{
-    constraint_from_proto, constraint_to_proto, design_params_from_proto, edit_from_proto,
-    motion_params_from_proto,
+    SessionConstraint, SessionEdit, constraint_from_proto, constraint_to_proto,
+    design_params_from_proto, edit_from_proto, motion_params_from_proto,
+    session_constraint_to_proto,
 };
 use meshless_wire::scene::scene_from_proto;
 use prost::Message;
@@ -30,9 +31,12 @@ const MAX_MESH_BYTES: u64 = 64 << 10;
 ///
 /// - `CreateSession`: as the scene targets ([`crate::scene_toml`],
 ///   [`crate::scene_spec`]).
-/// - `EditConstraints`: a refused batch leaves the constraint set as it
-///   was; an accepted one leaves only constraints that pass validation
-///   on their own and survive the trip to the protocol and back.
+/// - `EditConstraints`: the optimiser's half of a batch (runtime
+///   controls are checked by a session's world, which this target has
+///   not): a refused batch leaves the constraint set as it was; an
+///   accepted one leaves only constraints that pass validation on their
+///   own and survive the trip to the protocol and back. Every control
+///   survives that trip too.
 /// - `Optimize`: the settings convert, and the engine's checks of them
 ///   either pass or name the setting.
 ///
@@ -77,7 +81,6 @@ fn context(dim: usize) -> Context {
     Context {
         dim,
         solids: vec![None, Some(8), Some(125)],
-        modal_solids: Vec::new(),
     }
 }
 
@@ -94,17 +97,45 @@ fn edit_constraints(bytes: &[u8], dim: usize) {
         .enumerate()
         .map(|(k, e)| edit_from_proto(e, &format!("edits[{k}]")))
         .collect::<Result<Vec<_>, _>>();
-    let mut edits = match edits {
+    let edits = match edits {
         Ok(edits) => edits,
         Err(e) => return assert_quotes_briefly(bytes, &e.to_string()),
     };
-    for edit in &mut edits {
-        if let Edit::Add(constraint) | Edit::Replace(constraint) = edit
-            && let Err(e) = constraint.load_mesh(&MeshFiles::None, MAX_MESH_BYTES)
-        {
-            return assert_quotes_briefly(bytes, &e.to_string());
+    let mut design_edits = Vec::with_capacity(edits.len());
+    for edit in edits {
+        let (constraint, replace) = match edit {
+            SessionEdit::Add(c) => (c, false),
+            SessionEdit::Replace(c) => (c, true),
+            SessionEdit::Remove(name) => {
+                design_edits.push(Edit::Remove(name));
+                continue;
+            }
+            SessionEdit::Clear => {
+                design_edits.push(Edit::Clear);
+                continue;
+            }
+        };
+        let wire = session_constraint_to_proto(&constraint);
+        let back = constraint_from_proto(wire.clone(), "constraint")
+            .unwrap_or_else(|e| panic!("a converted constraint does not convert back: {e}"));
+        // As bytes: a NaN a control carries is unequal to itself.
+        assert_eq!(
+            session_constraint_to_proto(&back).encode_to_vec(),
+            wire.encode_to_vec(),
+            "constraint round trip"
+        );
+        if let SessionConstraint::Design(mut constraint) = constraint {
+            if let Err(e) = constraint.load_mesh(&MeshFiles::None, MAX_MESH_BYTES) {
+                return assert_quotes_briefly(bytes, &e.to_string());
+            }
+            design_edits.push(if replace {
+                Edit::Replace(constraint)
+            } else {
+                Edit::Add(constraint)
+            });
         }
     }
+    let edits = design_edits;
     let context = context(dim);
     let mut set = ConstraintSet::new();
     if let Err(e) = set.apply(&edits, &context) {
@@ -118,7 +149,11 @@ fn edit_constraints(bytes: &[u8], dim: usize) {
         let wire = constraint_to_proto(constraint);
         let back = constraint_from_proto(wire.clone(), "constraint")
             .unwrap_or_else(|e| panic!("an accepted constraint does not convert back: {e}"));
-        assert_eq!(constraint_to_proto(&back), wire, "constraint round trip");
+        assert_eq!(
+            session_constraint_to_proto(&back),
+            wire,
+            "constraint round trip"
+        );
     }
 }
 

@@ -12,10 +12,10 @@ use crate::session::{
     check_observers, check_simulate, encode_snapshot, grpc_deadline,
 };
 use meshless_engine::Scene;
-use meshless_engine::design::{Constraint, Edit};
 use meshless_proto::v1::{self, simulation_server::Simulation};
 use meshless_wire::design::{
-    constraint_to_proto, design_params_from_proto, edit_from_proto, motion_params_from_proto,
+    SessionConstraint, SessionEdit, design_params_from_proto, edit_from_proto,
+    motion_params_from_proto,
 };
 use meshless_wire::scene::scene_from_proto;
 use std::sync::Arc;
@@ -109,12 +109,6 @@ impl SimulationService {
 }
 
 type Reply<T> = Result<Response<T>, Status>;
-
-fn constraint_list(constraints: &[Constraint]) -> v1::ConstraintList {
-    v1::ConstraintList {
-        constraints: constraints.iter().map(constraint_to_proto).collect(),
-    }
-}
 
 /// When the caller stops waiting, from its `grpc-timeout` header.
 fn deadline_of<T>(request: &Request<T>) -> Option<std::time::Instant> {
@@ -398,14 +392,16 @@ impl Simulation for SimulationService {
         // scene's, before anything changes.
         let options = self.registry.options();
         for edit in &mut edits {
-            if let Edit::Add(constraint) | Edit::Replace(constraint) = edit {
+            if let SessionEdit::Add(SessionConstraint::Design(constraint))
+            | SessionEdit::Replace(SessionConstraint::Design(constraint)) = edit
+            {
                 constraint
                     .load_mesh(&options.mesh_files, options.max_mesh_bytes)
                     .map_err(|e| ServiceError::Design(e.into()))?;
             }
         }
         let constraints = session.edit_constraints(&edits).await?;
-        Ok(Response::new(constraint_list(&constraints)))
+        Ok(Response::new(v1::ConstraintList { constraints }))
     }
 
     async fn list_constraints(
@@ -415,7 +411,9 @@ impl Simulation for SimulationService {
         let caller = caller(&request)?;
         let id = request.into_inner().session_id;
         let session = self.read(&id, &caller)?;
-        Ok(Response::new(constraint_list(&session.constraints())))
+        Ok(Response::new(v1::ConstraintList {
+            constraints: session.constraints(),
+        }))
     }
 
     type OptimizeStream = ReceiverStream<Result<v1::OptimizeEvent, Status>>;

@@ -2,8 +2,10 @@
 //! `meshless-server` binary: a session of one builds, its frames carry
 //! the nodes and the deformed skin with normals, grab constraints move a
 //! point to its target while the session runs, a grab off the solid
-//! refuses its whole batch and leaves everything as it was, a reset
-//! keeps the grabs, and a solid whose precompute would not fit the
+//! refuses its whole batch and leaves everything as it was, a reset and
+//! a snapshot keep the grabs (the world holds them as runtime controls,
+//! apart from the optimiser's constraints, under the same names), and a
+//! solid whose precompute would not fit the
 //! server's memory budget is refused by its estimate before it is built.
 
 use meshless_client::{Client, FrameView, ZenohLink, v1};
@@ -174,6 +176,71 @@ async fn a_grabbed_modal_beam_follows_its_grab_and_a_bad_batch_changes_nothing()
         .sum::<f64>()
         .sqrt();
     assert!(error < 1e-3, "held again after the reset: {at:?}");
+
+    // A snapshot carries the grab: restored into a new session, it is
+    // listed under its name and holds from the first step.
+    let snapshot = within("snapshot", client.snapshot(&id))
+        .await
+        .expect("a snapshot");
+    let restored = within("restore", client.restore(snapshot.data, None, None))
+        .await
+        .expect("the snapshot restores");
+    let listed_there = within("list", client.list_constraints(&restored.id))
+        .await
+        .expect("list");
+    assert_eq!(listed_there, listed, "the grab comes back by name");
+    within("reset", client.reset(&restored.id))
+        .await
+        .expect("reset");
+    step(&client, &restored.id, 60).await;
+    let there = within("latest", client.latest_frame(&restored.id))
+        .await
+        .expect("frame");
+    let at = position(&there, tip);
+    let error = (0..3)
+        .map(|k| (at[k] - target[k]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(error < 1e-3, "held in the restored session: {at:?}");
+
+    // One namespace: a design constraint may not take the grab's name, a
+    // replacement may change the kind, and then the grab lets go.
+    let velocity = v1::Constraint {
+        name: "tip".into(),
+        kind: Some(v1::constraint::Kind::Velocity(v1::VelocityConstraint {
+            time: 1.0,
+            velocity: Some(vec3([0.0, 0.1, 0.0])),
+            points: None,
+        })),
+    };
+    let taken = v1::ConstraintEdit {
+        edit: Some(v1::constraint_edit::Edit::Add(velocity.clone())),
+    };
+    let status = rpc_status(
+        within("a taken name", client.edit_constraints(&id, vec![taken]))
+            .await
+            .expect_err("the name is the grab's"),
+    );
+    assert_eq!(status.code(), Code::InvalidArgument, "{status:?}");
+    assert!(status.message().contains("`tip`"), "{}", status.message());
+    let replace = v1::ConstraintEdit {
+        edit: Some(v1::constraint_edit::Edit::Replace(velocity.clone())),
+    };
+    let now = within("replace", client.edit_constraints(&id, vec![replace]))
+        .await
+        .expect("a replacement of another kind");
+    assert_eq!(now, vec![velocity], "the name now holds the velocity");
+    within("reset", client.reset(&id)).await.expect("reset");
+    step(&client, &id, 60).await;
+    let free = within("latest", client.latest_frame(&id))
+        .await
+        .expect("frame");
+    let at = position(&free, tip);
+    let error = (0..3)
+        .map(|k| (at[k] - target[k]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(error > 1e-2, "released, the tip leaves the target: {at:?}");
 }
 
 /// A modal solid of some 16,000 nodes (a 50 x 25 x 25 cm block on

@@ -23,7 +23,6 @@ fn set_of(constraints: Vec<Constraint>) -> ConstraintSet {
         &Context {
             dim: 3,
             solids: vec![],
-            modal_solids: Vec::new(),
         },
     )
     .expect("valid constraints");

@@ -68,7 +68,6 @@ fn drag(
     let context = Context {
         dim: 3,
         solids: Vec::new(),
-        modal_solids: Vec::new(),
     };
     let mut constraints: ConstraintSet = stretch.constraints();
     let mut quiet = |_: &_| ControlFlow::Continue(());

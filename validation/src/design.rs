@@ -59,7 +59,6 @@ fn constraint_set(constraints: Vec<Constraint>) -> ConstraintSet {
         &Context {
             dim: 3,
             solids: Vec::new(),
-            modal_solids: Vec::new(),
         },
     )
     .expect("the experiment's constraints are valid");

@@ -21,7 +21,6 @@ fn context() -> Context {
     Context {
         dim: 3,
         solids: vec![],
-        modal_solids: Vec::new(),
     }
 }
 

@@ -1,16 +1,25 @@
 //! Conversions of the design messages (`design.proto`): constraints and
 //! their edits, the optimiser's settings, its progress and results, and
 //! the table of the enum declared there.
+//!
+//! A `Constraint` message carries either a constraint the optimiser
+//! meets (handle, velocity, obstacle: the engine's
+//! [`Constraint`]) or a runtime control of the world (a grab: the
+//! engine's [`Control`]), which a session keeps apart; both share the
+//! session's names, so they arrive as one [`SessionConstraint`].
 
 use crate::WireError;
 use crate::enums::{WireEnum, enum_or, wire_enum};
 use crate::error::{Result, required};
 use crate::scene::{aabb, shape_from_proto, to_aabb, to_shape, to_vec3, vec3};
 use meshless_engine::design::{
-    Constraint, ConstraintKind, DesignParams, Edit, Energies, GrabConstraint, Handle, MotionParams,
-    Obstacle, Progress, Quadrature, Selection, SolveInfo, Target, Velocity, Waypoint,
+    Constraint, ConstraintKind, DesignParams, Energies, Handle, MotionParams, Obstacle, Progress,
+    Quadrature, Selection, SolveInfo, Target, Velocity, Waypoint,
 };
+use meshless_engine::efg::Grab;
+use meshless_engine::math::{Vector, vector};
 use meshless_engine::scene::Aabb;
+use meshless_engine::world::{Control, ControlKind};
 use meshless_proto::v1;
 
 wire_enum! {
@@ -39,8 +48,41 @@ fn count(n: usize) -> u32 {
     u32::try_from(n).unwrap_or(u32::MAX)
 }
 
-/// An engine constraint; `field` names the message for errors.
-pub fn constraint_from_proto(c: v1::Constraint, field: &str) -> Result<Constraint> {
+/// What a `Constraint` message holds, by the session's name.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SessionConstraint {
+    /// A constraint the optimiser meets.
+    Design(Constraint),
+    /// A runtime control of the world, with its name.
+    Control(String, Control),
+}
+
+impl SessionConstraint {
+    /// Its name, unique within a session.
+    pub fn name(&self) -> &str {
+        match self {
+            Self::Design(c) => &c.name,
+            Self::Control(name, _) => name,
+        }
+    }
+}
+
+/// An edit of a session's constraints, applied in order with the others
+/// of its batch.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SessionEdit {
+    /// Adds a constraint whose name is new.
+    Add(SessionConstraint),
+    /// Replaces the constraint of the same name (of any kind).
+    Replace(SessionConstraint),
+    /// Removes the constraint of this name.
+    Remove(String),
+    /// Removes every constraint.
+    Clear,
+}
+
+/// A session's constraint; `field` names the message for errors.
+pub fn constraint_from_proto(c: v1::Constraint, field: &str) -> Result<SessionConstraint> {
     let v1::Constraint { name, kind } = c;
     let kind = match kind {
         Some(v1::constraint::Kind::Handle(v1::HandleConstraint {
@@ -89,12 +131,18 @@ pub fn constraint_from_proto(c: v1::Constraint, field: &str) -> Result<Constrain
             point,
             position,
             rotation,
-        })) => ConstraintKind::Grab(GrabConstraint {
-            system: system as usize,
-            point: vec3(required(point, &format!("{field}.grab.point"))?),
-            position: position.map(vec3),
-            rotation: rotation.map(vec3),
-        }),
+        })) => {
+            let grab = Grab {
+                point: vector(vec3(required(point, &format!("{field}.grab.point"))?)),
+                position: position.map(|p| vector(vec3(p))),
+                rotation: rotation.map(|r| vector(vec3(r))),
+            };
+            let control = Control {
+                system: system as usize,
+                kind: ControlKind::Grab(grab),
+            };
+            return Ok(SessionConstraint::Control(name, control));
+        }
         None => {
             return Err(WireError::new(
                 format!("{field}.kind"),
@@ -102,7 +150,7 @@ pub fn constraint_from_proto(c: v1::Constraint, field: &str) -> Result<Constrain
             ));
         }
     };
-    Ok(Constraint { name, kind })
+    Ok(SessionConstraint::Design(Constraint { name, kind }))
 }
 
 fn selection_from_proto(s: Option<v1::Selection>, field: &str) -> Result<Selection> {
@@ -187,16 +235,35 @@ pub fn constraint_to_proto(c: &Constraint) -> v1::Constraint {
                 })
                 .collect(),
         }),
-        ConstraintKind::Grab(g) => v1::constraint::Kind::Grab(v1::GrabConstraint {
-            system: count(g.system),
-            point: Some(to_vec3(g.point)),
-            position: g.position.map(to_vec3),
-            rotation: g.rotation.map(to_vec3),
-        }),
     };
     v1::Constraint {
         name: name.clone(),
         kind: Some(kind),
+    }
+}
+
+/// The wire form of a runtime control called `name`.
+pub fn control_to_proto(name: &str, control: &Control) -> v1::Constraint {
+    let wire = |v: Vector| to_vec3([v.x, v.y, v.z]);
+    let kind = match control.kind {
+        ControlKind::Grab(g) => v1::constraint::Kind::Grab(v1::GrabConstraint {
+            system: count(control.system),
+            point: Some(wire(g.point)),
+            position: g.position.map(wire),
+            rotation: g.rotation.map(wire),
+        }),
+    };
+    v1::Constraint {
+        name: name.to_owned(),
+        kind: Some(kind),
+    }
+}
+
+/// The wire form of a session's constraint.
+pub fn session_constraint_to_proto(c: &SessionConstraint) -> v1::Constraint {
+    match c {
+        SessionConstraint::Design(c) => constraint_to_proto(c),
+        SessionConstraint::Control(name, control) => control_to_proto(name, control),
     }
 }
 
@@ -237,20 +304,19 @@ fn target_to_proto(t: &Target) -> v1::DesignTarget {
     v1::DesignTarget { kind: Some(kind) }
 }
 
-/// An engine edit; `field` names the edit (`edits[3]`).
-pub fn edit_from_proto(e: v1::ConstraintEdit, field: &str) -> Result<Edit> {
+/// A session's edit; `field` names the edit (`edits[3]`).
+pub fn edit_from_proto(e: v1::ConstraintEdit, field: &str) -> Result<SessionEdit> {
     let v1::ConstraintEdit { edit } = e;
     match edit {
-        Some(v1::constraint_edit::Edit::Add(c)) => Ok(Edit::Add(constraint_from_proto(
+        Some(v1::constraint_edit::Edit::Add(c)) => Ok(SessionEdit::Add(constraint_from_proto(
             c,
             &format!("{field}.add"),
         )?)),
-        Some(v1::constraint_edit::Edit::Replace(c)) => Ok(Edit::Replace(constraint_from_proto(
-            c,
-            &format!("{field}.replace"),
-        )?)),
-        Some(v1::constraint_edit::Edit::Remove(name)) => Ok(Edit::Remove(name)),
-        Some(v1::constraint_edit::Edit::Clear(v1::ClearConstraints {})) => Ok(Edit::Clear),
+        Some(v1::constraint_edit::Edit::Replace(c)) => Ok(SessionEdit::Replace(
+            constraint_from_proto(c, &format!("{field}.replace"))?,
+        )),
+        Some(v1::constraint_edit::Edit::Remove(name)) => Ok(SessionEdit::Remove(name)),
+        Some(v1::constraint_edit::Edit::Clear(v1::ClearConstraints {})) => Ok(SessionEdit::Clear),
         None => Err(WireError::new(
             format!("{field}.edit"),
             "is required; set add, replace, remove or clear",
@@ -506,19 +572,22 @@ mod tests {
                     ],
                 }),
             },
-            Constraint {
-                name: "grab".into(),
-                kind: ConstraintKind::Grab(GrabConstraint {
-                    system: 2,
-                    point: [0.1, 0.0, 0.0],
-                    position: Some([0.1, 0.2, 0.0]),
-                    rotation: None,
-                }),
-            },
         ];
-        for c in constraints {
-            let back = constraint_from_proto(constraint_to_proto(&c), "c").expect("converts");
-            assert_eq!(back, c);
+        let grab = Control {
+            system: 2,
+            kind: ControlKind::Grab(Grab {
+                point: Vector::new(0.1, 0.0, 0.0),
+                position: Some(Vector::new(0.1, 0.2, 0.0)),
+                rotation: None,
+            }),
+        };
+        let all = constraints
+            .into_iter()
+            .map(SessionConstraint::Design)
+            .chain([SessionConstraint::Control("grab".into(), grab)]);
+        for c in all {
+            let back = constraint_from_proto(session_constraint_to_proto(&c), "c");
+            assert_eq!(back.expect("converts"), c);
         }
         let params = DesignParams {
             spacing: 0.1,

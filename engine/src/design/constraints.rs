@@ -8,7 +8,6 @@
 //! and the set changes only if every edit is valid, so a rejected request
 //! leaves it as it was. Every error names the constraint at fault.
 
-use crate::efg::Grab;
 use crate::geometry::Shape;
 use crate::math::{Real, Vector, vector};
 use crate::scene::{MeshFiles, ShapeSpec};
@@ -35,37 +34,6 @@ pub enum ConstraintKind {
     Velocity(Velocity),
     /// A solid to stay out of (Eq. 84).
     Obstacle(Obstacle),
-    /// A material point of a modal solid held at a position, an
-    /// orientation or both while it simulates (Guo–Qin Section 5.3.3); the
-    /// optimiser ignores it.
-    Grab(GrabConstraint),
-}
-
-/// A grab of a modal solid's material point (rest shape, world frame).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct GrabConstraint {
-    /// Index of the modal solid's system in the scene.
-    pub system: usize,
-    /// The material point, m.
-    pub point: [Real; 3],
-    /// Where it should be, m.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub position: Option<[Real; 3]>,
-    /// Rotation vector (axis times angle, rad) it should turn by.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub rotation: Option<[Real; 3]>,
-}
-
-impl GrabConstraint {
-    /// The engine's grab.
-    pub fn grab(&self) -> Grab {
-        Grab {
-            point: vector(self.point),
-            position: self.position.map(vector),
-            rotation: self.rotation.map(vector),
-        }
-    }
 }
 
 /// Material points that should move to targets (Eq. 74). A handle with no
@@ -191,8 +159,6 @@ pub struct Context {
     pub dim: usize,
     /// Per scene system, its particle count if it is an elastic solid.
     pub solids: Vec<Option<usize>>,
-    /// The systems that are modal solids (what grabs may hold).
-    pub modal_solids: Vec<usize>,
 }
 
 /// A constraint is invalid; nothing was changed.
@@ -267,18 +233,6 @@ impl ConstraintSet {
         self.items.get(name)
     }
 
-    /// The grabs, by modal solid, in name order: what the world holds
-    /// besides each scene's own grabs.
-    pub fn grabs(&self) -> BTreeMap<usize, Vec<Grab>> {
-        let mut by_system: BTreeMap<usize, Vec<Grab>> = BTreeMap::new();
-        for c in self.items.values() {
-            if let ConstraintKind::Grab(g) = &c.kind {
-                by_system.entry(g.system).or_default().push(g.grab());
-            }
-        }
-        by_system
-    }
-
     /// The number of constraints.
     pub fn len(&self) -> usize {
         self.items.len()
@@ -313,9 +267,7 @@ impl Constraint {
                     name: self.name.clone(),
                     message: e.to_string(),
                 }),
-            ConstraintKind::Handle(_) | ConstraintKind::Velocity(_) | ConstraintKind::Grab(_) => {
-                Ok(())
-            }
+            ConstraintKind::Handle(_) | ConstraintKind::Velocity(_) => Ok(()),
         }
     }
 
@@ -393,24 +345,6 @@ impl Constraint {
                     }
                 }
                 resolve_shape(&o.shape, context.dim).map_err(err)?;
-            }
-            ConstraintKind::Grab(g) => {
-                if !context.modal_solids.contains(&g.system) {
-                    return Err(err(format!(
-                        "system {} is not a modal solid of this scene; grab a system with \
-                         kind = \"modal_solid\"",
-                        g.system
-                    )));
-                }
-                if g.position.is_none() && g.rotation.is_none() {
-                    return Err(err(
-                        "holds nothing; set a position, a rotation or both".into()
-                    ));
-                }
-                let mut points = vec![g.point];
-                points.extend(g.position);
-                points.extend(g.rotation);
-                check_points(&points, "point, position and rotation").map_err(err)?;
             }
         }
         Ok(())
@@ -516,7 +450,6 @@ mod tests {
         Context {
             dim: 3,
             solids: vec![None, Some(10)],
-            modal_solids: vec![2],
         }
     }
 

@@ -25,8 +25,8 @@ pub mod temporal;
 
 pub use body::{DesignBody, Embedding};
 pub use constraints::{
-    Constraint, ConstraintError, ConstraintKind, ConstraintSet, Context, Edit, GrabConstraint,
-    Handle, Obstacle, Selection, Target, Velocity, Waypoint,
+    Constraint, ConstraintError, ConstraintKind, ConstraintSet, Context, Edit, Handle, Obstacle,
+    Selection, Target, Velocity, Waypoint,
 };
 pub use motion::{Derivative, MotionSolution, blend, solve_motion, solve_motion_cancellable};
 pub use params::{DesignParams, MotionParams, Quadrature, SolverParams, Weights};

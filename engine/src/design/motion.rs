@@ -420,8 +420,7 @@ impl<'a> Setup<'a> {
         let dim = body.dim();
         for c in constraints.iter() {
             match &c.kind {
-                // Grabs hold modal solids while they simulate.
-                ConstraintKind::Handle(_) | ConstraintKind::Grab(_) => {}
+                ConstraintKind::Handle(_) => {}
                 ConstraintKind::Velocity(v) => {
                     if !(start..=end).contains(&v.time) {
                         return Err(DesignError::constraint(

@@ -22,7 +22,6 @@ pub fn context(world: &World) -> Context {
     Context {
         dim: world.scene().dimension,
         solids,
-        modal_solids: world.modal_solids().map(|(system, _)| system).collect(),
     }
 }
 

@@ -4,7 +4,7 @@
 //! (`system/<kind>.rs`).
 
 use super::system::System;
-use super::{Clock, StepInfo, World};
+use super::{Clock, Controls, StepInfo, World};
 use crate::frame::FieldKind;
 use crate::scene::{BuildOptions, Checked, Prepared, Scene, SceneError};
 use crate::stats::StageTimer;
@@ -50,6 +50,7 @@ impl World {
             timer: StageTimer::default(),
             frame_fields,
             systems,
+            controls: Controls::default(),
         }
     }
 }

@@ -20,7 +20,7 @@ mod system;
 mod tests;
 pub mod watch;
 
-pub use controls::GrabsError;
+pub use controls::{Control, ControlError, ControlKind, Controls};
 pub use outcome::{StepError, StepInfo};
 pub use saved::{Clock, StateError, SystemState, WorldState};
 pub use system::{ChangeError, InsertError, RemoveError};
@@ -47,6 +47,8 @@ pub struct World {
     /// their particles in: the fluid first, then each solid in scene
     /// order.
     systems: Vec<System>,
+    /// The runtime controls in force (grabs), by name.
+    controls: Controls,
 }
 
 impl World {

@@ -397,7 +397,7 @@ mod modal {
     use crate::efg::Grab;
     use crate::math::{Real, Vector};
     use crate::scene::{BuildOptions, Scene, SceneError};
-    use crate::world::{GrabsError, World};
+    use crate::world::{Control, ControlError, ControlKind, Controls, World};
 
     /// A 16 x 4 x 4 cm cantilever on 2 cm cells (a few hundred nodes),
     /// clamped at x = 0, with `extra` appended to its system table.
@@ -431,6 +431,19 @@ mod modal {
         scene(extra)
             .build(&BuildOptions::default())
             .expect("the scene is valid")
+    }
+
+    /// Controls holding `grabs` on system `system`, named `grab-0`, ...
+    fn grabs(system: usize, grabs: &[Grab]) -> Controls {
+        let mut controls = Controls::new();
+        for (k, &g) in grabs.iter().enumerate() {
+            let control = Control {
+                system,
+                kind: ControlKind::Grab(g),
+            };
+            controls.insert(format!("grab-{k}"), control);
+        }
+        controls
     }
 
     fn tip(world: &World) -> Vector {
@@ -522,14 +535,14 @@ mod modal {
         let point = Vector::new(0.16, 0.0, 0.0);
         let target = Vector::new(0.15, 0.05, 0.0);
         world
-            .set_grabs(
+            .set_controls(grabs(
                 0,
                 &[Grab {
                     point,
                     position: Some(target),
                     rotation: None,
                 }],
-            )
+            ))
             .expect("a valid grab");
         for _ in 0..60 {
             world.step().expect("a stable step");
@@ -559,19 +572,20 @@ mod modal {
             rotation: None,
         };
         assert!(matches!(
-            world.set_grabs(0, &[outside]),
-            Err(GrabsError::Grab { system: 0, .. })
+            world.set_controls(grabs(0, &[outside])),
+            Err(ControlError::Grab { system: 0, ref name, .. }) if name == "grab-0"
         ));
         assert!(matches!(
-            world.set_grabs(3, &[]),
-            Err(GrabsError::NotModal { system: 3 })
+            world.set_controls(grabs(3, &[outside])),
+            Err(ControlError::NotModal { system: 3, .. })
         ));
         let empty = Grab {
             point,
             position: None,
             rotation: None,
         };
-        assert!(world.set_grabs(0, &[empty]).is_err());
+        assert!(world.set_controls(grabs(0, &[empty])).is_err());
+        assert_eq!(world.controls().len(), 1, "the earlier control stays");
         assert_eq!(world.state(), before);
         let (_, solid) = world.modal_solids().next().expect("a modal solid");
         assert_eq!(solid.grabs().len(), 1, "the earlier grab stays");
@@ -640,14 +654,14 @@ mod modal {
         let point = Vector::new(0.16, 0.0, 0.0);
         let target = Vector::new(0.15, 0.03, 0.0);
         world
-            .set_grabs(
+            .set_controls(grabs(
                 0,
                 &[Grab {
                     point,
                     position: Some(target),
                     rotation: None,
                 }],
-            )
+            ))
             .expect("a position grab");
         for _ in 0..40 {
             world.step().expect("a stable step");
@@ -668,7 +682,7 @@ mod modal {
             rotation: Some(Vector::new(0.0, 0.0, 0.3)),
         };
         let refused = world
-            .set_grabs(0, &[turn])
+            .set_controls(grabs(0, &[turn]))
             .expect_err("no orientation grabs");
         assert!(refused.to_string().contains("dynamics"), "{refused}");
         let (_, solid) = world.modal_solids().next().expect("a modal solid");

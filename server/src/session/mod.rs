@@ -2,6 +2,7 @@
 //! commands from gRPC handlers and publishing frames and status on zenoh.
 
 mod access;
+mod constraints;
 mod encoded;
 mod frame_queue;
 mod interrupt;
@@ -15,9 +16,11 @@ mod worker;
 use crate::error::ServiceError;
 use interrupt::Interrupts;
 use meshless_engine::Cancel;
-use meshless_engine::design::{self, Constraint, ConstraintSet, Context, Edit};
+use meshless_engine::design::{self, ConstraintSet, Context};
+use meshless_engine::world::Controls;
 use meshless_engine::{BuildOptions, Scene, World};
 use meshless_proto::{keys, v1};
+use meshless_wire::design::SessionEdit;
 use meshless_wire::scene::scene_echo_to_proto;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -69,7 +72,11 @@ const PROGRESS_QUEUE: usize = 16;
 /// the compute thread. Never locked across a solve.
 #[derive(Debug, Default)]
 pub struct DesignState {
+    /// What the optimiser meets.
     pub constraints: ConstraintSet,
+    /// The world's runtime controls (grabs), as the compute thread last
+    /// set them; they share the constraints' names.
+    pub controls: Controls,
     /// The last successful optimisation.
     pub last: Option<Arc<v1::DesignResult>>,
     /// The cancel flag of the optimisation queued or running, if any.
@@ -384,38 +391,42 @@ impl Session {
             .map_err(|Gone| self.gone())?
     }
 
-    /// Applies constraint edits all or nothing; returns the constraints.
-    /// When the batch changes the grabs of modal solids, the compute
-    /// thread sets them on the world between two steps (a run goes on)
-    /// before the batch commits, so a grab the world refuses (a point off
-    /// the solid) refuses the whole batch.
+    /// Applies constraint edits all or nothing; returns the constraints
+    /// and controls. When the batch changes the world's controls (grabs
+    /// of modal solids), the compute thread sets them on the world
+    /// between two steps (a run goes on) before the batch commits, so a
+    /// control the world refuses (a point off the solid) refuses the
+    /// whole batch.
     ///
     /// # Errors
     /// [`ServiceError::Design`] naming the constraint at fault,
-    /// [`ServiceError::InvalidArgument`] for grabs the world refuses;
+    /// [`ServiceError::InvalidArgument`] for controls the world refuses;
     /// nothing is changed.
-    pub async fn edit_constraints(&self, edits: &[Edit]) -> Result<Vec<Constraint>, ServiceError> {
+    pub async fn edit_constraints(
+        &self,
+        edits: &[SessionEdit],
+    ) -> Result<Vec<v1::Constraint>, ServiceError> {
         let _serial = self.edits.lock().await;
-        let (next, grabs) = {
+        let (next, controls, moved) = {
             let design = lock(&self.design);
-            let mut next = design.constraints.clone();
-            next.apply(edits, &self.context)
-                .map_err(design::DesignError::from)?;
-            let grabs = next.grabs();
-            let moved = grabs != design.constraints.grabs();
-            (next, moved.then_some(grabs))
+            let (next, controls) =
+                constraints::plan(&design.constraints, &design.controls, edits, &self.context)
+                    .map_err(design::DesignError::from)?;
+            let moved = controls != design.controls;
+            (next, controls, moved)
         };
-        if let Some(grabs) = grabs {
+        if moved {
             let (reply, answer) = oneshot::channel();
             self.mailbox
-                .send(Message::Grabs(grabs, reply), false)
+                .send(Message::Controls(controls.clone(), reply), false)
                 .map_err(|Gone| self.gone())?;
             answer.await.map_err(|_| self.gone())??;
         }
         let mut design = lock(&self.design);
         design.constraints = next;
+        design.controls = controls;
         design.revision += 1;
-        Ok(design.constraints.iter().cloned().collect())
+        Ok(constraints::list(&design.constraints, &design.controls))
     }
 
     /// Queues a change of particles for the next step, between two steps
@@ -435,9 +446,10 @@ impl Session {
         answer.await.map_err(|_| self.gone())?
     }
 
-    /// The constraints in name order.
-    pub fn constraints(&self) -> Vec<Constraint> {
-        lock(&self.design).constraints.iter().cloned().collect()
+    /// The constraints and controls in name order.
+    pub fn constraints(&self) -> Vec<v1::Constraint> {
+        let design = lock(&self.design);
+        constraints::list(&design.constraints, &design.controls)
     }
 
     /// Changes of the constraints and the last design so far.

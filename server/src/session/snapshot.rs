@@ -10,10 +10,11 @@ use super::{DesignState, Session, lock};
 use crate::error::ServiceError;
 use meshless_engine::design::{self, ConstraintSet, Edit};
 use meshless_engine::scene::Checked;
+use meshless_engine::world::Controls;
 use meshless_engine::{BuildOptions, Scene, World, WorldState};
 use meshless_proto::snapshot as blob;
 use meshless_proto::v1::{self, SessionState};
-use meshless_wire::design::{constraint_from_proto, constraint_to_proto};
+use meshless_wire::design::{SessionConstraint, constraint_from_proto};
 use meshless_wire::scene::{scene_from_proto, scene_to_proto};
 use meshless_wire::snapshot::{world_state_from_proto, world_state_to_proto};
 use std::sync::Arc;
@@ -44,6 +45,8 @@ pub struct ResumedSession {
     pub run: Option<RunTarget>,
     pub warm: Option<WarmStart>,
     pub constraints: ConstraintSet,
+    /// The controls, already set on the world.
+    pub controls: Controls,
     pub last: Option<v1::DesignResult>,
 }
 
@@ -59,7 +62,7 @@ impl Session {
         let (constraints, last) = {
             let design = lock(&self.design);
             (
-                design.constraints.iter().map(constraint_to_proto).collect(),
+                super::constraints::list(&design.constraints, &design.controls),
                 design.last.as_deref().cloned(),
             )
         };
@@ -185,18 +188,36 @@ impl Decoded {
     /// # Errors
     /// [`ServiceError::InvalidArgument`] naming what does not fit.
     pub fn resume(self, world: World, options: &BuildOptions) -> Result<Resumed, ServiceError> {
-        let world = world.restored(&self.world).map_err(|e| unfit(&e))?;
+        let mut world = world.restored(&self.world).map_err(|e| unfit(&e))?;
         let context = design::context(&world);
         let mut edits = Vec::with_capacity(self.constraints.len());
+        let mut controls = Controls::new();
         for (k, c) in self.constraints.into_iter().enumerate() {
-            let mut constraint = constraint_from_proto(c, &format!("constraints[{k}]"))?;
-            constraint
-                .load_mesh(&options.mesh_files, options.max_mesh_bytes)
-                .map_err(|e| unfit(&e))?;
-            edits.push(Edit::Add(constraint));
+            let field = format!("constraints[{k}]");
+            match constraint_from_proto(c, &field)? {
+                SessionConstraint::Design(mut constraint) => {
+                    constraint
+                        .load_mesh(&options.mesh_files, options.max_mesh_bytes)
+                        .map_err(|e| unfit(&e))?;
+                    edits.push(Edit::Add(constraint));
+                }
+                SessionConstraint::Control(name, control) => {
+                    if controls.insert(name.clone(), control).is_some() {
+                        let name = crate::error::quote(&name);
+                        return Err(unfit(&format!("{field}: a second constraint {name}")));
+                    }
+                }
+            }
         }
         let mut constraints = ConstraintSet::default();
         constraints.apply(&edits, &context).map_err(|e| unfit(&e))?;
+        if let Some(c) = constraints.iter().find(|c| controls.get(&c.name).is_some()) {
+            let name = crate::error::quote(&c.name);
+            return Err(unfit(&format!("two constraints are called {name}")));
+        }
+        world
+            .set_controls(controls.clone())
+            .map_err(|e| unfit(&e))?;
         let warm = self
             .warm
             .map(|w| WarmStart::from_proto(w, &world))
@@ -244,6 +265,7 @@ impl Decoded {
                 run,
                 warm,
                 constraints,
+                controls,
                 last: self.last,
             },
         })
@@ -271,9 +293,15 @@ pub fn encode(payload: &v1::SnapshotPayload, limit: usize) -> Result<Vec<u8>, Se
 }
 
 impl DesignState {
-    /// Takes a restored session's constraints and last design.
-    pub(super) fn resume(&mut self, constraints: ConstraintSet, last: Option<v1::DesignResult>) {
+    /// Takes a restored session's constraints, controls and last design.
+    pub(super) fn resume(
+        &mut self,
+        constraints: ConstraintSet,
+        controls: Controls,
+        last: Option<v1::DesignResult>,
+    ) {
         self.constraints = constraints;
+        self.controls = controls;
         self.last = last.map(Arc::new);
         self.revision += 1;
     }

@@ -8,7 +8,7 @@
 //! A stepping call (`Step`, `SimulateSteps`, up to a billion steps) is
 //! one command, but between two of its steps the thread serves what a
 //! running session serves between steps: snapshots and checkpoints
-//! (`Capture`) and grabs. A restore is refused meanwhile, as while
+//! (`Capture`) and runtime controls (grabs). A restore is refused meanwhile, as while
 //! running; every other message waits for the call, in order, so that
 //! the steps of two calls never interleave.
 
@@ -22,10 +22,10 @@ use super::snapshot::{Captured, Resumed, ResumedSession};
 use super::{Command, LatestFrame, Origin, Reply, SharedDesign, lock};
 use crate::error::{ServiceError, state_name};
 use crate::metrics::Metrics;
-use meshless_engine::efg::Grab;
+use meshless_engine::world::Controls;
 use meshless_engine::{BuildOptions, Cancel, StepError, World};
 use meshless_proto::v1::{SessionState, SessionStatus};
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::VecDeque;
 use std::panic::AssertUnwindSafe;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
@@ -43,10 +43,10 @@ pub enum Message {
     Capture(tokio::sync::oneshot::Sender<Captured>),
     /// Swaps in a restored world and the session state around it.
     Restore(Box<Resumed>, Reply),
-    /// Holds these grabs (by modal solid, besides each scene's own) from
-    /// the next step; a run goes on.
-    Grabs(
-        BTreeMap<usize, Vec<Grab>>,
+    /// Replaces the world's runtime controls (grabs of modal solids,
+    /// besides each scene's own) from the next step; a run goes on.
+    Controls(
+        Controls,
         tokio::sync::oneshot::Sender<Result<(), ServiceError>>,
     ),
     /// Removes and adds particles from the next step (see
@@ -272,8 +272,8 @@ impl Worker {
                     let result = self.guarded(|w| w.restore(*resumed)).and_then(|r| r);
                     let _ = reply.send(result);
                 }
-                Some((_, Message::Grabs(grabs, reply))) => {
-                    let result = self.guarded(|w| w.set_grabs(&grabs)).and_then(|r| r);
+                Some((_, Message::Controls(controls, reply))) => {
+                    let result = self.guarded(|w| w.set_controls(controls)).and_then(|r| r);
                     let _ = reply.send(result);
                 }
                 Some((_, Message::Particles(change, reply))) => {
@@ -433,10 +433,10 @@ impl Worker {
         }
     }
 
-    /// Holds `grabs` from the next step.
-    fn set_grabs(&mut self, grabs: &BTreeMap<usize, Vec<Grab>>) -> Result<(), ServiceError> {
+    /// Holds `controls` from the next step.
+    fn set_controls(&mut self, controls: Controls) -> Result<(), ServiceError> {
         self.world
-            .set_all_grabs(grabs)
+            .set_controls(controls)
             .map_err(|e| ServiceError::InvalidArgument {
                 field: "edits".into(),
                 message: e.to_string(),
@@ -489,6 +489,7 @@ impl Worker {
             run,
             warm,
             constraints,
+            controls,
             last,
         } = resumed;
         self.run = run;
@@ -498,24 +499,25 @@ impl Worker {
             design.session_id.clone_from(&self.id);
             design
         });
-        lock(&self.design).resume(constraints, last);
-        self.hold_grabs();
+        lock(&self.design).resume(constraints, controls, last);
         self.published_step = None;
         self.publish_frame();
         self.set_state(state, &reason);
     }
 
-    /// Sets the session's grab constraints on a world built or restored
-    /// afresh. They held on a world of the same scene, so they hold
-    /// again; should one not, the world keeps its scene's grabs and the
-    /// log says why.
-    fn hold_grabs(&mut self) {
-        let grabs = lock(&self.design).constraints.grabs();
-        if grabs.is_empty() {
+    /// Sets the old world's runtime controls on a world rebuilt from
+    /// the same scene. They held on it, so they hold again; should one
+    /// not, the world keeps its scene's grabs, the session forgets the
+    /// controls and the log says why.
+    fn hold_controls(&mut self, controls: Controls) {
+        if controls.is_empty() {
             return;
         }
-        if let Err(e) = self.world.set_all_grabs(&grabs) {
-            tracing::warn!(session = %self.id, "grabs not held again: {e}");
+        if let Err(e) = self.world.set_controls(controls) {
+            tracing::warn!(session = %self.id, "controls not held again: {e}");
+            let mut design = lock(&self.design);
+            design.controls = Controls::new();
+            design.revision += 1;
         }
     }
 
@@ -639,8 +641,8 @@ impl Worker {
                     // The caller may have gone away.
                     let _ = out.send(self.capture());
                 }
-                Message::Grabs(grabs, reply) => {
-                    let _ = reply.send(self.set_grabs(&grabs));
+                Message::Controls(controls, reply) => {
+                    let _ = reply.send(self.set_controls(controls));
                 }
                 Message::Particles(change, reply) => {
                     let _ = reply.send(self.change_particles(&change));
@@ -712,8 +714,9 @@ impl Worker {
     }
 
     fn reset(&mut self) -> Result<SessionStatus, ServiceError> {
+        let controls = self.world.controls().clone();
         self.world = self.world.scene().build(&self.options)?;
-        self.hold_grabs();
+        self.hold_controls(controls);
         self.run = None;
         self.pacing = None;
         self.published_step = None;
