@@ -29,6 +29,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // buffer (the server's encoded latest frame) shares it instead of
         // copying tens of megabytes.
         .bytes(".meshless.v1.FieldData.data")
+        // NextFrame answers with the encoded frame itself: a clone of the
+        // session's buffer, not a copy.
+        .bytes(".meshless.v1.NextFrameResponse.frame")
         .build_client(true)
         .build_server(true)
         .compile_fds(descriptors)?;

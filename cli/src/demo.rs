@@ -1,7 +1,8 @@
 //! `meshless demo`: the whole service in one process. An embedded server
 //! (gRPC on a free loopback port, zenoh peer on another) runs the dam
 //! break; this command drives it as any remote client would: gRPC for
-//! control and status, zenoh for frames.
+//! control and status, zenoh for frames. The server's browser viewer
+//! shows the run live at the address the demo prints first.
 
 use crate::output::{Format, FrameFiles, SurfaceFormat};
 use anyhow::{Context, Result, bail};
@@ -36,6 +37,14 @@ pub struct DemoArgs {
     /// or a solid embeds one.
     #[arg(long, value_enum, default_value = "obj")]
     surface_format: SurfaceFormat,
+    /// Address of the browser viewer, which shows the run live; port 0
+    /// picks a free one.
+    #[arg(long, default_value = "127.0.0.1:0")]
+    http_addr: std::net::SocketAddr,
+    /// Once the run is done, keep the server and its viewer up (to reset,
+    /// run and grab the session from the page) until Ctrl-C.
+    #[arg(long)]
+    serve: bool,
 }
 
 pub async fn demo(args: DemoArgs) -> Result<()> {
@@ -43,8 +52,16 @@ pub async fn demo(args: DemoArgs) -> Result<()> {
         Some(path) => meshless_client::read_scene_file(path)?,
         None => DAM_BREAK.to_owned(),
     };
-    let server = meshless_server::start(ServerConfig::ephemeral()).await?;
-    let result = drive(&args, &scene, &server).await;
+    let server = meshless_server::start(ServerConfig {
+        http_addr: Some(args.http_addr),
+        ..ServerConfig::ephemeral()
+    })
+    .await?;
+    let mut result = drive(&args, &scene, &server).await;
+    if result.is_ok() && args.serve {
+        outln!("serving until Ctrl-C")?;
+        result = tokio::signal::ctrl_c().await.context("waiting for Ctrl-C");
+    }
     server.stop().await?;
     result
 }
@@ -59,6 +76,9 @@ async fn drive(
     let info = client.server_info().await?;
     let session = client.create_session_toml(scene).await?;
     let id = session.id.clone();
+    if let Some(http) = server.http_addr {
+        outln!("watch it live: http://{http}/?session={id}")?;
+    }
     outln!(
         "embedded server at {url} (zenoh {}); session {id}: {}, {} particles",
         info.zenoh_locators.join(","),

@@ -431,6 +431,35 @@ impl Client {
         crate::FrameView::from_proto(frame)
     }
 
+    /// The latest frame once it is newer than frame number `after` (0:
+    /// any), waiting up to `wait` (at most a minute) on the server; with
+    /// its number, which the next poll passes as `after`. `None` when no
+    /// newer frame came in time. One poll at a time is a subscription
+    /// that skips the frames a slow reader would not keep up with.
+    ///
+    /// # Errors
+    /// `NOT_FOUND`, `PERMISSION_DENIED`, `INVALID_ARGUMENT` for a wait
+    /// over a minute, or a frame that does not decode.
+    pub async fn next_frame(
+        &self,
+        id: &str,
+        after: u64,
+        wait: std::time::Duration,
+    ) -> Result<Option<(u64, crate::FrameView)>> {
+        let request = v1::NextFrameRequest {
+            session_id: id.to_owned(),
+            after,
+            wait_ms: u32::try_from(wait.as_millis()).unwrap_or(u32::MAX),
+        };
+        let reply = self.grpc().next_frame(request).await?.into_inner();
+        if reply.frame.is_empty() {
+            return Ok(None);
+        }
+        let frame = <v1::Frame as prost::Message>::decode(reply.frame)
+            .map_err(|e| ClientError::Decode(format!("NextFrame's frame: {e}")))?;
+        Ok(Some((reply.number, crate::FrameView::from_proto(frame)?)))
+    }
+
     /// Applies constraint edits, all or nothing; returns the session's
     /// constraints in name order.
     ///

@@ -264,3 +264,77 @@ def test_a_killed_server_restores_its_sessions_from_checkpoints(topology, client
         restarted.step(session, 1)
     finally:
         restarted.close()
+
+
+def _grpc_web(topology: Topology, name: str, method: str, body: bytes, token: str | None):
+    """One gRPC-web call to replica ``name``'s viewer listener, over HTTPS
+    with the topology's CA: ``(grpc-status, [messages])``."""
+    import http.client
+    import ssl
+    import struct
+
+    host, port = topology.servers[name].viewer
+    context = ssl.create_default_context(cafile=str(topology.credentials.ca))
+    # Locally the certificate names `localhost`, the listener 127.0.0.1.
+    connection = http.client.HTTPSConnection(
+        topology.credentials.domain or host, port, timeout=TIMEOUT, context=context
+    )
+    headers = {"content-type": "application/grpc-web+proto", "x-grpc-web": "1"}
+    if token:
+        headers["authorization"] = f"Bearer {token}"
+    try:
+        connection.request(
+            "POST", f"/meshless.v1.Simulation/{method}", struct.pack(">BI", 0, len(body)) + body, headers
+        )
+        answer = connection.getresponse()
+        data = answer.read()
+        status = answer.getheader("grpc-status")
+    finally:
+        connection.close()
+    messages = []
+    while data:
+        flag, length = struct.unpack(">BI", data[:5])
+        payload, data = data[5 : 5 + length], data[5 + length :]
+        if flag & 0x80:
+            for line in payload.decode().split("\r\n"):
+                if line.startswith("grpc-status:"):
+                    status = line.split(":", 1)[1].strip()
+        else:
+            messages.append(payload)
+    return int(status), messages
+
+
+def test_each_replica_serves_the_viewer_and_the_service_to_it(topology, clients):
+    """The viewer of every replica over HTTPS: its page for anyone, the
+    service as gRPC-web only with a token, frames by NextFrame."""
+    import http.client
+    import ssl
+
+    from meshless.v1 import frame_pb2, simulation_pb2
+
+    for name in NAMES:
+        host, port = topology.servers[name].viewer
+        context = ssl.create_default_context(cafile=str(topology.credentials.ca))
+        connection = http.client.HTTPSConnection(
+            topology.credentials.domain or host, port, timeout=TIMEOUT, context=context
+        )
+        try:
+            connection.request("GET", "/")
+            page = connection.getresponse()
+            assert page.status == 200 and b"meshless viewer" in page.read()
+        finally:
+            connection.close()
+
+        session = clients[name].create_session(SCENE)
+        clients[name].step(session.id, 2)
+        request = simulation_pb2.NextFrameRequest(session_id=session.id, after=0, wait_ms=0)
+        status, _ = _grpc_web(topology, name, "NextFrame", request.SerializeToString(), token=None)
+        assert status == 16, "no token: UNAUTHENTICATED"
+        status, messages = _grpc_web(
+            topology, name, "NextFrame", request.SerializeToString(), topology.credentials.token
+        )
+        assert status == 0 and len(messages) == 1
+        reply = simulation_pb2.NextFrameResponse.FromString(messages[0])
+        frame = frame_pb2.Frame.FromString(reply.frame)
+        assert reply.number >= 1
+        assert frame.header.session_id == session.id and frame.header.step == 2

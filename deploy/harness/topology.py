@@ -61,6 +61,8 @@ class Server:
     target: str
     #: ``http://host:port/metrics``.
     metrics_url: str
+    #: ``(host, port)`` of its browser viewer (HTTPS, ``--http-addr``).
+    viewer: tuple[str, int]
 
 
 @dataclass
@@ -254,7 +256,7 @@ class LocalTopology:
         top._start_router()
         for name in names:
             relay = Relay(("127.0.0.1", top._router_port))
-            grpc, metrics = free_port(), free_port()
+            grpc, metrics, http = free_port(), free_port(), free_port()
             checkpoints = workdir / name
             checkpoints.mkdir()
             args = [
@@ -262,6 +264,7 @@ class LocalTopology:
                 "--server-name", name,
                 "--grpc-addr", f"127.0.0.1:{grpc}",
                 "--metrics-addr", f"127.0.0.1:{metrics}",
+                "--http-addr", f"127.0.0.1:{http}",
                 "--zenoh-mode", "client",
                 "--zenoh-connect", f"tls/127.0.0.1:{relay.port}",
                 "--zenoh-config", str(top.zenoh_config),
@@ -274,7 +277,10 @@ class LocalTopology:
             top._processes[name] = _Process(args, {**os.environ, "MESHLESS_LOG": "warn"})
             top._relays[name] = relay
             top.servers[name] = Server(
-                name, f"127.0.0.1:{grpc}", f"http://127.0.0.1:{metrics}/metrics"
+                name,
+                f"127.0.0.1:{grpc}",
+                f"http://127.0.0.1:{metrics}/metrics",
+                ("127.0.0.1", http),
             )
             top.start(name)
         return top
@@ -330,7 +336,8 @@ class ComposeTopology:
         )
         self.zenoh_config = write_zenoh_ca_config(Path("/tmp/zenoh-client.json"), certs / "ca.crt")
         self.servers = {
-            name: Server(name, f"{name}:50051", f"http://{name}:9464/metrics") for name in names
+            name: Server(name, f"{name}:50051", f"http://{name}:9464/metrics", (name, 8080))
+            for name in names
         }
         self.router = os.environ.get("MESHLESS_HARNESS_ROUTER", "tls/zenohd:7447")
         self.route_template = "https://{server}:50051"

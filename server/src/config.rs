@@ -243,6 +243,12 @@ pub struct ServerConfig {
     #[arg(long, env = "MESHLESS_METRICS_ADDR")]
     pub metrics_addr: Option<SocketAddr>,
 
+    /// Address of the browser viewer: the page, its scripts, and the
+    /// service itself as gRPC-web, with the same token check and access
+    /// rules (docs/viewer.md); port 0 picks a free port. Unset: no viewer.
+    #[arg(long, env = "MESHLESS_HTTP_ADDR")]
+    pub http_addr: Option<SocketAddr>,
+
     /// Seconds, in [0.1, 3600], within which a metrics request's headers
     /// must arrive, counted from the connection's start or its previous
     /// answer; slower connections are closed.
@@ -440,6 +446,7 @@ impl ServerConfig {
             max_mesh_mb: DEFAULT_MAX_MESH_MB,
             memory_budget_mb: None,
             metrics_addr: None,
+            http_addr: None,
             metrics_header_timeout: DEFAULT_METRICS_HEADER_TIMEOUT,
             max_snapshot_mb: DEFAULT_MAX_SNAPSHOT_MB,
             checkpoint_dir: None,

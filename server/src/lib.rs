@@ -26,6 +26,7 @@ mod registry;
 mod service;
 mod session;
 mod tls;
+mod web;
 
 pub use config::{ServerConfig, ZenohMode, ZenohPublishers};
 /// A frame as a session encodes it once for all its readers (public for
@@ -47,6 +48,10 @@ const MAX_RESPONSE_BYTES: usize = 64 * 1024 * 1024;
 /// Longest the last checkpoint round of a shutdown may take.
 const LAST_ROUND_TIMEOUT: Duration = Duration::from_secs(20);
 
+/// Longest the viewer's listener may take to stop once the sessions are
+/// gone.
+const VIEWER_STOP_TIMEOUT: Duration = Duration::from_secs(5);
+
 /// Room around a snapshot blob in the messages that carry one.
 const SNAPSHOT_ENVELOPE: usize = 1 << 20;
 
@@ -61,12 +66,12 @@ const KEEPALIVE_TIMEOUT: Duration = Duration::from_secs(10);
 /// recommended minimum. Unset, hyper's limit was none at all (20,000
 /// streams on one connection were answered, holding 257 MB); past it a
 /// new stream is refused (REFUSED_STREAM), which clients retry.
-const MAX_STREAMS_PER_CONNECTION: u32 = 100;
+pub(crate) const MAX_STREAMS_PER_CONNECTION: u32 = 100;
 
 /// Largest header block of a request. hyper's default (16 kB) answered a
 /// 16 kB token with HTTP 431, which clients show as UNKNOWN; with room
 /// above `auth::MAX_TOKEN_BYTES` the token check refuses it by name.
-const MAX_HEADER_LIST_BYTES: u32 = 64 << 10;
+pub(crate) const MAX_HEADER_LIST_BYTES: u32 = 64 << 10;
 
 /// A server started by [`start`].
 #[derive(Debug)]
@@ -77,6 +82,8 @@ pub struct RunningServer {
     pub zenoh_locators: Vec<String>,
     /// The bound metrics address, when the server serves metrics.
     pub metrics_addr: Option<SocketAddr>,
+    /// The bound address of the browser viewer, when the server serves it.
+    pub http_addr: Option<SocketAddr>,
     shutdown: CancellationToken,
     task: tokio::task::JoinHandle<Result<()>>,
 }
@@ -110,6 +117,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         ),
     }
     let tls = config.grpc_tls().map_err(anyhow::Error::msg)?;
+    let viewer_tls = tls.clone();
     if tls.is_none() && !config.grpc_addr.ip().is_loopback() {
         tracing::warn!(
             grpc_addr = %config.grpc_addr,
@@ -235,6 +243,29 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         simulation,
         auth::Authenticator::new(tokens),
     );
+    let deadlines = connection::Deadlines {
+        handshake: config.handshake_period(),
+        idle: config.idle_period(),
+    };
+    let viewer = match config.http_addr {
+        Some(addr) => Some(
+            web::serve(
+                addr,
+                simulation.clone(),
+                web::Listener {
+                    tls: viewer_tls,
+                    max_connections: config.max_connections as usize,
+                    deadlines,
+                    metrics: metrics.clone(),
+                },
+                // Accepting ends with the gRPC port's.
+                sessions_stop.child_token(),
+            )
+            .await?,
+        ),
+        None => None,
+    };
+    let http_addr = viewer.as_ref().map(|(addr, _)| *addr);
     let (health_reporter, health) = tonic_health::server::health_reporter();
     health_reporter
         .set_serving::<SimulationServer<SimulationService>>()
@@ -246,11 +277,9 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
 
     let incoming = listener::incoming(
         listener,
+        "gRPC",
         config.max_connections as usize,
-        connection::Deadlines {
-            handshake: config.handshake_period(),
-            idle: config.idle_period(),
-        },
+        deadlines,
         // Accepting ends with the sessions (below): tonic stops at the
         // end of its connections as soon as they end, which would cut
         // the last checkpoint round short.
@@ -291,6 +320,16 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
             let _ = checkpointer.await;
         }
         registry.shut_down_all().await;
+        if let Some((_, viewer)) = viewer {
+            // Its calls ended with the sessions; a page's idle connection
+            // does not hold the server up.
+            if tokio::time::timeout(VIEWER_STOP_TIMEOUT, viewer)
+                .await
+                .is_err()
+            {
+                tracing::warn!("the viewer's listener did not stop in time");
+            }
+        }
         drop(presence);
         if let Err(e) = zenoh.close().await {
             tracing::warn!("closing zenoh: {e}");
@@ -302,6 +341,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         grpc_addr,
         zenoh_locators,
         metrics_addr,
+        http_addr,
         shutdown,
         task,
     })
@@ -318,8 +358,12 @@ pub async fn serve_until_signal(config: ServerConfig) -> Result<()> {
         .metrics_addr
         .map(|addr| format!(" metrics={addr}"))
         .unwrap_or_default();
+    let http = server
+        .http_addr
+        .map(|addr| format!(" http={addr}"))
+        .unwrap_or_default();
     println!(
-        "meshless-server ready grpc={} zenoh={}{metrics}",
+        "meshless-server ready grpc={} zenoh={}{metrics}{http}",
         server.grpc_addr,
         server.zenoh_locators.join(",")
     );

@@ -125,15 +125,16 @@ impl Connected for Admitted {
     }
 }
 
-/// The connections of `listener`, at most `max_connections` open at
-/// once, each closed at its `deadlines`, until `stop` or until the stream
-/// is dropped. Each gets `TCP_NODELAY`: a small response held back by
+/// The connections of `listener` (`what` names it in logs), at most
+/// `max_connections` open at once, each closed at its `deadlines`, until
+/// `stop` or until the stream is dropped. Each gets `TCP_NODELAY`: a small response held back by
 /// Nagle's algorithm until the client's delayed ACK cost about 44 ms per
 /// sequential call in the loopback test of issue 13 (`cargo bench -p
 /// meshless-load` measures sequential calls; docs/performance.md has its
 /// figures).
 pub fn incoming(
     listener: TcpListener,
+    what: &'static str,
     max_connections: usize,
     deadlines: Deadlines,
     stop: CancellationToken,
@@ -143,7 +144,7 @@ pub fn incoming(
     tokio::spawn(async move {
         loop {
             let next = tokio::select! {
-                next = accept_within(&listener, &places, "gRPC") => next,
+                next = accept_within(&listener, &places, what) => next,
                 () = stop.cancelled() => None,
                 () = admitted.closed() => None,
             };
@@ -213,7 +214,7 @@ mod tests {
     async fn connections_beyond_the_cap_wait_and_all_send_without_delay() {
         let listener = TcpListener::bind("127.0.0.1:0").await.expect("bind");
         let addr = listener.local_addr().expect("address");
-        let mut connections = incoming(listener, 1, PATIENT, CancellationToken::new());
+        let mut connections = incoming(listener, "test", 1, PATIENT, CancellationToken::new());
         let _first_client = timeout(WAIT, TcpStream::connect(addr))
             .await
             .expect("connects in time")
@@ -254,7 +255,7 @@ mod tests {
             handshake: Duration::from_millis(200),
             idle: WAIT,
         };
-        let mut connections = incoming(listener, 1, brief, CancellationToken::new());
+        let mut connections = incoming(listener, "test", 1, brief, CancellationToken::new());
         let mut speaking = timeout(WAIT, TcpStream::connect(addr))
             .await
             .expect("connects in time")

@@ -356,6 +356,7 @@ const METHODS: &[&str] = &[
     "Reset",
     "WatchStatus",
     "GetLatestFrame",
+    "NextFrame",
     "EditConstraints",
     "ListConstraints",
     "Optimize",

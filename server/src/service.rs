@@ -33,6 +33,10 @@ const DEFAULT_PLAYBACK_RATE: f64 = 30.0;
 const OPTIMIZE_EVENTS: usize = 16;
 /// Progress messages queued per `SimulateSteps` stream.
 const SIMULATE_EVENTS: usize = 4;
+/// Longest a `NextFrame` poll may ask to wait, ms: long enough that an
+/// idle session costs a viewer one request a minute, short enough that a
+/// stalled poll is noticed.
+const MAX_FRAME_WAIT_MS: u32 = 60_000;
 
 #[derive(Debug)]
 pub struct SimulationService {
@@ -373,6 +377,45 @@ impl Simulation for SimulationService {
                 ServiceError::Internal(format!("the latest frame does not decode: {e}"))
             })?;
         Ok(Response::new(message))
+    }
+
+    async fn next_frame(
+        &self,
+        request: Request<v1::NextFrameRequest>,
+    ) -> Reply<v1::NextFrameResponse> {
+        let caller = caller(&request)?;
+        let answer_by = answer_by(deadline_of(&request));
+        let request = request.into_inner();
+        if request.wait_ms > MAX_FRAME_WAIT_MS {
+            return Err(ServiceError::invalid(
+                "wait_ms",
+                format!(
+                    "is {} ms; ask for at most {MAX_FRAME_WAIT_MS} ms and poll again",
+                    request.wait_ms
+                ),
+            )
+            .into());
+        }
+        let session = self.read(&request.session_id, &caller)?;
+        let mut wait = std::time::Duration::from_millis(u64::from(request.wait_ms));
+        if let Some(by) = answer_by {
+            wait = wait.min(by.saturating_duration_since(std::time::Instant::now()));
+        }
+        // A shutdown ends the wait: the server does not stop for polls.
+        let latest = tokio::select! {
+            latest = session.next_frame(request.after, wait) => latest,
+            () = self.shutdown.cancelled() => None,
+        };
+        Ok(Response::new(match latest {
+            Some(latest) => v1::NextFrameResponse {
+                number: latest.number,
+                frame: latest.frame.to_bytes(),
+            },
+            None => v1::NextFrameResponse {
+                number: request.after,
+                frame: Default::default(),
+            },
+        }))
     }
 
     async fn edit_constraints(

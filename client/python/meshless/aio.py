@@ -289,6 +289,22 @@ class AsyncClient:
         """The session's latest frame over gRPC."""
         return decode_frame(await self._unary(self._latest_frame, self._ref(session), timeout))
 
+    async def next_frame(
+        self, session: Any, after: int = 0, *, wait: float = 5.0, timeout: float | None = None
+    ) -> tuple[int, Frame | None]:
+        """As :meth:`meshless.Client.next_frame`: ``(number, frame)`` once
+        a frame newer than ``after`` exists, ``(after, None)`` after
+        ``wait`` seconds without one."""
+        request = self._pb.NextFrameRequest(
+            session_id=session_id_of(session), after=after, wait_ms=round(wait * 1000)
+        )
+        reply = await self._unary(
+            self._stub.NextFrame, request, timeout or max(self._timeout, wait + 5.0)
+        )
+        if not reply.frame:
+            return reply.number, None
+        return reply.number, decode_frame(reply.frame)
+
     async def frames(
         self,
         session: Any,

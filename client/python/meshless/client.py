@@ -345,6 +345,24 @@ class Client:
         zenoh), its arrays viewing the answer's bytes."""
         return decode_frame(self._unary(self._latest_frame, self._ref(session), timeout))
 
+    def next_frame(
+        self, session: Any, after: int = 0, *, wait: float = 5.0, timeout: float | None = None
+    ) -> tuple[int, Frame | None]:
+        """The session's latest frame once it is newer than frame number
+        ``after`` (0: at once), waiting up to ``wait`` seconds (at most 60)
+        on the server: ``(number, frame)``, or ``(after, None)`` when none
+        came in time. Pass the number back as ``after``: one call at a time
+        follows the session's frames over gRPC, skipping those a slow
+        reader would not keep up with (the browser viewer reads this way)."""
+        request = self._pb.NextFrameRequest(
+            session_id=session_id_of(session), after=after, wait_ms=round(wait * 1000)
+        )
+        # The call's deadline leaves the wait room to answer.
+        reply = self._unary(self._stub.NextFrame, request, timeout or max(self._timeout, wait + 5.0))
+        if not reply.frame:
+            return reply.number, None
+        return reply.number, decode_frame(reply.frame)
+
     def frames(
         self,
         session: Any,

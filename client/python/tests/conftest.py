@@ -28,6 +28,8 @@ def fixture(name: str) -> str:
 class Server:
     grpc_target: str
     zenoh_endpoints: list[str]
+    # The browser viewer's address, when started with --http-addr.
+    http: str | None = None
 
 
 def _server_binary() -> str:
@@ -65,7 +67,11 @@ def running_server(*extra_args: str):
             if line.startswith("meshless-server ready "):
                 break
         parts = dict(p.split("=", 1) for p in line.split()[2:])
-        yield Server(grpc_target=parts["grpc"], zenoh_endpoints=parts["zenoh"].split(","))
+        yield Server(
+            grpc_target=parts["grpc"],
+            zenoh_endpoints=parts["zenoh"].split(","),
+            http=parts.get("http"),
+        )
     finally:
         process.terminate()
         assert process.wait(timeout=TIMEOUT) == 0, "the server exits cleanly on SIGTERM"

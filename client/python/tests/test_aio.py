@@ -81,6 +81,9 @@ def test_frames_long_runs_and_snapshots(shared_server):
                 assert (await frames.query_latest()).step == 3
             latest = await client.latest_frame(session)
             assert latest.step == 3 and isinstance(latest.fields["position"].base, bytes)
+            number, polled = await client.next_frame(session, 0, wait=0)
+            assert polled is not None and polled.step == 3
+            assert await client.next_frame(session, number, wait=0.1) == (number, None)
 
             snapshot = await client.snapshot(session)
             copy = await client.restore(snapshot)

@@ -378,3 +378,15 @@ def test_a_modal_solid_is_grabbed_with_dicts_and_streams_its_skin(client):
     np.testing.assert_allclose(held.vertices[tip], target, atol=1e-3)
     np.testing.assert_allclose(np.linalg.norm(held.normals, axis=1), 1.0, atol=1e-5)
     client.delete_session(session)
+
+
+def test_next_frame_follows_a_session_frame_by_frame(client):
+    session = client.create_session(TANK)
+    number, frame = client.next_frame(session, 0, wait=0)
+    assert number >= 1 and frame is not None and frame.step == 0
+    # Nothing newer on an idle session: the wait ends empty.
+    assert client.next_frame(session, number, wait=0.2) == (number, None)
+    client.step(session, 2)
+    newer, frame = client.next_frame(session, number, wait=5)
+    assert newer > number and frame is not None and frame.step == 2
+    assert code_of(lambda: client.next_frame(session, 0, wait=61)) == grpc.StatusCode.INVALID_ARGUMENT

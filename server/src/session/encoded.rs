@@ -38,6 +38,11 @@ impl EncodedFrame {
         &self.bytes
     }
 
+    /// The encoded bytes, shared: a reference count, not a copy.
+    pub fn to_bytes(&self) -> Bytes {
+        self.bytes.clone()
+    }
+
     /// The message back, for `GetLatestFrame`: its fields' data are
     /// slices of these bytes, not copies, and no conversion runs.
     ///

@@ -6,6 +6,7 @@ mod constraints;
 mod encoded;
 mod frame_queue;
 mod interrupt;
+mod latest;
 mod optimize;
 mod publish;
 mod run_target;
@@ -29,6 +30,7 @@ use tokio_util::sync::CancellationToken;
 
 pub use access::{Access, check_observers};
 pub use encoded::EncodedFrame;
+pub use latest::{LatestFrame, Numbered};
 pub use optimize::{OptimizeJob, Problem};
 pub use publish::Outlet;
 pub use run_target::RunTarget;
@@ -58,10 +60,6 @@ pub enum Command {
 }
 
 type Reply = oneshot::Sender<Result<v1::SessionStatus, ServiceError>>;
-
-/// The most recent frame, shared by the worker (writer) and the latest
-/// queryable and `GetLatestFrame` (readers).
-pub type LatestFrame = Arc<Mutex<Arc<EncodedFrame>>>;
 
 /// Status changes buffered per watcher.
 const STATUS_EVENTS: usize = 64;
@@ -260,6 +258,12 @@ impl Session {
                 system: u32::try_from(system).unwrap_or(u32::MAX),
                 frequencies: solid.frequencies(),
                 rigid: u32::try_from(solid.zero_modes()).unwrap_or(u32::MAX),
+                rest_positions: solid
+                    .rest_positions()
+                    .iter()
+                    .flat_map(|p| [p.x as f32, p.y as f32, p.z as f32])
+                    .flat_map(f32::to_le_bytes)
+                    .collect(),
             })
             .collect();
         let context = design::context(world);
@@ -274,10 +278,7 @@ impl Session {
         };
         let (status_tx, status) = watch::channel(initial);
         let (events, _) = broadcast::channel(STATUS_EVENTS);
-        let latest: LatestFrame = Arc::new(Mutex::new(Arc::new(EncodedFrame::encode(
-            &id,
-            &world.frame(),
-        ))));
+        let latest = LatestFrame::new(EncodedFrame::encode(&id, &world.frame()));
         let (frames_tx, frames_rx) = frame_queue::frame_queue();
         let (commands, commands_rx) = std::sync::mpsc::channel();
         let interrupts = Arc::new(Interrupts::default());
@@ -532,10 +533,17 @@ impl Session {
     }
 
     pub fn latest_frame(&self) -> Arc<EncodedFrame> {
-        self.latest
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .clone()
+        self.latest.get().frame
+    }
+
+    /// The latest frame once it is newer than frame number `after`,
+    /// waiting at most `wait`; `None` when none came in time or the
+    /// session was deleted meanwhile.
+    pub async fn next_frame(&self, after: u64, wait: std::time::Duration) -> Option<Numbered> {
+        tokio::select! {
+            latest = self.latest.newer_than(after, wait) => latest,
+            () = self.cancel.cancelled() => None,
+        }
     }
 
     /// The `Session` message for this session, without its scene: what
@@ -562,6 +570,13 @@ impl Session {
             observers: self.access.observers().to_vec(),
             seal_key: self.seal_key.clone(),
             modal_modes: self.modal_modes.clone(),
+            system_kinds: self
+                .scene
+                .systems
+                .iter()
+                .map(|s| s.kind_name().to_owned())
+                .collect(),
+            realtime_factor: self.realtime_factor(),
         }
     }
 

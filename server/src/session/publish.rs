@@ -137,10 +137,7 @@ pub fn spawn_latest(outlet: Outlet, id: String, latest: LatestFrame, cancel: Can
                     Err(_) => break,
                 },
             };
-            let frame = latest
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner)
-                .clone();
+            let frame = latest.get().frame;
             let bytes = outlet.payload_encoded(&key, frame.bytes());
             if let Err(e) = query.reply(key.clone(), bytes).await {
                 tracing::warn!(session = %id, "latest-frame reply failed: {e}");

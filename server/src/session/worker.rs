@@ -798,11 +798,7 @@ impl Worker {
     /// network never slows the simulation.
     fn publish_frame(&mut self) {
         let frame = Arc::new(EncodedFrame::encode(&self.id, &self.world.frame()));
-        *self
-            .out
-            .latest
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner) = frame.clone();
+        self.out.latest.replace(frame.clone());
         if self.out.frames.try_send(frame).is_err() {
             self.dropped_frames += 1;
             self.out.metrics.frame_dropped();
@@ -875,10 +871,7 @@ mod tests {
             status,
             events,
             frames,
-            latest: Arc::new(std::sync::Mutex::new(Arc::new(EncodedFrame::encode(
-                "s",
-                &world.frame(),
-            )))),
+            latest: LatestFrame::new(EncodedFrame::encode("s", &world.frame())),
             metrics: Arc::new(Metrics::new()),
             realtime_factor: Arc::default(),
         };
