@@ -85,6 +85,20 @@ pub enum ServiceError {
         /// What was refused.
         action: &'static str,
     },
+    /// An observer of the session asked to `action` it: observers see,
+    /// only the owner drives.
+    #[error(
+        "you observe session {session_id}: you may see it but not {action} it; only its \
+         owner `{owner}` drives it"
+    )]
+    ObserverMayNotDrive {
+        /// The session, [`quote`]d.
+        session_id: String,
+        /// What was refused.
+        action: &'static str,
+        /// The owner's principal.
+        owner: String,
+    },
     /// Another client instance of the owner drives the session.
     #[error(
         "session {session_id} is driven by client {controller}; take control with \
@@ -165,7 +179,9 @@ impl ServiceError {
             | Self::Stepping { .. }
             | Self::StepCounterFull { .. } => Code::FailedPrecondition,
             Self::TooManySessions { .. } | Self::MemoryBudget { .. } => Code::ResourceExhausted,
-            Self::PermissionDenied { .. } => Code::PermissionDenied,
+            Self::PermissionDenied { .. } | Self::ObserverMayNotDrive { .. } => {
+                Code::PermissionDenied
+            }
             Self::ControlledElsewhere { .. } => Code::Aborted,
             Self::Snapshot(blob) => match blob {
                 BlobError::TooLarge { .. } => Code::ResourceExhausted,

@@ -118,6 +118,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
     }
     let tls = config.grpc_tls().map_err(anyhow::Error::msg)?;
     let viewer_tls = tls.clone();
+    let tokenless = tokens.is_none();
     if tls.is_none() && !config.grpc_addr.ip().is_loopback() {
         tracing::warn!(
             grpc_addr = %config.grpc_addr,
@@ -253,6 +254,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
                 addr,
                 simulation.clone(),
                 web::Listener {
+                    tokenless,
                     tls: viewer_tls,
                     max_connections: config.max_connections as usize,
                     deadlines,

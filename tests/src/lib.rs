@@ -114,6 +114,9 @@ pub struct ServerProcess {
     pub zenoh: Vec<String>,
     /// `http://ADDR/metrics`, when it serves metrics (`--metrics-addr`).
     pub metrics_url: Option<String>,
+    /// `ADDR` (`127.0.0.1:PORT`) of the browser viewer's listener, when it
+    /// serves one (`--http-addr`).
+    pub http_addr: Option<String>,
 }
 
 impl ServerProcess {
@@ -204,6 +207,7 @@ impl ServerProcess {
         let mut grpc_url = None;
         let mut zenoh = Vec::new();
         let mut metrics_url = None;
+        let mut http_addr = None;
         for part in ready.split_whitespace() {
             if let Some(addr) = part.strip_prefix("grpc=") {
                 grpc_url = Some(format!("http://{addr}"));
@@ -211,6 +215,8 @@ impl ServerProcess {
                 zenoh = endpoints.split(',').map(str::to_owned).collect();
             } else if let Some(addr) = part.strip_prefix("metrics=") {
                 metrics_url = Some(format!("http://{addr}/metrics"));
+            } else if let Some(addr) = part.strip_prefix("http=") {
+                http_addr = Some(addr.to_owned());
             }
         }
         Ok(Self {
@@ -218,6 +224,7 @@ impl ServerProcess {
             grpc_url: grpc_url.context("ready line without grpc=")?,
             zenoh,
             metrics_url,
+            http_addr,
         })
     }
 

@@ -1,6 +1,8 @@
-//! `cargo bench -p meshless-load`: the service under load, as three
-//! tables (see the crate's documentation for what each measures). With
+//! `cargo bench -p meshless-load`: the service under load, as tables
+//! (see the crate's documentation for what each measures). With
 //! `MESHLESS_BENCH_SMOKE=1` every part runs at its smallest size, for CI.
+//! `cargo bench -p meshless-load -- NAME...` runs only the parts named
+//! (`rpc`, `frame_cost`, `frames`, `slow_subscriber`, `viewers`).
 
 #[path = "../../../engine/benches/common/smoke.rs"]
 mod smoke;
@@ -8,7 +10,7 @@ mod smoke;
 use anyhow::{Context, Result};
 use meshless_client::Client;
 use meshless_load::frames::Payload;
-use meshless_load::{frame_cost, frames, rpc, slow_subscriber};
+use meshless_load::{frame_cost, frames, rpc, slow_subscriber, viewers};
 use meshless_server::ServerConfig;
 use std::time::Duration;
 
@@ -17,7 +19,19 @@ use std::time::Duration;
 /// cost.
 const SMALL_TANK: &str = include_str!("../../../tests/fixtures/small_tank.toml");
 
+/// The parts, by the names that select them.
+const PARTS: &[&str] = &["rpc", "frame_cost", "frames", "slow_subscriber", "viewers"];
+
 fn main() -> Result<()> {
+    // The parts named on the command line (cargo adds `--bench`), or all.
+    let named: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-'))
+        .collect();
+    if let Some(unknown) = named.iter().find(|n| !PARTS.contains(&n.as_str())) {
+        anyhow::bail!("no part {unknown:?} in this bench: name one of {PARTS:?}");
+    }
+    let runs = |part: &str| named.is_empty() || named.iter().any(|n| n == part);
     // The server on its own runtime, as in its own process; the load
     // generator on another.
     let server_runtime = tokio::runtime::Builder::new_multi_thread()
@@ -34,12 +48,27 @@ fn main() -> Result<()> {
         .enable_all()
         .build()?;
     load_runtime.block_on(async {
-        rpc_table(&url).await?;
-        frame_cost_table()?;
-        frames_table().await?;
-        slow_subscriber_table(&url, &zenoh).await
+        if runs("rpc") {
+            rpc_table(&url).await?;
+        }
+        if runs("frame_cost") {
+            frame_cost_table()?;
+        }
+        if runs("frames") {
+            frames_table().await?;
+        }
+        if runs("slow_subscriber") {
+            slow_subscriber_table(&url, &zenoh).await?;
+        }
+        anyhow::Ok(())
     })?;
-    server_runtime.block_on(server.stop())
+    server_runtime.block_on(server.stop())?;
+    // A server of its own, with the viewer's listener; off the load
+    // runtime, since its viewers are threads that block.
+    if runs("viewers") {
+        viewers_table()?;
+    }
+    Ok(())
 }
 
 /// Prints one row of the RPC table.
@@ -209,6 +238,57 @@ async fn slow_subscriber_table(url: &str, zenoh: &[String]) -> Result<()> {
         measured.alone,
         measured.watched,
         measured.ratio()
+    );
+    Ok(())
+}
+
+/// 20 browser viewers on one session of 100,000 particles (5,000 in smoke
+/// mode), in alternating arms of a fixed window.
+fn viewers_table() -> Result<()> {
+    let (side, height) = smoke::pick((50, 40), (25, 8));
+    let viewers = smoke::pick(20, 2);
+    let rounds = smoke::pick(3, 2);
+    let window = smoke::pick(Duration::from_secs(10), Duration::from_millis(300));
+    let scene = viewers::resting_block(side, height);
+    let measured = viewers::measure(&scene, viewers, rounds, window)?;
+    let mb = |bytes: u64| bytes as f64 / 1e6;
+    println!(
+        "\n{viewers} browser viewers polling NextFrame (gRPC-web over HTTP/1.1, wait {} ms, one \
+         poll in flight each) on one session of {} particles at rest, a frame every step \
+         ({:.2} MB); arms of {:.1} s, alternating\n",
+        viewers::WAIT_MS,
+        measured.particles,
+        mb(measured.frame_bytes),
+        window.as_secs_f64()
+    );
+    println!("| arm | viewers | steps/s | frames/s per viewer | failed polls | peak RSS MB |");
+    println!("|---|---|---|---|---|---|");
+    for (k, arm) in measured.arms.iter().enumerate() {
+        println!(
+            "| {} | {} | {:.2} | {:.2} | {} | {:.0} |",
+            k + 1,
+            arm.viewers,
+            arm.steps_per_s(),
+            arm.frames_per_viewer_s(),
+            arm.errors,
+            mb(arm.peak_rss)
+        );
+    }
+    println!();
+    println!(
+        "| steps/s alone | steps/s with {viewers} viewers | ratio | frames/s per viewer | RSS \
+         before MB | peak MB | after MB |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    println!(
+        "| {:.2} | {:.2} | {:.3} | {:.2} | {:.0} | {:.0} | {:.0} |",
+        measured.alone(),
+        measured.watched(),
+        measured.ratio(),
+        measured.frames_per_viewer_s(),
+        mb(measured.rss_before),
+        mb(measured.rss_peak),
+        mb(measured.rss_after)
     );
     Ok(())
 }

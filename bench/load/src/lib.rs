@@ -1,7 +1,8 @@
 //! # meshless-load
 //!
 //! The load bench of the service (`cargo bench -p meshless-load`), in
-//! three parts that print one table each:
+//! parts that print their tables in turn (`cargo bench -p meshless-load
+//! -- NAME...` runs only the parts named):
 //!
 //! - [`rpc`]: `GetSession` and `Step(1)` over real gRPC on loopback,
 //!   sequential, from concurrent callers, and at a fixed arrival rate
@@ -15,7 +16,12 @@
 //! - [`frame_cost`]: what a frame of 100k and 1M particles costs the
 //!   server's async runtime per reader (publisher, latest-frame query,
 //!   `GetLatestFrame`), converted and encoded per reader as before issue
-//!   31 and encoded once on the compute thread as now, in the same run.
+//!   31 and encoded once on the compute thread as now, in the same run;
+//! - [`viewers`]: one session of 100k particles stepping with nobody
+//!   watching, then with 20 browser viewers polling `NextFrame` over
+//!   gRPC-web on the viewer's listener, in alternating arms: steps per
+//!   second and their ratio, frames each viewer got per second, and the
+//!   process's resident memory.
 //!
 //! The server is the real one, started in this process on its own tokio
 //! runtime (`meshless_server::start`) and reached over TCP, so the bench
@@ -25,3 +31,4 @@ pub mod frame_cost;
 pub mod frames;
 pub mod rpc;
 pub mod slow_subscriber;
+pub mod viewers;

@@ -56,10 +56,25 @@ impl Access {
         if caller.principal == self.owner {
             Ok(())
         } else {
-            Err(ServiceError::PermissionDenied {
+            Err(self.refuse_drive(id, caller, action))
+        }
+    }
+
+    /// Why `caller`, not the owner, may not `action` session `id`: an
+    /// observer is told it observes (it already sees the session), anyone
+    /// else that the session is another's.
+    fn refuse_drive(&self, id: &str, caller: &Caller, action: &'static str) -> ServiceError {
+        if self.may_read(caller) {
+            ServiceError::ObserverMayNotDrive {
                 session_id: id.to_owned(),
                 action,
-            })
+                owner: self.owner.to_string(),
+            }
+        } else {
+            ServiceError::PermissionDenied {
+                session_id: id.to_owned(),
+                action,
+            }
         }
     }
 
@@ -112,10 +127,7 @@ impl Access {
         action: &'static str,
     ) -> Result<(), ServiceError> {
         if caller.principal != self.owner {
-            return Err(ServiceError::PermissionDenied {
-                session_id: id.to_owned(),
-                action,
-            });
+            return Err(self.refuse_drive(id, caller, action));
         }
         let me = caller.controller();
         let mut controller = self
@@ -194,6 +206,12 @@ mod tests {
             assert_eq!(err.code(), Code::PermissionDenied, "{err}");
             assert!(err.to_string().contains("step"), "{err}");
         }
+        // The observer is told it observes, not to ask to be named one.
+        let told = access.check_drive("s", &bob, "step").expect_err("observer");
+        assert!(told.to_string().contains("you observe"), "{told}");
+        assert!(told.to_string().contains("`alice`"), "{told}");
+        let told = access.check_drive("s", &eve, "step").expect_err("stranger");
+        assert!(told.to_string().contains("`observers`"), "{told}");
         let everyone = Access::new(&alice, vec![EVERYONE.into()]);
         everyone.check_read("s", &eve).expect("everyone reads");
     }

@@ -41,6 +41,10 @@ const CONTENT_SECURITY_POLICY: &str = "default-src 'self'; img-src 'self' data: 
 /// What the listener needs besides its address.
 #[derive(Debug)]
 pub struct Listener {
+    /// Whether callers need no token (a loopback server without
+    /// `--tokens-file`): then only requests addressed to a loopback host
+    /// are answered (see [`loopback_only`]).
+    pub tokenless: bool,
     pub tls: Option<tonic::transport::ServerTlsConfig>,
     pub max_connections: usize,
     pub deadlines: Deadlines,
@@ -59,7 +63,7 @@ pub async fn serve(
     listener: Listener,
     stop: CancellationToken,
 ) -> Result<(SocketAddr, tokio::task::JoinHandle<()>)> {
-    let routes = routes(simulation, listener.metrics)?;
+    let routes = routes(simulation, listener.metrics, listener.tokenless)?;
     let tcp = tokio::net::TcpListener::bind(addr)
         .await
         .with_context(|| format!("cannot bind the viewer's --http-addr {addr}"))?;
@@ -96,7 +100,7 @@ pub async fn serve(
 /// The page's files, the schema, the scenes, and the service, behind the
 /// gRPC port's layers: the gRPC-web translation outermost, so that the
 /// metrics, the codes' rewriting and the call counting see plain gRPC.
-fn routes(simulation: Simulation, metrics: Arc<Metrics>) -> Result<Routes> {
+fn routes(simulation: Simulation, metrics: Arc<Metrics>, tokenless: bool) -> Result<Routes> {
     let schema: Arc<str> = schema::json(meshless_proto::FILE_DESCRIPTOR_SET)?.into();
     let scenes: Arc<str> = assets::scenes_json().into();
     let service = tower::ServiceBuilder::new()
@@ -131,7 +135,56 @@ fn routes(simulation: Simulation, metrics: Arc<Metrics>) -> Result<Routes> {
             axum::routing::get(move || async move { file(asset) }),
         );
     }
-    Ok(Routes::from(router.fallback(not_found)))
+    let mut router = router.fallback(not_found);
+    if tokenless {
+        router = router.layer(axum::middleware::from_fn(loopback_only));
+    }
+    Ok(Routes::from(router))
+}
+
+/// On a server without tokens every caller may drive every session, and a
+/// browser sends a page's calls to whatever address its name resolves to:
+/// another site whose name resolves to 127.0.0.1 (DNS rebinding) would be
+/// answered as this page is. So such a server answers only requests
+/// addressed to a loopback host (`127.0.0.1`, `[::1]`, `localhost`), the
+/// only names it may be reached by; with tokens, the token keeps other
+/// sites out (a page of another origin cannot read it).
+async fn loopback_only(request: axum::extract::Request, next: axum::middleware::Next) -> Response {
+    let host = request.uri().host().map(str::to_owned).or_else(|| {
+        request
+            .headers()
+            .get(header::HOST)
+            .and_then(|h| h.to_str().ok())
+            .map(str::to_owned)
+    });
+    if host.as_deref().is_some_and(is_loopback_host) {
+        next.run(request).await
+    } else {
+        (
+            StatusCode::FORBIDDEN,
+            [(header::CONTENT_TYPE, "text/plain; charset=utf-8")],
+            "this server has no tokens, so its viewer answers only at a loopback address \
+             (http://127.0.0.1:PORT/ or http://localhost:PORT/)\n",
+        )
+            .into_response()
+    }
+}
+
+/// Whether a `Host` value (with or without its port) names this machine's
+/// loopback interface.
+fn is_loopback_host(host: &str) -> bool {
+    let name = match host.strip_prefix('[') {
+        // `[::1]` or `[::1]:8080`.
+        Some(rest) => match rest.split_once(']') {
+            Some((name, _)) => name,
+            None => return false,
+        },
+        None => host.rsplit_once(':').map_or(host, |(name, _)| name),
+    };
+    name.eq_ignore_ascii_case("localhost")
+        || name
+            .parse::<std::net::IpAddr>()
+            .is_ok_and(|ip| ip.is_loopback())
 }
 
 /// A file of the page: never cached stale (a new server may bring a new
@@ -182,4 +235,35 @@ async fn not_found() -> Response {
         "not found: the viewer is at /\n",
     )
         .into_response()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::is_loopback_host;
+
+    #[test]
+    fn only_loopback_names_pass_the_host_check() {
+        for host in [
+            "127.0.0.1:8080",
+            "127.0.0.1",
+            "localhost:1",
+            "LOCALHOST",
+            "[::1]:8080",
+            "[::1]",
+            "127.1.2.3:80",
+        ] {
+            assert!(is_loopback_host(host), "{host}");
+        }
+        for host in [
+            "evil.example",
+            "evil.example:8080",
+            "localhost.evil.example",
+            "10.0.0.1:8080",
+            "[fe80::1]:80",
+            "",
+            "[::1",
+        ] {
+            assert!(!is_loopback_host(host), "{host}");
+        }
+    }
 }
