@@ -171,9 +171,15 @@ fn validation_sits_on_the_engine_alone() {
 
 /// Every `.rs` file under `engine/src/DIR`, with its text.
 fn engine_sources(dir: &str) -> Vec<(std::path::PathBuf, String)> {
+    sources(&format!("engine/src/{dir}"))
+}
+
+/// Every `.rs` file under `FOLDER` (from the workspace root), with its
+/// text.
+fn sources(folder: &str) -> Vec<(std::path::PathBuf, String)> {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../engine/src")
-        .join(dir);
+        .join("..")
+        .join(folder);
     let mut pending = vec![root.clone()];
     let mut files = Vec::new();
     while let Some(dir) = pending.pop() {
@@ -252,35 +258,28 @@ fn engine_modules_import_downward_only() {
     }
 }
 
-/// The names `engine/src/lib.rs` re-exports at the crate root (`pub use
-/// home::{A, B};`), read from its text.
-fn crate_root_reexports() -> BTreeSet<String> {
-    let lib = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../engine/src/lib.rs");
-    let text = std::fs::read_to_string(&lib)
-        .unwrap_or_else(|e| panic!("cannot read {}: {e}", lib.display()));
-    let mut names = BTreeSet::new();
-    let mut rest = text.as_str();
-    while let Some(at) = rest.find("pub use ") {
-        let tail = &rest[at + "pub use ".len()..];
-        let end = tail.find(';').expect("a `pub use` ends with `;`");
-        let item = &tail[..end];
-        let list = match item.find('{') {
-            Some(open) => &item[open + 1..item.rfind('}').expect("a closed group")],
-            None => item.rsplit("::").next().expect("a path"),
-        };
-        for name in list.split(',') {
-            let name = name.rsplit(" as ").next().expect("a name").trim();
-            if !name.is_empty() {
-                names.insert(name.to_string());
-            }
-        }
-        rest = &tail[end + 1..];
-    }
-    assert!(
-        names.contains("World"),
-        "lib.rs re-exports World: {names:?}"
-    );
-    names
+/// The modules a crate root (`lib.rs`, `main.rs`) declares: `mod x;`,
+/// `pub mod x;`, `pub(crate) mod x;`, read from its text.
+fn declared_modules(root: &str) -> BTreeSet<String> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(root);
+    let text = std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    let modules: BTreeSet<String> = text
+        .lines()
+        .map(str::trim)
+        .filter_map(|line| {
+            let line = line
+                .strip_prefix("pub(crate) ")
+                .or_else(|| line.strip_prefix("pub "))
+                .unwrap_or(line);
+            line.strip_prefix("mod ")?.strip_suffix(';')
+        })
+        .map(|name| name.trim().to_string())
+        .collect();
+    assert!(!modules.is_empty(), "{root} declares no module");
+    modules
 }
 
 /// The first path segment of each entry of a `crate::{...}` group that
@@ -311,53 +310,70 @@ fn group_heads(group: &str) -> Vec<&str> {
         .collect()
 }
 
-/// Engine modules import a type from its home module (`crate::world::World`),
-/// never through the crate-root re-export (`crate::World`): the re-exports
-/// are the public face of the crate, and a module that reaches up to the
-/// root for them hides the real edge (and can close a loop through
-/// `lib.rs`) from anyone reading its imports. Comment lines (doc links)
-/// are not imports and are skipped.
+/// The crate roots whose modules the rule below reads, with their source
+/// folders.
+const CRATE_ROOTS: &[(&str, &str)] = &[
+    ("engine/src/lib.rs", "engine/src"),
+    ("wire/src/lib.rs", "wire/src"),
+    ("server/src/lib.rs", "server/src"),
+    ("cli/src/main.rs", "cli/src"),
+];
+
+/// A crate's modules import from its other modules (`crate::world::World`),
+/// never an item of the crate root (`crate::World`, a re-export, or a
+/// constant `lib.rs` defines): the root's items are the crate's public
+/// face, and a module that reaches up to the root for them hides the real
+/// edge (and closes a loop through `lib.rs`, which declares the module)
+/// from anyone reading its imports. Comment lines (doc links) are not
+/// imports and are skipped; so is `$crate` in macros.
 #[test]
-fn engine_modules_do_not_import_crate_root_reexports() {
-    let names = crate_root_reexports();
+fn modules_do_not_import_items_of_their_crate_root() {
     let mut offenders = Vec::new();
-    for (path, text) in engine_sources("") {
-        if path.ends_with("lib.rs") && path.parent().is_some_and(|p| p.ends_with("src")) {
-            continue;
-        }
-        let code: String = text
-            .lines()
-            .filter(|line| !line.trim_start().starts_with("//"))
-            .collect::<Vec<_>>()
-            .join("\n");
-        let mut rest = code.as_str();
-        while let Some(at) = rest.find("crate::") {
-            let after = &rest[at + "crate::".len()..];
-            let preceded = rest[..at]
-                .chars()
-                .next_back()
-                .is_some_and(|c| c.is_alphanumeric() || c == '_' || c == ':');
-            if !preceded {
-                let heads = if let Some(group) = after.strip_prefix('{') {
-                    group_heads(group)
-                } else {
-                    let end = after
-                        .find(|c: char| !(c.is_alphanumeric() || c == '_'))
-                        .unwrap_or(after.len());
-                    vec![&after[..end]]
-                };
-                for head in heads {
-                    if names.contains(head) {
-                        offenders.push(format!("{}: crate::{head}", path.display()));
+    for (root, folder) in CRATE_ROOTS {
+        let modules = declared_modules(root);
+        let root_file = std::path::Path::new(root).file_name().expect("a file name");
+        let top = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("..")
+            .join(folder);
+        for (path, text) in sources(folder) {
+            if path.parent() == Some(top.as_path()) && path.file_name() == Some(root_file) {
+                continue;
+            }
+            let code: String = text
+                .lines()
+                .filter(|line| !line.trim_start().starts_with("//"))
+                .collect::<Vec<_>>()
+                .join("\n");
+            let mut rest = code.as_str();
+            while let Some(at) = rest.find("crate::") {
+                let after = &rest[at + "crate::".len()..];
+                let preceded = rest[..at]
+                    .chars()
+                    .next_back()
+                    .is_some_and(|c| c.is_alphanumeric() || c == '_' || c == ':' || c == '$');
+                if !preceded {
+                    let heads = if let Some(group) = after.strip_prefix('{') {
+                        group_heads(group)
+                    } else {
+                        let end = after
+                            .find(|c: char| !(c.is_alphanumeric() || c == '_'))
+                            .unwrap_or(after.len());
+                        vec![&after[..end]]
+                    };
+                    for head in heads {
+                        if !modules.contains(head) && head != "self" {
+                            offenders.push(format!("{}: crate::{head}", path.display()));
+                        }
                     }
                 }
+                rest = after;
             }
-            rest = after;
         }
     }
     assert!(
         offenders.is_empty(),
-        "engine modules import crate-root re-exports; import from the home module instead:\n{}",
+        "modules import items of their crate root; import from the item's home module \
+         instead:\n{}",
         offenders.join("\n")
     );
 }

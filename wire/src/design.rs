@@ -8,8 +8,8 @@
 //! engine's [`Control`]), which a session keeps apart; both share the
 //! session's names, so they arrive as one [`SessionConstraint`].
 
-use crate::WireError;
 use crate::enums::{WireEnum, enum_or, wire_enum};
+use crate::error::WireError;
 use crate::error::{Result, required};
 use crate::scene::{aabb, shape_from_proto, to_aabb, to_shape, to_vec3, vec3};
 use meshless_engine::design::{

@@ -8,8 +8,8 @@
 //! The engine and proto variants share their names (prost strips the
 //! proto's `KERNEL_KIND_` prefixes); each proto enum's 0 is `Unspecified`.
 
-use crate::WireError;
 use crate::error::Result;
+use crate::error::WireError;
 
 /// An engine enum that crosses the protocol as the proto enum `Proto`.
 pub trait WireEnum: Copy + Sized + 'static {

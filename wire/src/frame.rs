@@ -5,8 +5,8 @@
 //! demo`). The way back checks every length, so a malformed frame is an
 //! error naming its field rather than a short or shifted one.
 
-use crate::WireError;
 use crate::enums::{WireEnum, required_enum};
+use crate::error::WireError;
 use crate::error::{Result, required};
 use crate::scene::{to_vec3, vec3};
 use meshless_engine::geometry::TriMesh;

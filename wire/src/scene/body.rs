@@ -2,8 +2,8 @@
 //! directions, and the tables of its motion and slip condition.
 
 use super::geometry::{shape_from_proto, to_shape, to_vec3, vec3};
-use crate::WireError;
 use crate::enums::{WireEnum, enum_or, wire_enum};
+use crate::error::WireError;
 use crate::error::{Result, required};
 use meshless_engine::scene::{MotionKind, OscillationSpec, RigidBodySpec, SlipKind, defaults};
 use meshless_proto::v1;

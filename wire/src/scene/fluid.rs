@@ -3,8 +3,8 @@
 //! viscosity, pressure solver).
 
 use super::geometry::{aabb, to_aabb, to_vec3, vec3};
-use crate::WireError;
 use crate::enums::{WireEnum, optional_enum, required_enum, wire_enum};
+use crate::error::WireError;
 use crate::error::{Result, required};
 use meshless_engine::approx::KernelKind;
 use meshless_engine::fluid::ViscosityModel;

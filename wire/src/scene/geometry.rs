@@ -2,8 +2,8 @@
 //! both directions, and the mesh-format table. A leaf of the scene
 //! conversions: the kind files import it, it imports none of them.
 
-use crate::WireError;
 use crate::enums::{WireEnum, required_enum, wire_enum};
+use crate::error::WireError;
 use crate::error::{Result, required};
 use meshless_engine::geometry::read::MeshFormat;
 use meshless_engine::scene::MeshData;

@@ -18,8 +18,8 @@ mod solid;
 
 pub(crate) use geometry::{aabb, shape_from_proto, to_aabb, to_shape, to_vec3, vec3};
 
-use crate::WireError;
 use crate::enums::{WireEnum, required_enum, wire_enum};
+use crate::error::WireError;
 use crate::error::{Result, required};
 use meshless_engine::scene::{OutputSpec, SurfaceSpec, SystemSpec, TimeSpec, defaults};
 use meshless_engine::{FieldKind, Scene};

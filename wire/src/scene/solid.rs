@@ -4,8 +4,8 @@
 //! implicit scheme).
 
 use super::geometry::{aabb, shape_from_proto, to_aabb, to_shape, to_vec3, vec3};
-use crate::WireError;
 use crate::enums::{WireEnum, enum_or, optional_enum, wire_enum};
+use crate::error::WireError;
 use crate::error::{Result, required};
 use meshless_engine::approx::mls::Order;
 use meshless_engine::scene::{IntegratorKind, SolidSpec, SolidSurfaceSpec, solid_defaults};
