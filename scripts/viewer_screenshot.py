@@ -7,7 +7,10 @@ from a scene file, runs it, opens the page in headless Chromium (Debian's
 `--frames` frames, saves a PNG of the window and prints the page's own
 timings: frames received per second, and per frame the decoding of the
 message and the upload of its particles to the GPU (`performance.now()`
-around each, in the page).
+around each, in the page). With `--pull N` it then measures the page's
+capacity apart from the session's pace: the page fetches the latest frame
+N times in a row, decoding and uploading each as a new one, and the
+frames per second it reached are printed with the same timings.
 
     .venv/bin/python scripts/viewer_screenshot.py scenes/dam_break.toml \\
         --until 0.6 --frames 60 -o docs/figures/viewer.png
@@ -76,6 +79,17 @@ def browser(width: int, height: int) -> webdriver.Chrome:
     return webdriver.Chrome(service=Service(driver), options=options)
 
 
+def report(stats: dict) -> None:
+    """Prints the median, p95 and largest of the page's timings per frame."""
+    decode, upload, shown = stats["decodeMs"], stats["uploadMs"], stats["showMs"]
+    both = [a + b for a, b in zip(decode, upload)]
+    rows = (("decode", decode), ("upload to GPU", upload), ("decode + upload", both), ("whole frame", [a + b for a, b in zip(decode, shown)]))
+    for name, values in rows:
+        if values:
+            q = statistics.quantiles(values, n=20, method="inclusive") if len(values) >= 2 else [values[0]] * 19
+            print(f"  {name:16} median {statistics.median(values):6.2f} ms  p95 {q[18]:6.2f} ms  max {max(values):6.2f} ms")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("scene", type=Path, help="scene TOML file")
@@ -83,6 +97,7 @@ def main() -> None:
     parser.add_argument("--realtime-factor", type=float, default=None, help="pace the run (simulated s per s)")
     parser.add_argument("--frames", type=int, default=30, help="frames the page receives before the shot")
     parser.add_argument("--field", default="FIELD_KIND_VELOCITY", help="field to colour by")
+    parser.add_argument("--pull", type=int, default=0, help="then fetch the latest frame this many times as fast as the page can")
     parser.add_argument("-o", "--output", type=Path, default=Path("viewer.png"))
     parser.add_argument("--size", default="1400x860", help="window size, WIDTHxHEIGHT")
     args = parser.parse_args()
@@ -113,15 +128,26 @@ def main() -> None:
             args.output.parent.mkdir(parents=True, exist_ok=True)
             driver.save_screenshot(str(args.output))
             stats = driver.execute_script("return meshless.stats")
-            decode, upload, shown = stats["decodeMs"], stats["uploadMs"], stats["showMs"]
-            both = [a + b for a, b in zip(decode, upload)]
             print(f"{session.name}: {session.particle_count} particles, {stats['frames']} frames in {elapsed:.2f} s "
                   f"({stats['frames'] / elapsed:.1f} frames/s received)")
-            rows = (("decode", decode), ("upload to GPU", upload), ("decode + upload", both), ("whole frame", [a + b for a, b in zip(decode, shown)]))
-            for name, values in rows:
-                if values:
-                    q = statistics.quantiles(values, n=20) if len(values) >= 2 else [values[0]] * 19
-                    print(f"  {name:16} median {statistics.median(values):6.2f} ms  p95 {q[18]:6.2f} ms  max {max(values):6.2f} ms")
+            report(stats)
+            if args.pull > 0:
+                # Paused, the session adds no frame of its own: every frame
+                # timed from here on is a pulled one.
+                if client.get_session(session.id).status.state == 2:
+                    try:
+                        client.pause(session.id)
+                    except Exception:
+                        # Refused only if the run ended in between.
+                        if client.get_session(session.id).status.state == 2:
+                            raise
+                rate = driver.execute_async_script("meshless.pull(arguments[0]).then(arguments[1], (e) => arguments[1](String(e)))", args.pull)
+                if isinstance(rate, str):
+                    sys.exit(f"the page could not pull frames: {rate}")
+                stats = driver.execute_script("return meshless.stats")
+                print(f"pulled {args.pull} frames: {rate:.1f} frames/s fetched, decoded and uploaded")
+                taken = min(args.pull, len(stats["decodeMs"]))
+                report({key: stats[key][-taken:] for key in ("decodeMs", "uploadMs", "showMs")})
             if stats["errors"]:
                 sys.exit(f"the page reported errors: {stats['errors']}")
             print(f"wrote {args.output}")

@@ -54,6 +54,19 @@ pub enum ZenohSealing {
     Never,
 }
 
+/// When the viewer's listener runs (`--http-priority`,
+/// `server/src/web/thread.rs`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ViewerPriority {
+    /// Only on CPU time the simulations leave (Linux's `SCHED_IDLE`): a
+    /// busy host's sessions step as fast with pages watching them, and
+    /// the pages get the frames the server has time for (the default).
+    Idle,
+    /// At the simulations' priority: the pages get every frame they can
+    /// take, at the cost of the sessions' steps on a busy host.
+    Normal,
+}
+
 /// Default of `--zenoh-accept-pending`: 4 times zenoh's own 100, so that
 /// 300 silent connections (a port scan, a careless or hostile client) no
 /// longer fill the queue, yet with `--max-connections` within the usual
@@ -248,6 +261,18 @@ pub struct ServerConfig {
     /// rules (docs/viewer.md); port 0 picks a free port. Unset: no viewer.
     #[arg(long, env = "MESHLESS_HTTP_ADDR")]
     pub http_addr: Option<SocketAddr>,
+
+    /// When the viewer's listener runs: `idle`, only on CPU time the
+    /// simulations leave (a busy host's sessions step as fast with pages
+    /// watching; the pages skip the frames it has no time for), or
+    /// `normal`, at the simulations' priority. Linux only.
+    #[arg(
+        long,
+        env = "MESHLESS_HTTP_PRIORITY",
+        value_enum,
+        default_value = "idle"
+    )]
+    pub http_priority: ViewerPriority,
 
     /// Seconds, in [0.1, 3600], within which a metrics request's headers
     /// must arrive, counted from the connection's start or its previous
@@ -447,6 +472,7 @@ impl ServerConfig {
             memory_budget_mb: None,
             metrics_addr: None,
             http_addr: None,
+            http_priority: ViewerPriority::Idle,
             metrics_header_timeout: DEFAULT_METRICS_HEADER_TIMEOUT,
             max_snapshot_mb: DEFAULT_MAX_SNAPSHOT_MB,
             checkpoint_dir: None,

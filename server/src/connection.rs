@@ -31,6 +31,17 @@ use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 use tokio::time::Instant;
 use tonic::codegen::{Bytes, http};
 
+/// Most streams (calls) open at once on one connection: RFC 9113's
+/// recommended minimum. Unset, hyper's limit was none at all (20,000
+/// streams on one connection were answered, holding 257 MB); past it a
+/// new stream is refused (REFUSED_STREAM), which clients retry.
+pub(crate) const MAX_STREAMS_PER_CONNECTION: u32 = 100;
+
+/// Largest header block of a request. hyper's default (16 kB) answered a
+/// 16 kB token with HTTP 431, which clients show as UNKNOWN; with room
+/// above `auth::MAX_TOKEN_BYTES` the token check refuses it by name.
+pub(crate) const MAX_HEADER_LIST_BYTES: u32 = 64 << 10;
+
 /// Bytes of large responses one connection may hold unread: room for the
 /// largest frame a session publishes by default several times over.
 pub const RESPONSE_BUDGET_BYTES: usize = 64 << 20;

@@ -62,17 +62,6 @@ const KEEPALIVE_INTERVAL: Duration = Duration::from_secs(30);
 /// How long a ping may go unanswered before the connection is closed.
 const KEEPALIVE_TIMEOUT: Duration = Duration::from_secs(10);
 
-/// Most streams (calls) open at once on one connection: RFC 9113's
-/// recommended minimum. Unset, hyper's limit was none at all (20,000
-/// streams on one connection were answered, holding 257 MB); past it a
-/// new stream is refused (REFUSED_STREAM), which clients retry.
-pub(crate) const MAX_STREAMS_PER_CONNECTION: u32 = 100;
-
-/// Largest header block of a request. hyper's default (16 kB) answered a
-/// 16 kB token with HTTP 431, which clients show as UNKNOWN; with room
-/// above `auth::MAX_TOKEN_BYTES` the token check refuses it by name.
-pub(crate) const MAX_HEADER_LIST_BYTES: u32 = 64 << 10;
-
 /// A server started by [`start`].
 #[derive(Debug)]
 pub struct RunningServer {
@@ -129,8 +118,8 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
     let mut grpc = tonic::transport::Server::builder()
         .http2_keepalive_interval(Some(KEEPALIVE_INTERVAL))
         .http2_keepalive_timeout(Some(KEEPALIVE_TIMEOUT))
-        .max_concurrent_streams(MAX_STREAMS_PER_CONNECTION)
-        .http2_max_header_list_size(MAX_HEADER_LIST_BYTES);
+        .max_concurrent_streams(connection::MAX_STREAMS_PER_CONNECTION)
+        .http2_max_header_list_size(connection::MAX_HEADER_LIST_BYTES);
     if let Some(tls) = tls {
         grpc = grpc
             .tls_config(tls)
@@ -248,23 +237,24 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         handshake: config.handshake_period(),
         idle: config.idle_period(),
     };
+    // The viewer's thread stops with the gRPC port, or when the serving
+    // task is dropped (a server dropped without `stop`, its runtime gone).
+    let viewer_stop = sessions_stop.child_token();
+    let viewer_guard = viewer_stop.clone().drop_guard();
     let viewer = match config.http_addr {
-        Some(addr) => Some(
-            web::serve(
-                addr,
-                simulation.clone(),
-                web::Listener {
-                    tokenless,
-                    tls: viewer_tls,
-                    max_connections: config.max_connections as usize,
-                    deadlines,
-                    metrics: metrics.clone(),
-                },
-                // Accepting ends with the gRPC port's.
-                sessions_stop.child_token(),
-            )
-            .await?,
-        ),
+        Some(addr) => Some(web::serve(
+            addr,
+            simulation.clone(),
+            web::Listener {
+                tokenless,
+                tls: viewer_tls,
+                max_connections: config.max_connections as usize,
+                deadlines,
+                metrics: metrics.clone(),
+                priority: config.http_priority,
+            },
+            viewer_stop,
+        )?),
         None => None,
     };
     let http_addr = viewer.as_ref().map(|(addr, _)| *addr);
@@ -307,6 +297,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer> {
         sessions_stop.cancel();
     };
     let task = tokio::spawn(async move {
+        let _viewer_guard = viewer_guard;
         let served = grpc
             // Outermost: it sees the codes as recoded below.
             .layer(metrics_layer::RecordLayer(metrics))

@@ -368,29 +368,65 @@ export class GrpcError extends Error {
 /** Splits a gRPC-web response body into its messages and its trailers. */
 class Frames {
   constructor() {
-    this.pending = new Uint8Array(0);
+    // The received chunks not yet framed, in order; `length` bytes in all.
+    // A large message arrives in many chunks: they are joined once, when
+    // the message is whole, not on every arrival (which copied what had
+    // arrived again for each chunk).
+    this.chunks = [];
+    this.length = 0;
   }
 
   push(chunk) {
-    if (this.pending.length === 0) {
-      this.pending = chunk;
-    } else {
-      const joined = new Uint8Array(this.pending.length + chunk.length);
-      joined.set(this.pending);
-      joined.set(chunk, this.pending.length);
-      this.pending = joined;
+    if (chunk.length === 0) return;
+    this.chunks.push(chunk);
+    this.length += chunk.length;
+  }
+
+  /** The first `n` pending bytes (n <= length) as one array, consumed;
+   * a view of a chunk where they lie in one. */
+  take(n) {
+    const first = this.chunks[0];
+    if (n === 0) return new Uint8Array(0);
+    if (first.length >= n) {
+      if (first.length === n) this.chunks.shift();
+      else this.chunks[0] = first.subarray(n);
+      this.length -= n;
+      return first.subarray(0, n);
     }
+    const out = new Uint8Array(n);
+    let at = 0;
+    while (at < n) {
+      const chunk = this.chunks[0];
+      const used = Math.min(chunk.length, n - at);
+      out.set(chunk.subarray(0, used), at);
+      at += used;
+      if (used === chunk.length) this.chunks.shift();
+      else this.chunks[0] = chunk.subarray(used);
+    }
+    this.length -= n;
+    return out;
+  }
+
+  /** The next frame's header, `{trailers, len}`, or null before its 5 bytes arrive. */
+  peekHeader() {
+    if (this.length < 5) return null;
+    const head = new Uint8Array(5);
+    let at = 0;
+    for (const chunk of this.chunks) {
+      const used = Math.min(chunk.length, 5 - at);
+      head.set(chunk.subarray(0, used), at);
+      at += used;
+      if (at === 5) break;
+    }
+    return { trailers: (head[0] & 0x80) !== 0, len: new DataView(head.buffer).getUint32(1) };
   }
 
   /** The next complete frame, `{trailers, body}`, or null. */
   next() {
-    if (this.pending.length < 5) return null;
-    const view = new DataView(this.pending.buffer, this.pending.byteOffset, 5);
-    const len = view.getUint32(1);
-    if (this.pending.length < 5 + len) return null;
-    const frame = { trailers: (this.pending[0] & 0x80) !== 0, body: this.pending.subarray(5, 5 + len) };
-    this.pending = this.pending.subarray(5 + len);
-    return frame;
+    const head = this.peekHeader();
+    if (!head || this.length < 5 + head.len) return null;
+    this.take(5);
+    return { trailers: head.trailers, body: this.take(head.len) };
   }
 }
 

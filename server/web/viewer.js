@@ -190,17 +190,47 @@ class SessionView {
       }
       if (reply.frame.length === 0) continue;
       this.frameNumber = reply.number;
-      const started = performance.now();
-      const frame = schema.decode("meshless.v1.Frame", reply.frame);
-      const decoded = performance.now();
-      const upload = this.show(frame);
-      keep(stats.decodeMs, decoded - started);
-      keep(stats.uploadMs, upload);
-      keep(stats.showMs, performance.now() - decoded);
-      stats.frames += 1;
-      stats.lastStep = frame.header?.step ?? -1;
-      requestAnimationFrame(draw);
+      this.take(reply.frame);
     }
+  }
+
+  /** Decodes and shows a frame's bytes, timing each part; `redraw` asks
+   * for the view to be drawn again. */
+  take(bytes, redraw = true) {
+    const started = performance.now();
+    const frame = schema.decode("meshless.v1.Frame", bytes);
+    const decoded = performance.now();
+    const upload = this.show(frame);
+    keep(stats.decodeMs, decoded - started);
+    keep(stats.uploadMs, upload);
+    keep(stats.showMs, performance.now() - decoded);
+    stats.frames += 1;
+    stats.lastStep = frame.header?.step ?? -1;
+    if (redraw) requestAnimationFrame(draw);
+  }
+
+  /**
+   * The page's capacity, apart from the session's pace: fetches the
+   * latest frame `count` times in a row (a NextFrame that need not wait),
+   * decoding each and uploading it to the GPU as a new one; returns
+   * frames per second. The view is drawn once, at the end: drawing is the
+   * GPU's work, and headless Chromium without one draws on the CPU,
+   * which would time its software rasteriser instead.
+   */
+  async pull(count) {
+    const started = performance.now();
+    for (let k = 0; k < count; k += 1) {
+      const reply = await service.unary(
+        "NextFrame",
+        { session_id: this.id, after: 0, wait_ms: 0 },
+        { signal: this.abort.signal },
+      );
+      if (reply.frame.length === 0) throw new Error("the session has no frame yet");
+      this.take(reply.frame, false);
+    }
+    const rate = (count * 1000) / (performance.now() - started);
+    requestAnimationFrame(draw);
+    return rate;
   }
 
   /** Shows a frame; returns the milliseconds its upload to the GPU took. */
@@ -1029,6 +1059,11 @@ async function main() {
       };
     },
     project: (p) => renderer.project(p),
+    /** See `SessionView.pull`: the page's capacity in frames per second. */
+    pull(count) {
+      if (!current) throw new Error("no session is shown");
+      return current.pull(count);
+    },
     /** Whether a constraint edit of a drag is on its way. */
     get editing() {
       return throttle.busy || throttle.next !== null;

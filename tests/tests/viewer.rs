@@ -854,3 +854,66 @@ async fn a_server_without_tokens_answers_its_viewer_only_at_loopback_names() {
         assert_eq!(statuses(host.clone()).await, (403, 403), "{host}");
     }
 }
+
+/// Field `field` (numbered from 1, as proc(5) does) of a
+/// `/proc/.../stat`; the second, the thread's name in parentheses, may
+/// hold spaces.
+#[cfg(target_os = "linux")]
+fn stat_field(stat: &std::path::Path, field: usize) -> Option<i64> {
+    let stat = std::fs::read_to_string(stat).ok()?;
+    let fields = &stat[stat.rfind(')')? + 2..];
+    // From the third field (state) on.
+    fields.split_whitespace().nth(field - 3)?.parse().ok()
+}
+
+/// proc(5): the scheduling policy is a thread's 41st field.
+#[cfg(target_os = "linux")]
+const POLICY: usize = 41;
+
+/// sched(7)'s usual policy.
+#[cfg(target_os = "linux")]
+const SCHED_OTHER: i64 = 0;
+
+/// sched(7)'s policy for work that runs only when nothing else would.
+#[cfg(target_os = "linux")]
+const SCHED_IDLE: i64 = 5;
+
+/// The scheduling policy of each of `pid`'s threads named `name`.
+#[cfg(target_os = "linux")]
+fn thread_policies(pid: u32, name: &str) -> Vec<i64> {
+    let tasks = std::fs::read_dir(format!("/proc/{pid}/task")).expect("the server's threads");
+    tasks
+        .filter_map(|task| {
+            let dir = task.ok()?.path();
+            // A thread that ended since it was listed has no files.
+            let comm = std::fs::read_to_string(dir.join("comm")).ok()?;
+            (comm.trim() == name).then(|| stat_field(&dir.join("stat"), POLICY))?
+        })
+        .collect()
+}
+
+/// The viewer is served from a thread of its own that by default runs
+/// only on CPU time the simulations leave (`SCHED_IDLE`); the page still
+/// works through it.
+#[cfg(target_os = "linux")]
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_viewer_runs_on_its_own_thread_below_the_simulations() {
+    let server = ServerProcess::spawn(&["--http-addr", "127.0.0.1:0"])
+        .await
+        .expect("server starts");
+    let pid = server.pid().expect("a running server");
+    let main = stat_field(std::path::Path::new(&format!("/proc/{pid}/stat")), POLICY);
+    assert_eq!(
+        main,
+        Some(SCHED_OTHER),
+        "the server itself is scheduled as usual"
+    );
+    assert_eq!(
+        thread_policies(pid, "meshless-viewer"),
+        vec![SCHED_IDLE],
+        "one viewer thread, on idle CPU time"
+    );
+    let addr = server.http_addr.clone().expect("http=");
+    let page = get(&addr, "/").await;
+    assert_eq!(page.status, 200, "the page is served from that thread");
+}

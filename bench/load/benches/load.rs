@@ -12,6 +12,7 @@ use meshless_client::Client;
 use meshless_load::frames::Payload;
 use meshless_load::{frame_cost, frames, rpc, slow_subscriber, viewers};
 use meshless_server::ServerConfig;
+use meshless_server::config::ViewerPriority;
 use std::time::Duration;
 
 /// The scene every measurement through the server drives: 125
@@ -243,52 +244,69 @@ async fn slow_subscriber_table(url: &str, zenoh: &[String]) -> Result<()> {
 }
 
 /// 20 browser viewers on one session of 100,000 particles (5,000 in smoke
-/// mode), in alternating arms of a fixed window.
+/// mode), in alternating arms that each time the same steps of the session,
+/// with the viewer's thread at the simulations' priority and at the default.
 fn viewers_table() -> Result<()> {
+    let name = |priority: ViewerPriority| match priority {
+        ViewerPriority::Idle => "idle",
+        ViewerPriority::Normal => "normal",
+    };
     let (side, height) = smoke::pick((50, 40), (25, 8));
     let viewers = smoke::pick(20, 2);
     let rounds = smoke::pick(3, 2);
-    let window = smoke::pick(Duration::from_secs(10), Duration::from_millis(300));
+    let steps = smoke::pick(60, 3);
     let scene = viewers::resting_block(side, height);
-    let measured = viewers::measure(&scene, viewers, rounds, window)?;
     let mb = |bytes: u64| bytes as f64 / 1e6;
-    println!(
-        "\n{viewers} browser viewers polling NextFrame (gRPC-web over HTTP/1.1, wait {} ms, one \
-         poll in flight each) on one session of {} particles at rest, a frame every step \
-         ({:.2} MB); arms of {:.1} s, alternating\n",
-        viewers::WAIT_MS,
-        measured.particles,
-        mb(measured.frame_bytes),
-        window.as_secs_f64()
-    );
-    println!("| arm | viewers | steps/s | frames/s per viewer | failed polls | peak RSS MB |");
-    println!("|---|---|---|---|---|---|");
-    for (k, arm) in measured.arms.iter().enumerate() {
+    // The viewer's thread at the simulations' priority, then on idle
+    // CPU time (the default): the trade in one run.
+    let mut summary = Vec::new();
+    for priority in [ViewerPriority::Normal, ViewerPriority::Idle] {
+        let measured = viewers::measure(&scene, viewers, rounds, steps, priority)?;
         println!(
-            "| {} | {} | {:.2} | {:.2} | {} | {:.0} |",
-            k + 1,
-            arm.viewers,
-            arm.steps_per_s(),
-            arm.frames_per_viewer_s(),
-            arm.errors,
-            mb(arm.peak_rss)
+            "\n{viewers} browser viewers polling NextFrame (gRPC-web over HTTP/1.1, wait {} ms, \
+             one poll in flight each, on idle CPU time) on one session of {} particles at rest, a \
+             frame every step ({:.2} MB), the server's viewer thread at --http-priority {}; \
+             each arm resets the session and times steps {} to {}, arms alternating\n",
+            viewers::WAIT_MS,
+            measured.particles,
+            mb(measured.frame_bytes),
+            name(priority),
+            viewers::SETTLE_STEPS,
+            viewers::SETTLE_STEPS + steps
         );
+        println!("| arm | viewers | steps/s | frames/s per viewer | failed polls | peak RSS MB |");
+        println!("|---|---|---|---|---|---|");
+        for (k, arm) in measured.arms.iter().enumerate() {
+            println!(
+                "| {} | {} | {:.2} | {:.2} | {} | {:.0} |",
+                k + 1,
+                arm.viewers,
+                arm.steps_per_s(),
+                arm.frames_per_viewer_s(),
+                arm.errors,
+                mb(arm.peak_rss)
+            );
+        }
+        summary.push((priority, measured));
     }
     println!();
     println!(
-        "| steps/s alone | steps/s with {viewers} viewers | ratio | frames/s per viewer | RSS \
-         before MB | peak MB | after MB |"
+        "| --http-priority | steps/s alone | steps/s with {viewers} viewers | ratio | frames/s per \
+         viewer | RSS before MB | peak MB | after MB |"
     );
-    println!("|---|---|---|---|---|---|---|");
-    println!(
-        "| {:.2} | {:.2} | {:.3} | {:.2} | {:.0} | {:.0} | {:.0} |",
-        measured.alone(),
-        measured.watched(),
-        measured.ratio(),
-        measured.frames_per_viewer_s(),
-        mb(measured.rss_before),
-        mb(measured.rss_peak),
-        mb(measured.rss_after)
-    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for (priority, measured) in &summary {
+        println!(
+            "| {} | {:.2} | {:.2} | {:.3} | {:.2} | {:.0} | {:.0} | {:.0} |",
+            name(*priority),
+            measured.alone(),
+            measured.watched(),
+            measured.ratio(),
+            measured.frames_per_viewer_s(),
+            mb(measured.rss_before),
+            mb(measured.rss_peak),
+            mb(measured.rss_after)
+        );
+    }
     Ok(())
 }

@@ -6,24 +6,31 @@
 //! frame it got, `wait_ms` 5,000, on a keep-alive connection of its own.
 //!
 //! The session is a block of water at rest in a tank, a frame every step
-//! (positions and velocities: 24 bytes a particle), run
-//! forever; its rate is read from `GetSession`'s step count over a fixed
-//! wall-clock window. The arms alternate (none, viewers, none,
-//! viewers...) on the same running session, so that a drift in the
-//! machine's speed, or in the scene as the block settles, falls on both.
-//! Beside the rates: the frames each viewer got per second, and the
-//! resident memory of this process (the server's, in the same process)
-//! before, at the peak of and after the viewer arms.
+//! (positions and velocities: 24 bytes a particle). Each arm resets it
+//! and runs it forever, and times the same stretch of its steps (from
+//! [`SETTLE_STEPS`] on, a fixed count), so that every arm does the same
+//! work: the block is settling, and its cost per step changes as it does,
+//! more than the viewers change it. The arms alternate (none, viewers;
+//! then viewers, none; ...), so that a drift in the machine's speed falls
+//! on both. Beside the rates: the frames each viewer got per second, and
+//! the resident memory of this process (the server's, in the same
+//! process) before, at the peak of and after the viewer arms.
 //!
 //! The viewers run in this process, as threads, on the server's cores:
 //! each reads every answer off the socket and decodes its envelope and
 //! number, but leaves the frame packed (a browser would unpack and draw
-//! it, on its own machine), so the figures hold the transport's cost on
-//! both ends and the server's, not the drawing.
+//! it, on its own machine). They stand for browsers on other machines,
+//! which take none of the server's CPU, so they run only on CPU time
+//! nothing else wants (`SCHED_IDLE`, as the server's viewer thread does
+//! by default); their kernel's share of the transport (loopback TCP's
+//! receiving half) still falls on the same two cores. The server's side
+//! (the viewer's thread, at the `--http-priority` asked for) is the
+//! server's cost; the bench measures both priorities in one run.
 
 use anyhow::{Context, Result, bail};
 use meshless_client::{Client, v1};
 use meshless_server::ServerConfig;
+use meshless_server::config::ViewerPriority;
 use prost::Message;
 use prost::bytes::Bytes;
 use std::net::SocketAddr;
@@ -41,8 +48,8 @@ const POLL_TIMEOUT: Duration = Duration::from_secs(30);
 /// Largest answer a viewer reads, bytes.
 const MAX_ANSWER: u64 = 256 << 20;
 
-/// How often the resident memory is sampled during an arm.
-const SAMPLE_EVERY: Duration = Duration::from_millis(50);
+/// How often an arm reads the step count and samples the resident memory.
+const SAMPLE_EVERY: Duration = Duration::from_millis(20);
 
 /// A block of `side` x `height` x `side` particles of water at rest in a
 /// tank, 2 cm apart, a frame every step with positions and velocities (24
@@ -73,16 +80,21 @@ pub fn resting_block(side: u32, height: u32) -> String {
     )
 }
 
-/// One arm: the session's rate over the window, and what the viewers got.
+/// Steps each arm lets the session take after its reset before the timed
+/// stretch starts: the viewers are all polling by then.
+pub const SETTLE_STEPS: u64 = 3;
+
+/// One arm: the session's rate over its timed steps, and what the viewers
+/// got meanwhile.
 #[derive(Debug, Clone, Copy)]
 pub struct Arm {
     /// Viewers polling during the arm (0: none).
     pub viewers: usize,
-    /// Steps the session took in the window.
+    /// Steps the session took in the timed stretch.
     pub steps: u64,
-    /// The window, between the two step counts.
+    /// The stretch's wall-clock time.
     pub elapsed: Duration,
-    /// Frames the viewers got in the window, all together.
+    /// Frames the viewers got in the stretch, all together.
     pub frames: u64,
     /// Polls that failed in the arm.
     pub errors: u64,
@@ -173,15 +185,22 @@ pub fn resident_bytes() -> Result<u64> {
     Ok(kib * 1024)
 }
 
-/// Starts a server with the viewer's listener on its own runtime (two
-/// workers, as in the rest of the bench), creates a session of `toml`,
-/// runs it forever, lets it warm up for half a window, and runs `rounds`
-/// pairs of arms of `window` each: no viewer, then `viewers` viewers.
+/// Starts a server with the viewer's listener at `priority` on
+/// its own runtime (two workers, as in the rest of the bench), creates a
+/// session of `toml` and runs `rounds` pairs of arms (no viewer and
+/// `viewers` viewers, in turns), each timing `steps` steps of the session
+/// after its reset.
 ///
 /// # Errors
 /// A server, session or call that fails, viewers that get no first frame,
 /// or a session that faults.
-pub fn measure(toml: &str, viewers: usize, rounds: u32, window: Duration) -> Result<Viewers> {
+pub fn measure(
+    toml: &str,
+    viewers: usize,
+    rounds: u32,
+    steps: u64,
+    priority: ViewerPriority,
+) -> Result<Viewers> {
     let server_runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .thread_name("server")
@@ -189,6 +208,7 @@ pub fn measure(toml: &str, viewers: usize, rounds: u32, window: Duration) -> Res
         .build()?;
     let config = ServerConfig {
         http_addr: Some(SocketAddr::from(([127, 0, 0, 1], 0))),
+        http_priority: priority,
         ..ServerConfig::ephemeral()
     };
     let server = server_runtime.block_on(meshless_server::start(config))?;
@@ -200,7 +220,7 @@ pub fn measure(toml: &str, viewers: usize, rounds: u32, window: Duration) -> Res
     let calls = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()?;
-    let measured = run_arms(&calls, &grpc, http, toml, viewers, rounds, window);
+    let measured = run_arms(&calls, &grpc, http, toml, viewers, rounds, steps);
     server_runtime.block_on(server.stop())?;
     measured
 }
@@ -212,13 +232,11 @@ fn run_arms(
     toml: &str,
     viewers: usize,
     rounds: u32,
-    window: Duration,
+    steps: u64,
 ) -> Result<Viewers> {
     let client = calls.block_on(Client::connect(grpc))?;
     let session = calls.block_on(client.create_session_toml(toml))?;
     let id = session.id.clone();
-    calls.block_on(client.run_forever(&id, None))?;
-    std::thread::sleep(window / 2);
     let step = || -> Result<(u64, Instant)> {
         let session = calls.block_on(client.get_session(&id))?;
         let status = session.status.context("a session without a status")?;
@@ -235,8 +253,15 @@ fn run_arms(
     let frame_bytes = Arc::new(AtomicU64::new(0));
     let mut arms = Vec::new();
     let (mut rss_before, mut rss_peak, mut rss_after) = (0, 0, 0);
-    for _ in 0..rounds {
-        for watched in [0, viewers] {
+    for round in 0..rounds {
+        let order = if round % 2 == 0 {
+            [0, viewers]
+        } else {
+            [viewers, 0]
+        };
+        for watched in order {
+            calls.block_on(client.reset(&id))?;
+            calls.block_on(client.run_forever(&id, None))?;
             let stop = Arc::new(AtomicBool::new(false));
             let frames = Arc::new(AtomicU64::new(0));
             let errors = Arc::new(AtomicU64::new(0));
@@ -258,10 +283,10 @@ fn run_arms(
                         .spawn(move || viewer.run())
                 })
                 .collect::<Result<_, _>>()?;
-            // Every viewer has its first frame (answered at once) before
-            // the window opens.
+            // Every viewer has its first frame, and the session its
+            // first steps, before the timed stretch starts.
             let start = Instant::now();
-            while frames.load(Ordering::Relaxed) < watched as u64 {
+            while frames.load(Ordering::Relaxed) < watched as u64 || step()?.0 < SETTLE_STEPS {
                 if start.elapsed() > POLL_TIMEOUT {
                     stop.store(true, Ordering::Relaxed);
                     bail!(
@@ -277,11 +302,14 @@ fn run_arms(
             let got = frames.load(Ordering::Relaxed);
             let failed = errors.load(Ordering::Relaxed);
             let mut peak = resident_bytes()?;
-            while opened.elapsed() < window {
-                std::thread::sleep(SAMPLE_EVERY.min(window.saturating_sub(opened.elapsed())));
+            let (last, closed) = loop {
+                std::thread::sleep(SAMPLE_EVERY);
                 peak = peak.max(resident_bytes()?);
-            }
-            let (last, closed) = step()?;
+                let now = step()?;
+                if now.0 >= first + steps {
+                    break now;
+                }
+            };
             let got = frames.load(Ordering::Relaxed) - got;
             stop.store(true, Ordering::Relaxed);
             for thread in threads {
@@ -315,6 +343,26 @@ fn run_arms(
     })
 }
 
+/// Lowers the calling thread to idle CPU time (`SCHED_IDLE`): a browser
+/// on another machine takes none of the server's CPU. On Linux a policy
+/// is a thread's own; elsewhere the viewers keep the server's priority
+/// (and cost it more than browsers would).
+fn lowest_priority() {
+    #[cfg(target_os = "linux")]
+    {
+        use thread_priority::{
+            NormalThreadSchedulePolicy, ThreadPriority, ThreadSchedulePolicy,
+            set_thread_priority_and_policy, thread_native_id,
+        };
+        let idle = ThreadSchedulePolicy::Normal(NormalThreadSchedulePolicy::Idle);
+        if let Err(e) =
+            set_thread_priority_and_policy(thread_native_id(), ThreadPriority::Min, idle)
+        {
+            eprintln!("a viewer keeps its priority: {e:?}");
+        }
+    }
+}
+
 /// One simulated browser: polls until `stop`, one poll in flight.
 struct Viewer {
     url: String,
@@ -327,6 +375,7 @@ struct Viewer {
 
 impl Viewer {
     fn run(self) {
+        lowest_priority();
         // One keep-alive connection, as a page's polls reuse theirs.
         let agent: ureq::Agent = ureq::Agent::config_builder()
             .timeout_global(Some(POLL_TIMEOUT))

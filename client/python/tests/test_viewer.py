@@ -163,6 +163,22 @@ def test_pause_and_resume_from_the_page(viewer, browser):
         assert stats(browser)["errors"] == []
 
 
+def test_the_page_pulls_frames_as_fast_as_it_can(viewer, browser):
+    """`meshless.pull(n)` (what scripts/viewer_screenshot.py --pull times)
+    fetches the latest frame n times, decoding and showing each."""
+    with Client(viewer.grpc_target) as client:
+        session = client.create_session(fixture("python_tank"))
+        client.step(session.id, 2)
+        open_page(browser, viewer.http, session.id)
+        until(browser, "a first frame", lambda d: stats(d)["frames"] >= 1)
+        before = stats(browser)["frames"]
+        rate = browser.execute_async_script("meshless.pull(arguments[0]).then(arguments[1], (e) => arguments[1](String(e)))", 5)
+        assert isinstance(rate, (int, float)) and rate > 0, rate
+        assert stats(browser)["frames"] == before + 5
+        assert stats(browser)["step"] == client.get_session(session.id).status.step
+        assert stats(browser)["errors"] == []
+
+
 def test_frames_decode_in_the_page_as_the_server_encoded_them(viewer, browser):
     from meshless.v1 import frame_pb2, simulation_pb2
 
@@ -250,10 +266,33 @@ def test_dragging_a_modal_solid_grabs_it(viewer, browser):
 
         until(browser, "the grab constraint", grab_target)
         # The last move's edit lands after the first: wait for the page to
-        # have none in flight, then read the target it left.
+        # have none in flight, then read the target it left, from the
+        # server (the page's own list is read again after each edit and
+        # may still hold an earlier one).
         until(browser, "the edits to settle", lambda d: js(d, "return !meshless.editing"))
-        target = np.array([grab_target(browser)[k] for k in "xyz"])
-        index = tip["index"]
+        grabs = [c.grab for c in client.list_constraints(session.id) if c.name == "grab"]
+        assert len(grabs) == 1 and grabs[0].HasField("position"), grabs
+        target = np.array([grabs[0].position.x, grabs[0].position.y, grabs[0].position.z])
+        # The node the page grabbed: the one at the grab's rest point. It
+        # need not be the tip node picked above: the beam's nodes at the
+        # tip's front and back project to nearly the same pixel, and the
+        # page picks the nearer to the pointer as the beam moves.
+        point = [grabs[0].point.x, grabs[0].point.y, grabs[0].point.z]
+        index = js(
+            browser,
+            """
+            const r = meshless.view.rest.get(arguments[0]);
+            let best = 0, nearest = Infinity;
+            for (let i = 0; i < r.length / 3; i++) {
+              const d = (r[3 * i] - arguments[1][0]) ** 2 + (r[3 * i + 1] - arguments[1][1]) ** 2
+                + (r[3 * i + 2] - arguments[1][2]) ** 2;
+              if (d < nearest) { nearest = d; best = i; }
+            }
+            return best;
+            """,
+            grabs[0].system,
+            point,
+        )
         moved = np.linalg.norm(target - np.array(tip["position"]))
         assert moved > 0.01, f"the drag moved the target only {moved:.4f} m"
 

@@ -10,10 +10,14 @@
 //! and the shipped scenes: text that every copy of this binary holds.
 //! Frames reach the page by `NextFrame` polls (one frame in flight per
 //! page; a page that falls behind skips frames), answered with the bytes
-//! the session encoded once for its zenoh subscribers.
+//! the session encoded once for its zenoh subscribers. The listener runs
+//! on a thread of its own, below the simulations (`--http-priority`,
+//! [`thread`]); its calls run on the server's runtime ([`hop`]).
 
 mod assets;
+mod hop;
 mod schema;
+mod thread;
 
 use crate::connection::{CallsLayer, Deadlines};
 use crate::metrics::Metrics;
@@ -23,6 +27,7 @@ use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use std::net::SocketAddr;
 use std::sync::Arc;
+use tokio::sync::oneshot;
 use tokio_util::sync::CancellationToken;
 use tonic::server::NamedService;
 
@@ -49,42 +54,51 @@ pub struct Listener {
     pub max_connections: usize,
     pub deadlines: Deadlines,
     pub metrics: Arc<Metrics>,
+    /// When the listener's thread runs (`--http-priority`).
+    pub priority: crate::config::ViewerPriority,
 }
 
 /// Binds `addr` and serves the page and `simulation` (already behind the
-/// token check) until `stop`; returns the bound address and the serving
-/// task.
+/// token check) until `stop`, on the viewer's own thread; returns the
+/// bound address and a receiver that resolves when the listener has
+/// stopped. Called on the server's runtime, where the calls will run.
 ///
 /// # Errors
-/// An address that cannot be bound, or a schema that cannot be made.
-pub async fn serve(
+/// An address that cannot be bound, a schema that cannot be made, or a
+/// thread that cannot start.
+pub fn serve(
     addr: SocketAddr,
     simulation: Simulation,
     listener: Listener,
     stop: CancellationToken,
-) -> Result<(SocketAddr, tokio::task::JoinHandle<()>)> {
+) -> Result<(SocketAddr, oneshot::Receiver<()>)> {
+    let simulation = hop::Hop::new(simulation, tokio::runtime::Handle::current());
     let routes = routes(simulation, listener.metrics, listener.tokenless)?;
-    let tcp = tokio::net::TcpListener::bind(addr)
-        .await
+    // Bound here, so that a taken port fails the start; served there.
+    let tcp = std::net::TcpListener::bind(addr)
         .with_context(|| format!("cannot bind the viewer's --http-addr {addr}"))?;
+    tcp.set_nonblocking(true)?;
     let bound = tcp.local_addr()?;
     let mut server = tonic::transport::Server::builder()
         .accept_http1(true)
-        .max_concurrent_streams(crate::MAX_STREAMS_PER_CONNECTION)
-        .http2_max_header_list_size(crate::MAX_HEADER_LIST_BYTES);
+        .max_concurrent_streams(crate::connection::MAX_STREAMS_PER_CONNECTION)
+        .http2_max_header_list_size(crate::connection::MAX_HEADER_LIST_BYTES);
     if let Some(tls) = listener.tls {
         server = server
             .tls_config(tls)
             .context("--tls-cert and --tls-key do not make a TLS identity")?;
     }
-    let incoming = crate::listener::incoming(
-        tcp,
-        "viewer",
-        listener.max_connections,
-        listener.deadlines,
-        stop.clone(),
-    );
-    let task = tokio::spawn(async move {
+    let (max_connections, deadlines) = (listener.max_connections, listener.deadlines);
+    let stopped = thread::spawn(listener.priority, async move {
+        let tcp = match tokio::net::TcpListener::from_std(tcp) {
+            Ok(tcp) => tcp,
+            Err(e) => {
+                tracing::error!("the viewer's listener failed: {e}");
+                return;
+            }
+        };
+        let incoming =
+            crate::listener::incoming(tcp, "viewer", max_connections, deadlines, stop.clone());
         let served = server
             .add_routes(routes)
             .serve_with_incoming_shutdown(incoming, stop.cancelled_owned())
@@ -92,15 +106,20 @@ pub async fn serve(
         if let Err(e) = served {
             tracing::error!("the viewer's listener failed: {e}");
         }
-    });
-    tracing::info!(%bound, "viewer at http://{bound}/");
-    Ok((bound, task))
+    })
+    .context("cannot start the viewer's thread")?;
+    tracing::info!(%bound, priority = ?listener.priority, "viewer at http://{bound}/");
+    Ok((bound, stopped))
 }
 
 /// The page's files, the schema, the scenes, and the service, behind the
 /// gRPC port's layers: the gRPC-web translation outermost, so that the
 /// metrics, the codes' rewriting and the call counting see plain gRPC.
-fn routes(simulation: Simulation, metrics: Arc<Metrics>, tokenless: bool) -> Result<Routes> {
+fn routes(
+    simulation: hop::Hop<Simulation>,
+    metrics: Arc<Metrics>,
+    tokenless: bool,
+) -> Result<Routes> {
     let schema: Arc<str> = schema::json(meshless_proto::FILE_DESCRIPTOR_SET)?.into();
     let scenes: Arc<str> = assets::scenes_json().into();
     let service = tower::ServiceBuilder::new()
