@@ -8,11 +8,11 @@
 //! (Linux's `SCHED_IDLE`) runs it only on CPU time the simulations leave,
 //! and a page gets the frames the server has time for, skipping the rest
 //! as a slow zenoh subscriber does; it never holds a step up. A lower
-//! niceness was tried first and did not do this: the scheduler shares a
-//! busy core by weight, and even at niceness 10 the pages' threads took
-//! as much from the session as at the simulations' priority (the load
-//! bench, docs/performance.md). The calls themselves run on the server's
-//! runtime ([`super::hop`]): only the HTTP work is here.
+//! niceness would not do this: the scheduler shares a busy core by
+//! weight, so low-priority threads still take their share of it. The
+//! load bench measures both policies (docs/performance.md). The calls
+//! themselves run on the server's runtime ([`super::hop`]): only the
+//! HTTP work is here.
 //!
 //! On Linux a scheduling policy belongs to a thread, and threads inherit
 //! their creator's: the runtime's helper threads (blocking work, if any)
