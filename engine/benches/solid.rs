@@ -39,6 +39,7 @@ fn block(side: usize, integrator: Integrator) -> ElasticSolid {
         friction: 0.0,
         integrator,
         plasticity: None,
+        fracture: None,
     };
     let half = 0.5 * side as f64 * spacing;
     let rest = Shape::Box {

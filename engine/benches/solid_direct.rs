@@ -64,6 +64,7 @@ fn beam(dim: usize, dx: Real, length: Real, solver: LinearSolver) -> ElasticSoli
             ..ImplicitParams::default()
         }),
         plasticity: None,
+        fracture: None,
     };
     let across = centres(-0.5 * DEPTH, 0.5 * DEPTH, dx);
     let zs = if dim == 2 { vec![0.0] } else { across.clone() };

@@ -38,6 +38,10 @@ pub enum FieldKind {
     /// from frame to frame. Frames carry ids as integers, in
     /// [`Frame::ids`], not among the real-valued [`Frame::fields`].
     Id,
+    /// The fragment of a fracturing solid each particle is in, numbered
+    /// from 0 by each fragment's lowest particle (0 in a solid that
+    /// cannot crack, NaN for a fluid, which has no fragments).
+    Fragment,
 }
 
 impl FieldKind {
@@ -51,7 +55,8 @@ impl FieldKind {
             | Self::Volume
             | Self::KineticEnergy
             | Self::ElasticEnergy
-            | Self::Id => 1,
+            | Self::Id
+            | Self::Fragment => 1,
         }
     }
 
@@ -67,6 +72,7 @@ impl FieldKind {
             Self::KineticEnergy => "kinetic_energy",
             Self::ElasticEnergy => "elastic_energy",
             Self::Id => "id",
+            Self::Fragment => "fragment",
         }
     }
 

@@ -24,6 +24,7 @@ fn params(dim: usize, spacing: Real, young: Real, poisson: Real) -> SolidParams 
         friction: 0.0,
         integrator: Integrator::Explicit { cfl: 0.5 },
         plasticity: None,
+        fracture: None,
     }
 }
 

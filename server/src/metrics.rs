@@ -237,6 +237,7 @@ impl Metrics {
             Some(StepError::Unstable { .. }) => "fluid_unstable",
             Some(StepError::SolidUnstable { .. }) => "solid_unstable",
             Some(StepError::Collapsed { .. }) => "solid_collapsed",
+            Some(StepError::CracksOutgrown { .. }) => "cracks_outgrown",
             Some(StepError::Compressed { .. }) => "compressed",
             Some(StepError::EnergyGained { .. }) => "energy_gained",
             Some(StepError::SolidEnergyGained { .. }) => "solid_energy_gained",

@@ -25,6 +25,7 @@ const FIELD_LABELS = {
   FIELD_KIND_VOLUME: "volume",
   FIELD_KIND_KINETIC_ENERGY: "kinetic energy",
   FIELD_KIND_ELASTIC_ENERGY: "elastic energy",
+  FIELD_KIND_FRAGMENT: "fragment",
   FIELD_KIND_ID: "id",
 };
 

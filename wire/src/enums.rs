@@ -190,6 +190,7 @@ mod tests {
         check::<IntegratorKind>();
         check::<Hyperelastic>();
         check::<EmbeddingMethod>();
+        check::<meshless_engine::solid::fracture::CrackCriterion>();
         check::<LinearSolver>();
         check::<ImplicitScheme>();
         check::<Quadrature>();
@@ -202,14 +203,14 @@ mod tests {
         assert_eq!(SolverKind::choices(), "wcsph or dfsph");
         assert_eq!(
             FieldKind::choices(),
-            "position, velocity, density, pressure, mass, volume, kinetic_energy, elastic_energy \
-             or id"
+            "position, velocity, density, pressure, mass, volume, kinetic_energy, elastic_energy, \
+             id or fragment"
         );
         let err = required_enum::<FieldKind>(0, "output.fields[0]").expect_err("unspecified");
         assert_eq!(
             err.to_string(),
             "output.fields[0]: unknown field kind 0; use position, velocity, density, pressure, \
-             mass, volume, kinetic_energy, elastic_energy or id"
+             mass, volume, kinetic_energy, elastic_energy, id or fragment"
         );
         assert_eq!(
             enum_or(0, MotionKind::Dynamic, "motion"),

@@ -10,7 +10,8 @@ use meshless_engine::efg::ModalState;
 use meshless_engine::fluid::FluidSnapshot;
 use meshless_engine::math::{Real, Vector};
 use meshless_engine::rigid::{BodyState, Rotation};
-use meshless_engine::solid::SolidSnapshot;
+use meshless_engine::solid::fracture::{Crack, FrontNode};
+use meshless_engine::solid::{FractureSnapshot, SolidSnapshot};
 use meshless_engine::{Clock, SystemState, WorldState};
 use meshless_proto::v1;
 use nalgebra::{Matrix3, Quaternion};
@@ -54,6 +55,7 @@ fn system_to_proto(system: &SystemState) -> v1::SystemSnapshot {
             energy_start,
             ..
         } => v1::system_snapshot::Kind::Solid(v1::SolidSnapshot {
+            fracture: solid.fracture.as_ref().map(fracture_to_proto),
             positions: flatten(&solid.positions),
             velocities: flatten(&solid.velocities),
             plastic: solid
@@ -206,6 +208,7 @@ fn system_from_proto(message: v1::SystemSnapshot, field: &str) -> Result<SystemS
                 escalated,
                 energy_start,
                 energy_scale,
+                fracture,
             } = s;
             let field = format!("{field}.solid");
             let energy_start = energy_pair(energy_start, energy_scale, &field)?;
@@ -238,11 +241,91 @@ fn system_from_proto(message: v1::SystemSnapshot, field: &str) -> Result<SystemS
                     plastic,
                     reference,
                     escalated,
+                    fracture: fracture
+                        .map(|f| fracture_from_proto(f, &format!("{field}.fracture")))
+                        .transpose()?,
                 },
                 energy_start,
             }
         }
     })
+}
+
+fn fracture_to_proto(state: &FractureSnapshot) -> v1::FractureState {
+    v1::FractureState {
+        cracks: state
+            .cracks
+            .iter()
+            .map(|c| v1::CrackState {
+                vertices: flatten(c.vertices()),
+                triangles: c.triangles().iter().flatten().copied().collect(),
+                front: c
+                    .front()
+                    .iter()
+                    .map(|f| {
+                        let [tip_a, tip_b] = f.tips();
+                        v1::CrackFrontNode {
+                            at: Some(to_vec3([f.at.x, f.at.y, f.at.z])),
+                            heading: Some(to_vec3([f.heading.x, f.heading.y, f.heading.z])),
+                            tip_a,
+                            tip_b,
+                            active: f.active,
+                        }
+                    })
+                    .collect(),
+            })
+            .collect(),
+        extra: state.extra.clone(),
+    }
+}
+
+/// A fracture state, shaped: each crack's indices in range and values
+/// finite (the engine checks it against the solid).
+fn fracture_from_proto(state: v1::FractureState, field: &str) -> Result<FractureSnapshot> {
+    let v1::FractureState { cracks, extra } = state;
+    let cracks = cracks
+        .into_iter()
+        .enumerate()
+        .map(|(k, c)| {
+            let at = format!("{field}.cracks[{k}]");
+            let v1::CrackState {
+                vertices,
+                triangles,
+                front,
+            } = c;
+            let vertices = vectors(vertices, &format!("{at}.vertices"))?;
+            if !triangles.len().is_multiple_of(3) {
+                return Err(WireError::new(
+                    format!("{at}.triangles"),
+                    format!("holds {} indices: 3 per triangle expected", triangles.len()),
+                ));
+            }
+            let triangles = triangles
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .collect();
+            let front = front
+                .into_iter()
+                .enumerate()
+                .map(|(j, f)| {
+                    let node = format!("{at}.front[{j}]");
+                    let v1::CrackFrontNode {
+                        at: position,
+                        heading,
+                        tip_a,
+                        tip_b,
+                        active,
+                    } = f;
+                    let position = Vector::from(vec3(required(position, &format!("{node}.at"))?));
+                    let heading =
+                        Vector::from(vec3(required(heading, &format!("{node}.heading"))?));
+                    Ok(FrontNode::new(position, heading, [tip_a, tip_b], active))
+                })
+                .collect::<Result<Vec<_>>>()?;
+            Crack::from_parts(vertices, triangles, front).map_err(|e| WireError::new(at, e))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(FractureSnapshot { cracks, extra })
 }
 
 /// An energy watch's start `(E_0, scale)` from its two optional fields,

@@ -34,7 +34,8 @@ pub use modal_solid::{
 };
 pub(crate) use solid::SampledSolid;
 pub use solid::{
-    AnchorSpec, IntegratorKind, SolidSpec, SolidSurfaceSpec, defaults as solid_defaults,
+    AnchorSpec, FractureSpec, IntegratorKind, SolidSpec, SolidSurfaceSpec,
+    defaults as solid_defaults,
 };
 
 use crate::approx::KernelKind;

@@ -9,8 +9,10 @@ use crate::geometry::Shape;
 use crate::geometry::TriMesh;
 use crate::math::{Real, Vector, vector};
 use crate::solid::embedded::{EmbeddedSurface, EmbeddingMethod};
+use crate::solid::fracture::{CrackCriterion, Discontinuity, Threshold};
 use crate::solid::{
-    Hyperelastic, ImplicitParams, ImplicitScheme, Integrator, Material, Plasticity, SolidParams,
+    FractureParams, Hyperelastic, ImplicitParams, ImplicitScheme, Integrator, Material, Plasticity,
+    SolidParams,
 };
 use serde::{Deserialize, Serialize};
 
@@ -120,6 +122,10 @@ pub struct SolidSpec {
     /// plastic strain.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub plasticity: Option<Plasticity>,
+    /// Cracks (tutorial Section 7.3): when they start, how they cut the
+    /// particles' pairs, how fast they run; none never cracks.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fracture: Option<FractureSpec>,
     /// A high-resolution surface that follows the particles, carried by
     /// every frame (3D); none computes no surface.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -128,6 +134,64 @@ pub struct SolidSpec {
     /// soft solid that must not collapse; see `solid::material`).
     #[serde(default, skip_serializing_if = "Hyperelastic::is_default")]
     pub material: Hyperelastic,
+}
+
+/// Cracks in a solid (tutorial Section 7.3), as a scene writes them: one
+/// threshold, the criterion and its opacity, the front's pace and the
+/// most cracks.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FractureSpec {
+    /// Brittle: the largest principal stress a particle bears, Pa.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stress: Option<Real>,
+    /// Ductile: the plastic strain norm a particle tears at.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plastic_strain: Option<Real>,
+    /// How a crack cuts the pairs it passes between.
+    #[serde(default)]
+    pub criterion: CrackCriterion,
+    /// Transparency's opacity scale, in particle spacings.
+    #[serde(default = "default_kappa")]
+    pub kappa: Real,
+    /// The farthest a front advances per step, in particle spacings.
+    #[serde(default = "default_advance")]
+    pub advance: Real,
+    /// Most cracks the solid may hold.
+    #[serde(default = "default_max_cracks")]
+    pub max_cracks: u32,
+}
+
+fn default_kappa() -> Real {
+    1.0
+}
+fn default_advance() -> Real {
+    FractureParams::DEFAULT_ADVANCE
+}
+fn default_max_cracks() -> u32 {
+    FractureParams::DEFAULT_MAX_CRACKS
+}
+
+impl FractureSpec {
+    /// The engine's parameters (a stress threshold of 0 where none is
+    /// set, which validation refuses first).
+    pub fn params(&self) -> FractureParams {
+        let threshold = match (self.stress, self.plastic_strain) {
+            (None, Some(plastic_strain)) => Threshold::PlasticStrain { plastic_strain },
+            (stress, _) => Threshold::Stress {
+                stress: stress.unwrap_or(0.0),
+            },
+        };
+        FractureParams {
+            threshold,
+            discontinuity: match self.criterion {
+                CrackCriterion::Transparency => Discontinuity::Transparency { kappa: self.kappa },
+                CrackCriterion::Visibility => Discontinuity::Visibility,
+            },
+            advance: self.advance,
+            max_cracks: self.max_cracks,
+        }
+    }
 }
 
 /// The surface embedded in a solid (tutorial Section 7.2): the shape's own
@@ -196,6 +260,7 @@ impl SolidSpec {
                 IntegratorKind::Implicit => Integrator::Implicit(self.implicit),
             },
             plasticity: self.plasticity,
+            fracture: self.fracture.as_ref().map(FractureSpec::params),
         }
     }
 
@@ -386,6 +451,18 @@ impl SolidSpec {
             if let Some(r) = p.rebase {
                 check_positive(&format!("{at}.plasticity.rebase"), r)?;
             }
+        }
+        if let Some(f) = &solid.fracture {
+            if f.stress.is_some() == f.plastic_strain.is_some() {
+                return Err(SceneError::invalid(
+                    format!("{at}.fracture"),
+                    "set one threshold: stress (brittle, Pa) or plastic_strain (ductile)",
+                ));
+            }
+            let rebases = solid.plasticity.is_some_and(|p| p.rebase.is_some());
+            f.params()
+                .validate(solid.plasticity.is_some(), rebases)
+                .map_err(|e| SceneError::invalid(format!("{at}.fracture"), e.to_string()))?;
         }
         if dim == 2 {
             for (field, v) in [

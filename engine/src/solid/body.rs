@@ -3,6 +3,7 @@
 //! lives in `integrate/`), so a snapshot of a body is its state.
 
 use super::contact::Obstacles;
+use super::fracture::{Fracture, FractureParamsError};
 use super::params::SolidParams;
 use super::topology::Topology;
 use crate::approx::mls::{MlsError, Order};
@@ -31,6 +32,8 @@ pub struct Body {
     /// Plastic strain per particle, only when the solid is plastic.
     pub(super) plastic: Option<Vec<Matrix3<Real>>>,
     pub(super) obstacles: Obstacles,
+    /// Cracks and the pairs they cut, only when the solid fractures.
+    pub(super) fracture: Option<Fracture>,
 }
 
 /// Why a solid cannot be built.
@@ -52,6 +55,9 @@ pub enum SolidError {
     /// The MLS gradients cannot be built.
     #[error(transparent)]
     Mls(#[from] MlsError),
+    /// The fracture parameters are refused.
+    #[error(transparent)]
+    Fracture(#[from] FractureParamsError),
 }
 
 impl Body {
@@ -81,7 +87,14 @@ impl Body {
                 });
             }
         }
+        if let Some(fracture) = params.fracture {
+            let rebases = params.plasticity.is_some_and(|p| p.rebase.is_some());
+            fracture.validate(params.plasticity.is_some(), rebases)?;
+        }
         let topology = Topology::build(&rest, params.dim, params.order, params.support)?;
+        let fracture = params
+            .fracture
+            .map(|f| Fracture::new(f, n, topology.owner.len()));
         let volume = params.particle_volume();
         let mut velocities = velocities;
         for (v, &f) in velocities.iter_mut().zip(&fixed) {
@@ -99,6 +112,7 @@ impl Body {
             topology,
             plastic: params.plasticity.map(|_| vec![Matrix3::zeros(); n]),
             obstacles,
+            fracture,
             params,
         })
     }
@@ -225,12 +239,14 @@ impl Body {
     }
 }
 
-/// What a failed step restores: positions, velocities and plastic strain.
+/// What a failed step restores: positions, velocities, plastic strain
+/// and cracks.
 #[derive(Debug, Clone, Default)]
 pub struct SolidState {
     positions: Vec<Vector>,
     velocities: Vec<Vector>,
     plastic: Option<Vec<Matrix3<Real>>>,
+    fracture: Option<Fracture>,
 }
 
 impl Body {
@@ -239,6 +255,7 @@ impl Body {
         out.positions.clone_from(&self.positions);
         out.velocities.clone_from(&self.velocities);
         out.plastic.clone_from(&self.plastic);
+        out.fracture.clone_from(&self.fracture);
     }
 
     /// Returns to a state saved by [`Self::save`] (of this body). A
@@ -248,5 +265,8 @@ impl Body {
         self.positions.clone_from(&saved.positions);
         self.velocities.clone_from(&saved.velocities);
         self.plastic.clone_from(&saved.plastic);
+        if let Some(fracture) = &saved.fracture {
+            self.put_back_cracks(fracture);
+        }
     }
 }

@@ -3,6 +3,7 @@
 
 use super::body::{Body, SolidError};
 use super::contact::{Obstacles, Penalty};
+use super::fracture::{FractureError, FractureStep};
 use super::integrate::{Integrator, SolidStep};
 use super::material::Hyperelastic;
 use super::params::SolidParams;
@@ -77,6 +78,20 @@ impl ElasticSolid {
     ) -> Result<SolidStep, Cancelled> {
         self.integrator
             .step(&mut self.body, dt, gravity, max_substeps, cancel, timer)
+    }
+
+    /// Advances the solid's cracks after a step (tutorial Section 7.3;
+    /// `fracture/`): fronts run, cracks start, the pairs they cut are
+    /// reweighed and the fragments labelled. Nothing for a solid without
+    /// fracture. [`Self::step`] and [`Self::step_cancellable`] move the
+    /// particles only, so a caller steps and then calls this.
+    ///
+    /// # Errors
+    /// [`FractureError`] when the cracks would outgrow their bound; the
+    /// cracks are then as they were.
+    pub fn fracture_step(&mut self) -> Result<FractureStep, FractureError> {
+        let states = self.integrator.states();
+        self.body.fracture_step(states)
     }
 
     /// Mechanical energy under `gravity` after a step of `dt`: kinetic,

@@ -16,13 +16,16 @@
 //! - `plasticity.rs`: Eq. 69 and the reference-shape update;
 //! - `contact.rs`: obstacles and walls;
 //! - `embedded.rs`: high-resolution surfaces that follow the particles
-//!   (Section 7.2).
+//!   (Section 7.2);
+//! - `fracture/`: cracks that start, run and cut the particles' pairs,
+//!   and the fragments they leave (Section 7.3).
 
 mod body;
 mod contact;
 mod elastic;
 pub mod embedded;
 mod forces;
+pub mod fracture;
 mod integrate;
 mod material;
 mod params;
@@ -33,6 +36,7 @@ mod topology;
 pub use body::{Body, SolidError, SolidState};
 pub use contact::{Obstacle, Obstacles};
 pub use elastic::ElasticSolid;
+pub use fracture::{Fracture, FractureError, FractureParams, FractureSnapshot, FractureStep};
 pub use integrate::SolidStep;
 pub use material::{Hyperelastic, Material, StressState, cofactor, green_strain};
 pub use params::{

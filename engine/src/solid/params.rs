@@ -1,6 +1,7 @@
 //! The knobs of an elastic solid, each trading speed for accuracy or
 //! naming a physical property.
 
+use super::fracture::FractureParams;
 use super::material::Material;
 use crate::approx::mls::Order;
 use crate::math::Real;
@@ -203,6 +204,8 @@ pub struct SolidParams {
     pub integrator: Integrator,
     /// Plastic flow (tutorial Eq. 69); `None` keeps the solid elastic.
     pub plasticity: Option<Plasticity>,
+    /// Cracks (tutorial Section 7.3); `None` never cracks.
+    pub fracture: Option<FractureParams>,
 }
 
 impl SolidParams {

@@ -6,6 +6,7 @@
 
 use super::body::Body;
 use super::elastic::ElasticSolid;
+use super::fracture::FractureSnapshot;
 use super::integrate::Integrator;
 use super::topology::Topology;
 use crate::math::{Real, Vector};
@@ -28,6 +29,8 @@ pub struct SolidSnapshot {
     /// Whether the implicit integrator's `auto` solver switched this body
     /// to Cholesky.
     pub escalated: bool,
+    /// The cracks of a fracturing solid; `None` for one that cannot crack.
+    pub fracture: Option<FractureSnapshot>,
 }
 
 impl ElasticSolid {
@@ -44,6 +47,7 @@ impl ElasticSolid {
             plastic: body.plastic.clone(),
             reference: rebases.then(|| (body.rest.clone(), body.volumes.clone())),
             escalated: self.integrator.escalated(),
+            fracture: body.fracture_snapshot(),
         }
     }
 
@@ -65,6 +69,9 @@ impl ElasticSolid {
             body.volumes.clone_from(volumes);
             body.topology = topology;
         }
+        if let Some(fracture) = &state.fracture {
+            body.restore_fracture(fracture);
+        }
         self.integrator.set_escalated(state.escalated);
         Ok(())
     }
@@ -75,6 +82,7 @@ impl ElasticSolid {
 fn check(body: &Body, state: &SolidSnapshot) -> Result<Option<Topology>, SnapshotError> {
     let n = body.len();
     check_vectors("positions", &state.positions, n)?;
+    body.check_fracture(state.fracture.as_ref())?;
     check_vectors("velocities", &state.velocities, n)?;
     match (&body.plastic, &state.plastic) {
         (None, None) => {}

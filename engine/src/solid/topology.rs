@@ -7,10 +7,22 @@
 //! Built once from the reference positions, and again only when a
 //! plastic solid re-bases its reference shape.
 
-use crate::approx::mls::{GradientKind, LagrangianGradients, Mls, MlsError, Order};
+use super::fracture::transparent_weight;
+use crate::approx::mls::{
+    GradientKind, GradientWeights, LagrangianGradients, Mls, MlsError, Order,
+};
 use crate::approx::{Kernel, KernelKind};
 use crate::math::{Real, Vector};
 use crate::neighbors::{CandidateSearch, KdTree, NeighborList};
+
+/// The largest condition number of the moment matrix a particle that
+/// cracks cut keeps its gradient at: past it its remaining neighbours
+/// (a sliver of a fragment, a few particles in a line) resolve no
+/// gradient, and the estimate would turn the particle inside out; it
+/// then drops to the constant order (no elastic force of its own) and
+/// moves as debris with whatever pairs still hold it. A full lattice
+/// support has condition numbers of order 10.
+pub const MAX_REFIT_CONDITION: Real = 1e3;
 
 /// Directed edges `e = (i -> j)` for every `j` within `h` of `i` (itself
 /// included, with zero weights), in CSR order of `i`.
@@ -96,8 +108,76 @@ impl Topology {
         })
     }
 
+    /// Recomputes particle `i`'s gradient weights, pair weights and
+    /// `sum_g` with each of its edges' distances lengthened by `extra[e]`
+    /// (tutorial Eq. 70; infinity removes the pair): what a crack that
+    /// passed near `i` changes. The edges themselves stay, so the
+    /// reverse adjacency and any sparsity pattern built on it hold.
+    pub fn reweigh(
+        &mut self,
+        i: usize,
+        rest: &[Vector],
+        mls: &Mls,
+        extra: &[Real],
+        scratch: &mut Reweigh,
+    ) {
+        let range = self.gradients.range(i);
+        let first = range.start;
+        let h = mls.params().h;
+        let inv_h = 1.0 / h;
+        let dim = mls.dim();
+        let kernel = mls.params().weight;
+        self.gradients.refit_direct(
+            mls,
+            i,
+            rest,
+            |k, d| {
+                let r = d[..dim].iter().map(|v| v * v).sum::<Real>().sqrt();
+                transparent_weight(kernel, r * inv_h, extra[first + k])
+            },
+            &mut scratch.weights,
+            &mut scratch.nodes,
+        );
+        if self.gradients.conditions()[i] > MAX_REFIT_CONDITION {
+            self.gradients.clear(i);
+        }
+        let edges = self.gradients.neighbour_indices();
+        // As `build` weighs the pairs, so that a pair no crack crosses
+        // gets the same bits.
+        let plain = Kernel::new(KernelKind::Poly6, dim, h);
+        let mut total = 0.0;
+        for e in range.clone() {
+            if edges[e] as usize == i {
+                self.pair_weight[e] = 0.0;
+                continue;
+            }
+            let r = self.rest_offset[e].norm();
+            self.pair_weight[e] = if extra[e] == 0.0 {
+                plain.value(r)
+            } else {
+                transparent_weight(KernelKind::Poly6, r * inv_h, extra[e])
+                    .map_or(0.0, |w| w * plain.value(0.0))
+            };
+            total += self.pair_weight[e];
+        }
+        if total > 0.0 {
+            for w in &mut self.pair_weight[range.clone()] {
+                *w /= total;
+            }
+        }
+        let g = self.gradients.all_weights();
+        self.sum_g[i] = range.map(|e| g[e]).sum();
+    }
+
     /// Edges `(i -> k)` ending at particle `k`.
     pub fn incoming(&self, k: usize) -> &[u32] {
         &self.reverse_edges[self.reverse_offsets[k] as usize..self.reverse_offsets[k + 1] as usize]
     }
+}
+
+/// Scratch memory of [`Topology::reweigh`], reused between particles.
+#[derive(Debug, Default)]
+pub struct Reweigh {
+    weights: GradientWeights,
+    nodes: Vec<Vector>,
 }

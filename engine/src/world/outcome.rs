@@ -119,6 +119,16 @@ pub enum StepError {
         /// The step that failed.
         step: u64,
     },
+    /// A fracturing solid's cracks outgrew the bound on their geometry.
+    #[error("the solid in systems[{system}] stopped in step {step}: {reason}")]
+    CracksOutgrown {
+        /// Index of the solid's system in the scene.
+        system: usize,
+        /// Why, with the bound.
+        reason: crate::solid::FractureError,
+        /// The step that failed.
+        step: u64,
+    },
     /// A fluid particle was compressed beyond the band a fluid allows
     /// ([`crate::world::watch::MAX_COMPRESSION`]).
     #[error(

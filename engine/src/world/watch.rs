@@ -79,6 +79,15 @@ impl EnergyWatch {
         self.start = start;
     }
 
+    /// Moves the start by `by` joules: what a change of the energy
+    /// functional itself (cracks that cut pairs) added at fixed positions
+    /// and velocities is not a gain of the scheme's.
+    pub fn shift(&mut self, by: Real) {
+        if let Some((start, _)) = self.start.as_mut() {
+            *start += by;
+        }
+    }
+
     /// Measures the start `(E_0, S)` with `measure` at the first step
     /// after a restart; call before the step.
     pub fn begin_with(&mut self, measure: impl FnOnce() -> (Real, Real)) {

@@ -37,6 +37,7 @@ wire_enum! {
         "kinetic_energy" => KineticEnergy,
         "elastic_energy" => ElasticEnergy,
         "id" => Id,
+        "fragment" => Fragment,
     }
 }
 

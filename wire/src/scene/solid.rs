@@ -8,8 +8,11 @@ use crate::enums::{WireEnum, enum_or, optional_enum, wire_enum};
 use crate::error::WireError;
 use crate::error::{Result, required};
 use meshless_engine::approx::mls::Order;
-use meshless_engine::scene::{IntegratorKind, SolidSpec, SolidSurfaceSpec, solid_defaults};
+use meshless_engine::scene::{
+    FractureSpec, IntegratorKind, SolidSpec, SolidSurfaceSpec, solid_defaults,
+};
 use meshless_engine::solid::embedded::EmbeddingMethod;
+use meshless_engine::solid::fracture::CrackCriterion;
 use meshless_engine::solid::{
     Hyperelastic, ImplicitParams, ImplicitScheme, LinearSolver, Plasticity,
 };
@@ -63,6 +66,65 @@ wire_enum! {
         "backward_euler" => BackwardEuler,
         "midpoint" => Midpoint,
         "static" => Static,
+    }
+}
+
+wire_enum! {
+    /// How a crack cuts the pairs it passes between.
+    CrackCriterion <-> CrackCriterion, "crack criterion" {
+        "transparency" => Transparency,
+        "visibility" => Visibility,
+    }
+}
+
+/// Fracture with each unset field at the scene file's default.
+fn fracture_from_proto(fracture: v1::Fracture, field: &str) -> Result<FractureSpec> {
+    let v1::Fracture {
+        stress,
+        plastic_strain,
+        criterion,
+        kappa,
+        advance,
+        max_cracks,
+    } = fracture;
+    let defaults = FractureSpec {
+        stress: None,
+        plastic_strain: None,
+        criterion: CrackCriterion::default(),
+        kappa: 1.0,
+        advance: meshless_engine::solid::FractureParams::DEFAULT_ADVANCE,
+        max_cracks: meshless_engine::solid::FractureParams::DEFAULT_MAX_CRACKS,
+    };
+    Ok(FractureSpec {
+        stress,
+        plastic_strain,
+        criterion: optional_enum(
+            criterion,
+            defaults.criterion,
+            &format!("{field}.fracture.criterion"),
+        )?,
+        kappa: kappa.unwrap_or(defaults.kappa),
+        advance: advance.unwrap_or(defaults.advance),
+        max_cracks: max_cracks.unwrap_or(defaults.max_cracks),
+    })
+}
+
+fn to_fracture(fracture: &FractureSpec) -> v1::Fracture {
+    let FractureSpec {
+        stress,
+        plastic_strain,
+        criterion,
+        kappa,
+        advance,
+        max_cracks,
+    } = *fracture;
+    v1::Fracture {
+        stress,
+        plastic_strain,
+        criterion: Some(criterion.to_i32()),
+        kappa: Some(kappa),
+        advance: Some(advance),
+        max_cracks: Some(max_cracks),
     }
 }
 
@@ -145,6 +207,7 @@ pub(super) fn solid_from_proto(solid: v1::SolidSpec, field: &str) -> Result<Soli
         plasticity,
         surface,
         material,
+        fracture,
     } = solid;
     let surface = surface
         .map(|surface| {
@@ -181,6 +244,9 @@ pub(super) fn solid_from_proto(solid: v1::SolidSpec, field: &str) -> Result<Soli
             rebase,
         }
     });
+    let fracture = fracture
+        .map(|f| fracture_from_proto(f, field))
+        .transpose()?;
     Ok(SolidSpec {
         shape: shape_from_proto(shape, &format!("{field}.shape"))?,
         position: vec3(required(position, &format!("{field}.position"))?),
@@ -207,6 +273,7 @@ pub(super) fn solid_from_proto(solid: v1::SolidSpec, field: &str) -> Result<Soli
         anchors,
         plasticity,
         surface,
+        fracture,
         material: optional_enum(
             material,
             Hyperelastic::default(),
@@ -241,8 +308,10 @@ pub(super) fn to_solid(solid: &SolidSpec) -> v1::SolidSpec {
         plasticity,
         surface,
         material,
+        fracture,
     } = solid;
     v1::SolidSpec {
+        fracture: fracture.as_ref().map(to_fracture),
         shape: Some(to_shape(shape)),
         position: Some(to_vec3(*position)),
         orientation: Some(to_vec3(*orientation)),

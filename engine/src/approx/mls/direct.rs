@@ -64,10 +64,29 @@ impl Mls {
     /// no node in the support the gradient is zero at the constant order.
     /// Sequential; allocates only while `out` grows.
     pub fn gradient_weights(&self, x: &Vector, nodes: &[Vector], out: &mut GradientWeights) -> Fit {
+        self.gradient_weights_weighted(x, nodes, |_, d| self.weight(d).map(|(w, _)| w), out)
+    }
+
+    /// [`Mls::gradient_weights`] with each node's weight given by the
+    /// caller: `weight(i, &(x - x_i))` returns node `i`'s weight, or
+    /// `None` (or a weight at or below zero) where it does not take part.
+    /// The fracturing solids use it for the transparency weights of
+    /// tutorial Eq. 70, which lengthen the distance of a pair a crack
+    /// passes between; the parameters' `h` stays the basis scale.
+    pub fn gradient_weights_weighted(
+        &self,
+        x: &Vector,
+        nodes: &[Vector],
+        weight: impl Fn(usize, &[Real; 3]) -> Option<Real>,
+        out: &mut GradientWeights,
+    ) -> Fit {
         out.weights.clear();
         out.weights.resize(nodes.len(), Vector::zeros());
         let s = &mut out.scratch;
-        s.gather(self, x, nodes, |_, d| self.weight(d));
+        // The direct estimate reads no weight gradient.
+        s.gather(self, x, nodes, |i, d| {
+            weight(i, d).filter(|w| *w > 0.0).map(|w| (w, [0.0; 3]))
+        });
         let support = s.nodes.len();
         let mut order = self.params.order;
         loop {

@@ -145,6 +145,49 @@ impl LagrangianGradients {
         })
     }
 
+    /// Recomputes particle `i`'s direct gradient weights (Eq. 37-38) at
+    /// its reference position in `positions`, over its neighbours as
+    /// built, with the weight of its `k`-th neighbour given by
+    /// `weight(k, &(x_i - x_j))` (`None` where the pair no longer
+    /// interacts). Only `i`'s entries change: the fracturing solids
+    /// refit just the particles a crack touched (tutorial Section 7.3).
+    ///
+    /// # Panics
+    /// When `i` is not a particle of these gradients (a programming
+    /// error: callers index their own particles).
+    pub fn refit_direct(
+        &mut self,
+        mls: &Mls,
+        i: usize,
+        positions: &[Vector],
+        weight: impl Fn(usize, &[Real; 3]) -> Option<Real>,
+        scratch: &mut GradientWeights,
+        nodes: &mut Vec<Vector>,
+    ) {
+        let range = self.range(i);
+        nodes.clear();
+        nodes.extend(
+            self.neighbours[range.clone()]
+                .iter()
+                .map(|&j| positions[j as usize]),
+        );
+        let fit = mls.gradient_weights_weighted(&positions[i], nodes, weight, scratch);
+        self.weights[range].copy_from_slice(scratch.weights());
+        self.orders[i] = fit.order;
+        self.conditions[i] = fit.condition;
+    }
+
+    /// Drops particle `i`'s gradient to the constant order: zero weights,
+    /// so its displacement gradient is zero whatever its neighbours do.
+    /// For a particle whose remaining neighbours resolve no gradient
+    /// reliably (a fragment of a few particles in a line).
+    pub fn clear(&mut self, i: usize) {
+        let range = self.range(i);
+        self.weights[range].fill(Vector::zeros());
+        self.orders[i] = Order::Constant;
+        self.conditions[i] = 1.0;
+    }
+
     /// Number of particles.
     pub fn len(&self) -> usize {
         self.orders.len()

@@ -144,6 +144,7 @@ fn mls_cantilever(
             ..ImplicitParams::default()
         }),
         plasticity: None,
+        fracture: None,
     };
     let cells = |lo: Real, hi: Real| {
         let count = ((hi - lo) / dx).round() as usize;

@@ -313,6 +313,7 @@ mod tests {
             friction: 0.0,
             integrator: Integrator::Explicit { cfl: 0.5 },
             plasticity: None,
+            fracture: None,
         };
         let rest = Shape::Box {
             half_extents: Vector::new(0.4, 0.2, 0.2),

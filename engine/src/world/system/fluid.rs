@@ -160,6 +160,8 @@ impl Simulated for FluidEntry {
                 [(0.5 * fluid.params.mass * fluid.velocities[k].norm_squared()) as f32]
             }),
             FieldKind::Id => fluid.in_id_order(out, |k| [fluid.ids()[k] as f32]),
+            // A fluid has no fragments.
+            FieldKind::Fragment => fluid.in_id_order(out, |_| [f32::NAN]),
             FieldKind::ElasticEnergy => {
                 let stored = self.fluid.pressure().has_equation_of_state();
                 fluid.in_id_order(out, |k| {

@@ -226,6 +226,8 @@ impl Simulated for ModalEntry {
             }
             // Exact below 2^24; frames carry ids as integers.
             FieldKind::Id => out.extend((0..solid.len()).map(|id| id as f32)),
+            // A modal solid never cracks: one fragment.
+            FieldKind::Fragment => out.extend(std::iter::repeat_n(0.0, solid.len())),
         }
     }
 

@@ -104,6 +104,21 @@ impl Simulated for SolidEntry {
                 step: env.step,
             });
         }
+        if self.solid.fracture().is_some() {
+            let before = self.solid.mechanical_energy(&env.gravity, env.dt);
+            let cracked =
+                self.solid
+                    .fracture_step()
+                    .map_err(|reason| StepError::CracksOutgrown {
+                        system: self.index,
+                        reason,
+                        step: env.step,
+                    })?;
+            if cracked.refitted > 0 {
+                let after = self.solid.mechanical_energy(&env.gravity, env.dt);
+                self.watch.shift(after - before);
+            }
+        }
         self.watch.check_solid(
             &self.solid,
             self.index,
@@ -154,6 +169,10 @@ impl Simulated for SolidEntry {
             }
             // Exact below 2^24; frames carry ids as integers.
             FieldKind::Id => out.extend((0..solid.len()).map(|id| id as f32)),
+            FieldKind::Fragment => match solid.fracture() {
+                Some(f) => out.extend(f.fragments().iter().map(|&k| k as f32)),
+                None => out.extend(std::iter::repeat_n(0.0, solid.len())),
+            },
         }
     }
 

@@ -1,0 +1,383 @@
+use super::crack::segment_triangle;
+use super::*;
+use crate::approx::KernelKind;
+use crate::approx::mls::Order;
+use crate::geometry::Shape;
+use crate::solid::{ElasticSolid, Integrator, Material, Obstacles, SolidParams};
+
+fn params(dim: usize, fracture: Option<FractureParams>) -> SolidParams {
+    let young = 1e6;
+    SolidParams {
+        dim,
+        spacing: 0.05,
+        density: 1000.0,
+        young,
+        material: Material::from_young_poisson(young, 0.3, 0.0),
+        order: Order::Linear,
+        support: 0.1,
+        hourglass: 0.1,
+        damping: 0.0,
+        friction: 0.0,
+        integrator: Integrator::Explicit { cfl: 0.5 },
+        plasticity: None,
+        fracture,
+    }
+}
+
+/// A 2D bar of 1 m x 0.3 m whose halves are pulled apart at `speed`.
+fn pulled_bar(fracture: Option<FractureParams>, speed: Real) -> ElasticSolid {
+    let p = params(2, fracture);
+    let shape = Shape::Box {
+        half_extents: Vector::new(0.5, 0.15, 0.0),
+    };
+    let rest = shape.sample_volume(p.spacing, 2).expect("samples");
+    let velocities = rest
+        .iter()
+        .map(|x| Vector::new(speed * x.x.signum(), 0.0, 0.0))
+        .collect();
+    let n = rest.len();
+    ElasticSolid::new(p, rest, velocities, vec![false; n], Obstacles::default()).expect("solid")
+}
+
+fn run(solid: &mut ElasticSolid, steps: usize) -> u32 {
+    let mut started = 0;
+    for _ in 0..steps {
+        solid.step(2e-4, &Vector::zeros(), 100);
+        started += solid.fracture_step().expect("bounded").started;
+    }
+    started
+}
+
+fn momentum(solid: &ElasticSolid) -> Vector {
+    solid
+        .velocities
+        .iter()
+        .zip(solid.masses())
+        .map(|(v, m)| v * *m)
+        .sum()
+}
+
+#[test]
+fn eq70_leaves_the_weight_at_the_front_and_removes_it_behind() {
+    let kernel = KernelKind::Poly6;
+    let t = Discontinuity::Transparency { kappa: 1.0 };
+    let q = 0.5;
+    let plain = transparent_weight(kernel, q, 0.0).expect("inside");
+    // At the front the crossing adds nothing: the shape functions stay
+    // continuous around the tip.
+    assert_eq!(
+        transparent_weight(kernel, q, opacity(t, 0.0, 0.1)),
+        Some(plain)
+    );
+    // Behind it the weight falls monotonically ...
+    let mut last = plain;
+    for k in 1..7 {
+        let w = transparent_weight(kernel, q, opacity(t, 0.01 * k as Real, 0.1)).unwrap_or(0.0);
+        assert!(w < last, "not falling at d_s = {}", 0.01 * k as Real);
+        last = w;
+    }
+    // ... as W(q + (d_s / (kappa s))^2): gone once q + (d_s/s)^2 >= 1.
+    let edge = (1.0 - q).sqrt() * 0.1;
+    assert!(transparent_weight(kernel, q, opacity(t, edge * 1.0001, 0.1)).is_none());
+    let just = transparent_weight(kernel, q, opacity(t, edge * 0.99, 0.1)).expect("inside");
+    let expected = (1.0 - (q + 0.99 * 0.99 * (1.0 - q)).powi(2)).powi(3);
+    assert!((just - expected).abs() < 1e-12, "{just} vs {expected}");
+    // Visibility: any crossing removes the pair.
+    assert!(transparent_weight(kernel, q, opacity(Discontinuity::Visibility, 0.0, 0.1)).is_none());
+}
+
+#[test]
+fn eq71_counts_the_neighbours_without_cracks_and_fewer_with() {
+    let kernel = KernelKind::Poly6;
+    let pairs = [(0.3, 0.0), (0.5, 0.0), (0.9, 0.0)];
+    assert!((undersampling(kernel, pairs.into_iter()) - 3.0).abs() < 1e-12);
+    let cut = [(0.3, 0.0), (0.5, 0.2), (0.9, Real::INFINITY)];
+    let q = undersampling(kernel, cut.into_iter());
+    assert!(q > 1.0 && q < 2.0, "{q}");
+}
+
+#[test]
+fn segments_cross_triangles_inside_only() {
+    let [p, q, r] = [Vector::zeros(), Vector::x(), Vector::y()];
+    let hit = segment_triangle(
+        &Vector::new(0.2, 0.2, -1.0),
+        &Vector::new(0.2, 0.2, 1.0),
+        &p,
+        &q,
+        &r,
+    );
+    assert_eq!(hit, Some(Vector::new(0.2, 0.2, 0.0)));
+    // Outside the triangle, parallel to it, short of it, or ending on it.
+    assert!(
+        segment_triangle(
+            &Vector::new(0.8, 0.8, -1.0),
+            &Vector::new(0.8, 0.8, 1.0),
+            &p,
+            &q,
+            &r
+        )
+        .is_none()
+    );
+    assert!(
+        segment_triangle(
+            &Vector::new(0.1, 0.1, 0.5),
+            &Vector::new(0.3, 0.1, 0.5),
+            &p,
+            &q,
+            &r
+        )
+        .is_none()
+    );
+    assert!(
+        segment_triangle(
+            &Vector::new(0.2, 0.2, 0.5),
+            &Vector::new(0.2, 0.2, 1.0),
+            &p,
+            &q,
+            &r
+        )
+        .is_none()
+    );
+    assert!(
+        segment_triangle(
+            &Vector::new(0.2, 0.2, 0.0),
+            &Vector::new(0.2, 0.2, 1.0),
+            &p,
+            &q,
+            &r
+        )
+        .is_none()
+    );
+}
+
+#[test]
+fn a_2d_crack_cuts_the_segments_across_it_and_measures_its_front() {
+    // A vertical crack from y = -0.1 to 0.1 at x = 0.
+    let crack = Crack::start(2, Vector::zeros(), Vector::x(), 0.1, 0.2);
+    let across = crack.crossing(
+        &Vector::new(-0.05, 0.02, 0.0),
+        &Vector::new(0.05, 0.02, 0.0),
+    );
+    let across = across.expect("crosses");
+    assert!((across.at - Vector::new(0.0, 0.02, 0.0)).norm() < 1e-12);
+    assert!(
+        (across.to_front - 0.08).abs() < 1e-12,
+        "{}",
+        across.to_front
+    );
+    assert!(
+        crack
+            .crossing(
+                &Vector::new(-0.05, 0.15, 0.0),
+                &Vector::new(0.05, 0.15, 0.0)
+            )
+            .is_none()
+    );
+    assert!(
+        crack
+            .crossing(
+                &Vector::new(0.01, -0.05, 0.0),
+                &Vector::new(0.01, 0.05, 0.0)
+            )
+            .is_none()
+    );
+    // Advancing the upper tip by 0.1 extends the cut and moves its front.
+    let mut crack = crack;
+    let moves: Vec<_> = crack
+        .front()
+        .iter()
+        .map(|f| (f.heading.y > 0.0).then_some((f.at + f.heading * 0.1, f.heading)))
+        .collect();
+    crack.advance(&moves, 1.0);
+    let above = crack.crossing(
+        &Vector::new(-0.05, 0.15, 0.0),
+        &Vector::new(0.05, 0.15, 0.0),
+    );
+    assert!((above.expect("now crosses").to_front - 0.05).abs() < 1e-12);
+}
+
+#[test]
+fn a_3d_crack_starts_as_a_disc_and_grows_its_rim() {
+    let mut crack = Crack::start(3, Vector::zeros(), Vector::z(), 0.1, 0.0);
+    assert_eq!(crack.front().len(), 6);
+    let through =
+        |c: &Crack, x: Real| c.crossing(&Vector::new(x, 0.0, -0.05), &Vector::new(x, 0.0, 0.05));
+    assert!(through(&crack, 0.02).is_some());
+    assert!(through(&crack, 0.15).is_none());
+    // Every rim node runs outward by 0.1: the rim (now 0.2 from the
+    // centre, six edges of 0.2) splits, and the disc cuts out to 0.2.
+    let moves: Vec<_> = crack
+        .front()
+        .iter()
+        .map(|f| Some((f.at + f.heading * 0.1, f.heading)))
+        .collect();
+    crack.advance(&moves, 0.15);
+    assert_eq!(crack.front().len(), 12);
+    assert!(through(&crack, 0.15).is_some());
+    assert!(through(&crack, 0.25).is_none());
+    let front = crack.distance_to_front(&Vector::zeros());
+    assert!(front > 0.17 && front <= 0.2, "{front}");
+}
+
+#[test]
+fn fragments_are_connected_sets_numbered_by_their_lowest_particle() {
+    // 0-3 and 1-4 joined, 2 alone.
+    let pairs = [(0usize, 3usize), (1, 4)];
+    let (labels, count) = label(5, |i| {
+        pairs.iter().filter_map(move |&(a, b)| {
+            if a == i {
+                Some(b)
+            } else if b == i {
+                Some(a)
+            } else {
+                None
+            }
+        })
+    });
+    assert_eq!(count, 3);
+    assert_eq!(labels, vec![0, 1, 2, 0, 1]);
+}
+
+use super::fragments::label;
+
+#[test]
+fn below_its_strength_a_fracturing_solid_moves_as_an_elastic_one_bit_for_bit() {
+    let mut plain = pulled_bar(None, 0.05);
+    let mut strong = pulled_bar(Some(FractureParams::brittle(1e9)), 0.05);
+    assert_eq!(run(&mut strong, 40), 0);
+    for _ in 0..40 {
+        plain.step(2e-4, &Vector::zeros(), 100);
+    }
+    assert_eq!(plain.positions, strong.positions);
+    assert_eq!(plain.velocities, strong.velocities);
+    assert_eq!(strong.fracture().expect("it fractures").fragment_count(), 1);
+}
+
+fn splits(discontinuity: Discontinuity) {
+    let mut fracture = FractureParams::brittle(2e4);
+    fracture.discontinuity = discontinuity;
+    let mut bar = pulled_bar(Some(fracture), 0.5);
+    let before = momentum(&bar);
+    let n = bar.len();
+    let mut steps = 0;
+    while bar.fracture().expect("it fractures").fragment_count() < 2 && steps < 2000 {
+        run(&mut bar, 1);
+        steps += 1;
+    }
+    let f = bar.fracture().expect("it fractures");
+    assert!(
+        f.fragment_count() >= 2,
+        "no split after {steps} steps ({} cracks)",
+        f.cracks().len()
+    );
+    // Momentum is exchanged only in pairs, cut or not.
+    let drift = (momentum(&bar) - before).norm();
+    let scale: Real = bar.masses().iter().sum::<Real>() * 0.5;
+    assert!(drift < 1e-10 * scale, "momentum drift {drift:e}");
+    // The two largest fragments are the two halves, moving apart.
+    let mut sizes = vec![0usize; f.fragment_count() as usize];
+    for &k in f.fragments() {
+        sizes[k as usize] += 1;
+    }
+    sizes.sort_unstable_by(|a, b| b.cmp(a));
+    assert!(
+        sizes[0] + sizes[1] > n * 9 / 10,
+        "fragments {sizes:?} of {n}"
+    );
+    // Left and right of the split no pair still interacts.
+    let left = f.fragments()[0];
+    let mean = |pick: &dyn Fn(u32) -> bool| {
+        let (sum, count) = bar
+            .velocities
+            .iter()
+            .zip(f.fragments())
+            .filter(|(_, k)| pick(**k))
+            .fold((0.0, 0), |(s, c), (v, _)| (s + v.x, c + 1));
+        sum / count as Real
+    };
+    assert!(mean(&|k| k == left) < 0.0, "the left part moves left");
+    assert!(
+        bar.undersampling()
+            .iter()
+            .cloned()
+            .fold(Real::INFINITY, Real::min)
+            < 10.0
+    );
+}
+
+#[test]
+fn a_bar_pulled_past_its_strength_splits_with_transparency() {
+    splits(Discontinuity::Transparency { kappa: 1.0 });
+}
+
+#[test]
+fn a_bar_pulled_past_its_strength_splits_with_visibility() {
+    splits(Discontinuity::Visibility);
+}
+
+#[test]
+fn fracture_parameters_out_of_range_are_refused_with_what_to_change() {
+    let mut p = FractureParams::brittle(-1.0);
+    assert!(
+        p.validate(false, false)
+            .expect_err("refused")
+            .to_string()
+            .contains("stress must be positive")
+    );
+    p = FractureParams::brittle(1e6);
+    p.discontinuity = Discontinuity::Transparency { kappa: 0.0 };
+    assert!(
+        p.validate(false, false)
+            .expect_err("refused")
+            .to_string()
+            .contains("kappa")
+    );
+    p = FractureParams::brittle(1e6);
+    p.advance = 2.0;
+    assert!(
+        p.validate(false, false)
+            .expect_err("refused")
+            .to_string()
+            .contains("advance")
+    );
+    p.advance = 0.5;
+    p.threshold = Threshold::PlasticStrain {
+        plastic_strain: 0.1,
+    };
+    assert_eq!(
+        p.validate(false, false),
+        Err(FractureParamsError::NeedsPlasticity)
+    );
+    assert_eq!(p.validate(true, true), Err(FractureParamsError::Rebase));
+    assert_eq!(p.validate(true, false), Ok(()));
+}
+
+#[test]
+fn a_step_undone_puts_the_cracks_and_the_weights_back_bit_for_bit() {
+    let mut fracture = FractureParams::brittle(2e4);
+    fracture.discontinuity = Discontinuity::Transparency { kappa: 1.0 };
+    let mut bar = pulled_bar(Some(fracture), 0.5);
+    // Run until just before the first crack, keep a copy, save.
+    while {
+        let mut probe = bar.clone();
+        run(&mut probe, 1) == 0
+    } {
+        run(&mut bar, 1);
+    }
+    let copy = bar.clone();
+    let mut saved = crate::solid::SolidState::default();
+    bar.save(&mut saved);
+    assert!(run(&mut bar, 3) > 0, "a crack starts");
+    bar.restore(&saved);
+    let mut copy = copy;
+    run(&mut bar, 30);
+    run(&mut copy, 30);
+    assert!(
+        bar.positions == copy.positions,
+        "positions differ after the undo"
+    );
+    assert!(
+        bar.fracture() == copy.fracture(),
+        "cracks differ after the undo"
+    );
+}
