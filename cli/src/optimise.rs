@@ -284,6 +284,7 @@ fn particles_frame(k: usize, time: f64, positions: &[[f64; 3]]) -> Frame {
         surface: None,
         solids: Vec::new(),
         solid_surfaces: Vec::new(),
+        crack_surfaces: Vec::new(),
         ids: None,
     }
 }

@@ -4,7 +4,7 @@
 use anyhow::{Context, Result};
 use meshless_engine::Frame;
 use meshless_engine::io::{
-    ExportFormat, MeshFormat, write_frame, write_solid_surface, write_surface,
+    ExportFormat, MeshFormat, write_crack_surface, write_frame, write_solid_surface, write_surface,
 };
 use std::path::Path;
 use std::sync::mpsc;
@@ -53,8 +53,10 @@ pub struct Written {
     pub frames: usize,
     pub surfaces: usize,
     pub solid_surfaces: usize,
-    /// `dir/frame_*.ext`, `dir/surface_*.ext` and `dir/solid*_*.ext`.
-    patterns: [String; 3],
+    pub crack_surfaces: usize,
+    /// `dir/frame_*.ext`, `dir/surface_*.ext`, `dir/solid*_*.ext` and
+    /// `dir/cracks*_*.ext`.
+    patterns: [String; 4],
 }
 
 impl Written {
@@ -63,7 +65,7 @@ impl Written {
     /// # Errors
     /// Standard output closed (see `outln!`).
     pub fn print(&self) -> std::io::Result<()> {
-        let [frames, surfaces, solids] = &self.patterns;
+        let [frames, surfaces, solids, cracks] = &self.patterns;
         outln!(
             "  output            {frames}  ({} files; ParaView opens them as a series)",
             self.frames
@@ -77,6 +79,12 @@ impl Written {
                 self.solid_surfaces
             )?;
         }
+        if self.crack_surfaces > 0 {
+            outln!(
+                "  crack faces       {cracks}  ({} files, cracksSYSTEM_STEP, with normals)",
+                self.crack_surfaces
+            )?;
+        }
         Ok(())
     }
 }
@@ -86,18 +94,22 @@ impl Written {
 #[derive(Debug)]
 pub struct FrameFiles {
     frames: mpsc::Sender<Frame>,
-    thread: JoinHandle<Result<(usize, usize, usize)>>,
-    patterns: [String; 3],
+    thread: JoinHandle<Result<(usize, usize, usize, usize)>>,
+    patterns: [String; 4],
 }
 
 /// Whether `name` is a file a writer of this kind made: frames, the
-/// fluid's surfaces or a solid's (`solid{system}_{step}`).
+/// fluid's surfaces, a solid's (`solid{system}_{step}`) or its cracks'
+/// (`cracks{system}_{step}`).
 fn written_earlier(name: &str) -> bool {
     let ext = |list: &[&str]| list.iter().any(|e| name.ends_with(e));
-    let solid = name.strip_prefix("solid").is_some_and(|rest| {
-        let digits = rest.bytes().take_while(u8::is_ascii_digit).count();
-        digits > 0 && rest[digits..].starts_with('_')
-    });
+    let numbered = |prefix: &str| {
+        name.strip_prefix(prefix).is_some_and(|rest| {
+            let digits = rest.bytes().take_while(u8::is_ascii_digit).count();
+            digits > 0 && rest[digits..].starts_with('_')
+        })
+    };
+    let solid = numbered("solid") || numbered("cracks");
     (name.starts_with("frame_") && ext(&[".vtk", ".ply"]))
         || ((name.starts_with("surface_") || solid) && ext(&[".obj", ".ply"]))
 }
@@ -126,7 +138,7 @@ impl FrameFiles {
         let (frames, received) = mpsc::channel::<Frame>();
         let out = dir.to_path_buf();
         let thread = std::thread::spawn(move || {
-            let (mut written, mut surfaces, mut solid_surfaces) = (0, 0, 0);
+            let (mut written, mut surfaces, mut solid_surfaces, mut crack_surfaces) = (0, 0, 0, 0);
             for frame in received {
                 write_frame(&out, format, &frame)?;
                 written += 1;
@@ -138,8 +150,12 @@ impl FrameFiles {
                     write_solid_surface(&out, surface_format, frame.step, surface)?;
                     solid_surfaces += 1;
                 }
+                for surface in &frame.crack_surfaces {
+                    write_crack_surface(&out, surface_format, frame.step, surface)?;
+                    crack_surfaces += 1;
+                }
             }
-            Ok((written, surfaces, solid_surfaces))
+            Ok((written, surfaces, solid_surfaces, crack_surfaces))
         });
         let (dir, mesh) = (dir.display(), surface_format.extension());
         Ok(Self {
@@ -149,6 +165,7 @@ impl FrameFiles {
                 format!("{dir}/frame_*.{}", format.extension()),
                 format!("{dir}/surface_*.{mesh}"),
                 format!("{dir}/solid*_*.{mesh}"),
+                format!("{dir}/cracks*_*.{mesh}"),
             ],
         })
     }
@@ -167,7 +184,7 @@ impl FrameFiles {
     /// The first write error.
     pub fn finish(self) -> Result<Written> {
         drop(self.frames);
-        let (frames, surfaces, solid_surfaces) = self
+        let (frames, surfaces, solid_surfaces, crack_surfaces) = self
             .thread
             .join()
             .map_err(|_| anyhow::anyhow!("the frame writer panicked"))??;
@@ -175,6 +192,7 @@ impl FrameFiles {
             frames,
             surfaces,
             solid_surfaces,
+            crack_surfaces,
             patterns: self.patterns,
         })
     }

@@ -196,6 +196,9 @@ pub struct FrameView {
     /// The deformed surface of every solid that embeds one, in scene
     /// order.
     pub solid_surfaces: Vec<SolidSurfaceView>,
+    /// The crack faces of every fracturing solid that has cracks, in
+    /// scene order.
+    pub crack_surfaces: Vec<SolidSurfaceView>,
 }
 
 impl FrameView {
@@ -227,6 +230,7 @@ impl FrameView {
         frame
             .solid_surfaces
             .iter()
+            .chain(&frame.crack_surfaces)
             .try_for_each(SolidSurfaceView::check)
     }
 
@@ -245,6 +249,7 @@ impl FrameView {
             surface,
             solids,
             solid_surfaces,
+            crack_surfaces,
         } = frame;
         let header = header.ok_or_else(no_header)?;
         let particle_count = header_particles(&header)?;
@@ -297,6 +302,10 @@ impl FrameView {
             surface: surface.map(SurfaceView::from_proto).transpose()?,
             solids,
             solid_surfaces: solid_surfaces
+                .into_iter()
+                .map(SolidSurfaceView::from_proto)
+                .collect::<Result<_, _>>()?,
+            crack_surfaces: crack_surfaces
                 .into_iter()
                 .map(SolidSurfaceView::from_proto)
                 .collect::<Result<_, _>>()?,
@@ -421,6 +430,7 @@ mod tests {
             surface: None,
             solids: Vec::new(),
             solid_surfaces: Vec::new(),
+            crack_surfaces: Vec::new(),
         }
     }
 

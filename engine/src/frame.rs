@@ -38,9 +38,10 @@ pub enum FieldKind {
     /// from frame to frame. Frames carry ids as integers, in
     /// [`Frame::ids`], not among the real-valued [`Frame::fields`].
     Id,
-    /// The fragment of a fracturing solid each particle is in, numbered
-    /// from 0 by each fragment's lowest particle (0 in a solid that
-    /// cannot crack, NaN for a fluid, which has no fragments).
+    /// The fragment of a fracturing solid each particle is in: 0 for the
+    /// body as built, and each part a crack cuts off takes the next
+    /// number (0 in a solid that cannot crack, NaN for a fluid, which has
+    /// no fragments).
     Fragment,
 }
 
@@ -133,6 +134,10 @@ pub struct Frame {
     /// The deformed surface of every solid that embeds one, in scene
     /// order.
     pub solid_surfaces: Vec<SolidSurface>,
+    /// The crack faces of every fracturing solid that has cracks, in
+    /// scene order: each crack's two faces, each deformed with the
+    /// material on its side (tutorial Section 7.3).
+    pub crack_surfaces: Vec<SolidSurface>,
 }
 
 /// A solid's embedded surface as deformed in a frame.

@@ -73,6 +73,24 @@ fn the_brittle_beam_snaps_at_its_root_and_falls() {
         tip < -0.1,
         "the tip is at y = {tip} {broke} steps after the break"
     );
+    // The frame carries each crack's two faces; across the crack that
+    // broke the beam they have come apart with the pieces.
+    let frame = world.frame();
+    let [faces] = &frame.crack_surfaces[..] else {
+        panic!("one fracturing solid, so one set of crack faces");
+    };
+    let cracks = solid.fracture().expect("it fractures").cracks();
+    let vertices: usize = cracks.iter().map(|c| c.vertices().len()).sum();
+    assert_eq!(faces.mesh.vertices.len(), 2 * vertices);
+    assert_eq!(faces.normals.len(), faces.mesh.vertices.len());
+    let n = cracks[0].vertices().len();
+    let gap = (0..n)
+        .map(|k| (faces.mesh.vertices[k] - faces.mesh.vertices[n + k]).norm())
+        .fold(0.0, f64::max);
+    assert!(
+        gap > 0.05,
+        "the root crack's faces are {gap} m apart at most"
+    );
 }
 
 #[test]
@@ -125,4 +143,58 @@ fn a_snapshot_taken_while_a_crack_runs_continues_bit_for_bit() {
     assert!(a.velocities == b.velocities, "velocities differ");
     assert!(a.fracture() == b.fracture(), "cracks differ");
     assert_eq!(fragments(&world), fragments(&restored));
+}
+
+#[test]
+fn a_snapshot_whose_cracks_do_not_fit_is_refused() {
+    let scene = shipped("brittle_beam.toml");
+    let mut world = build(&scene);
+    while world
+        .solids()
+        .next()
+        .and_then(|(_, s)| s.fracture())
+        .is_some_and(|f| f.cracks().is_empty())
+    {
+        world.step().expect("steps");
+    }
+    let good = world.state();
+    let refused = |change: &dyn Fn(&mut meshless_engine::solid::FractureSnapshot)| {
+        let mut state = good.clone();
+        let meshless_engine::SystemState::Solid { solid, .. } = &mut state.systems[0] else {
+            panic!("the beam is the only system");
+        };
+        change(solid.fracture.as_mut().expect("it fractures"));
+        match build(&scene).restored(&state) {
+            Ok(_) => panic!("a state that does not fit was restored"),
+            Err(error) => error.to_string(),
+        }
+    };
+    let error = refused(&|f| {
+        f.extra.pop();
+    });
+    assert!(error.contains("crack terms"), "{error}");
+    let error = refused(&|f| f.extra[0] = -1.0);
+    assert!(error.contains("crack term"), "{error}");
+    let error = refused(&|f| {
+        let first = f.cracks[0].clone();
+        f.cracks = vec![first; 65];
+    });
+    assert!(error.contains("cracks"), "{error}");
+    let error = refused(&|f| f.fragments[3] = 1_000_000);
+    assert!(error.contains("fragment label"), "{error}");
+    // A scene without fracture refuses a state with cracks.
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/brittle_beam.toml"),
+    )
+    .expect("readable");
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("fracture"))
+        .expect("fractures");
+    let elastic = Scene::from_toml_str(&text.replace(line, "")).expect("parses");
+    let Err(error) = build(&elastic).restored(&good).map(|_| ()) else {
+        panic!("an elastic solid took a state with cracks");
+    };
+    let error = error.to_string();
+    assert!(error.contains("fracture"), "{error}");
 }

@@ -280,6 +280,8 @@ class SessionView {
     });
     if (frame.surface && frame.surface.triangles.length > 0) meshes.push(mesh(frame.surface, [0.3, 0.55, 0.95, 0.55]));
     for (const s of frame.solid_surfaces) if (s.mesh) meshes.push(mesh(s.mesh, [0.95, 0.7, 0.4, 1]));
+    // A fracturing solid's crack faces, each carried by its own side.
+    for (const s of frame.crack_surfaces ?? []) if (s.mesh) meshes.push(mesh(s.mesh, [0.85, 0.2, 0.2, 1]));
     renderer.setMeshes(meshes);
   }
 

@@ -120,6 +120,44 @@ async fn run_writes_surfaces_beside_the_frames() {
     assert!(mesh.windows(13).any(|w| w == b"element face "));
 }
 
+/// The shipped brittle beam runs embedded until it breaks: its crack
+/// faces land beside the frames from the frame its first crack starts in,
+/// as OBJ with a normal per vertex, and each PLY frame carries the
+/// fragment labels.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn run_writes_the_crack_faces_of_a_breaking_solid() {
+    let dir = TempDir::new("cracks");
+    let scene = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes/brittle_beam.toml");
+    let out = dir.0.join("frames");
+    let stdout = meshless_ok(&[
+        "run",
+        scene.to_str().expect("utf-8"),
+        "--until",
+        "0.2",
+        "--format",
+        "ply",
+        "--output",
+        out.to_str().expect("utf-8"),
+    ])
+    .await;
+    assert!(stdout.contains("cracks*_*.obj"), "{stdout}");
+    let files = listing(&out);
+    let cracks: Vec<_> = files.iter().filter(|f| f.starts_with("cracks0_")).collect();
+    assert!(!cracks.is_empty(), "{files:?}");
+    let last = cracks.last().expect("a crack file");
+    let obj = std::fs::read_to_string(out.join(last)).expect("crack file");
+    let lines = |tag: &str| obj.lines().filter(|l| l.starts_with(tag)).count();
+    assert!(
+        lines("v ") > 0 && lines("vn ") == lines("v ") && lines("f ") > 0,
+        "{last}"
+    );
+    let ply = std::fs::read(out.join("frame_000100.ply")).expect("the last frame");
+    assert!(
+        ply.windows(22).any(|w| w == b"property float fragmen"),
+        "no fragment field"
+    );
+}
+
 /// The shipped jelly drop (an elastic solid and a static ball, no fluid)
 /// runs embedded: the summary counts the solid's particles, the PLY
 /// frames hold every one of them, finite, and the solid's embedded

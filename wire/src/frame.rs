@@ -75,6 +75,7 @@ pub fn frame_to_proto(session_id: &str, frame: &Frame) -> v1::Frame {
             .map(|mesh| to_surface_mesh(mesh, &[])),
         solids: frame.solids.iter().map(to_solid_range).collect(),
         solid_surfaces: frame.solid_surfaces.iter().map(to_solid_surface).collect(),
+        crack_surfaces: frame.crack_surfaces.iter().map(to_solid_surface).collect(),
     }
 }
 
@@ -143,6 +144,7 @@ pub fn frame_from_proto(frame: v1::Frame) -> Result<Frame> {
         surface,
         solids,
         solid_surfaces,
+        crack_surfaces,
     } = frame;
     let v1::FrameHeader {
         session_id: _,
@@ -197,6 +199,11 @@ pub fn frame_from_proto(frame: v1::Frame) -> Result<Frame> {
         .enumerate()
         .map(|(i, surface)| solid_surface_from_proto(surface, &format!("solid_surfaces[{i}]")))
         .collect::<Result<_>>()?;
+    let crack_surfaces = crack_surfaces
+        .into_iter()
+        .enumerate()
+        .map(|(i, surface)| solid_surface_from_proto(surface, &format!("crack_surfaces[{i}]")))
+        .collect::<Result<_>>()?;
     Ok(Frame {
         step,
         time,
@@ -213,6 +220,7 @@ pub fn frame_from_proto(frame: v1::Frame) -> Result<Frame> {
         surface,
         solids,
         solid_surfaces,
+        crack_surfaces,
     })
 }
 

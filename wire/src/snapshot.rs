@@ -276,13 +276,18 @@ fn fracture_to_proto(state: &FractureSnapshot) -> v1::FractureState {
             })
             .collect(),
         extra: state.extra.clone(),
+        fragments: state.fragments.clone(),
     }
 }
 
 /// A fracture state, shaped: each crack's indices in range and values
 /// finite (the engine checks it against the solid).
 fn fracture_from_proto(state: v1::FractureState, field: &str) -> Result<FractureSnapshot> {
-    let v1::FractureState { cracks, extra } = state;
+    let v1::FractureState {
+        cracks,
+        extra,
+        fragments,
+    } = state;
     let cracks = cracks
         .into_iter()
         .enumerate()
@@ -325,7 +330,11 @@ fn fracture_from_proto(state: v1::FractureState, field: &str) -> Result<Fracture
             Crack::from_parts(vertices, triangles, front).map_err(|e| WireError::new(at, e))
         })
         .collect::<Result<Vec<_>>>()?;
-    Ok(FractureSnapshot { cracks, extra })
+    Ok(FractureSnapshot {
+        cracks,
+        extra,
+        fragments,
+    })
 }
 
 /// An energy watch's start `(E_0, scale)` from its two optional fields,
@@ -485,5 +494,51 @@ mod tests {
             refused(&|m| m.systems[1].kind = None),
             "world.systems[1].kind"
         );
+    }
+
+    /// The shipped brittle beam stepped until its cracks run.
+    fn cracked_world() -> meshless_engine::World {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/brittle_beam.toml");
+        let scene = Scene::from_toml_file(&path).expect("parses");
+        let mut world = scene.build(&BuildOptions::default()).expect("builds");
+        while world
+            .solids()
+            .next()
+            .and_then(|(_, s)| s.fracture())
+            .is_some_and(|f| f.cracks().is_empty())
+        {
+            world.step().expect("stable");
+        }
+        world
+    }
+
+    #[test]
+    fn a_cracked_solid_round_trips_and_forged_cracks_are_refused() {
+        let state = cracked_world().state();
+        let message = world_state_to_proto(&state);
+        let back = world_state_from_proto(message.clone()).expect("converts");
+        assert_eq!(back, state);
+        let refused = |change: &dyn Fn(&mut v1::FractureState)| {
+            let mut m = message.clone();
+            let Some(v1::system_snapshot::Kind::Solid(solid)) = &mut m.systems[0].kind else {
+                panic!("the beam is the only system");
+            };
+            change(solid.fracture.as_mut().expect("it fractures"));
+            world_state_from_proto(m).expect_err("refused").to_string()
+        };
+        let error = refused(&|f| f.cracks[0].triangles[0] = 1_000_000);
+        assert!(
+            error.contains("cracks[0]") && error.contains("triangle 0"),
+            "{error}"
+        );
+        let error = refused(&|f| f.cracks[0].vertices[0] = f64::NAN);
+        assert!(error.contains("not finite"), "{error}");
+        let error = refused(&|f| f.cracks[0].front[0].at = None);
+        assert!(error.contains("front[0].at"), "{error}");
+        let error = refused(&|f| {
+            f.cracks[0].triangles.pop();
+        });
+        assert!(error.contains("3 per triangle"), "{error}");
     }
 }

@@ -70,6 +70,7 @@ pub fn engine_frame(particles: usize) -> Frame {
         surface: None,
         solids: Vec::new(),
         solid_surfaces: Vec::new(),
+        crack_surfaces: Vec::new(),
     }
 }
 

@@ -87,7 +87,9 @@ class SolidRange:
 class Frame:
     """A decoded frame: header values, one ``(n, components)`` float32
     array per field, the surface when the scene asks for one, rigid bodies'
-    poses, the rows of each elastic solid and the surfaces solids embed.
+    poses, the rows of each elastic solid, the surfaces solids embed and
+    the crack faces of fracturing solids (each crack's two faces, carried
+    by the material on either side).
 
     ``ids``: each particle's stable id within its system, ``(n,)`` uint32
     row for row with the fields, when the scene's ``output.fields`` names
@@ -111,6 +113,7 @@ class Frame:
     bodies: list[Body] = field(default_factory=list)
     solids: list[SolidRange] = field(default_factory=list)
     solid_surfaces: list[SolidSurface] = field(default_factory=list)
+    crack_surfaces: list[SolidSurface] = field(default_factory=list)
     header: Any = None
 
     @property
@@ -123,6 +126,7 @@ class Frame:
 _FRAME_FIELDS = 2  # Frame.fields: FieldData
 _FRAME_SURFACE = 4  # Frame.surface: SurfaceMesh
 _FRAME_SOLID_SURFACES = 6  # Frame.solid_surfaces: SolidSurface
+_FRAME_CRACK_SURFACES = 7  # Frame.crack_surfaces: SolidSurface
 _FIELD_DATA = 4  # FieldData.data
 _SOLID_SURFACE_MESH = 2  # SolidSurface.mesh: SurfaceMesh
 _MESH_VERTICES, _MESH_TRIANGLES, _MESH_NORMALS = 1, 2, 3  # SurfaceMesh
@@ -277,7 +281,12 @@ def unpack_frame(message: Any, payload: bytes | None = None) -> Frame:
         raise ValueError(f"frame: {e}") from e
     field_spans = _all(top, _FRAME_FIELDS)
     solid_spans = _all(top, _FRAME_SOLID_SURFACES)
-    if len(field_spans) != len(message.fields) or len(solid_spans) != len(message.solid_surfaces):
+    crack_spans = _all(top, _FRAME_CRACK_SURFACES)
+    if (
+        len(field_spans) != len(message.fields)
+        or len(solid_spans) != len(message.solid_surfaces)
+        or len(crack_spans) != len(message.crack_surfaces)
+    ):
         raise ValueError("frame: the wire scan and the parsed message disagree")
     fields = {}
     ids = None
@@ -312,16 +321,19 @@ def unpack_frame(message: Any, payload: bytes | None = None) -> Frame:
     if message.HasField("surface"):
         vertices, triangles = _surface(payload, _all(top, _FRAME_SURFACE), "surface", False)
         surface = Surface(vertices=vertices, triangles=triangles)
-    solid_surfaces = []
-    for s, span in zip(message.solid_surfaces, solid_spans):
-        what = f"solid {s.system} surface"
-        if not s.HasField("mesh"):
-            raise ValueError(f"{what}: no mesh")
-        mesh = _all(_scan(payload, span), _SOLID_SURFACE_MESH)
-        vertices, triangles, normals = _surface(payload, mesh, what, True)
-        solid_surfaces.append(
-            SolidSurface(system=s.system, vertices=vertices, normals=normals, triangles=triangles)
-        )
+    def solid_meshes(messages, spans, kind):
+        out = []
+        for s, span in zip(messages, spans):
+            what = f"solid {s.system} {kind}"
+            if not s.HasField("mesh"):
+                raise ValueError(f"{what}: no mesh")
+            mesh = _all(_scan(payload, span), _SOLID_SURFACE_MESH)
+            vertices, triangles, normals = _surface(payload, mesh, what, True)
+            out.append(SolidSurface(system=s.system, vertices=vertices, normals=normals, triangles=triangles))
+        return out
+
+    solid_surfaces = solid_meshes(message.solid_surfaces, solid_spans, "surface")
+    crack_surfaces = solid_meshes(message.crack_surfaces, crack_spans, "crack faces")
     return Frame(
         session_id=header.session_id,
         step=header.step,
@@ -334,6 +346,7 @@ def unpack_frame(message: Any, payload: bytes | None = None) -> Frame:
         bodies=[decode_body(pose) for pose in message.bodies],
         solids=solids,
         solid_surfaces=solid_surfaces,
+        crack_surfaces=crack_surfaces,
         header=header,
     )
 

@@ -256,6 +256,7 @@ def test_the_wire_scan_knows_the_frame_messages_field_numbers():
     assert f._FRAME_FIELDS == number(frame_pb2.Frame, "fields")
     assert f._FRAME_SURFACE == number(frame_pb2.Frame, "surface")
     assert f._FRAME_SOLID_SURFACES == number(frame_pb2.Frame, "solid_surfaces")
+    assert f._FRAME_CRACK_SURFACES == number(frame_pb2.Frame, "crack_surfaces")
     assert f._FIELD_DATA == number(frame_pb2.FieldData, "data")
     assert f._SOLID_SURFACE_MESH == number(frame_pb2.SolidSurface, "mesh")
     mesh = frame_pb2.SurfaceMesh
@@ -289,6 +290,10 @@ def test_the_views_hold_what_protobuf_parses_even_from_mangled_payloads():
     solid.mesh.vertices = np.full((3, 3), 2.0, dtype="<f4").tobytes()
     solid.mesh.triangles = triangle
     solid.mesh.normals = np.full((3, 3), 3.0, dtype="<f4").tobytes()
+    crack = message.crack_surfaces.add(system=1)
+    crack.mesh.vertices = np.full((3, 3), 4.0, dtype="<f4").tobytes()
+    crack.mesh.triangles = triangle
+    crack.mesh.normals = np.full((3, 3), 5.0, dtype="<f4").tobytes()
     payload = message.SerializeToString()
     # A second surface occurrence: protobuf merges it, its vertices win.
     extra = frame_pb2.Frame()
@@ -325,7 +330,12 @@ def test_the_views_hold_what_protobuf_parses_even_from_mangled_payloads():
         if frame.surface is not None:
             assert frame.surface.vertices.tobytes() == parsed.surface.vertices
             assert frame.surface.triangles.tobytes() == parsed.surface.triangles
-        for s, p in zip(frame.solid_surfaces, parsed.solid_surfaces):
+        assert len(frame.solid_surfaces) == len(parsed.solid_surfaces)
+        assert len(frame.crack_surfaces) == len(parsed.crack_surfaces)
+        for s, p in zip(
+            frame.solid_surfaces + frame.crack_surfaces,
+            list(parsed.solid_surfaces) + list(parsed.crack_surfaces),
+        ):
             assert s.vertices.tobytes() == p.mesh.vertices
             assert s.normals.tobytes() == p.mesh.normals
     assert decoded > 100, decoded

@@ -409,3 +409,40 @@ def test_constraints_and_a_shape_optimisation(server):
         again = client.get_design(session.id)
         np.testing.assert_array_equal(again.positions(0), design.positions(0))
         assert client.cancel_optimize(session.id) is False
+
+
+def test_a_brittle_beam_breaks_and_its_pieces_and_cracks_are_served(server):
+    """The shipped brittle cantilever over gRPC: its frames label the
+    fragments, carry the crack faces with normals, and a snapshot taken
+    once it cracked restores into a session that steps on identically."""
+    from conftest import ROOT
+    from meshless import Client
+
+    scene = (ROOT / "scenes" / "brittle_beam.toml").read_text()
+    with Client(server.grpc_target) as client:
+        session = client.create_session(scene)
+        assert session.scene.systems[0].solid.fracture.stress == 3.5e5
+        frame = client.latest_frame(session.id)
+        assert set(np.unique(frame.fields["fragment"])) == {0.0}
+        assert frame.crack_surfaces == []
+        # It breaks within 0.3 s of its release.
+        for _ in range(30):
+            client.step(session.id, 5)
+            frame = client.latest_frame(session.id)
+            if len(np.unique(frame.fields["fragment"])) >= 2:
+                break
+        labels = np.unique(frame.fields["fragment"])
+        assert len(labels) >= 2, labels
+        [faces] = frame.crack_surfaces
+        assert faces.system == 0 and len(faces.triangles) > 0
+        assert faces.normals.shape == faces.vertices.shape
+        assert np.abs(np.linalg.norm(faces.normals, axis=1) - 1.0).max() < 1e-3
+        snapshot = client.snapshot(session.id)
+        copy = client.restore(snapshot)
+        client.step(session.id, 20)
+        client.step(copy.id, 20)
+        a, b = client.latest_frame(session.id), client.latest_frame(copy.id)
+        assert a.step == b.step
+        assert np.array_equal(a.positions, b.positions)
+        assert np.array_equal(a.fields["fragment"], b.fields["fragment"])
+        assert np.array_equal(a.crack_surfaces[0].vertices, b.crack_surfaces[0].vertices)

@@ -190,6 +190,27 @@ pub fn write_solid_surface(
     write_mesh_file(path, format, mesh, Some(normals), &comment)
 }
 
+/// Writes a fracturing solid's crack faces of frame `step`, with their
+/// normals, as `{dir}/cracks{system}_{step:06}.{ext}` and returns the path.
+///
+/// # Errors
+/// Any I/O error, with the path in its message.
+pub fn write_crack_surface(
+    dir: &Path,
+    format: MeshFormat,
+    step: u64,
+    surface: &SolidSurface,
+) -> io::Result<PathBuf> {
+    let SolidSurface {
+        system,
+        mesh,
+        normals,
+    } = surface;
+    let path = dir.join(format!("cracks{system}_{step:06}.{}", format.extension()));
+    let comment = format!("meshless solid {system} crack faces, step {step}");
+    write_mesh_file(path, format, mesh, Some(normals), &comment)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -9,7 +9,9 @@ mod vtk;
 use crate::frame::Frame;
 use std::path::{Path, PathBuf};
 
-pub use mesh::{MeshFormat, write_mesh_ply, write_obj, write_solid_surface, write_surface};
+pub use mesh::{
+    MeshFormat, write_crack_surface, write_mesh_ply, write_obj, write_solid_surface, write_surface,
+};
 pub use ply::write_ply;
 pub use vtk::write_vtk;
 
@@ -83,6 +85,7 @@ pub(crate) mod test_frame {
             surface: None,
             solids: Vec::new(),
             solid_surfaces: Vec::new(),
+            crack_surfaces: Vec::new(),
             ids: None,
         }
     }

@@ -102,7 +102,7 @@ impl Body {
                 *v = Vector::zeros();
             }
         }
-        Ok(Self {
+        let mut body = Self {
             positions: rest.clone(),
             rest,
             velocities,
@@ -114,7 +114,9 @@ impl Body {
             obstacles,
             fracture,
             params,
-        })
+        };
+        body.label_fragments();
+        Ok(body)
     }
 
     /// Number of particles.

@@ -326,6 +326,7 @@ impl World {
                 .find_map(|s| s.simulated().fluid_surface()),
             solids: self.solid_ranges(),
             solid_surfaces: self.solid_surfaces(),
+            crack_surfaces: self.crack_surfaces(),
         }
     }
 
@@ -344,6 +345,14 @@ impl World {
         self.systems
             .iter()
             .filter_map(|s| s.simulated().solid_surface())
+            .collect()
+    }
+
+    /// The crack faces of every solid that has cracks, in scene order.
+    pub fn crack_surfaces(&self) -> Vec<SolidSurface> {
+        self.systems
+            .iter()
+            .filter_map(|s| s.simulated().crack_surface())
             .collect()
     }
 

@@ -127,6 +127,7 @@ mod tests {
                 surface: None,
                 solids: Vec::new(),
                 solid_surfaces: Vec::new(),
+                crack_surfaces: Vec::new(),
                 ids: None,
             },
         ))

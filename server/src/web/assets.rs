@@ -51,6 +51,10 @@ pub const ASSETS: &[Asset] = &[
 /// no file beside them (a mesh body's scene names its mesh files, which a
 /// page cannot send with the TOML).
 pub const SCENES: &[(&str, &str)] = &[
+    (
+        "brittle_beam",
+        include_str!("../../../scenes/brittle_beam.toml"),
+    ),
     ("dam_break", include_str!("../../../scenes/dam_break.toml")),
     (
         "dam_break_2d",

@@ -299,19 +299,32 @@ impl Crack {
         best
     }
 
-    /// Distance from `p` to the nearest point of the front: in 2D to the
-    /// nearest tip (in the plane), in 3D to the front polyline.
+    /// Distance from `p` to the nearest point of the live front: in 2D to
+    /// the nearest tip (in the plane), in 3D to the polyline through the
+    /// active nodes. A node that left the body or met another crack is
+    /// no front any more (the crack ends on a surface there), so a crack
+    /// whose every node stopped is infinitely far from its front: it cuts
+    /// every pair it crosses.
     pub fn distance_to_front(&self, p: &Vector) -> Real {
         if self.dim == 2 {
             return self
                 .front
                 .iter()
+                .filter(|n| n.active)
                 .map(|n| (p.xy() - n.at.xy()).norm())
                 .fold(Real::INFINITY, Real::min);
         }
         let n = self.front.len();
         (0..n)
-            .map(|k| point_segment(p, &self.front[k].at, &self.front[(k + 1) % n].at))
+            .filter(|&k| self.front[k].active)
+            .map(|k| {
+                let next = &self.front[(k + 1) % n];
+                if next.active {
+                    point_segment(p, &self.front[k].at, &next.at)
+                } else {
+                    (p - self.front[k].at).norm()
+                }
+            })
             .fold(Real::INFINITY, Real::min)
     }
 

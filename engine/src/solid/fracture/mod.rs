@@ -24,11 +24,14 @@
 //! - `params.rs`: thresholds, criterion, knobs;
 //! - `crack.rs`: crack surfaces as triangulated fronts;
 //! - `transparency.rs`: Eq. 70 and the under-sampling measure Eq. 71;
-//! - `fragments.rs`: connected fragments.
+//! - `fragments.rs`: connected fragments;
+//! - `surface.rs`: the crack faces a frame shows, each carried by its own
+//!   side's material.
 
 mod crack;
 mod fragments;
 mod params;
+mod surface;
 mod transparency;
 
 #[cfg(test)]
@@ -44,8 +47,9 @@ use super::topology::Reweigh;
 use crate::approx::mls::{Mls, MlsParams};
 use crate::math::{Real, Vector};
 use crate::neighbors::{CandidateSearch, KdTree};
-use crate::snapshot::SnapshotError;
+use crate::snapshot::{SnapshotError, check_length};
 use nalgebra::{Matrix3, SymmetricEigen};
+use rayon::prelude::*;
 
 /// Crack vertices a solid may hold per particle (beyond a fixed
 /// allowance): a bound on the geometry's memory that a running crack
@@ -61,20 +65,57 @@ pub struct Fracture {
     /// Per topology edge, the term the cracks added to its normalised
     /// distance (0 where none crossed; infinite where a crack removed it).
     extra: Vec<Real>,
-    /// Fragment of each particle, numbered from 0 in order of their
-    /// lowest particle.
+    /// Fragment of each particle: the body's connected parts as built,
+    /// then each part a crack cuts off numbered next.
     fragments: Vec<u32>,
     fragment_count: u32,
+    /// The neighbour search over the reference shape, kept between
+    /// updates (the shape never moves: a fracturing solid does not
+    /// re-base), so a step's cost follows the particles near the fronts.
+    search: SearchCache,
 }
 
-/// What a snapshot keeps of a fracturing solid: its cracks and the term
-/// they added to each pair; the fragments follow from those.
+/// A kd-tree over the reference shape and the radius it answers, built
+/// at the first update: a cache, not state, so it takes no part in
+/// comparisons and snapshots.
+#[derive(Clone, Default)]
+struct SearchCache(Option<(Real, KdTree)>);
+
+impl SearchCache {
+    fn get(&mut self, radius: Real, rest: &[Vector]) -> &KdTree {
+        if !self.0.as_ref().is_some_and(|(r, _)| *r == radius) {
+            let mut tree = KdTree::new(radius);
+            tree.rebuild(rest);
+            self.0 = Some((radius, tree));
+        }
+        let (_, tree) = self.0.as_ref().expect("built above");
+        tree
+    }
+}
+
+impl PartialEq for SearchCache {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+impl std::fmt::Debug for SearchCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("SearchCache")
+    }
+}
+
+/// What a snapshot keeps of a fracturing solid: its cracks, the term they
+/// added to each pair, and the fragments (whose numbers record the order
+/// the parts split off in).
 #[derive(Debug, Clone, PartialEq)]
 pub struct FractureSnapshot {
     /// The cracks, in the order they started.
     pub cracks: Vec<Crack>,
     /// Per topology edge, [`Fracture::extra`].
     pub extra: Vec<Real>,
+    /// Each particle's fragment, [`Fracture::fragments`].
+    pub fragments: Vec<u32>,
 }
 
 /// What one fracture update did.
@@ -150,6 +191,7 @@ impl Fracture {
             extra: vec![0.0; edges],
             fragments: vec![0; particles],
             fragment_count: 1,
+            search: SearchCache::default(),
         }
     }
 
@@ -190,6 +232,19 @@ impl Body {
         self.fracture.as_ref()
     }
 
+    /// Every crack's two faces deformed with the material on each side,
+    /// with unit vertex normals, for a frame; `None` before any crack.
+    pub fn crack_surface(&self) -> Option<(crate::geometry::TriMesh, Vec<Vector>)> {
+        let fracture = self.fracture.as_ref()?;
+        surface::crack_faces(
+            fracture,
+            &self.rest,
+            &self.positions,
+            self.params.spacing,
+            self.params.support,
+        )
+    }
+
     /// Eq. 71 at every particle: the transparency-weighted count of its
     /// neighbours, which cracks lower (the plain count without them).
     pub fn undersampling(&self) -> Vec<Real> {
@@ -215,6 +270,7 @@ impl Body {
         self.fracture.as_ref().map(|f| FractureSnapshot {
             cracks: f.cracks.clone(),
             extra: f.extra.clone(),
+            fragments: f.fragments.clone(),
         })
     }
 
@@ -251,6 +307,18 @@ impl Body {
                 value: state.extra[index],
             });
         }
+        check_length("fragment labels", state.fragments.len(), self.len())?;
+        if let Some(index) = state
+            .fragments
+            .iter()
+            .position(|&k| k as usize >= self.len())
+        {
+            return Err(SnapshotError::Invalid {
+                what: "fragment label",
+                index,
+                value: Real::from(state.fragments[index]),
+            });
+        }
         let max = fracture.params.max_cracks as usize;
         if state.cracks.len() > max {
             return Err(SnapshotError::Length {
@@ -278,38 +346,51 @@ impl Body {
         Ok(())
     }
 
-    /// Puts back a snapshot's cracks (checked by [`Self::check_fracture`]),
-    /// labelling the fragments again and reweighing the pairs that differ.
+    /// Puts back a snapshot's cracks, pair terms and fragments (checked
+    /// by [`Self::check_fracture`]), reweighing the pairs that differ.
     pub(super) fn restore_fracture(&mut self, state: &FractureSnapshot) {
         let Some(now) = self.fracture.as_ref() else {
             return;
         };
-        let mut saved = Fracture {
+        let saved = Fracture {
             params: now.params,
             cracks: state.cracks.clone(),
             extra: state.extra.clone(),
-            fragments: Vec::new(),
-            fragment_count: 0,
+            fragments: state.fragments.clone(),
+            fragment_count: state.fragments.iter().max().map_or(0, |&k| k + 1),
+            search: SearchCache::default(),
         };
-        (saved.fragments, saved.fragment_count) = self.label_fragments(&saved.extra);
         self.put_back_cracks(&saved);
     }
 
-    /// Fragments of the pairs of positive weight under the terms `extra`.
-    fn label_fragments(&self, extra: &[Real]) -> (Vec<u32>, u32) {
+    /// Labels the fragments of a solid no crack has cut yet.
+    pub(super) fn label_fragments(&mut self) {
+        let n = self.len();
+        let Some(mut fracture) = self.fracture.take() else {
+            return;
+        };
+        (fracture.fragments, fracture.fragment_count) =
+            fragments::label(n, |i| self.connected_neighbours(i, &fracture.extra));
+        self.fracture = Some(fracture);
+    }
+
+    /// The neighbours `i` still interacts with under the terms `extra`.
+    fn connected_neighbours<'a>(
+        &'a self,
+        i: usize,
+        extra: &'a [Real],
+    ) -> impl Iterator<Item = usize> + 'a {
         let t = &self.topology;
         let kernel = MlsParams::new(self.params.order, self.params.support).weight;
         let inv_h = 1.0 / self.params.support;
         let edges = t.gradients.neighbour_indices();
-        let connected = |e: usize| {
-            transparent_weight(kernel, t.rest_offset[e].norm() * inv_h, extra[e]).is_some()
-        };
-        fragments::label(self.len(), |i| {
-            t.gradients
-                .range(i)
-                .filter(|&e| connected(e))
-                .map(|e| edges[e] as usize)
-        })
+        t.gradients
+            .range(i)
+            .filter(move |&e| edges[e] as usize != i)
+            .filter(move |&e| {
+                transparent_weight(kernel, t.rest_offset[e].norm() * inv_h, extra[e]).is_some()
+            })
+            .map(move |e| edges[e] as usize)
     }
 
     /// Returns the cracks to `saved` (this body's, from before the
@@ -358,7 +439,9 @@ impl Body {
         let Some(mut fracture) = self.fracture.take() else {
             return Ok(FractureStep::default());
         };
-        let result = self.update_cracks(&mut fracture, states);
+        let mut search = std::mem::take(&mut fracture.search);
+        let result = self.update_cracks(&mut fracture, &mut search, states);
+        fracture.search = search;
         self.fracture = Some(fracture);
         result
     }
@@ -366,6 +449,7 @@ impl Body {
     fn update_cracks(
         &mut self,
         fracture: &mut Fracture,
+        search: &mut SearchCache,
         states: &[StressState],
     ) -> Result<FractureStep, FractureError> {
         let p = self.params;
@@ -383,8 +467,7 @@ impl Body {
         };
         let step = params.advance * spacing;
         let radius = h + reach + step + spacing;
-        let mut search = KdTree::new(radius);
-        search.rebuild(&self.rest);
+        let search = search.get(radius, &self.rest);
         let rest = &self.rest;
         let nearest = |at: &Vector| -> Option<usize> {
             let mut best: Option<(Real, usize)> = None;
@@ -418,7 +501,9 @@ impl Body {
                     continue;
                 }
                 let Some(at) = nearest(&node.at) else {
+                    // Out of the body: the pairs near it lose their front.
                     fracture.cracks[c].stop(k);
+                    touched.push(node.at);
                     continue;
                 };
                 let (ratio, normal) = measure(at);
@@ -460,8 +545,18 @@ impl Body {
             }
         }
 
-        // 2. New cracks, the most loaded particle first.
+        // 2. New cracks, the most loaded particle first. The largest
+        // principal stress is at most the stress's Frobenius norm, so
+        // only particles past the threshold in that norm are decomposed.
+        let plastic = self.plastic.as_deref();
         let mut candidates: Vec<(Real, usize, Vector)> = (0..n)
+            .into_par_iter()
+            .filter(|&i| match params.threshold {
+                Threshold::Stress { stress } => cauchy(&states[i]).norm() >= stress,
+                Threshold::PlasticStrain { plastic_strain } => {
+                    plastic.is_some_and(|e| e[i].norm() >= plastic_strain)
+                }
+            })
             .filter_map(|i| {
                 let (ratio, direction) = measure(i);
                 (ratio >= 1.0).then_some((ratio, i, direction))
@@ -499,64 +594,84 @@ impl Body {
             return Ok(out);
         }
 
-        // 3. The pairs near what moved.
-        let mut near = vec![false; n];
+        // 3. The pairs near what moved: their terms, and the particles
+        // whose shape functions change with them.
+        let mut near = Vec::new();
         for point in &touched {
             search.for_each_candidate(point, |j| {
                 if (rest[j as usize] - point).norm() <= radius {
-                    near[j as usize] = true;
+                    near.push(j as usize);
                 }
             });
         }
-        let edges = self.topology.gradients.neighbour_indices().to_vec();
-        let mut refit = vec![false; n];
-        for i in (0..n).filter(|&i| near[i]) {
-            for e in self.topology.gradients.range(i) {
-                let j = edges[e] as usize;
-                if j == i {
-                    continue;
-                }
-                // One direction for both edges of the pair, so both get
-                // the same term.
-                let (a, b) = if i < j {
-                    (rest[i], rest[j])
-                } else {
-                    (rest[j], rest[i])
-                };
-                let added: Real = fracture
-                    .cracks
-                    .iter()
-                    .filter_map(|c| c.crossing(&a, &b))
-                    .map(|x| opacity(params.discontinuity, x.to_front, spacing))
-                    .sum();
-                if added > fracture.extra[e] {
-                    fracture.extra[e] = added;
-                    refit[i] = true;
-                    refit[j] = true;
-                    // The reverse edge, which `j` owns.
-                    if let Some(back) = self
-                        .topology
-                        .gradients
-                        .range(j)
-                        .find(|&f| edges[f] as usize == i)
-                    {
-                        fracture.extra[back] = fracture.extra[back].max(added);
+        near.sort_unstable();
+        near.dedup();
+        let kernel = MlsParams::new(p.order, h).weight;
+        let inv_h = 1.0 / h;
+        let mut refit = Vec::new();
+        let mut cut = Vec::new();
+        {
+            let t = &self.topology;
+            let edges = t.gradients.neighbour_indices();
+            for &i in &near {
+                for e in t.gradients.range(i) {
+                    let j = edges[e] as usize;
+                    if j == i {
+                        continue;
+                    }
+                    // One direction for both edges of the pair, so both
+                    // get the same term.
+                    let (a, b) = if i < j {
+                        (rest[i], rest[j])
+                    } else {
+                        (rest[j], rest[i])
+                    };
+                    let added: Real = fracture
+                        .cracks
+                        .iter()
+                        .filter_map(|c| c.crossing(&a, &b))
+                        .map(|x| opacity(params.discontinuity, x.to_front, spacing))
+                        .sum();
+                    if added > fracture.extra[e] {
+                        let q = t.rest_offset[e].norm() * inv_h;
+                        if transparent_weight(kernel, q, fracture.extra[e]).is_some()
+                            && transparent_weight(kernel, q, added).is_none()
+                        {
+                            cut.push((i.min(j), i.max(j)));
+                        }
+                        fracture.extra[e] = added;
+                        refit.extend([i, j]);
+                        // The reverse edge, which `j` owns.
+                        if let Some(back) = t.gradients.range(j).find(|&f| edges[f] as usize == i) {
+                            fracture.extra[back] = fracture.extra[back].max(added);
+                        }
                     }
                 }
             }
         }
+        refit.sort_unstable();
+        refit.dedup();
         let mls = Mls::new(dim, MlsParams::new(p.order, h))
             .expect("the solid's MLS parameters were valid when it was built");
         let mut scratch = Reweigh::default();
-        for i in (0..n).filter(|&i| refit[i]) {
+        for &i in &refit {
             self.topology
                 .reweigh(i, rest, &mls, &fracture.extra, &mut scratch);
-            out.refitted += 1;
         }
+        out.refitted = refit.len() as u32;
 
-        // 4. Fragments.
-        if out.refitted > 0 {
-            (fracture.fragments, fracture.fragment_count) = self.label_fragments(&fracture.extra);
+        // 4. Fragments: only a pair cut through can split one, and only
+        // if no other chain of pairs still joins its ends.
+        cut.sort_unstable();
+        cut.dedup();
+        for (a, b) in cut {
+            fragments::split(
+                a,
+                b,
+                |i| self.connected_neighbours(i, &fracture.extra),
+                &mut fracture.fragments,
+                &mut fracture.fragment_count,
+            );
         }
         Ok(out)
     }

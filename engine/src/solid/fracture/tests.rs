@@ -220,6 +220,56 @@ fn a_3d_crack_starts_as_a_disc_and_grows_its_rim() {
 }
 
 #[test]
+fn cutting_the_last_pair_between_two_parts_splits_off_the_smaller() {
+    // A chain 0-1-2-3-4 with a side branch 1-5; cut 3-4, then 1-2.
+    let mut pairs = vec![(0usize, 1usize), (1, 2), (2, 3), (3, 4), (1, 5), (0, 5)];
+    let neighbours = |pairs: &Vec<(usize, usize)>, i: usize| -> Vec<usize> {
+        pairs
+            .iter()
+            .filter_map(|&(a, b)| {
+                if a == i {
+                    Some(b)
+                } else if b == i {
+                    Some(a)
+                } else {
+                    None
+                }
+            })
+            .collect()
+    };
+    let (mut labels, mut count) = label(6, |i| neighbours(&pairs, i).into_iter());
+    assert_eq!((count, labels.clone()), (1, vec![0; 6]));
+    // Cutting 0-5 leaves 5 joined through 1: nothing splits.
+    pairs.retain(|&p| p != (0, 5));
+    split(
+        0,
+        5,
+        |i| neighbours(&pairs, i).into_iter(),
+        &mut labels,
+        &mut count,
+    );
+    assert_eq!(count, 1);
+    pairs.retain(|&p| p != (3, 4));
+    split(
+        3,
+        4,
+        |i| neighbours(&pairs, i).into_iter(),
+        &mut labels,
+        &mut count,
+    );
+    assert_eq!((count, labels.clone()), (2, vec![0, 0, 0, 0, 1, 0]));
+    pairs.retain(|&p| p != (1, 2));
+    split(
+        1,
+        2,
+        |i| neighbours(&pairs, i).into_iter(),
+        &mut labels,
+        &mut count,
+    );
+    assert_eq!((count, labels), (3, vec![0, 0, 2, 2, 1, 0]));
+}
+
+#[test]
 fn fragments_are_connected_sets_numbered_by_their_lowest_particle() {
     // 0-3 and 1-4 joined, 2 alone.
     let pairs = [(0usize, 3usize), (1, 4)];
@@ -238,7 +288,7 @@ fn fragments_are_connected_sets_numbered_by_their_lowest_particle() {
     assert_eq!(labels, vec![0, 1, 2, 0, 1]);
 }
 
-use super::fragments::label;
+use super::fragments::{label, split};
 
 #[test]
 fn below_its_strength_a_fracturing_solid_moves_as_an_elastic_one_bit_for_bit() {
@@ -379,5 +429,153 @@ fn a_step_undone_puts_the_cracks_and_the_weights_back_bit_for_bit() {
     assert!(
         bar.fracture() == copy.fracture(),
         "cracks differ after the undo"
+    );
+}
+
+/// A 3D block of 15 x 5 x 5 particles whose halves are pulled apart
+/// along x.
+fn pulled_block(fracture: FractureParams) -> ElasticSolid {
+    let p = SolidParams {
+        dim: 3,
+        spacing: 0.02,
+        support: 0.04,
+        ..params(3, Some(fracture))
+    };
+    let shape = Shape::Box {
+        half_extents: Vector::new(0.15, 0.05, 0.05),
+    };
+    let rest = shape.sample_volume(p.spacing, 3).expect("samples");
+    let velocities = rest
+        .iter()
+        .map(|x| Vector::new(0.5 * x.x.signum(), 0.0, 0.0))
+        .collect();
+    let n = rest.len();
+    ElasticSolid::new(p, rest, velocities, vec![false; n], Obstacles::default()).expect("solid")
+}
+
+#[test]
+fn a_3d_block_pulled_apart_cracks_with_growing_discs_and_splits() {
+    let mut block = pulled_block(FractureParams::brittle(2e4));
+    let before = momentum(&block);
+    let mut steps = 0;
+    while block.fracture().expect("it fractures").fragment_count() < 2 && steps < 400 {
+        run(&mut block, 1);
+        steps += 1;
+    }
+    let f = block.fracture().expect("it fractures");
+    assert!(f.fragment_count() >= 2, "no split after {steps} steps");
+    // The discs grew: their rims refined past the six nodes they start
+    // with; the first crack opened in the middle, where the halves part,
+    // and stayed flat across the pull.
+    assert!(f.cracks().iter().any(|c| c.front().len() > 6));
+    for node in f.cracks()[0].front() {
+        assert!(node.at.x.abs() < 0.03, "a front at x = {}", node.at.x);
+    }
+    let drift = (momentum(&block) - before).norm();
+    assert!(drift < 1e-10, "momentum drift {drift:e}");
+    let (mesh, normals) = block.crack_surface().expect("cracks have faces");
+    assert_eq!(normals.len(), mesh.vertices.len());
+    assert!(mesh.triangles.len() > 2 * f.cracks().len());
+}
+
+#[test]
+fn a_ductile_bar_tears_only_after_it_has_flowed() {
+    let mut fracture = FractureParams::brittle(1.0);
+    fracture.threshold = Threshold::PlasticStrain {
+        plastic_strain: 0.02,
+    };
+    let mut p = params(2, Some(fracture));
+    p.plasticity = Some(crate::solid::Plasticity {
+        yield_strain: 0.002,
+        creep: 0.5,
+        max: 1.0,
+        rebase: None,
+    });
+    let shape = Shape::Box {
+        half_extents: Vector::new(0.5, 0.15, 0.0),
+    };
+    let rest = shape.sample_volume(p.spacing, 2).expect("samples");
+    let velocities = rest
+        .iter()
+        .map(|x| Vector::new(0.5 * x.x.signum(), 0.0, 0.0))
+        .collect();
+    let n = rest.len();
+    let mut bar =
+        ElasticSolid::new(p, rest, velocities, vec![false; n], Obstacles::default()).expect("bar");
+    let mut first_crack = None;
+    for step in 0..2000 {
+        let flowed = bar
+            .plastic
+            .as_ref()
+            .map_or(0.0, |e| e.iter().map(|m| m.norm()).fold(0.0, Real::max));
+        if run(&mut bar, 1) > 0 && first_crack.is_none() {
+            first_crack = Some((step, flowed));
+        }
+        if bar.fracture().expect("it fractures").fragment_count() >= 2 {
+            break;
+        }
+    }
+    let (step, flowed) = first_crack.expect("the bar tears");
+    assert!(step > 0, "it tore before it flowed");
+    assert!(
+        flowed >= 0.02 * 0.5,
+        "the first crack came at a plastic strain of {flowed}"
+    );
+    assert!(bar.fracture().expect("it fractures").fragment_count() >= 2);
+}
+
+#[test]
+fn a_bar_stretched_uniformly_cracks_when_its_stress_reaches_the_strength() {
+    // A 2D bar with nu = 0 given the velocity field v = rate x: its middle
+    // stretches uniformly until the free ends' unloading wave arrives, so
+    // its Cauchy stress follows (1 + e) E (e + e^2 / 2) with e = rate t
+    // (St Venant-Kirchhoff in 1D), and the first crack must start in the
+    // first step whose end puts it past the strength.
+    let young = 1e6;
+    let strength = 2e4;
+    let rate = 5.0;
+    let mut p = params(2, Some(FractureParams::brittle(strength)));
+    p.material = Material::from_young_poisson(young, 0.0, 0.0);
+    p.hourglass = 0.0;
+    let shape = Shape::Box {
+        half_extents: Vector::new(1.0, 0.1, 0.0),
+    };
+    let rest = shape.sample_volume(p.spacing, 2).expect("samples");
+    let velocities = rest
+        .iter()
+        .map(|x| Vector::new(rate * x.x, 0.0, 0.0))
+        .collect();
+    let n = rest.len();
+    let mut bar =
+        ElasticSolid::new(p, rest, velocities, vec![false; n], Obstacles::default()).expect("bar");
+    let dt = 2e-4;
+    let stress = |t: Real| {
+        let e = rate * t;
+        (1.0 + e) * young * (e + 0.5 * e * e)
+    };
+    let expected: u32 = (1..)
+        .find(|&k| stress(Real::from(k) * dt) >= strength)
+        .expect("reached");
+    // The unloading wave from the ends (1 m away, c = sqrt(E / rho))
+    // arrives well after.
+    assert!(Real::from(expected) * dt < 1.0 / (young / 1000.0_f64).sqrt());
+    let mut started = None;
+    for k in 1..=2 * expected {
+        bar.step(dt, &Vector::zeros(), 100);
+        if bar.fracture_step().expect("bounded").started > 0 {
+            started = Some(k);
+            break;
+        }
+    }
+    let started = started.expect("a crack starts");
+    assert!(
+        started.abs_diff(expected) <= 1,
+        "the first crack came in step {started}; the strength is reached in step {expected}"
+    );
+    let first = &bar.fracture().expect("it fractures").cracks()[0];
+    let x = first.front().iter().map(|f| f.at.x).sum::<Real>() / first.front().len() as Real;
+    assert!(
+        x.abs() < 0.8,
+        "the first crack is at x = {x}, in the uniform middle"
     );
 }

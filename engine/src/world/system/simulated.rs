@@ -310,6 +310,11 @@ pub(crate) trait Simulated {
         None
     }
 
+    /// The system's crack faces, for a frame's `crack_surfaces`.
+    fn crack_surface(&self) -> Option<SolidSurface> {
+        None
+    }
+
     /// The free surface of a fluid, for a frame's `surface`.
     fn fluid_surface(&self) -> Option<TriMesh> {
         None

@@ -209,6 +209,15 @@ impl Simulated for SolidEntry {
         })
     }
 
+    fn crack_surface(&self) -> Option<SolidSurface> {
+        let (mesh, normals) = self.solid.crack_surface()?;
+        Some(SolidSurface {
+            system: self.index,
+            mesh,
+            normals,
+        })
+    }
+
     fn capture(&self) -> SystemState {
         SystemState::Solid {
             index: self.index,

@@ -1,0 +1,143 @@
+//! What a running crack costs a fracturing MLS solid (tutorial Section
+//! 7.3): a 2D plate of about 2.5k, 10k and 40k particles whose halves are
+//! pulled apart (mode I), allowed one crack, which starts at the most
+//! loaded particle and runs across. For each size it prints the elastic
+//! step, the fracture update before the crack (the scan for particles
+//! past the threshold, the one part that visits every particle), the
+//! update while the crack runs, the particles whose shape functions each
+//! update refits, and the time per refit beyond the scan. A cache whose
+//! cost follows the particles a crack touches shows as refits and a time
+//! per refit that do not grow with the plate. Prints a table; asserts
+//! nothing.
+//!
+//!     cargo bench -p meshless-engine --bench fracture
+
+use meshless_engine::approx::mls::Order;
+use meshless_engine::geometry::Shape;
+use meshless_engine::math::{Real, Vector};
+use meshless_engine::solid::fracture::Discontinuity;
+use meshless_engine::solid::{
+    ElasticSolid, FractureParams, Integrator, Material, Obstacles, SolidParams,
+};
+use std::time::Instant;
+
+#[path = "common/smoke.rs"]
+mod smoke;
+
+const SPACING: Real = 0.01;
+const DT: Real = 2e-4;
+
+fn plate(side: usize, discontinuity: Discontinuity) -> ElasticSolid {
+    let young = 1e6;
+    let mut fracture = FractureParams::brittle(2e4);
+    fracture.discontinuity = discontinuity;
+    fracture.max_cracks = 1;
+    let params = SolidParams {
+        dim: 2,
+        spacing: SPACING,
+        density: 1000.0,
+        young,
+        material: Material::from_young_poisson(young, 0.3, 0.0),
+        order: Order::Linear,
+        support: 2.0 * SPACING,
+        hourglass: 0.1,
+        damping: 0.0,
+        friction: 0.0,
+        integrator: Integrator::Explicit { cfl: 0.5 },
+        plasticity: None,
+        fracture: Some(fracture),
+    };
+    let half = 0.5 * side as Real * SPACING;
+    let rest = Shape::Box {
+        half_extents: Vector::new(half, half, 0.0),
+    }
+    .sample_volume(SPACING, 2)
+    .expect("plate");
+    let velocities = rest
+        .iter()
+        .map(|x| Vector::new(0.0, 0.5 * x.y.signum(), 0.0))
+        .collect();
+    let n = rest.len();
+    ElasticSolid::new(
+        params,
+        rest,
+        velocities,
+        vec![false; n],
+        Obstacles::default(),
+    )
+    .expect("plate")
+}
+
+/// Milliseconds of `f`.
+fn timed<T>(f: impl FnOnce() -> T) -> (T, Real) {
+    let start = Instant::now();
+    let out = f();
+    (out, start.elapsed().as_secs_f64() * 1e3)
+}
+
+fn main() {
+    let sides = smoke::pick(vec![50, 100, 200], vec![20]);
+    let running_steps = smoke::pick(40, 2);
+    println!(
+        "fracture of a 2D plate pulled apart: ms per step, median over the steps ({} threads)",
+        rayon::current_num_threads()
+    );
+    println!(
+        "| criterion    | particles | elastic step | update, no crack | update, crack running | refitted / update | µs per refit beyond the scan | cracks |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for (name, discontinuity) in [
+        ("transparency", Discontinuity::Transparency { kappa: 1.0 }),
+        ("visibility", Discontinuity::Visibility),
+    ] {
+        for &side in &sides {
+            let mut solid = plate(side, discontinuity);
+            let gravity = Vector::zeros();
+            let mut elastic = Vec::new();
+            let mut quiet = Vec::new();
+            let mut running = Vec::new();
+            let mut refitted = Vec::new();
+            let mut steps = 0;
+            while running.len() < running_steps && steps < 2000 {
+                steps += 1;
+                let ((), t) = timed(|| {
+                    solid.step(DT, &gravity, 100);
+                });
+                elastic.push(t);
+                let (update, t) = timed(|| solid.fracture_step().expect("bounded"));
+                let cracks = solid.fracture().map_or(0, |f| f.cracks().len());
+                if cracks == 0 {
+                    quiet.push(t);
+                } else if update.refitted > 0 {
+                    running.push(t);
+                    refitted.push(Real::from(update.refitted));
+                }
+            }
+            let cracks = solid.fracture().map_or(0, |f| f.cracks().len());
+            let (scan, run, refits) = (
+                median(&mut quiet),
+                median(&mut running),
+                median(&mut refitted),
+            );
+            let per_refit = (run - scan) * 1e3 / refits;
+            println!(
+                "| {name:<12} | {:>9} | {:>12.2} | {:>16.3} | {:>21.3} | {:>17.0} | {:>28.1} | {:>6} |",
+                solid.len(),
+                median(&mut elastic),
+                scan,
+                run,
+                refits,
+                per_refit,
+                cracks
+            );
+        }
+    }
+}
+
+fn median(values: &mut [Real]) -> Real {
+    if values.is_empty() {
+        return Real::NAN;
+    }
+    values.sort_by(Real::total_cmp);
+    values[values.len() / 2]
+}
