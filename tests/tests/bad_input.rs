@@ -419,6 +419,47 @@ async fn bad_solids_are_invalid_arguments_naming_the_field() {
             }),
         ),
         (
+            "systems[1].fracture",
+            Box::new(|s| {
+                solid(s).fracture = Some(v1::Fracture {
+                    stress: Some(1e5),
+                    kappa: Some(0.0),
+                    ..Default::default()
+                });
+            }),
+        ),
+        (
+            // Both thresholds, or neither: the scene must say which.
+            "systems[1].fracture",
+            Box::new(|s| {
+                solid(s).fracture = Some(v1::Fracture {
+                    stress: Some(1e5),
+                    plastic_strain: Some(0.1),
+                    ..Default::default()
+                });
+            }),
+        ),
+        (
+            // A ductile threshold on a solid that does not flow.
+            "systems[1].fracture",
+            Box::new(|s| {
+                solid(s).fracture = Some(v1::Fracture {
+                    plastic_strain: Some(0.1),
+                    ..Default::default()
+                });
+            }),
+        ),
+        (
+            "systems[1].fracture.criterion",
+            Box::new(|s| {
+                solid(s).fracture = Some(v1::Fracture {
+                    stress: Some(1e5),
+                    criterion: Some(99),
+                    ..Default::default()
+                });
+            }),
+        ),
+        (
             "systems[1].surface.method",
             Box::new(|s| {
                 solid(s).surface = Some(v1::SolidSurfaceSpec {

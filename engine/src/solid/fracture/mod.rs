@@ -50,6 +50,7 @@ use crate::neighbors::{CandidateSearch, KdTree};
 use crate::snapshot::{SnapshotError, check_length};
 use nalgebra::{Matrix3, SymmetricEigen};
 use rayon::prelude::*;
+use std::time::{Duration, Instant};
 
 /// Crack vertices a solid may hold per particle (beyond a fixed
 /// allowance): a bound on the geometry's memory that a running crack
@@ -127,6 +128,12 @@ pub struct FractureStep {
     pub advanced: u32,
     /// Particles whose shape functions were refitted.
     pub refitted: u32,
+    /// Time spent looking for particles past the threshold: the one
+    /// pass over every particle.
+    pub scan: Duration,
+    /// Time spent reweighing the pairs near what moved, refitting their
+    /// particles and checking the fragments: what follows the crack.
+    pub refit: Duration,
 }
 
 /// Why a fracture update stopped.
@@ -545,6 +552,7 @@ impl Body {
             }
         }
 
+        let scanning = Instant::now();
         // 2. New cracks, the most loaded particle first. The largest
         // principal stress is at most the stress's Frobenius norm, so
         // only particles past the threshold in that norm are decomposed.
@@ -581,6 +589,7 @@ impl Body {
             fracture.cracks.push(crack);
             out.started += 1;
         }
+        out.scan = scanning.elapsed();
         let vertices = fracture.vertex_count();
         let limit = VERTICES_PER_PARTICLE * n + 1024;
         if vertices > limit {
@@ -594,6 +603,7 @@ impl Body {
             return Ok(out);
         }
 
+        let refitting = Instant::now();
         // 3. The pairs near what moved: their terms, and the particles
         // whose shape functions change with them.
         let mut near = Vec::new();
@@ -673,6 +683,7 @@ impl Body {
                 &mut fracture.fragment_count,
             );
         }
+        out.refit = refitting.elapsed();
         Ok(out)
     }
 }
