@@ -285,22 +285,28 @@ impl Model<'_> {
     /// every step, and a pass that kept states and split forces for it
     /// raised a 27k-particle solid's peak memory by 9 MB.
     pub fn energy(&self, x: &[Vector]) -> Real {
+        par_sum(x.len(), |i| self.particle_energy(i, x))
+    }
+
+    /// Particle `i`'s share of [`Self::energy`]: its own strain, volume
+    /// and hourglass terms, which read only its own gradient and pair
+    /// weights (so a crack that reweighs some particles changes the
+    /// energy by exactly their shares' change).
+    pub fn particle_energy(&self, i: usize, x: &[Vector]) -> Real {
         let t = self.topology;
         let edges = t.gradients.neighbour_indices();
-        par_sum(x.len(), |i| {
-            let f = self.gradient_of(i, x, 1.0);
-            let state = self.material.state(f, self.plastic.map(|p| &p[i]));
-            let volume = self.volumes[i];
-            let kappa = self.hourglass * volume;
-            let mut total = volume * self.material.energy_density(&state);
-            if kappa > 0.0 {
-                for e in t.gradients.range(i) {
-                    let err = x[edges[e] as usize] - x[i] - f * t.rest_offset[e];
-                    total += 0.5 * kappa * t.pair_weight[e] * err.norm_squared();
-                }
+        let f = self.gradient_of(i, x, 1.0);
+        let state = self.material.state(f, self.plastic.map(|p| &p[i]));
+        let volume = self.volumes[i];
+        let kappa = self.hourglass * volume;
+        let mut total = volume * self.material.energy_density(&state);
+        if kappa > 0.0 {
+            for e in t.gradients.range(i) {
+                let err = x[edges[e] as usize] - x[i] - f * t.rest_offset[e];
+                total += 0.5 * kappa * t.pair_weight[e] * err.norm_squared();
             }
-            total
-        })
+        }
+        total
     }
 
     /// Damping power `sum_e c_e (n_e . (v_j - v_i))^2 / 2` (the Rayleigh

@@ -19,8 +19,8 @@ use crate::neighbors::{CandidateSearch, KdTree, NeighborList};
 /// cracks cut keeps its gradient at: past it its remaining neighbours
 /// (a sliver of a fragment, a few particles in a line) resolve no
 /// gradient, and the estimate would turn the particle inside out; it
-/// then drops to the constant order (no elastic force of its own) and
-/// moves as debris with whatever pairs still hold it. A full lattice
+/// then drops to the constant order (no energy of its own, elastic or
+/// hourglass) and moves as debris with whatever pairs still hold it. A full lattice
 /// support has condition numbers of order 10.
 pub const MAX_REFIT_CONDITION: Real = 1e3;
 
@@ -164,6 +164,13 @@ impl Topology {
             for w in &mut self.pair_weight[range.clone()] {
                 *w /= total;
             }
+        }
+        if self.gradients.orders()[i] == Order::Constant {
+            // No gradient, so `F_i = I` whatever the neighbours do: an
+            // hourglass term measured against it would resist rotating
+            // the debris (a torque from nothing). The particle keeps no
+            // energy of its own.
+            self.pair_weight[range.clone()].fill(0.0);
         }
         let g = self.gradients.all_weights();
         self.sum_g[i] = range.map(|e| g[e]).sum();

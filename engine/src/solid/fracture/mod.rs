@@ -120,7 +120,7 @@ pub struct FractureSnapshot {
 }
 
 /// What one fracture update did.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct FractureStep {
     /// Cracks started.
     pub started: u32,
@@ -128,6 +128,10 @@ pub struct FractureStep {
     pub advanced: u32,
     /// Particles whose shape functions were refitted.
     pub refitted: u32,
+    /// What the reweighing changed the stored energy by at the current
+    /// positions, J: a change of the energy's form, not work done on the
+    /// solid (the energy watch moves its start by it).
+    pub energy_change: Real,
     /// Time spent looking for particles past the threshold: the one
     /// pass over every particle.
     pub scan: Duration,
@@ -663,11 +667,20 @@ impl Body {
         refit.dedup();
         let mls = Mls::new(dim, MlsParams::new(p.order, h))
             .expect("the solid's MLS parameters were valid when it was built");
+        let shares = |body: &Body| -> Real {
+            let model = body.model();
+            refit
+                .iter()
+                .map(|&i| model.particle_energy(i, &body.positions))
+                .sum()
+        };
+        let before = shares(self);
         let mut scratch = Reweigh::default();
         for &i in &refit {
             self.topology
-                .reweigh(i, rest, &mls, &fracture.extra, &mut scratch);
+                .reweigh(i, &self.rest, &mls, &fracture.extra, &mut scratch);
         }
+        out.energy_change = shares(self) - before;
         out.refitted = refit.len() as u32;
 
         // 4. Fragments: only a pair cut through can split one, and only

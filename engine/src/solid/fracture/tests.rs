@@ -579,3 +579,113 @@ fn a_bar_stretched_uniformly_cracks_when_its_stress_reaches_the_strength() {
         "the first crack is at x = {x}, in the uniform middle"
     );
 }
+
+#[test]
+fn a_refit_reports_exactly_what_it_changed_the_stored_energy_by() {
+    let mut bar = pulled_bar(Some(FractureParams::brittle(2e4)), 0.5);
+    let mut checked = 0;
+    for _ in 0..200 {
+        bar.step(2e-4, &Vector::zeros(), 100);
+        let before = bar.potential_energy();
+        let update = bar.fracture_step().expect("bounded");
+        let after = bar.potential_energy();
+        if update.refitted > 0 {
+            let error = (after - before - update.energy_change).abs();
+            assert!(
+                error <= 1e-9 * before.abs().max(1e-9),
+                "{error:e} of {before:e}"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked > 5, "only {checked} updates refitted");
+}
+
+#[test]
+fn after_a_split_each_side_still_reproduces_linear_fields_and_momenta_hold() {
+    let mut bar = pulled_bar(Some(FractureParams::brittle(2e4)), 0.5);
+    // A spin on top of the pull, for the angular momentum.
+    let spin = Vector::new(0.0, 0.0, 0.3);
+    let rest = bar.rest_positions().to_vec();
+    for (v, x) in bar.velocities.iter_mut().zip(&rest) {
+        *v += spin.cross(x);
+    }
+    let angular = |b: &ElasticSolid| -> Vector {
+        b.positions
+            .iter()
+            .zip(&b.velocities)
+            .zip(b.masses())
+            .map(|((x, v), m)| x.cross(&(v * *m)))
+            .sum()
+    };
+    let (p0, l0) = (momentum(&bar), angular(&bar));
+    let mut steps = 0;
+    while bar.fracture().expect("it fractures").fragment_count() < 2 && steps < 2000 {
+        run(&mut bar, 1);
+        steps += 1;
+    }
+    assert!(bar.fracture().expect("it fractures").fragment_count() >= 2);
+    assert!((momentum(&bar) - p0).norm() < 1e-10, "linear momentum");
+    let drift = (angular(&bar) - l0).norm();
+    assert!(drift < 1e-10, "angular momentum drift {drift:e}");
+    // Every particle that kept a linear fit still differentiates a linear
+    // field exactly, whatever pairs the cracks removed from it.
+    let field = |x: &Vector| 0.3 + 1.7 * x.x - 0.8 * x.y;
+    let values: Vec<Real> = rest.iter().map(field).collect();
+    let g = &bar.topology.gradients;
+    let mut linear = 0;
+    for i in 0..bar.len() {
+        if g.orders()[i] != Order::Linear {
+            continue;
+        }
+        linear += 1;
+        let grad = g.scalar_gradient(i, &values);
+        assert!(
+            (grad - Vector::new(1.7, -0.8, 0.0)).norm() < 1e-10,
+            "particle {i}: {grad:?}"
+        );
+    }
+    assert!(
+        linear > bar.len() * 9 / 10,
+        "{linear} of {} still linear",
+        bar.len()
+    );
+}
+
+#[test]
+fn a_plate_with_next_to_no_strength_shatters_into_many_fragments_and_stays_finite() {
+    let mut fracture = FractureParams::brittle(1.0);
+    fracture.max_cracks = 4096;
+    let p = params(2, Some(fracture));
+    let shape = Shape::Box {
+        half_extents: Vector::new(0.5, 0.5, 0.0),
+    };
+    let rest = shape.sample_volume(p.spacing, 2).expect("samples");
+    // Pulled apart from the centre in every direction.
+    let velocities = rest.iter().map(|x| x * 2.0).collect();
+    let n = rest.len();
+    let mut plate = ElasticSolid::new(p, rest, velocities, vec![false; n], Obstacles::default())
+        .expect("plate");
+    let p0 = momentum(&plate);
+    run(&mut plate, 40);
+    let f = plate.fracture().expect("it fractures");
+    assert!(f.fragment_count() > 20, "{} fragments", f.fragment_count());
+    assert!(f.cracks().len() > 20, "{} cracks", f.cracks().len());
+    assert!(
+        plate
+            .positions
+            .iter()
+            .all(|x| x.iter().all(|c| c.is_finite()))
+    );
+    assert!(
+        plate.velocities.iter().all(|v| v.norm() < 10.0),
+        "a particle was flung"
+    );
+    assert!((momentum(&plate) - p0).norm() < 1e-9);
+    let (mesh, _) = plate.crack_surface().expect("faces");
+    assert!(
+        mesh.vertices
+            .iter()
+            .all(|x| x.iter().all(|c| c.is_finite()))
+    );
+}
