@@ -14,6 +14,7 @@
 //!   (explicit, implicit, and the implicit one's assembled Hessian and
 //!   sparse Cholesky solve);
 //! - `plasticity.rs`: Eq. 69 and the reference-shape update;
+//! - `cracking.rs`: the body's fracture update (what `fracture/` holds);
 //! - `contact.rs`: obstacles and walls;
 //! - `embedded.rs`: high-resolution surfaces that follow the particles
 //!   (Section 7.2);
@@ -22,6 +23,7 @@
 
 mod body;
 mod contact;
+mod cracking;
 mod elastic;
 pub mod embedded;
 mod forces;

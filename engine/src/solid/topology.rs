@@ -7,7 +7,6 @@
 //! Built once from the reference positions, and again only when a
 //! plastic solid re-bases its reference shape.
 
-use super::fracture::transparent_weight;
 use crate::approx::mls::{
     GradientKind, GradientWeights, LagrangianGradients, Mls, MlsError, Order,
 };
@@ -109,16 +108,20 @@ impl Topology {
     }
 
     /// Recomputes particle `i`'s gradient weights, pair weights and
-    /// `sum_g` with each of its edges' distances lengthened by `extra[e]`
-    /// (tutorial Eq. 70; infinity removes the pair): what a crack that
-    /// passed near `i` changes. The edges themselves stay, so the
-    /// reverse adjacency and any sparsity pattern built on it hold.
+    /// `sum_g` with the weight profile `weight(q, extra[e])` of each edge
+    /// `e` at normalised distance `q` (the fracturing solids pass tutorial
+    /// Eq. 70, which lengthens the distance by `extra[e]`; `None` removes
+    /// the pair): what a crack that passed near `i` changes. A pair with
+    /// `extra[e] == 0` gets the weights `build` gave it, bit for bit. The
+    /// edges themselves stay, so the reverse adjacency and any sparsity
+    /// pattern built on it hold.
     pub fn reweigh(
         &mut self,
         i: usize,
         rest: &[Vector],
         mls: &Mls,
         extra: &[Real],
+        weight: impl Fn(Real, Real) -> Option<Real>,
         scratch: &mut Reweigh,
     ) {
         let range = self.gradients.range(i);
@@ -126,14 +129,13 @@ impl Topology {
         let h = mls.params().h;
         let inv_h = 1.0 / h;
         let dim = mls.dim();
-        let kernel = mls.params().weight;
         self.gradients.refit_direct(
             mls,
             i,
             rest,
             |k, d| {
                 let r = d[..dim].iter().map(|v| v * v).sum::<Real>().sqrt();
-                transparent_weight(kernel, r * inv_h, extra[first + k])
+                weight(r * inv_h, extra[first + k])
             },
             &mut scratch.weights,
             &mut scratch.nodes,
@@ -155,8 +157,7 @@ impl Topology {
             self.pair_weight[e] = if extra[e] == 0.0 {
                 plain.value(r)
             } else {
-                transparent_weight(KernelKind::Poly6, r * inv_h, extra[e])
-                    .map_or(0.0, |w| w * plain.value(0.0))
+                weight(r * inv_h, extra[e]).map_or(0.0, |w| w * plain.value(0.0))
             };
             total += self.pair_weight[e];
         }
