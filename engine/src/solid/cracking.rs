@@ -226,12 +226,14 @@ impl Body {
         }
     }
 
-    /// Steps 1 to 4 of the module's update with `states`, the stress
-    /// states of the step's last force evaluation.
+    /// The update `fracture/`'s module documentation describes (its steps
+    /// 1 to 4) with `states`, the stress states of the step's last force
+    /// evaluation.
     ///
     /// # Errors
-    /// [`FractureError::Geometry`] when the cracks would outgrow their
-    /// bound; nothing changed then.
+    /// [`FractureError::Geometry`] when the cracks outgrew their bound,
+    /// checked once they grew: the caller puts back a state saved before
+    /// the step (the world does, as for any failed step).
     pub(super) fn fracture_step(
         &mut self,
         states: &[StressState],

@@ -82,13 +82,14 @@ impl ElasticSolid {
 
     /// Advances the solid's cracks after a step (tutorial Section 7.3;
     /// `fracture/`): fronts run, cracks start, the pairs they cut are
-    /// reweighed and the fragments labelled. Nothing for a solid without
+    /// reweighed and the fragments kept. Nothing for a solid without
     /// fracture. [`Self::step`] and [`Self::step_cancellable`] move the
     /// particles only, so a caller steps and then calls this.
     ///
     /// # Errors
-    /// [`FractureError`] when the cracks would outgrow their bound; the
-    /// cracks are then as they were.
+    /// [`FractureError`] when the cracks outgrew their bound (checked
+    /// once they grew): put back a [`Body::save`] kept before the step,
+    /// as the world does for any failed step.
     pub fn fracture_step(&mut self) -> Result<FractureStep, FractureError> {
         let states = self.integrator.states();
         self.body.fracture_step(states)
