@@ -180,14 +180,7 @@ pub fn write_solid_surface(
     step: u64,
     surface: &SolidSurface,
 ) -> io::Result<PathBuf> {
-    let SolidSurface {
-        system,
-        mesh,
-        normals,
-    } = surface;
-    let path = dir.join(format!("solid{system}_{step:06}.{}", format.extension()));
-    let comment = format!("meshless solid {system} surface, step {step}");
-    write_mesh_file(path, format, mesh, Some(normals), &comment)
+    write_solid_mesh(dir, format, step, surface, "solid", "surface")
 }
 
 /// Writes a fracturing solid's crack faces of frame `step`, with their
@@ -201,13 +194,25 @@ pub fn write_crack_surface(
     step: u64,
     surface: &SolidSurface,
 ) -> io::Result<PathBuf> {
+    write_solid_mesh(dir, format, step, surface, "cracks", "crack faces")
+}
+
+/// A solid's mesh with its normals as `{dir}/{prefix}{system}_{step:06}.{ext}`.
+fn write_solid_mesh(
+    dir: &Path,
+    format: MeshFormat,
+    step: u64,
+    surface: &SolidSurface,
+    prefix: &str,
+    what: &str,
+) -> io::Result<PathBuf> {
     let SolidSurface {
         system,
         mesh,
         normals,
     } = surface;
-    let path = dir.join(format!("cracks{system}_{step:06}.{}", format.extension()));
-    let comment = format!("meshless solid {system} crack faces, step {step}");
+    let path = dir.join(format!("{prefix}{system}_{step:06}.{}", format.extension()));
+    let comment = format!("meshless solid {system} {what}, step {step}");
     write_mesh_file(path, format, mesh, Some(normals), &comment)
 }
 

@@ -163,7 +163,7 @@ pub struct FractureSpec {
 }
 
 fn default_kappa() -> Real {
-    1.0
+    FractureParams::DEFAULT_KAPPA
 }
 fn default_advance() -> Real {
     FractureParams::DEFAULT_ADVANCE

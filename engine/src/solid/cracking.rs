@@ -421,7 +421,9 @@ impl Body {
             for &i in &near {
                 for e in t.gradients.range(i) {
                     let j = edges[e] as usize;
-                    if j == i {
+                    // A pair whose both ends are near is handled once,
+                    // from its lower end, which sets both its edges.
+                    if j == i || (j < i && near.binary_search(&j).is_ok()) {
                         continue;
                     }
                     // One direction for both edges of the pair, so both

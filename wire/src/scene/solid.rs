@@ -11,6 +11,7 @@ use meshless_engine::approx::mls::Order;
 use meshless_engine::scene::{
     FractureSpec, IntegratorKind, SolidSpec, SolidSurfaceSpec, solid_defaults,
 };
+use meshless_engine::solid::FractureParams;
 use meshless_engine::solid::embedded::EmbeddingMethod;
 use meshless_engine::solid::fracture::CrackCriterion;
 use meshless_engine::solid::{
@@ -87,25 +88,17 @@ fn fracture_from_proto(fracture: v1::Fracture, field: &str) -> Result<FractureSp
         advance,
         max_cracks,
     } = fracture;
-    let defaults = FractureSpec {
-        stress: None,
-        plastic_strain: None,
-        criterion: CrackCriterion::default(),
-        kappa: 1.0,
-        advance: meshless_engine::solid::FractureParams::DEFAULT_ADVANCE,
-        max_cracks: meshless_engine::solid::FractureParams::DEFAULT_MAX_CRACKS,
-    };
     Ok(FractureSpec {
         stress,
         plastic_strain,
         criterion: optional_enum(
             criterion,
-            defaults.criterion,
+            CrackCriterion::default(),
             &format!("{field}.fracture.criterion"),
         )?,
-        kappa: kappa.unwrap_or(defaults.kappa),
-        advance: advance.unwrap_or(defaults.advance),
-        max_cracks: max_cracks.unwrap_or(defaults.max_cracks),
+        kappa: kappa.unwrap_or(FractureParams::DEFAULT_KAPPA),
+        advance: advance.unwrap_or(FractureParams::DEFAULT_ADVANCE),
+        max_cracks: max_cracks.unwrap_or(FractureParams::DEFAULT_MAX_CRACKS),
     })
 }
 

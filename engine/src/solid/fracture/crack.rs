@@ -207,11 +207,6 @@ impl Crack {
         &self.front
     }
 
-    /// Whether any front node may still advance.
-    pub fn is_running(&self) -> bool {
-        self.front.iter().any(|n| n.active)
-    }
-
     /// The surface's vertices, reference coordinates.
     pub fn vertices(&self) -> &[Vector] {
         &self.vertices

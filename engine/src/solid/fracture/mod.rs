@@ -95,6 +95,14 @@ impl SearchCache {
     }
 }
 
+impl SearchCache {
+    /// The tree, if an update built one (its radius is at least the
+    /// support radius).
+    pub(in crate::solid) fn built(&self) -> Option<&KdTree> {
+        self.0.as_ref().map(|(_, tree)| tree)
+    }
+}
+
 impl PartialEq for SearchCache {
     fn eq(&self, _: &Self) -> bool {
         true
@@ -216,11 +224,6 @@ impl Fracture {
         }
     }
 
-    /// The parameters.
-    pub fn params(&self) -> &FractureParams {
-        &self.params
-    }
-
     /// The cracks, in the order they started.
     pub fn cracks(&self) -> &[Crack] {
         &self.cracks
@@ -234,11 +237,6 @@ impl Fracture {
     /// How many fragments the solid is in.
     pub fn fragment_count(&self) -> u32 {
         self.fragment_count
-    }
-
-    /// Per topology edge, the term cracks added to its distance.
-    pub fn extra(&self) -> &[Real] {
-        &self.extra
     }
 
     /// Crack vertices held.

@@ -55,7 +55,9 @@ pub enum CrackCriterion {
 
 impl Default for Discontinuity {
     fn default() -> Self {
-        Self::Transparency { kappa: 1.0 }
+        Self::Transparency {
+            kappa: FractureParams::DEFAULT_KAPPA,
+        }
     }
 }
 
@@ -105,6 +107,9 @@ pub enum FractureParamsError {
 }
 
 impl FractureParams {
+    /// Default opacity scale of [`Discontinuity::Transparency`], in
+    /// particle spacings.
+    pub const DEFAULT_KAPPA: Real = 1.0;
     /// Default [`Self::advance`]: half a spacing per step.
     pub const DEFAULT_ADVANCE: Real = 0.5;
     /// Default [`Self::max_cracks`].

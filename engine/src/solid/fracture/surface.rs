@@ -32,8 +32,18 @@ pub(in crate::solid) fn crack_faces(
     if fracture.cracks.is_empty() {
         return None;
     }
-    let mut search = KdTree::new(support);
-    search.rebuild(rest);
+    // The tree the updates keep (its radius covers the support), or one
+    // built here for a solid restored but not stepped since.
+    let built;
+    let search = match fracture.search.built() {
+        Some(tree) => tree,
+        None => {
+            let mut tree = KdTree::new(support);
+            tree.rebuild(rest);
+            built = tree;
+            &built
+        }
+    };
     let mut mesh = TriMesh {
         vertices: Vec::new(),
         triangles: Vec::new(),
@@ -51,8 +61,8 @@ pub(in crate::solid) fn crack_faces(
                     // in the plane z = 0.
                     probe.z = 0.0;
                 }
-                let u = displacement(fracture, &search, rest, positions, &probe, support)
-                    .or_else(|| nearest_displacement(&search, rest, positions, x))
+                let u = displacement(fracture, search, rest, positions, &probe, support)
+                    .or_else(|| nearest_displacement(search, rest, positions, x))
                     .unwrap_or_else(Vector::zeros);
                 mesh.vertices.push(x + u);
             }

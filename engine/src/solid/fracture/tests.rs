@@ -99,55 +99,18 @@ fn eq71_counts_the_neighbours_without_cracks_and_fewer_with() {
 #[test]
 fn segments_cross_triangles_inside_only() {
     let [p, q, r] = [Vector::zeros(), Vector::x(), Vector::y()];
-    let hit = segment_triangle(
-        &Vector::new(0.2, 0.2, -1.0),
-        &Vector::new(0.2, 0.2, 1.0),
-        &p,
-        &q,
-        &r,
+    let hit = |a: [Real; 3], b: [Real; 3]| {
+        segment_triangle(&Vector::from(a), &Vector::from(b), &p, &q, &r)
+    };
+    assert_eq!(
+        hit([0.2, 0.2, -1.0], [0.2, 0.2, 1.0]),
+        Some(Vector::new(0.2, 0.2, 0.0))
     );
-    assert_eq!(hit, Some(Vector::new(0.2, 0.2, 0.0)));
     // Outside the triangle, parallel to it, short of it, or ending on it.
-    assert!(
-        segment_triangle(
-            &Vector::new(0.8, 0.8, -1.0),
-            &Vector::new(0.8, 0.8, 1.0),
-            &p,
-            &q,
-            &r
-        )
-        .is_none()
-    );
-    assert!(
-        segment_triangle(
-            &Vector::new(0.1, 0.1, 0.5),
-            &Vector::new(0.3, 0.1, 0.5),
-            &p,
-            &q,
-            &r
-        )
-        .is_none()
-    );
-    assert!(
-        segment_triangle(
-            &Vector::new(0.2, 0.2, 0.5),
-            &Vector::new(0.2, 0.2, 1.0),
-            &p,
-            &q,
-            &r
-        )
-        .is_none()
-    );
-    assert!(
-        segment_triangle(
-            &Vector::new(0.2, 0.2, 0.0),
-            &Vector::new(0.2, 0.2, 1.0),
-            &p,
-            &q,
-            &r
-        )
-        .is_none()
-    );
+    assert!(hit([0.8, 0.8, -1.0], [0.8, 0.8, 1.0]).is_none());
+    assert!(hit([0.1, 0.1, 0.5], [0.3, 0.1, 0.5]).is_none());
+    assert!(hit([0.2, 0.2, 0.5], [0.2, 0.2, 1.0]).is_none());
+    assert!(hit([0.2, 0.2, 0.0], [0.2, 0.2, 1.0]).is_none());
 }
 
 #[test]
