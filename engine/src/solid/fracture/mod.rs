@@ -122,7 +122,8 @@ impl std::fmt::Debug for SearchCache {
 pub struct FractureSnapshot {
     /// The cracks, in the order they started.
     pub cracks: Vec<Crack>,
-    /// Per topology edge, [`Fracture::extra`].
+    /// Per topology edge, the term the cracks added to its normalised
+    /// distance (0 where none crossed, infinite where one cut the pair).
     pub extra: Vec<Real>,
     /// Each particle's fragment, [`Fracture::fragments`].
     pub fragments: Vec<u32>,
