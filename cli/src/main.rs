@@ -32,10 +32,14 @@ mod study;
 #[cfg(feature = "embedded")]
 mod study_design;
 #[cfg(feature = "embedded")]
+mod study_fracture;
+#[cfg(feature = "embedded")]
 mod study_modal;
 #[cfg(feature = "embedded")]
 mod study_solid;
 mod summary;
+#[cfg(feature = "embedded")]
+mod sweep;
 mod watch;
 
 use clap::Parser;

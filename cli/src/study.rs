@@ -3,7 +3,8 @@
 //! cost of each setting, as CSV and a PNG chart. The `solid-*` knobs sweep
 //! the cantilever instead (`study_solid.rs`), the `modal-*` knobs the
 //! modal EFG cantilever (`study_modal.rs`), the `design-*` knobs the
-//! shape and motion optimiser's experiments (`study_design.rs`).
+//! shape and motion optimiser's experiments (`study_design.rs`), the
+//! `fracture-*` knobs Griffith's plate (`study_fracture.rs`).
 
 use crate::chart;
 use anyhow::{Context, Result, bail};
@@ -72,6 +73,12 @@ pub enum Knob {
     /// Design: adaptive-sampling tolerance of the cube passing a ball
     /// (`off`: the keyframes alone).
     DesignAdaptive,
+    /// Fracture: spacings per critical distance of a toughness threshold
+    /// (Griffith's plate, the toughness fixed).
+    FractureResolution,
+    /// Fracture: transparency's kappa in spacings, or `visibility`
+    /// (Griffith's plate).
+    FractureKappa,
 }
 
 impl Knob {
@@ -100,6 +107,8 @@ impl Knob {
             Self::DesignParticles => "design_particles",
             Self::DesignTolerance => "design_tolerance",
             Self::DesignAdaptive => "design_adaptive",
+            Self::FractureResolution => "fracture_resolution",
+            Self::FractureKappa => "fracture_kappa",
         }
     }
 
@@ -137,6 +146,10 @@ impl Knob {
         )
     }
 
+    fn is_fracture(self) -> bool {
+        matches!(self, Self::FractureResolution | Self::FractureKappa)
+    }
+
     fn presets(self) -> &'static [&'static str] {
         match self {
             Self::Spacing => &["0.04", "0.03", "0.025", "0.02"],
@@ -171,6 +184,8 @@ impl Knob {
             ],
             Self::DesignTolerance => &["1e-2", "1e-3", "1e-4", "1e-6"],
             Self::DesignAdaptive => &["1.0", "0.5", "0.2", "0.1", "0.05", "off"],
+            Self::FractureResolution => &["1.5", "2", "3", "4", "6"],
+            Self::FractureKappa => &["visibility", "0.5", "1", "2"],
         }
     }
 
@@ -217,6 +232,9 @@ impl Knob {
             }
             Self::DesignParticles | Self::DesignTolerance | Self::DesignAdaptive => {
                 bail!("{} is a design knob, not a dam-break one", self.name())
+            }
+            Self::FractureResolution | Self::FractureKappa => {
+                bail!("{} is a fracture knob, not a dam-break one", self.name())
             }
             Self::ModalCell
             | Self::ModalAlpha
@@ -275,6 +293,14 @@ pub fn study(args: StudyArgs) -> Result<()> {
     }
     if args.knob.is_modal() {
         return crate::study_modal::study(
+            args.knob.name(),
+            args.knob.presets(),
+            &args.values,
+            &args.output,
+        );
+    }
+    if args.knob.is_fracture() {
+        return crate::study_fracture::study(
             args.knob.name(),
             args.knob.presets(),
             &args.values,

@@ -8,8 +8,8 @@
 //!   between frames, and how closely the keyframes are met.
 
 use crate::chart;
+use crate::sweep::sweep;
 use anyhow::{Context, Result, bail};
-use indicatif::{ProgressBar, ProgressStyle};
 use meshless_engine::design::{DesignParams, MotionParams};
 use meshless_validation::design::{Passage, PassageResult, Stretch, StretchResult, stretch_params};
 use std::fmt::Write as _;
@@ -135,40 +135,31 @@ impl Row {
 }
 
 pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> Result<()> {
-    let values: Vec<String> = if values.is_empty() {
-        presets.iter().map(|v| (*v).to_owned()).collect()
-    } else {
-        values.to_vec()
-    };
-    let settings = values
-        .iter()
-        .map(|v| setting(name, v))
-        .collect::<Result<Vec<_>>>()?;
-    std::fs::create_dir_all(output)
-        .with_context(|| format!("cannot create {}", output.display()))?;
-    let bar = ProgressBar::new(values.len() as u64).with_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} settings  {prefix}  [{elapsed}]")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    let mut rows = Vec::new();
-    for (value, setting) in values.iter().zip(settings) {
-        bar.set_prefix(format!("{name} = {value}"));
-        let experiment = setting.experiment();
-        let outcome = match setting {
-            Setting::Stretch(stretch, params) => stretch.solve(&params).map(Outcome::Stretch),
-            Setting::Passage(passage, params, motion) => {
-                passage.solve(&params, &motion).map(Outcome::Passage)
+    let rows: Vec<Row> = sweep(
+        name,
+        presets,
+        values,
+        output,
+        |v| setting(name, v),
+        |setting| {
+            let experiment = setting.experiment();
+            let outcome = match setting {
+                Setting::Stretch(stretch, params) => stretch.solve(&params).map(Outcome::Stretch),
+                Setting::Passage(passage, params, motion) => {
+                    passage.solve(&params, &motion).map(Outcome::Passage)
+                }
             }
-        }
-        .map_err(|e| e.to_string());
-        rows.push(Row {
-            value: value.clone(),
-            experiment,
-            outcome,
-        });
-        bar.inc(1);
-    }
-    bar.finish_and_clear();
+            .map_err(|e| e.to_string());
+            (experiment, outcome)
+        },
+    )?
+    .into_iter()
+    .map(|t| Row {
+        value: t.value,
+        experiment: t.outcome.0,
+        outcome: t.outcome.1,
+    })
+    .collect();
 
     let csv_path = output.join(format!("study_{name}.csv"));
     std::fs::write(&csv_path, csv(name, &rows)?)

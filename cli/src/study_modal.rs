@@ -7,14 +7,13 @@
 //! the time step measure the released beam come to rest.
 
 use crate::chart;
+use crate::sweep::{report, sweep};
 use anyhow::{Context, Result, bail};
-use indicatif::{ProgressBar, ProgressStyle};
 use meshless_engine::approx::mls::Order;
 use meshless_engine::efg::Dynamics;
-use meshless_validation::modal_cantilever::{Measure, ModalCantilever, ModalMeasured, bent_beam};
+use meshless_validation::modal_cantilever::{Measure, ModalCantilever, bent_beam};
 use std::fmt::Write as _;
 use std::path::Path;
-use std::time::Instant;
 
 /// The cantilever for one value of knob `name`.
 fn setting(name: &str, value: &str) -> Result<(ModalCantilever, Measure)> {
@@ -93,45 +92,19 @@ fn setting(name: &str, value: &str) -> Result<(ModalCantilever, Measure)> {
     })
 }
 
-/// One setting's outcome.
-struct Row {
-    value: String,
-    seconds: f64,
-    outcome: Result<ModalMeasured, String>,
-}
-
 pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> Result<()> {
-    let values: Vec<String> = if values.is_empty() {
-        presets.iter().map(|v| (*v).to_owned()).collect()
-    } else {
-        values.to_vec()
-    };
-    std::fs::create_dir_all(output)
-        .with_context(|| format!("cannot create {}", output.display()))?;
-    let bar = ProgressBar::new(values.len() as u64).with_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} settings  {prefix}  [{elapsed}]")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    let mut rows = Vec::new();
-    let mut measure = Measure::Static;
-    for value in &values {
-        let (beam, m) = setting(name, value)?;
-        measure = m;
-        bar.set_prefix(format!("{name} = {value}"));
-        let start = Instant::now();
-        let outcome = beam.measure(m);
-        rows.push(Row {
-            value: value.clone(),
-            seconds: start.elapsed().as_secs_f64(),
-            outcome,
-        });
-        bar.inc(1);
-    }
-    bar.finish_and_clear();
+    let rows = sweep(
+        name,
+        presets,
+        values,
+        output,
+        |v| setting(name, v),
+        |(beam, measure)| (measure, beam.measure(measure)),
+    )?;
 
-    let what = match measure {
-        Measure::Static => "modal static tip deflection",
-        Measure::Released => "released tip deflection at rest",
+    let what = match rows.first().map(|r| r.outcome.0) {
+        Some(Measure::Released) => "released tip deflection at rest",
+        Some(Measure::Static) | None => "modal static tip deflection",
     };
     outln!("meshless study: modal EFG cantilever against Timoshenko ({what}), sweeping {name}")?;
     outln!("  value        nodes  precompute [s]  step [ms]      error")?;
@@ -139,7 +112,7 @@ pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> 
         "knob,value,nodes,precompute_seconds,step_ms,wall_seconds,deflection,reference,error,status\n",
     );
     for r in &rows {
-        match &r.outcome {
+        match &r.outcome.1 {
             Ok(m) => {
                 writeln!(
                     csv,
@@ -174,25 +147,16 @@ pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> 
             }
         }
     }
-    let csv_path = output.join(format!("study_{name}.csv"));
-    chart::write_table(&csv_path, &csv)?;
-
-    let points: Vec<chart::Point> = rows
-        .iter()
-        .filter_map(|r| {
-            r.outcome.as_ref().ok().map(|m| chart::Point {
-                cost: r.seconds,
-                error: 100.0 * m.error.abs(),
-                label: r.value.clone(),
-            })
-        })
-        .collect();
-    let png_path = output.join(format!("study_{name}.png"));
-    chart::draw_and_report(
-        &png_path,
-        &format!("modal cantilever: {what} error against cost, sweeping {name}"),
-        &format!("|{what} error| [%]"),
-        &points,
+    report(
+        output,
+        name,
+        &csv,
+        &rows,
+        |(_, outcome)| outcome.as_ref().ok().map(|m| 100.0 * m.error.abs()),
+        (
+            &format!("modal cantilever: {what} error against cost, sweeping {name}"),
+            &format!("|{what} error| [%]"),
+        ),
     )?;
     if name == "modal_dynamics" {
         bend(output)?;

@@ -5,16 +5,14 @@
 //! first-period error of the released beam (integrator, step), with the
 //! wall time of each setting, as CSV and a PNG chart.
 
-use crate::chart;
+use crate::sweep::{report, sweep};
 use anyhow::{Context, Result, bail};
-use indicatif::{ProgressBar, ProgressStyle};
 use meshless_engine::approx::mls::Order;
 use meshless_engine::scene::IntegratorKind;
-use meshless_validation::cantilever::{Cantilever, Measured, Quantity};
+use meshless_validation::cantilever::{Cantilever, Quantity};
 use meshless_wire::WireEnum;
 use std::fmt::Write as _;
 use std::path::Path;
-use std::time::Instant;
 
 /// The cantilever for one value of knob `name`.
 fn setting(name: &str, value: &str) -> Result<(Cantilever, Quantity)> {
@@ -75,60 +73,40 @@ fn setting(name: &str, value: &str) -> Result<(Cantilever, Quantity)> {
     })
 }
 
-/// One setting's outcome.
-struct Row {
-    value: String,
-    quantity: Quantity,
-    seconds: f64,
-    outcome: Result<Measured, String>,
-}
-
 pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> Result<()> {
-    let values: Vec<String> = if values.is_empty() {
-        presets.iter().map(|v| (*v).to_owned()).collect()
-    } else {
-        values.to_vec()
-    };
-    std::fs::create_dir_all(output)
-        .with_context(|| format!("cannot create {}", output.display()))?;
-    let bar = ProgressBar::new(values.len() as u64).with_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} settings  {prefix}  [{elapsed}]")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    let mut rows = Vec::new();
-    for value in &values {
-        let (cantilever, quantity) = setting(name, value)?;
-        bar.set_prefix(format!("{name} = {value}"));
-        let start = Instant::now();
-        let outcome = cantilever.measure(quantity).map_err(|e| e.to_string());
-        rows.push(Row {
-            value: value.clone(),
-            quantity,
-            seconds: start.elapsed().as_secs_f64(),
-            outcome,
-        });
-        bar.inc(1);
-    }
-    bar.finish_and_clear();
+    let rows = sweep(
+        name,
+        presets,
+        values,
+        output,
+        |v| setting(name, v),
+        |(cantilever, quantity)| {
+            (
+                quantity,
+                cantilever.measure(quantity).map_err(|e| e.to_string()),
+            )
+        },
+    )?;
 
     let measured = |q: Quantity| match q {
         Quantity::Deflection => "static tip deflection",
         Quantity::Period => "first bending period",
     };
-    let what = rows.first().map_or("", |r| measured(r.quantity));
+    let what = rows.first().map_or("", |r| measured(r.outcome.0));
     outln!("meshless study: cantilever against Euler-Bernoulli ({what}), sweeping {name}")?;
     outln!("  value        particles  world steps  wall [s]      error  first peak / 2 static")?;
     let mut csv = String::from(
         "knob,value,quantity,particles,steps,wall_seconds,value_measured,error,peak_over_twice_static,status\n",
     );
     for r in &rows {
-        match &r.outcome {
+        let (quantity, outcome) = &r.outcome;
+        match outcome {
             Ok(m) => {
                 writeln!(
                     csv,
                     "{name},{},{},{},{},{:.3},{:.6e},{:.5},{:.4},ok",
                     r.value,
-                    measured(r.quantity).replace(' ', "_"),
+                    measured(*quantity).replace(' ', "_"),
                     m.particles,
                     m.steps,
                     r.seconds,
@@ -136,7 +114,7 @@ pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> 
                     m.error,
                     m.amplitude
                 )?;
-                let peak = match r.quantity {
+                let peak = match quantity {
                     Quantity::Period => format!("{:>8.3}", m.amplitude),
                     Quantity::Deflection => String::new(),
                 };
@@ -161,25 +139,16 @@ pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> 
             }
         }
     }
-    let csv_path = output.join(format!("study_{name}.csv"));
-    chart::write_table(&csv_path, &csv)?;
-
-    let points: Vec<chart::Point> = rows
-        .iter()
-        .filter_map(|r| {
-            r.outcome.as_ref().ok().map(|m| chart::Point {
-                cost: r.seconds,
-                error: 100.0 * m.error.abs(),
-                label: r.value.clone(),
-            })
-        })
-        .collect();
-    let png_path = output.join(format!("study_{name}.png"));
-    chart::draw_and_report(
-        &png_path,
-        &format!("cantilever: {what} error against cost, sweeping {name}"),
-        &format!("|{what} error| [%]"),
-        &points,
+    report(
+        output,
+        name,
+        &csv,
+        &rows,
+        |(_, outcome)| outcome.as_ref().ok().map(|m| 100.0 * m.error.abs()),
+        (
+            &format!("cantilever: {what} error against cost, sweeping {name}"),
+            &format!("|{what} error| [%]"),
+        ),
     )?;
     Ok(())
 }

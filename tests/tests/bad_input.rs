@@ -450,6 +450,33 @@ async fn bad_solids_are_invalid_arguments_naming_the_field() {
             }),
         ),
         (
+            "systems[1].fracture.toughness",
+            Box::new(|s| {
+                solid(s).fracture = Some(v1::Fracture {
+                    // A toughness beside a ductile threshold: it
+                    // needs the strength that starts cracks.
+                    plastic_strain: Some(0.1),
+                    toughness: Some(1e4),
+                    ..Default::default()
+                });
+            }),
+        ),
+        (
+            // A notch whose plane has no normal.
+            "systems[1].fracture.notches[0]",
+            Box::new(|s| {
+                solid(s).fracture = Some(v1::Fracture {
+                    stress: Some(1e5),
+                    notches: vec![v1::Notch {
+                        center: Some(v1::Vec3::default()),
+                        normal: Some(v1::Vec3::default()),
+                        radius: 0.1,
+                    }],
+                    ..Default::default()
+                });
+            }),
+        ),
+        (
             "systems[1].fracture.criterion",
             Box::new(|s| {
                 solid(s).fracture = Some(v1::Fracture {

@@ -13,6 +13,8 @@
 //!   Euler–Bernoulli theory;
 //! - [`modal_cantilever`]: a modal EFG beam (Guo–Qin's solids) under its
 //!   own weight against Timoshenko theory;
+//! - [`griffith`]: a plate with a central crack under tension against
+//!   Griffith's failure stress;
 //! - [`design`]: the optimiser's Figure 13 stretch and the cube passing a
 //!   ball;
 //! - [`viscous`]: start-up Poiseuille and Couette flow and the spin-down
@@ -21,5 +23,6 @@
 pub mod cantilever;
 pub mod dam_break;
 pub mod design;
+pub mod griffith;
 pub mod modal_cantilever;
 pub mod viscous;

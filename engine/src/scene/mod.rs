@@ -34,7 +34,7 @@ pub use modal_solid::{
 };
 pub(crate) use solid::SampledSolid;
 pub use solid::{
-    AnchorSpec, FractureSpec, IntegratorKind, SolidSpec, SolidSurfaceSpec,
+    AnchorSpec, FractureSpec, IntegratorKind, NotchSpec, SolidSpec, SolidSurfaceSpec,
     defaults as solid_defaults,
 };
 

@@ -9,7 +9,9 @@ use crate::geometry::Shape;
 use crate::geometry::TriMesh;
 use crate::math::{Real, Vector, vector};
 use crate::solid::embedded::{EmbeddedSurface, EmbeddingMethod};
-use crate::solid::fracture::{CrackCriterion, Discontinuity, Threshold};
+use crate::solid::fracture::{
+    Crack, CrackCriterion, Discontinuity, Notch, Threshold, VERTICES_PER_PARTICLE,
+};
 use crate::solid::{
     FractureParams, Hyperelastic, ImplicitParams, ImplicitScheme, Integrator, Material, Plasticity,
     SolidParams,
@@ -145,6 +147,11 @@ pub struct FractureSpec {
     /// Brittle: the largest principal stress a particle bears, Pa.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stress: Option<Real>,
+    /// With `stress`: the mode I fracture toughness `K_Ic`, Pa m^(1/2),
+    /// with which a front runs when the stress a critical distance ahead
+    /// of it passes `stress` (`Threshold::Toughness`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub toughness: Option<Real>,
     /// Ductile: the plastic strain norm a particle tears at.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub plastic_strain: Option<Real>,
@@ -160,6 +167,35 @@ pub struct FractureSpec {
     /// Most cracks the solid may hold.
     #[serde(default = "default_max_cracks")]
     pub max_cracks: u32,
+    /// Cracks the solid is built with (flaws, machined notches), which
+    /// count against `max_cracks`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub notches: Vec<NotchSpec>,
+}
+
+/// A crack a solid is built with, world frame at the build: in 2D a
+/// segment of half-length `radius` through `center` normal to `normal`,
+/// in 3D a disc (a penny-shaped crack). Parts outside the body are inert.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NotchSpec {
+    /// Its centre, m.
+    pub center: [Real; 3],
+    /// The normal of its plane (not zero; z = 0 in 2D).
+    pub normal: [Real; 3],
+    /// Half-length (2D) or radius (3D), m.
+    pub radius: Real,
+}
+
+impl NotchSpec {
+    /// The engine's notch.
+    pub fn notch(&self) -> Notch {
+        Notch {
+            center: vector(self.center),
+            normal: vector(self.normal),
+            radius: self.radius,
+        }
+    }
 }
 
 fn default_kappa() -> Real {
@@ -176,9 +212,13 @@ impl FractureSpec {
     /// The engine's parameters (a stress threshold of 0 where none is
     /// set, which validation refuses first).
     pub fn params(&self) -> FractureParams {
-        let threshold = match (self.stress, self.plastic_strain) {
-            (None, Some(plastic_strain)) => Threshold::PlasticStrain { plastic_strain },
-            (stress, _) => Threshold::Stress {
+        let threshold = match (self.stress, self.toughness, self.plastic_strain) {
+            (None, _, Some(plastic_strain)) => Threshold::PlasticStrain { plastic_strain },
+            (stress, Some(toughness), _) => Threshold::Toughness {
+                stress: stress.unwrap_or(0.0),
+                toughness,
+            },
+            (stress, None, _) => Threshold::Stress {
                 stress: stress.unwrap_or(0.0),
             },
         };
@@ -192,6 +232,48 @@ impl FractureSpec {
             max_cracks: self.max_cracks,
         }
     }
+}
+
+/// A fracture table's notches, for a solid of `particles` particles:
+/// each in range, no more cracks than `max_cracks`, and no more crack
+/// vertices than the solid may hold (what `Body::notch` checks again).
+fn check_notches(
+    at: &str,
+    fracture: &FractureSpec,
+    spacing: Real,
+    dim: usize,
+    particles: usize,
+) -> Result<(), SceneError> {
+    let field = format!("{at}.fracture.notches");
+    if fracture.notches.len() > fracture.max_cracks as usize {
+        return Err(SceneError::invalid(
+            field,
+            format!(
+                "{} notches, past max_cracks = {}; raise max_cracks or drop notches",
+                fracture.notches.len(),
+                fracture.max_cracks
+            ),
+        ));
+    }
+    let mut vertices = 0;
+    for (k, notch) in fracture.notches.iter().enumerate() {
+        let notch = notch.notch();
+        notch
+            .validate(dim)
+            .map_err(|e| SceneError::invalid(format!("{field}[{k}]"), e.to_string()))?;
+        vertices += Crack::notch_vertices(dim, &notch, spacing);
+    }
+    let limit = VERTICES_PER_PARTICLE * particles + 1024;
+    if vertices > limit {
+        return Err(SceneError::invalid(
+            field,
+            format!(
+                "the notches need {vertices} crack vertices, past the {limit} a solid of \
+                 {particles} particles may hold; make them smaller"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// The surface embedded in a solid (tutorial Section 7.2): the shape's own
@@ -459,9 +541,15 @@ impl SolidSpec {
                     "set one threshold: stress (brittle, Pa) or plastic_strain (ductile)",
                 ));
             }
+            if f.toughness.is_some() && f.stress.is_none() {
+                return Err(SceneError::invalid(
+                    format!("{at}.fracture.toughness"),
+                    "a toughness needs the strength that starts cracks: set stress (Pa) too",
+                ));
+            }
             let rebases = solid.plasticity.is_some_and(|p| p.rebase.is_some());
             f.params()
-                .validate(solid.plasticity.is_some(), rebases)
+                .validate(solid.spacing, solid.plasticity.is_some(), rebases)
                 .map_err(|e| SceneError::invalid(format!("{at}.fracture"), e.to_string()))?;
         }
         if dim == 2 {
@@ -538,6 +626,9 @@ impl SolidSpec {
                     "holds no particle of the solid; enlarge it or move it onto the solid",
                 ));
             }
+        }
+        if let Some(f) = &solid.fracture {
+            check_notches(at, f, solid.spacing, dim, particles.len())?;
         }
         if let Some(surface) = &solid.surface {
             let field = format!("{at}.surface");

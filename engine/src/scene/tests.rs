@@ -566,3 +566,60 @@ fn formula_fields_build_and_bad_ones_are_refused() {
     };
     assert!(message.contains("`spacing`"), "{message}");
 }
+
+/// A fracture table's toughness and notches: a notched cube builds with
+/// its notch as a crack, and each bad value is refused naming its field.
+#[test]
+fn notches_and_toughness_build_or_are_refused_naming_the_field() {
+    let notched = unit_box_solid(
+        0.1,
+        "fracture = { stress = 1e5, toughness = 1.5e5, notches = [{ center = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0], radius = 0.3 }] }",
+    );
+    let world = notched.build(&BuildOptions::default()).expect("builds");
+    let (_, solid) = world.solids().next().expect("a solid");
+    let fracture = solid.fracture().expect("fractures");
+    assert_eq!(fracture.cracks().len(), 1);
+    // A disc of radius 0.3 with rim nodes at most a spacing apart.
+    assert!(fracture.cracks()[0].front().len() >= 19);
+    assert_eq!(
+        fracture.fragment_count(),
+        1,
+        "a notch inside the body splits nothing"
+    );
+
+    for (extra, field) in [
+        // The critical distance 1e4^2 / (2 pi 1e5^2) is 1.6 mm, under the
+        // 0.1 m spacing.
+        (
+            "fracture = { stress = 1e5, toughness = 1e4 }",
+            "systems[0].fracture",
+        ),
+        (
+            "fracture = { plastic_strain = 0.1, toughness = 1e4 }",
+            "systems[0].fracture.toughness",
+        ),
+        (
+            "fracture = { stress = 1e5, notches = [{ center = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 0.0], radius = 0.3 }] }",
+            "systems[0].fracture.notches[0]",
+        ),
+        (
+            "fracture = { stress = 1e5, notches = [{ center = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0], radius = -1.0 }] }",
+            "systems[0].fracture.notches[0]",
+        ),
+        (
+            "fracture = { stress = 1e5, max_cracks = 1, notches = [{ center = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0], radius = 0.1 }, { center = [0.0, 0.2, 0.0], normal = [0.0, 1.0, 0.0], radius = 0.1 }] }",
+            "systems[0].fracture.notches",
+        ),
+        (
+            // A rim of 2 pi 1e4 / 0.1 nodes: past what 1000 particles hold.
+            "fracture = { stress = 1e5, notches = [{ center = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0], radius = 1e4 }] }",
+            "systems[0].fracture.notches",
+        ),
+    ] {
+        assert_eq!(
+            rejected_field(&unit_box_solid(0.1, extra)),
+            field,
+            "{extra}"
+        );
+    }
+}

@@ -7,9 +7,9 @@
 
 use super::body::Body;
 use super::fracture::{
-    Crack, Discontinuity, Fracture, FractureError, FractureSnapshot, FractureStep, SearchCache,
-    Threshold, VERTICES_PER_PARTICLE, cauchy, crack_faces, label, lengthened, opacity, principal,
-    split, transparent_weight, undersampling,
+    Crack, Discontinuity, Fracture, FractureError, FractureParamsError, FractureSnapshot,
+    FractureStep, FrontNode, Notch, SearchCache, Threshold, VERTICES_PER_PARTICLE, cauchy,
+    crack_faces, label, lengthened, opacity, principal, split, transparent_weight, undersampling,
 };
 use super::material::StressState;
 use super::topology::Reweigh;
@@ -168,6 +168,55 @@ impl Body {
         self.fracture = Some(fracture);
     }
 
+    /// Cuts the solid along `notches`, the flaws it is built with: each
+    /// becomes a crack (a front that runs under load like any other), the
+    /// pairs it crosses are reweighed and the fragments labelled again.
+    ///
+    /// # Errors
+    /// [`FractureParamsError::Notch`] for a notch out of range, for more
+    /// cracks than `max_cracks` allows, for a geometry past the solid's
+    /// bound, or on a solid that does not fracture; the body is then
+    /// unchanged.
+    pub fn notch(&mut self, notches: &[Notch]) -> Result<(), FractureParamsError> {
+        let p = self.params;
+        let fracture = self.fracture.as_ref().ok_or_else(|| {
+            FractureParamsError::Notch("the solid does not fracture; add a fracture table".into())
+        })?;
+        for notch in notches {
+            notch.validate(p.dim)?;
+        }
+        if notches.is_empty() {
+            return Ok(());
+        }
+        let cracks = fracture.cracks.len() + notches.len();
+        if cracks > fracture.params.max_cracks as usize {
+            return Err(FractureParamsError::Notch(format!(
+                "{cracks} cracks with the notches, past max_cracks = {}; raise max_cracks",
+                fracture.params.max_cracks
+            )));
+        }
+        let mut fracture = fracture.clone();
+        fracture.cracks.extend(
+            notches
+                .iter()
+                .map(|n| Crack::notch(p.dim, n, p.spacing, p.support)),
+        );
+        let limit = VERTICES_PER_PARTICLE * self.len() + 1024;
+        if fracture.vertex_count() > limit {
+            return Err(FractureParamsError::Notch(format!(
+                "the notches need {} crack vertices, past the {limit} a solid of {} particles may \
+                 hold; make them smaller",
+                fracture.vertex_count(),
+                self.len()
+            )));
+        }
+        let all: Vec<usize> = (0..self.len()).collect();
+        self.recut(&mut fracture, &all);
+        self.fracture = Some(fracture);
+        self.label_fragments();
+        Ok(())
+    }
+
     /// The neighbours `i` still interacts with under the terms `extra`.
     fn connected_neighbours<'a>(
         &'a self,
@@ -284,13 +333,43 @@ impl Body {
         let measure = |i: usize| -> (Real, Vector) {
             let (sigma, direction) = principal(dim, &cauchy(&states[i]));
             match params.threshold {
-                Threshold::Stress { stress } => (sigma / stress, direction),
+                Threshold::Stress { stress } | Threshold::Toughness { stress, .. } => {
+                    (sigma / stress, direction)
+                }
                 Threshold::PlasticStrain { plastic_strain } => {
                     let strain = self.plastic.as_ref().map_or(0.0, |e| e[i].norm());
                     (strain / plastic_strain, direction)
                 }
             }
         };
+        // The point method (`Threshold::Toughness`): the stress the
+        // critical distance ahead of a front, averaged over the particles
+        // within a spacing and a half of that point that see it (none
+        // across a crack), weighted by the kernel's profile.
+        let critical = params.threshold.critical_distance();
+        let ahead =
+            |cracks: &[Crack], node: &FrontNode, distance: Real| -> Option<(Real, Vector)> {
+                let stress = match params.threshold {
+                    Threshold::Toughness { stress, .. } => stress,
+                    Threshold::Stress { .. } | Threshold::PlasticStrain { .. } => return None,
+                };
+                let point = node.at + node.heading * distance;
+                let reach = 1.5 * spacing;
+                let (mut sum, mut weights) = (nalgebra::Matrix3::zeros(), 0.0);
+                search.for_each_candidate(&point, |j| {
+                    let x = rest[j as usize];
+                    let q = (x - point).norm() / reach;
+                    if q < 1.0 && cracks.iter().all(|c| c.crossing(&x, &point).is_none()) {
+                        let w = (1.0 - q * q).powi(3);
+                        sum += cauchy(&states[j as usize]) * w;
+                        weights += w;
+                    }
+                });
+                (weights > 0.0).then(|| {
+                    let (sigma, direction) = principal(dim, &(sum / weights));
+                    (sigma / stress, direction)
+                })
+            };
 
         // 1. Running fronts.
         let mut touched: Vec<Vector> = Vec::new();
@@ -308,7 +387,9 @@ impl Body {
                     touched.push(node.at);
                     continue;
                 };
-                let (ratio, normal) = measure(at);
+                let (ratio, normal) = critical
+                    .and_then(|d| ahead(&fracture.cracks, node, d))
+                    .unwrap_or_else(|| measure(at));
                 if ratio < 1.0 {
                     continue;
                 }
@@ -355,7 +436,9 @@ impl Body {
         let mut candidates: Vec<(Real, usize, Vector)> = (0..n)
             .into_par_iter()
             .filter(|&i| match params.threshold {
-                Threshold::Stress { stress } => cauchy(&states[i]).norm() >= stress,
+                Threshold::Stress { stress } | Threshold::Toughness { stress, .. } => {
+                    cauchy(&states[i]).norm() >= stress
+                }
                 Threshold::PlasticStrain { plastic_strain } => {
                     plastic.is_some_and(|e| e[i].norm() >= plastic_strain)
                 }
@@ -370,11 +453,17 @@ impl Body {
             if fracture.cracks.len() >= params.max_cracks as usize {
                 break;
             }
+            // Near a crack its front decides. With a toughness that is
+            // as far as twice the critical distance: the front weighs the
+            // stress at `r_c`, and the singular field behind that point
+            // passes the strength at any load that runs it (within
+            // `2 r_c` up to loads of 1.4 times the critical).
             let x = rest[i];
+            let clear = h + 2.0 * critical.unwrap_or(0.0);
             if fracture
                 .cracks
                 .iter()
-                .any(|c| c.distance_to_vertices(&x) < h)
+                .any(|c| c.distance_to_vertices(&x) < clear)
             {
                 continue;
             }
@@ -411,6 +500,24 @@ impl Body {
         }
         near.sort_unstable();
         near.dedup();
+        let (refitted, energy_change) = self.recut(fracture, &near);
+        out.refitted = refitted;
+        out.energy_change = energy_change;
+        out.refit = refitting.elapsed();
+        Ok(out)
+    }
+
+    /// Steps 3 and 4 of the update for the particles `near` (sorted,
+    /// distinct) what the cracks changed: each of their pairs' terms from
+    /// the cracks as they are, the shape functions of the particles whose
+    /// terms grew, and the fragments a pair cut through may have split.
+    /// Returns how many particles it refitted and the stored energy that
+    /// changed by.
+    fn recut(&mut self, fracture: &mut Fracture, near: &[usize]) -> (u32, Real) {
+        let p = self.params;
+        let (dim, spacing, h) = (p.dim, p.spacing, p.support);
+        let params = fracture.params;
+        let rest = &self.rest;
         let kernel = MlsParams::new(p.order, h).weight;
         let inv_h = 1.0 / h;
         let mut refit = Vec::new();
@@ -418,7 +525,7 @@ impl Body {
         {
             let t = &self.topology;
             let edges = t.gradients.neighbour_indices();
-            for &i in &near {
+            for &i in near {
                 for e in t.gradients.range(i) {
                     let j = edges[e] as usize;
                     // A pair whose both ends are near is handled once,
@@ -479,8 +586,7 @@ impl Body {
                 &mut scratch,
             );
         }
-        out.energy_change = shares(self) - before;
-        out.refitted = refit.len() as u32;
+        let energy_change = shares(self) - before;
 
         // 4. Fragments: only a pair cut through can split one, and only
         // if no other chain of pairs still joins its ends.
@@ -495,7 +601,6 @@ impl Body {
                 &mut fracture.fragment_count,
             );
         }
-        out.refit = refitting.elapsed();
-        Ok(out)
+        (refit.len() as u32, energy_change)
     }
 }

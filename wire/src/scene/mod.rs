@@ -204,7 +204,8 @@ mod tests {
     use meshless_engine::BuildOptions;
     use meshless_engine::approx::mls::Order;
     use meshless_engine::scene::{
-        Aabb, IntegratorKind, ParticleSpec, RigidBodySpec, ShapeSpec, SolidSpec, SolidSurfaceSpec,
+        Aabb, IntegratorKind, NotchSpec, ParticleSpec, RigidBodySpec, ShapeSpec, SolidSpec,
+        SolidSurfaceSpec,
     };
     use meshless_engine::solid::embedded::EmbeddingMethod;
     use meshless_engine::solid::{ImplicitParams, ImplicitScheme, LinearSolver, Plasticity};
@@ -332,11 +333,33 @@ mod tests {
     /// from its default, and frames say where their particles are.
     #[test]
     fn solids_round_trip_and_frames_carry_their_ranges() {
-        for name in ["elastic_beam.toml", "jelly_drop.toml"] {
+        for name in ["elastic_beam.toml", "jelly_drop.toml", "brittle_beam.toml"] {
             let scene = shipped(name);
             let back = scene_from_proto(scene_to_proto(&scene)).expect("round trip");
             assert_eq!(back, scene, "{name}");
         }
+
+        // A toughness and notches cross too.
+        let mut scene = shipped("brittle_beam.toml");
+        let SystemSpec::Solid(solid) = &mut scene.systems[0] else {
+            panic!("the beam is a solid")
+        };
+        let fracture = solid.fracture.as_mut().expect("the beam fractures");
+        fracture.toughness = Some(1e5);
+        fracture.notches = vec![
+            NotchSpec {
+                center: [0.1, 0.02, 0.0],
+                normal: [1.0, 0.0, 0.0],
+                radius: 0.03,
+            },
+            NotchSpec {
+                center: [0.5, -0.02, 0.0],
+                normal: [0.6, 0.8, 0.0],
+                radius: 0.01,
+            },
+        ];
+        let back = scene_from_proto(scene_to_proto(&scene)).expect("round trip");
+        assert_eq!(back, scene);
 
         // A surface crosses with its method and subdivisions, and frames
         // carry it deformed, with a normal per vertex.

@@ -9,7 +9,7 @@ use crate::error::WireError;
 use crate::error::{Result, required};
 use meshless_engine::approx::mls::Order;
 use meshless_engine::scene::{
-    FractureSpec, IntegratorKind, SolidSpec, SolidSurfaceSpec, solid_defaults,
+    FractureSpec, IntegratorKind, NotchSpec, SolidSpec, SolidSurfaceSpec, solid_defaults,
 };
 use meshless_engine::solid::FractureParams;
 use meshless_engine::solid::embedded::EmbeddingMethod;
@@ -87,9 +87,12 @@ fn fracture_from_proto(fracture: v1::Fracture, field: &str) -> Result<FractureSp
         kappa,
         advance,
         max_cracks,
+        toughness,
+        notches,
     } = fracture;
     Ok(FractureSpec {
         stress,
+        toughness,
         plastic_strain,
         criterion: optional_enum(
             criterion,
@@ -99,17 +102,36 @@ fn fracture_from_proto(fracture: v1::Fracture, field: &str) -> Result<FractureSp
         kappa: kappa.unwrap_or(FractureParams::DEFAULT_KAPPA),
         advance: advance.unwrap_or(FractureParams::DEFAULT_ADVANCE),
         max_cracks: max_cracks.unwrap_or(FractureParams::DEFAULT_MAX_CRACKS),
+        notches: notches
+            .into_iter()
+            .enumerate()
+            .map(|(k, n)| {
+                let at = format!("{field}.fracture.notches[{k}]");
+                let v1::Notch {
+                    center,
+                    normal,
+                    radius,
+                } = n;
+                Ok(NotchSpec {
+                    center: vec3(required(center, &format!("{at}.center"))?),
+                    normal: vec3(required(normal, &format!("{at}.normal"))?),
+                    radius,
+                })
+            })
+            .collect::<Result<_>>()?,
     })
 }
 
 fn to_fracture(fracture: &FractureSpec) -> v1::Fracture {
     let FractureSpec {
         stress,
+        toughness,
         plastic_strain,
         criterion,
         kappa,
         advance,
         max_cracks,
+        ref notches,
     } = *fracture;
     v1::Fracture {
         stress,
@@ -118,6 +140,15 @@ fn to_fracture(fracture: &FractureSpec) -> v1::Fracture {
         kappa: Some(kappa),
         advance: Some(advance),
         max_cracks: Some(max_cracks),
+        toughness,
+        notches: notches
+            .iter()
+            .map(|n| v1::Notch {
+                center: Some(to_vec3(n.center)),
+                normal: Some(to_vec3(n.normal)),
+                radius: n.radius,
+            })
+            .collect(),
     }
 }
 

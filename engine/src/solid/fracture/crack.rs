@@ -19,10 +19,15 @@
 //! change are evaluated there (Lagrangian kernels), so a crack never
 //! moves with the material; the frames deform it with the particles.
 
+use super::params::Notch;
 use crate::math::{Real, Vector};
 
 /// Nodes on the rim of a crack that starts in 3D.
 const RIM_NODES: usize = 6;
+
+/// Most nodes on the rim of a 3D notch: a bound on its geometry whatever
+/// radius a scene names (the solid's vertex bound checks the rest).
+const MAX_RIM_NODES: usize = 1 << 16;
 
 /// One point of a crack front.
 #[derive(Debug, Clone, PartialEq)]
@@ -155,6 +160,45 @@ impl Crack {
     /// length above the particles' `z` spread; the solid passes its
     /// support radius).
     pub fn start(dim: usize, center: Vector, normal: Vector, radius: Real, depth: Real) -> Self {
+        Self::disc(dim, center, normal, radius, depth, RIM_NODES)
+    }
+
+    /// A crack the solid is built with ([`Notch`]): as [`Self::start`]
+    /// makes one, its 3D rim with nodes at most `spacing` apart, so that
+    /// the front is as fine as the particles it will cut.
+    pub fn notch(dim: usize, notch: &Notch, spacing: Real, depth: Real) -> Self {
+        let mut normal = notch.normal;
+        if dim == 2 {
+            normal.z = 0.0;
+        }
+        Self::disc(
+            dim,
+            notch.center,
+            normal.normalize(),
+            notch.radius,
+            depth,
+            rim_nodes(notch, spacing),
+        )
+    }
+
+    /// How many vertices [`Self::notch`] makes of `notch`, without making
+    /// them: what a scene checks against the solid's bound.
+    pub fn notch_vertices(dim: usize, notch: &Notch, spacing: Real) -> usize {
+        if dim == 2 {
+            4
+        } else {
+            rim_nodes(notch, spacing) + 1
+        }
+    }
+
+    fn disc(
+        dim: usize,
+        center: Vector,
+        normal: Vector,
+        radius: Real,
+        depth: Real,
+        rim: usize,
+    ) -> Self {
         let mut crack = Self {
             dim,
             depth,
@@ -181,8 +225,8 @@ impl Crack {
         } else {
             let (u, v) = plane_axes(&normal);
             let middle = crack.vertex(center);
-            for k in 0..RIM_NODES {
-                let angle = std::f64::consts::TAU * k as Real / RIM_NODES as Real;
+            for k in 0..rim {
+                let angle = std::f64::consts::TAU * k as Real / rim as Real;
                 let heading = u * angle.cos() + v * angle.sin();
                 let at = center + heading * radius;
                 let id = crack.vertex(at);
@@ -193,9 +237,9 @@ impl Crack {
                     active: true,
                 });
             }
-            for k in 0..RIM_NODES {
+            for k in 0..rim {
                 let a = crack.front[k].tips[0];
-                let b = crack.front[(k + 1) % RIM_NODES].tips[0];
+                let b = crack.front[(k + 1) % rim].tips[0];
                 crack.triangles.push([middle, a, b]);
             }
         }
@@ -392,6 +436,17 @@ impl Crack {
                 k += 1;
             }
         }
+    }
+}
+
+/// Nodes on a 3D notch's rim: at most `spacing` apart, at least as many
+/// as a started crack's, at most [`MAX_RIM_NODES`].
+fn rim_nodes(notch: &Notch, spacing: Real) -> usize {
+    let rim = (std::f64::consts::TAU * notch.radius / spacing).ceil();
+    if rim.is_finite() {
+        (rim as usize).clamp(RIM_NODES, MAX_RIM_NODES)
+    } else {
+        MAX_RIM_NODES
     }
 }
 

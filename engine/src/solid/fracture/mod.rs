@@ -6,8 +6,10 @@
 //! After every step the solid
 //!
 //! 1. advances each running crack front normal to the largest principal
-//!    stress where that stress still passes the threshold, stopping a
-//!    front node that leaves the body or meets another crack (joining);
+//!    stress where that stress still passes the threshold (with a
+//!    toughness, the stress a critical distance ahead of the front: the
+//!    point method, `Threshold::Toughness`), stopping a front node that
+//!    leaves the body or meets another crack (joining);
 //! 2. starts a crack at each particle past the threshold (largest
 //!    first) that no crack is near yet, its plane normal to the
 //!    particle's principal direction;
@@ -24,7 +26,8 @@
 //! The update itself is the body's (`solid/cracking.rs`, beside
 //! `solid/plasticity.rs`); this module is what it works with:
 //!
-//! - `params.rs`: thresholds, criterion, knobs;
+//! - `params.rs`: thresholds, criterion, knobs, and the notches a solid
+//!   is built with;
 //! - `crack.rs`: crack surfaces as triangulated fronts;
 //! - `transparency.rs`: Eq. 70 and the under-sampling measure Eq. 71;
 //! - `fragments.rs`: connected fragments;
@@ -42,7 +45,9 @@ mod tests;
 
 pub use crack::{Crack, Crossing, FrontNode};
 pub(in crate::solid) use fragments::{label, split};
-pub use params::{CrackCriterion, Discontinuity, FractureParams, FractureParamsError, Threshold};
+pub use params::{
+    CrackCriterion, Discontinuity, FractureParams, FractureParamsError, Notch, Threshold,
+};
 pub(in crate::solid) use surface::crack_faces;
 pub use transparency::{opacity, transparent_weight, undersampling};
 

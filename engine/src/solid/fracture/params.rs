@@ -1,7 +1,7 @@
 //! What a fracturing solid's scene chooses: when a crack starts, how it
 //! cuts the particles' interactions, and how fast it may run.
 
-use crate::math::{Brief, Real};
+use crate::math::{Brief, Real, Vector};
 use serde::{Deserialize, Serialize};
 
 /// When a particle starts a crack (tutorial Section 7.3; Pauly et al.
@@ -14,6 +14,24 @@ pub enum Threshold {
         /// Tensile strength, Pa.
         stress: Real,
     },
+    /// Brittle with a fracture toughness: the point method of the theory
+    /// of critical distances (Taylor 2007; Whitney & Nuismer 1974). A
+    /// crack starts where the largest principal stress passes `stress`
+    /// (the strength `sigma_0`), as [`Self::Stress`]; a front runs when
+    /// that stress, sampled the critical distance
+    /// `r_c = K_Ic^2 / (2 pi sigma_0^2)` ahead of it, passes `stress`. On
+    /// the near-tip field `sigma = K_I / sqrt(2 pi r)` that is `K_I >=
+    /// K_Ic`, Irwin's form of Griffith's criterion: with surface energy
+    /// `gamma`, `K_Ic = sqrt(2 E gamma)` (plane stress), and a through
+    /// crack of half-length `a` under remote tension runs at
+    /// `sigma_c = sqrt(2 E gamma / (pi a))`, whatever the particle
+    /// spacing, as long as the spacing resolves `r_c`.
+    Toughness {
+        /// Tensile strength `sigma_0`, Pa.
+        stress: Real,
+        /// Mode I fracture toughness `K_Ic`, Pa m^(1/2).
+        toughness: Real,
+    },
     /// Ductile: the accumulated plastic strain (Frobenius norm) passes
     /// `plastic_strain`; needs plasticity. The crack still opens normal
     /// to the largest principal stress.
@@ -21,6 +39,70 @@ pub enum Threshold {
         /// The plastic strain a particle tears at.
         plastic_strain: Real,
     },
+}
+
+impl Threshold {
+    /// The point method's critical distance `K_Ic^2 / (2 pi sigma_0^2)`,
+    /// m: how far ahead of a front [`Self::Toughness`] samples the
+    /// stress. `None` for the other thresholds, which sample at the
+    /// front.
+    pub fn critical_distance(&self) -> Option<Real> {
+        match *self {
+            Self::Toughness { stress, toughness } => {
+                Some(toughness * toughness / (std::f64::consts::TAU * stress * stress))
+            }
+            Self::Stress { .. } | Self::PlasticStrain { .. } => None,
+        }
+    }
+}
+
+/// A crack the solid is built with, in reference coordinates: a flaw or
+/// a machined notch. In 2D a segment of half-length `radius` through
+/// `center` normal to `normal` (in the plane); in 3D a disc (a
+/// penny-shaped crack). Parts of it outside the body are inert: their
+/// front stops at the first update.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Notch {
+    /// Its centre, m.
+    pub center: Vector,
+    /// The normal of its plane (any length but zero).
+    pub normal: Vector,
+    /// Half-length (2D) or radius (3D), m.
+    pub radius: Real,
+}
+
+impl Notch {
+    /// Checks a notch of a `dim`-dimensional solid: finite, a normal that
+    /// is not zero (in the plane in 2D), a positive radius.
+    ///
+    /// # Errors
+    /// [`FractureParamsError::Notch`] saying what to change.
+    pub fn validate(&self, dim: usize) -> Result<(), FractureParamsError> {
+        let bad = |why: &str| Err(FractureParamsError::Notch(why.to_owned()));
+        if !(self
+            .center
+            .iter()
+            .chain(self.normal.iter())
+            .all(|x| x.is_finite()))
+        {
+            return bad("its centre and normal must be finite");
+        }
+        if !(self.radius.is_finite() && self.radius > 0.0) {
+            return bad("its radius must be positive and finite");
+        }
+        let normal = if dim == 2 {
+            if self.normal.z != 0.0 || self.center.z != 0.0 {
+                return bad("in 2D its centre and normal lie in the plane: set their z to 0");
+            }
+            self.normal.xy().norm()
+        } else {
+            self.normal.norm()
+        };
+        if normal < 1e-12 {
+            return bad("its normal must not be zero");
+        }
+        Ok(())
+    }
 }
 
 /// How a crack cuts the weight between two particles on either side of it.
@@ -99,6 +181,21 @@ pub enum FractureParamsError {
         "a plastic_strain threshold needs plasticity; add a plasticity table or use a stress threshold"
     )]
     NeedsPlasticity,
+    /// A notch out of its ranges.
+    #[error("a notch: {0}")]
+    Notch(String),
+    /// A toughness whose critical distance the particles cannot resolve.
+    #[error(
+        "toughness and stress give a critical distance K_Ic^2 / (2 pi stress^2) of {distance} m, \
+         under the particle spacing {spacing} m, so no particle could sample the stress there; \
+         raise the toughness, lower the stress or refine the spacing"
+    )]
+    Unresolved {
+        /// The critical distance.
+        distance: Brief,
+        /// The spacing.
+        spacing: Brief,
+    },
     /// Plastic re-basing with fracture.
     #[error(
         "cracks live in the reference shape, which plasticity's rebase moves; drop plasticity.rebase on a fracturing solid"
@@ -133,12 +230,18 @@ impl FractureParams {
         }
     }
 
-    /// Checks every value; `plastic` says whether the solid flows and
-    /// `rebases` whether that flow re-bases its reference shape.
+    /// Checks every value for a solid of particle `spacing`; `plastic`
+    /// says whether the solid flows and `rebases` whether that flow
+    /// re-bases its reference shape.
     ///
     /// # Errors
     /// [`FractureParamsError`] naming the value to change.
-    pub fn validate(&self, plastic: bool, rebases: bool) -> Result<(), FractureParamsError> {
+    pub fn validate(
+        &self,
+        spacing: Real,
+        plastic: bool,
+        rebases: bool,
+    ) -> Result<(), FractureParamsError> {
         let positive = |what, got: Real| {
             if got.is_finite() && got > 0.0 {
                 Ok(())
@@ -152,6 +255,17 @@ impl FractureParams {
         };
         match self.threshold {
             Threshold::Stress { stress } => positive("stress", stress)?,
+            Threshold::Toughness { stress, toughness } => {
+                positive("stress", stress)?;
+                positive("toughness", toughness)?;
+                let distance = self.threshold.critical_distance().unwrap_or(0.0);
+                if distance.is_nan() || distance < spacing {
+                    return Err(FractureParamsError::Unresolved {
+                        distance: Brief(distance),
+                        spacing: Brief(spacing),
+                    });
+                }
+            }
             Threshold::PlasticStrain { plastic_strain } => {
                 positive("plastic_strain", plastic_strain)?;
                 if !plastic {

@@ -332,7 +332,7 @@ fn a_bar_pulled_past_its_strength_splits_with_visibility() {
 fn fracture_parameters_out_of_range_are_refused_with_what_to_change() {
     let mut p = FractureParams::brittle(-1.0);
     assert!(
-        p.validate(false, false)
+        p.validate(0.05, false, false)
             .expect_err("refused")
             .to_string()
             .contains("stress must be positive")
@@ -340,7 +340,7 @@ fn fracture_parameters_out_of_range_are_refused_with_what_to_change() {
     p = FractureParams::brittle(1e6);
     p.discontinuity = Discontinuity::Transparency { kappa: 0.0 };
     assert!(
-        p.validate(false, false)
+        p.validate(0.05, false, false)
             .expect_err("refused")
             .to_string()
             .contains("kappa")
@@ -348,7 +348,7 @@ fn fracture_parameters_out_of_range_are_refused_with_what_to_change() {
     p = FractureParams::brittle(1e6);
     p.advance = 2.0;
     assert!(
-        p.validate(false, false)
+        p.validate(0.05, false, false)
             .expect_err("refused")
             .to_string()
             .contains("advance")
@@ -358,11 +358,14 @@ fn fracture_parameters_out_of_range_are_refused_with_what_to_change() {
         plastic_strain: 0.1,
     };
     assert_eq!(
-        p.validate(false, false),
+        p.validate(0.05, false, false),
         Err(FractureParamsError::NeedsPlasticity)
     );
-    assert_eq!(p.validate(true, true), Err(FractureParamsError::Rebase));
-    assert_eq!(p.validate(true, false), Ok(()));
+    assert_eq!(
+        p.validate(0.05, true, true),
+        Err(FractureParamsError::Rebase)
+    );
+    assert_eq!(p.validate(0.05, true, false), Ok(()));
 }
 
 #[test]
@@ -650,5 +653,148 @@ fn a_plate_with_next_to_no_strength_shatters_into_many_fragments_and_stays_finit
         mesh.vertices
             .iter()
             .all(|x| x.iter().all(|c| c.is_finite()))
+    );
+}
+
+#[test]
+fn a_toughness_samples_at_its_critical_distance_and_refuses_one_the_particles_miss() {
+    let toughness = Threshold::Toughness {
+        stress: 1e6,
+        toughness: 2e5,
+    };
+    // r_c = K_Ic^2 / (2 pi sigma_0^2): the point method's half of
+    // Taylor's L = (K_Ic / sigma_0)^2 / pi.
+    let l = (2e5_f64 / 1e6).powi(2) / std::f64::consts::PI;
+    let rc = toughness.critical_distance().expect("a toughness has one");
+    assert!((rc - 0.5 * l).abs() < 1e-15, "{rc}");
+    assert_eq!(Threshold::Stress { stress: 1.0 }.critical_distance(), None);
+    let mut p = FractureParams::brittle(1e6);
+    p.threshold = toughness;
+    assert_eq!(p.validate(0.5 * rc, false, false), Ok(()));
+    let refused = p
+        .validate(2.0 * rc, false, false)
+        .expect_err("under a spacing");
+    assert!(matches!(refused, FractureParamsError::Unresolved { .. }));
+    assert!(
+        refused.to_string().contains("refine the spacing"),
+        "{refused}"
+    );
+    p.threshold = Threshold::Toughness {
+        stress: 1e6,
+        toughness: -1.0,
+    };
+    assert!(matches!(
+        p.validate(0.01, false, false),
+        Err(FractureParamsError::OutOfRange {
+            what: "toughness",
+            ..
+        })
+    ));
+}
+
+#[test]
+fn a_notch_across_the_whole_bar_splits_it_at_the_build_and_one_inside_cuts_its_pairs() {
+    let notch = |radius| Notch {
+        center: Vector::zeros(),
+        normal: Vector::x(),
+        radius,
+    };
+    let mut p = FractureParams::brittle(1e9);
+    p.discontinuity = Discontinuity::Visibility;
+    // Across the 0.3 m bar's middle and past both its sides.
+    let mut through = pulled_bar(Some(p), 0.0);
+    through.notch(&[notch(0.5)]).expect("a valid notch");
+    let fracture = through.fracture().expect("fractures");
+    assert_eq!(fracture.fragment_count(), 2);
+    let rest = through.rest_positions();
+    let sides: Vec<_> = fracture.fragments().iter().zip(rest).collect();
+    assert!(
+        sides.iter().all(|(k, x)| (**k == 0) == (x.x < 0.0)),
+        "the fragments are not the bar's halves"
+    );
+
+    // Half as long: the pairs across it are cut, the body stays one
+    // piece, and the crack's tips are its front.
+    let mut inside = pulled_bar(Some(p), 0.0);
+    inside.notch(&[notch(0.05)]).expect("a valid notch");
+    let fracture = inside.fracture().expect("fractures");
+    assert_eq!(fracture.fragment_count(), 1);
+    let crack = &fracture.cracks()[0];
+    assert_eq!(crack.front().len(), 2);
+    assert!(
+        crack
+            .front()
+            .iter()
+            .all(|n| n.active && (n.at.y.abs() - 0.05).abs() < 1e-12)
+    );
+    // Eq. 71's count falls beside the notch only.
+    let plain = pulled_bar(Some(p), 0.0).undersampling();
+    let cut = inside.undersampling();
+    for (i, x) in inside.rest_positions().iter().enumerate() {
+        let beside = x.x.abs() < 0.1 && x.y.abs() < 0.05 + 0.1;
+        if beside && x.x.abs() < 0.05 && x.y.abs() < 0.05 {
+            assert!(cut[i] < plain[i], "particle {i} at {x:?} lost no neighbour");
+        } else if !beside {
+            assert_eq!(
+                cut[i], plain[i],
+                "particle {i} at {x:?} far from the notch changed"
+            );
+        }
+    }
+
+    // Refused, leaving the body as it was: a zero normal, z in 2D, too
+    // many cracks, a solid that does not fracture.
+    let before = inside.fracture().cloned();
+    for bad in [
+        Notch {
+            normal: Vector::zeros(),
+            ..notch(0.1)
+        },
+        Notch {
+            center: Vector::new(0.0, 0.0, 0.1),
+            ..notch(0.1)
+        },
+        notch(Real::NAN),
+    ] {
+        assert!(matches!(
+            inside.notch(&[bad]),
+            Err(FractureParamsError::Notch(_))
+        ));
+        assert_eq!(inside.fracture().cloned(), before);
+    }
+    p.max_cracks = 1;
+    let mut full = pulled_bar(Some(p), 0.0);
+    full.notch(&[notch(0.05)]).expect("one fits");
+    assert!(full.notch(&[notch(0.05)]).is_err());
+    let mut elastic = pulled_bar(None, 0.0);
+    assert!(elastic.notch(&[notch(0.05)]).is_err());
+}
+
+#[test]
+fn a_3d_notch_is_a_disc_whose_rim_is_as_fine_as_the_particles() {
+    let spacing = 0.05;
+    let notch = Notch {
+        center: Vector::zeros(),
+        normal: Vector::z(),
+        radius: 0.2,
+    };
+    let crack = Crack::notch(3, &notch, spacing, 0.1);
+    let rim = crack.front();
+    assert_eq!(rim.len() + 1, Crack::notch_vertices(3, &notch, spacing));
+    for (k, node) in rim.iter().enumerate() {
+        assert!((node.at.norm() - 0.2).abs() < 1e-12);
+        assert!((node.at - rim[(k + 1) % rim.len()].at).norm() <= spacing);
+    }
+    // A segment through its middle crosses it; one beside it does not.
+    let up = Vector::new(0.0, 0.0, 0.1);
+    assert!(
+        crack
+            .crossing(&(Vector::x() * 0.1 - up), &(Vector::x() * 0.1 + up))
+            .is_some()
+    );
+    assert!(
+        crack
+            .crossing(&(Vector::x() * 0.3 - up), &(Vector::x() * 0.3 + up))
+            .is_none()
     );
 }

@@ -261,8 +261,14 @@ pub(super) fn build(
         shapes: obstacles.to_vec(),
         walls: Some((vector(scene.domain.min), vector(scene.domain.max))),
     };
-    let solid = ElasticSolid::new(spec.params(dim), rest, velocities, fixed, obstacles)
+    let mut solid = ElasticSolid::new(spec.params(dim), rest, velocities, fixed, obstacles)
         .expect("validated by Scene::check");
+    if let Some(fracture) = &spec.fracture {
+        let notches: Vec<_> = fracture.notches.iter().map(|n| n.notch()).collect();
+        solid
+            .notch(&notches)
+            .expect("notches validated by Scene::check");
+    }
     SolidEntry {
         index,
         solid,
