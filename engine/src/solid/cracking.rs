@@ -9,7 +9,8 @@ use super::body::Body;
 use super::fracture::{
     Crack, Discontinuity, Fracture, FractureError, FractureParamsError, FractureSnapshot,
     FractureStep, FrontNode, Notch, SearchCache, Threshold, VERTICES_PER_PARTICLE, cauchy,
-    crack_faces, label, lengthened, opacity, principal, split, transparent_weight, undersampling,
+    crack_faces, label, largest_principal, lengthened, opacity, principal, split, stress_bound,
+    transparent_weight, undersampling,
 };
 use super::material::StressState;
 use super::topology::Reweigh;
@@ -429,27 +430,38 @@ impl Body {
         }
 
         let scanning = Instant::now();
-        // 2. New cracks, the most loaded particle first. The largest
-        // principal stress is at most the stress's Frobenius norm, so
-        // only particles past the threshold in that norm are decomposed.
+        // 2. New cracks, the most loaded particle first. This is the one
+        // pass over every particle, and it reads each one's whole stress
+        // state: only those whose stress may pass the threshold by a
+        // cheap bound (`stress_bound`) have their largest principal
+        // stress taken, in closed form, and only those that start a crack
+        // their direction.
+        // With the most cracks there already, none can start: no scan.
         let plastic = self.plastic.as_deref();
-        let mut candidates: Vec<(Real, usize, Vector)> = (0..n)
-            .into_par_iter()
-            .filter(|&i| match params.threshold {
-                Threshold::Stress { stress } | Threshold::Toughness { stress, .. } => {
-                    cauchy(&states[i]).norm() >= stress
-                }
-                Threshold::PlasticStrain { plastic_strain } => {
-                    plastic.is_some_and(|e| e[i].norm() >= plastic_strain)
-                }
-            })
-            .filter_map(|i| {
-                let (ratio, direction) = measure(i);
-                (ratio >= 1.0).then_some((ratio, i, direction))
-            })
-            .collect();
+        let full = fracture.cracks.len() >= params.max_cracks as usize;
+        let mut candidates: Vec<(Real, usize)> = if full {
+            Vec::new()
+        } else {
+            (0..n)
+                .into_par_iter()
+                .filter_map(|i| {
+                    let ratio = match params.threshold {
+                        Threshold::Stress { stress } | Threshold::Toughness { stress, .. } => {
+                            if stress_bound(&states[i]) < stress {
+                                return None;
+                            }
+                            largest_principal(dim, &cauchy(&states[i])) / stress
+                        }
+                        Threshold::PlasticStrain { plastic_strain } => {
+                            plastic.map_or(0.0, |e| e[i].norm()) / plastic_strain
+                        }
+                    };
+                    (ratio >= 1.0).then_some((ratio, i))
+                })
+                .collect()
+        };
         candidates.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-        for (_, i, normal) in candidates {
+        for (_, i) in candidates {
             if fracture.cracks.len() >= params.max_cracks as usize {
                 break;
             }
@@ -467,6 +479,7 @@ impl Body {
             {
                 continue;
             }
+            let (_, normal) = measure(i);
             let crack = Crack::start(dim, x + normal * (0.5 * spacing), normal, spacing, h);
             touched.extend(crack.front().iter().map(|f| f.at));
             touched.push(x);

@@ -798,3 +798,81 @@ fn a_3d_notch_is_a_disc_whose_rim_is_as_fine_as_the_particles() {
             .is_none()
     );
 }
+
+#[test]
+fn the_closed_form_largest_principal_value_agrees_with_the_decomposition() {
+    use nalgebra::Matrix3;
+    // A fixed pseudo-random sequence: symmetric matrices of mixed signs
+    // and scales, and the degenerate ones (diagonal, repeated values).
+    let mut seed: u64 = 0x9e37_79b9_7f4a_7c15;
+    let mut next = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as Real / (1u64 << 53) as Real * 2.0 - 1.0
+    };
+    let mut cases = vec![
+        Matrix3::zeros(),
+        Matrix3::identity() * 3.0,
+        Matrix3::from_diagonal(&Vector::new(-1.0, 5.0, 2.0)),
+        Matrix3::new(2.0, 1.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0, 3.0),
+    ];
+    for _ in 0..500 {
+        let scale = 10.0_f64.powf(6.0 * next());
+        let a = Matrix3::from_fn(|_, _| next() * scale);
+        cases.push(a + a.transpose());
+    }
+    for m in cases {
+        for dim in [2, 3] {
+            let exact = principal(dim, &m).0;
+            let closed = largest_principal(dim, &m);
+            // Where two values coincide the cubic's roots are
+            // ill-conditioned and the trigonometric form loses half the
+            // digits; a threshold test needs far fewer.
+            let scale = m.norm().max(1e-300);
+            assert!(
+                (closed - exact).abs() <= 1e-7 * scale,
+                "dim {dim}: {closed} against {exact} for {m}"
+            );
+        }
+    }
+}
+
+#[test]
+fn the_scans_stress_bound_is_never_below_the_largest_principal_stress() {
+    let material = Material::from_young_poisson(1e6, 0.3, 0.0);
+    let mut seed: u64 = 0x2545_f491_4f6c_dd1d;
+    let mut next = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as Real / (1u64 << 53) as Real * 2.0 - 1.0
+    };
+    for k in 0..2000 {
+        // Small strains, large ones, and inverted elements.
+        let size = [1e-4, 1e-2, 0.5, 2.0][k % 4];
+        let f = nalgebra::Matrix3::identity() + nalgebra::Matrix3::from_fn(|_, _| next() * size);
+        let state = material.state(f, None);
+        for dim in [2, 3] {
+            let sigma = largest_principal(dim, &cauchy(&state));
+            assert!(
+                stress_bound(&state) >= sigma * (1.0 - 1e-12),
+                "bound {} below {sigma} for F = {f}",
+                stress_bound(&state)
+            );
+        }
+    }
+    // For a small uniaxial stretch it is within a fifth of the stress (the
+    // lateral stresses that Poisson's ratio brings count in |S|_F): the
+    // scan decomposes only particles near their threshold.
+    let state = material.state(
+        nalgebra::Matrix3::from_diagonal(&Vector::new(1.001, 1.0, 1.0)),
+        None,
+    );
+    let sigma = largest_principal(3, &cauchy(&state));
+    assert!(
+        stress_bound(&state) < 1.2 * sigma,
+        "{} against {sigma}",
+        stress_bound(&state)
+    );
+}
