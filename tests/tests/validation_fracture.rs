@@ -6,7 +6,7 @@
 //!     cargo test -p meshless-tests --test validation_fracture -- --nocapture
 
 use meshless_engine::math::{Real, Vector};
-use meshless_engine::solid::fracture::Notch;
+use meshless_engine::solid::fracture::{Discontinuity, Notch};
 use meshless_validation::griffith::Griffith;
 
 /// Least-squares slope of `ln y` against `ln x`.
@@ -120,6 +120,51 @@ fn the_measured_stress_converges_to_the_point_methods_as_the_spacing_resolves_th
         errors[0],
         errors[1]
     );
+}
+
+#[test]
+fn transparency_leaves_a_smoother_strain_field_at_the_tip_than_visibility() {
+    // The Griffith plate of the convergence test, held at about half its
+    // failure load, its crack's tips a quarter spacing past a column.
+    let base = Griffith {
+        width: 0.6,
+        height: 0.9,
+        ..Griffith::default()
+    };
+    let (a, strain) = (0.0875, 3e-4);
+    println!("| criterion | beside the crack | ahead of the tip |");
+    println!("|---|---|---|");
+    let mut measured = Vec::new();
+    for (name, discontinuity) in [
+        ("visibility", Discontinuity::Visibility),
+        (
+            "transparency, kappa = 0.5",
+            Discontinuity::Transparency { kappa: 0.5 },
+        ),
+        (
+            "transparency, kappa = 1",
+            Discontinuity::Transparency { kappa: 1.0 },
+        ),
+        (
+            "transparency, kappa = 2",
+            Discontinuity::Transparency { kappa: 2.0 },
+        ),
+    ] {
+        let plate = Griffith {
+            discontinuity,
+            ..base
+        };
+        let r = plate.roughness(a, strain).expect("the plate holds");
+        println!("| {name} | {:.2} | {:.2} |", r.beside, r.ahead);
+        measured.push(r);
+    }
+    let (visibility, default) = (measured[0], measured[2]);
+    assert!(
+        default.beside < 0.75 * visibility.beside && default.ahead < 0.75 * visibility.ahead,
+        "transparency at kappa = 1 {default:?} against visibility {visibility:?}"
+    );
+    // More transparent, the line ahead of the tip fades further.
+    assert!(measured[3].ahead < default.ahead, "{measured:?}");
 }
 
 /// A central notch at 30 degrees to the plate's width, reaching 0.06 m

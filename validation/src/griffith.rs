@@ -243,6 +243,21 @@ impl Griffith {
         (sigma, runs)
     }
 
+    /// The plate cut by `notch` in static equilibrium with its grips at
+    /// `strain`, and the remote stress.
+    ///
+    /// # Errors
+    /// [`GriffithError::Build`] when the solid refuses the parameters.
+    pub fn loaded(
+        &self,
+        notch: Notch,
+        strain: Real,
+    ) -> Result<(ElasticSolid, Real), GriffithError> {
+        let mut solid = self.plate(notch)?;
+        let stress = self.stretch(&mut solid, strain);
+        Ok((solid, stress))
+    }
+
     /// Solves `solid` statically with its grips at `strain` from the
     /// uniform stretch, and returns the remote stress.
     fn stretch(&self, solid: &mut ElasticSolid, strain: Real) -> Real {
@@ -409,6 +424,59 @@ impl Griffith {
             advanced += step.advanced;
         }
         Ok((started, advanced))
+    }
+}
+
+/// How rough the strain field is at a crack's tips ([`Griffith::roughness`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Roughness {
+    /// The largest jump of the displacement gradient between adjacent
+    /// particles on the same side of the crack, within two spacings of a
+    /// tip, over the grips' strain.
+    pub beside: Real,
+    /// The same across the line the crack would run on, ahead of a tip:
+    /// where the visibility criterion leaves a line of discontinuity
+    /// beyond the front (the tutorial's Figure 9).
+    pub ahead: Real,
+}
+
+impl Griffith {
+    /// Transparency against visibility (the tutorial's Figures 9 and 10):
+    /// the plate with a central crack of half-length `a` held statically
+    /// at the grips' `strain`, and the [`Roughness`] of its strain field
+    /// at the tips. The displacement gradient is what the shape
+    /// functions' derivatives make of the displacements, so a kink in
+    /// them shows as a jump between neighbours.
+    ///
+    /// # Errors
+    /// [`GriffithError::Build`] when the solid refuses the parameters.
+    pub fn roughness(&self, a: Real, strain: Real) -> Result<Roughness, GriffithError> {
+        let (solid, _) = self.loaded(Self::central(a), strain)?;
+        let mut gradients = Vec::new();
+        solid.displacement_gradients(&mut gradients);
+        let rest = solid.rest_positions();
+        let s = self.spacing;
+        let near: Vec<usize> = (0..rest.len())
+            .filter(|&i| (rest[i].x.abs() - a).hypot(rest[i].y) < 2.0 * s)
+            .collect();
+        let mut roughness = Roughness {
+            beside: 0.0,
+            ahead: 0.0,
+        };
+        for (k, &i) in near.iter().enumerate() {
+            for &j in &near[k + 1..] {
+                if (rest[i] - rest[j]).norm() > 1.01 * s {
+                    continue;
+                }
+                let jump = (gradients[i] - gradients[j]).norm() / strain;
+                if rest[i].y * rest[j].y > 0.0 {
+                    roughness.beside = roughness.beside.max(jump);
+                } else if rest[i].x.abs() > a && rest[j].x.abs() > a {
+                    roughness.ahead = roughness.ahead.max(jump);
+                }
+            }
+        }
+        Ok(roughness)
     }
 }
 
