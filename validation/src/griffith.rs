@@ -208,6 +208,7 @@ impl Griffith {
                 discontinuity: self.discontinuity,
                 advance: FractureParams::DEFAULT_ADVANCE,
                 max_cracks: 4,
+                branching: None,
             }),
         };
         let shape = Shape::Box {

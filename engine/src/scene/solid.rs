@@ -167,6 +167,10 @@ pub struct FractureSpec {
     /// Most cracks the solid may hold.
     #[serde(default = "default_max_cracks")]
     pub max_cracks: u32,
+    /// 2D: a running front whose stress passes this many times the
+    /// threshold splits in two; none never branches.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub branching: Option<Real>,
     /// Cracks the solid is built with (flaws, machined notches), which
     /// count against `max_cracks`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -230,6 +234,7 @@ impl FractureSpec {
             },
             advance: self.advance,
             max_cracks: self.max_cracks,
+            branching: self.branching,
         }
     }
 }
@@ -549,7 +554,7 @@ impl SolidSpec {
             }
             let rebases = solid.plasticity.is_some_and(|p| p.rebase.is_some());
             f.params()
-                .validate(solid.spacing, solid.plasticity.is_some(), rebases)
+                .validate(dim, solid.spacing, solid.plasticity.is_some(), rebases)
                 .map_err(|e| SceneError::invalid(format!("{at}.fracture"), e.to_string()))?;
         }
         if dim == 2 {

@@ -610,6 +610,15 @@ fn notches_and_toughness_build_or_are_refused_naming_the_field() {
             "fracture = { stress = 1e5, max_cracks = 1, notches = [{ center = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0], radius = 0.1 }, { center = [0.0, 0.2, 0.0], normal = [0.0, 1.0, 0.0], radius = 0.1 }] }",
             "systems[0].fracture.notches",
         ),
+        // Branching below the threshold itself, and in 3D.
+        (
+            "fracture = { stress = 1e5, branching = 0.5 }",
+            "systems[0].fracture",
+        ),
+        (
+            "fracture = { stress = 1e5, branching = 2.0 }",
+            "systems[0].fracture",
+        ),
         (
             // A rim of 2 pi 1e4 / 0.1 nodes: past what 1000 particles hold.
             "fracture = { stress = 1e5, notches = [{ center = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0], radius = 1e4 }] }",

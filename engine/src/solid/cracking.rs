@@ -7,10 +7,10 @@
 
 use super::body::Body;
 use super::fracture::{
-    Crack, Discontinuity, Fracture, FractureError, FractureParamsError, FractureSnapshot,
-    FractureStep, FrontNode, Notch, SearchCache, Threshold, VERTICES_PER_PARTICLE, cauchy,
-    crack_faces, label, largest_principal, lengthened, opacity, principal, split, stress_bound,
-    transparent_weight, undersampling,
+    Crack, Discontinuity, Fracture, FractureError, FractureParams, FractureParamsError,
+    FractureSnapshot, FractureStep, FrontNode, Notch, SearchCache, Threshold,
+    VERTICES_PER_PARTICLE, cauchy, crack_faces, label, largest_principal, lengthened, opacity,
+    principal, split, stress_bound, transparent_weight, undersampling,
 };
 use super::material::StressState;
 use super::topology::Reweigh;
@@ -374,6 +374,7 @@ impl Body {
 
         // 1. Running fronts.
         let mut touched: Vec<Vector> = Vec::new();
+        let mut branches: Vec<Crack> = Vec::new();
         let mut out = FractureStep::default();
         for c in 0..fracture.cracks.len() {
             let front = fracture.cracks[c].front().to_vec();
@@ -398,11 +399,59 @@ impl Body {
                 if dim == 2 {
                     heading.z = 0.0;
                 }
-                let heading = if heading.norm() > 1e-9 {
+                let mut heading = if heading.norm() > 1e-9 {
                     heading.normalize()
                 } else {
                     node.heading
                 };
+                // Branching (2D): past `branching` times the threshold,
+                // and clear of every other crack by twice the support
+                // (so that the two arms of the last branch have parted
+                // before either splits again), a new crack leaves the tip
+                // to one side while this front turns to the other.
+                let room = fracture.cracks.len() + branches.len() < params.max_cracks as usize;
+                if dim == 2
+                    && room
+                    && params.branching.is_some_and(|b| ratio >= b)
+                    && fracture
+                        .cracks
+                        .iter()
+                        .enumerate()
+                        .filter(|(other, _)| *other != c)
+                        .map(|(_, other)| other)
+                        .chain(&branches)
+                        .all(|other| other.distance_to_vertices(&node.at) >= 2.0 * h)
+                {
+                    let turn = |angle: Real| {
+                        let (sin, cos) = angle.sin_cos();
+                        Vector::new(
+                            cos * heading.x - sin * heading.y,
+                            sin * heading.x + cos * heading.y,
+                            0.0,
+                        )
+                    };
+                    let arm = turn(FractureParams::BRANCH_ANGLE);
+                    let mut branch = Crack::start(
+                        2,
+                        node.at + arm * (0.5 * step),
+                        Vector::new(-arm.y, arm.x, 0.0),
+                        0.5 * step,
+                        h,
+                    );
+                    // Its end at the junction is no front: it lies on
+                    // this crack.
+                    if let Some(junction) = branch
+                        .front()
+                        .iter()
+                        .position(|f| (f.at - node.at).norm() < 0.25 * step)
+                    {
+                        branch.stop(junction);
+                    }
+                    touched.extend(branch.front().iter().map(|f| f.at));
+                    branches.push(branch);
+                    out.branched += 1;
+                    heading = turn(-FractureParams::BRANCH_ANGLE);
+                }
                 let mut to = node.at + heading * step;
                 // Joining: a front that meets another crack stops on it.
                 let met = fracture
@@ -428,6 +477,7 @@ impl Body {
                 fracture.cracks[c].advance(&moves, 1.5 * spacing);
             }
         }
+        fracture.cracks.append(&mut branches);
 
         let scanning = Instant::now();
         // 2. New cracks, the most loaded particle first. This is the one

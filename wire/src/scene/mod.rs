@@ -346,6 +346,7 @@ mod tests {
         };
         let fracture = solid.fracture.as_mut().expect("the beam fractures");
         fracture.toughness = Some(1e5);
+        fracture.branching = Some(2.0);
         fracture.notches = vec![
             NotchSpec {
                 center: [0.1, 0.02, 0.0],

@@ -89,6 +89,7 @@ fn fracture_from_proto(fracture: v1::Fracture, field: &str) -> Result<FractureSp
         max_cracks,
         toughness,
         notches,
+        branching,
     } = fracture;
     Ok(FractureSpec {
         stress,
@@ -102,6 +103,7 @@ fn fracture_from_proto(fracture: v1::Fracture, field: &str) -> Result<FractureSp
         kappa: kappa.unwrap_or(FractureParams::DEFAULT_KAPPA),
         advance: advance.unwrap_or(FractureParams::DEFAULT_ADVANCE),
         max_cracks: max_cracks.unwrap_or(FractureParams::DEFAULT_MAX_CRACKS),
+        branching,
         notches: notches
             .into_iter()
             .enumerate()
@@ -131,6 +133,7 @@ fn to_fracture(fracture: &FractureSpec) -> v1::Fracture {
         kappa,
         advance,
         max_cracks,
+        branching,
         ref notches,
     } = *fracture;
     v1::Fracture {
@@ -141,6 +144,7 @@ fn to_fracture(fracture: &FractureSpec) -> v1::Fracture {
         advance: Some(advance),
         max_cracks: Some(max_cracks),
         toughness,
+        branching,
         notches: notches
             .iter()
             .map(|n| v1::Notch {

@@ -9,7 +9,9 @@
 //!    stress where that stress still passes the threshold (with a
 //!    toughness, the stress a critical distance ahead of the front: the
 //!    point method, `Threshold::Toughness`), stopping a front node that
-//!    leaves the body or meets another crack (joining);
+//!    leaves the body or meets another crack (joining), and in 2D
+//!    splitting one whose stress passes `branching` times the threshold
+//!    (branching);
 //! 2. starts a crack at each particle past the threshold (largest
 //!    first) that no crack is near yet, its plane normal to the
 //!    particle's principal direction;
@@ -141,6 +143,9 @@ pub struct FractureStep {
     pub started: u32,
     /// Front nodes that advanced.
     pub advanced: u32,
+    /// Fronts that branched (each a crack started at its tip, not
+    /// counted in `started`).
+    pub branched: u32,
     /// Particles whose shape functions were refitted.
     pub refitted: u32,
     /// What the reweighing changed the stored energy by at the current

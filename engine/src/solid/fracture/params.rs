@@ -161,6 +161,12 @@ pub struct FractureParams {
     /// ones still grow). Bounds the geometry with the particle count.
     #[serde(default = "FractureParams::default_max_cracks")]
     pub max_cracks: u32,
+    /// Branching (2D): a running front whose stress passes this many
+    /// times the threshold splits in two, a new crack leaving its tip
+    /// [`FractureParams::BRANCH_ANGLE`] to one side of its heading while
+    /// it turns as far to the other; none never branches.
+    #[serde(default)]
+    pub branching: Option<Real>,
 }
 
 /// Why fracture parameters are refused.
@@ -196,6 +202,11 @@ pub enum FractureParamsError {
         /// The spacing.
         spacing: Brief,
     },
+    /// Branching asked of a 3D solid.
+    #[error(
+        "branching is 2D only: a 3D front's nodes would split into two surfaces; remove branching"
+    )]
+    Branching3d,
     /// Plastic re-basing with fracture.
     #[error(
         "cracks live in the reference shape, which plasticity's rebase moves; drop plasticity.rebase on a fracturing solid"
@@ -211,6 +222,9 @@ impl FractureParams {
     pub const DEFAULT_ADVANCE: Real = 0.5;
     /// Default [`Self::max_cracks`].
     pub const DEFAULT_MAX_CRACKS: u32 = 64;
+    /// Half the angle between the two arms of a branch, rad (15
+    /// degrees): a model choice, not a material's.
+    pub const BRANCH_ANGLE: Real = 15.0 * std::f64::consts::PI / 180.0;
 
     fn default_advance() -> Real {
         Self::DEFAULT_ADVANCE
@@ -227,17 +241,19 @@ impl FractureParams {
             discontinuity: Discontinuity::default(),
             advance: Self::DEFAULT_ADVANCE,
             max_cracks: Self::DEFAULT_MAX_CRACKS,
+            branching: None,
         }
     }
 
-    /// Checks every value for a solid of particle `spacing`; `plastic`
-    /// says whether the solid flows and `rebases` whether that flow
-    /// re-bases its reference shape.
+    /// Checks every value for a `dim`-dimensional solid of particle
+    /// `spacing`; `plastic` says whether the solid flows and `rebases`
+    /// whether that flow re-bases its reference shape.
     ///
     /// # Errors
     /// [`FractureParamsError`] naming the value to change.
     pub fn validate(
         &self,
+        dim: usize,
         spacing: Real,
         plastic: bool,
         rebases: bool,
@@ -282,6 +298,18 @@ impl FractureParams {
                 range: "in (0, 1] particle spacings",
                 got: Brief(self.advance),
             });
+        }
+        if let Some(branching) = self.branching {
+            if !(branching.is_finite() && branching >= 1.0) {
+                return Err(FractureParamsError::OutOfRange {
+                    what: "branching",
+                    range: "at least 1 (times the threshold) and finite",
+                    got: Brief(branching),
+                });
+            }
+            if dim != 2 {
+                return Err(FractureParamsError::Branching3d);
+            }
         }
         if self.max_cracks == 0 {
             return Err(FractureParamsError::OutOfRange {

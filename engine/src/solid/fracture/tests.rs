@@ -332,7 +332,7 @@ fn a_bar_pulled_past_its_strength_splits_with_visibility() {
 fn fracture_parameters_out_of_range_are_refused_with_what_to_change() {
     let mut p = FractureParams::brittle(-1.0);
     assert!(
-        p.validate(0.05, false, false)
+        p.validate(2, 0.05, false, false)
             .expect_err("refused")
             .to_string()
             .contains("stress must be positive")
@@ -340,7 +340,7 @@ fn fracture_parameters_out_of_range_are_refused_with_what_to_change() {
     p = FractureParams::brittle(1e6);
     p.discontinuity = Discontinuity::Transparency { kappa: 0.0 };
     assert!(
-        p.validate(0.05, false, false)
+        p.validate(2, 0.05, false, false)
             .expect_err("refused")
             .to_string()
             .contains("kappa")
@@ -348,7 +348,7 @@ fn fracture_parameters_out_of_range_are_refused_with_what_to_change() {
     p = FractureParams::brittle(1e6);
     p.advance = 2.0;
     assert!(
-        p.validate(0.05, false, false)
+        p.validate(2, 0.05, false, false)
             .expect_err("refused")
             .to_string()
             .contains("advance")
@@ -358,14 +358,14 @@ fn fracture_parameters_out_of_range_are_refused_with_what_to_change() {
         plastic_strain: 0.1,
     };
     assert_eq!(
-        p.validate(0.05, false, false),
+        p.validate(2, 0.05, false, false),
         Err(FractureParamsError::NeedsPlasticity)
     );
     assert_eq!(
-        p.validate(0.05, true, true),
+        p.validate(2, 0.05, true, true),
         Err(FractureParamsError::Rebase)
     );
-    assert_eq!(p.validate(0.05, true, false), Ok(()));
+    assert_eq!(p.validate(2, 0.05, true, false), Ok(()));
 }
 
 #[test]
@@ -670,9 +670,9 @@ fn a_toughness_samples_at_its_critical_distance_and_refuses_one_the_particles_mi
     assert_eq!(Threshold::Stress { stress: 1.0 }.critical_distance(), None);
     let mut p = FractureParams::brittle(1e6);
     p.threshold = toughness;
-    assert_eq!(p.validate(0.5 * rc, false, false), Ok(()));
+    assert_eq!(p.validate(2, 0.5 * rc, false, false), Ok(()));
     let refused = p
-        .validate(2.0 * rc, false, false)
+        .validate(2, 2.0 * rc, false, false)
         .expect_err("under a spacing");
     assert!(matches!(refused, FractureParamsError::Unresolved { .. }));
     assert!(
@@ -684,7 +684,7 @@ fn a_toughness_samples_at_its_critical_distance_and_refuses_one_the_particles_mi
         toughness: -1.0,
     };
     assert!(matches!(
-        p.validate(0.01, false, false),
+        p.validate(2, 0.01, false, false),
         Err(FractureParamsError::OutOfRange {
             what: "toughness",
             ..
@@ -875,4 +875,61 @@ fn the_scans_stress_bound_is_never_below_the_largest_principal_stress() {
         "{} against {sigma}",
         stress_bound(&state)
     );
+}
+
+#[test]
+fn a_front_past_its_branching_stress_splits_into_two_arms_thirty_degrees_apart() {
+    let run_with = |branching: Option<Real>| {
+        let mut fracture = FractureParams::brittle(2e4);
+        fracture.branching = branching;
+        let mut bar = pulled_bar(Some(fracture), 0.5);
+        let before = momentum(&bar);
+        let (mut branched, mut arms) = (0, Vec::new());
+        for _ in 0..300 {
+            bar.step(2e-4, &Vector::zeros(), 100);
+            let cracks = bar.fracture().expect("it fractures").cracks().len();
+            let step = bar.fracture_step().expect("bounded");
+            branched += step.branched;
+            if step.branched > 0 {
+                // The new arms are the last cracks; each leaves a point
+                // where its parent's front just was.
+                let f = bar.fracture().expect("it fractures");
+                arms.extend(f.cracks()[cracks + step.started as usize..].iter().cloned());
+            }
+        }
+        let drift = (momentum(&bar) - before).norm();
+        let scale: Real = bar.masses().iter().sum::<Real>() * 0.5;
+        assert!(drift < 1e-10 * scale, "momentum drift {drift:e}");
+        (bar, branched, arms)
+    };
+    let (_, plain, _) = run_with(None);
+    assert_eq!(plain, 0);
+    let (_, never, _) = run_with(Some(1e9));
+    assert_eq!(never, 0, "a front branched below its branching stress");
+
+    let (bar, branched, arms) = run_with(Some(1.0));
+    assert!(branched > 0, "no front branched");
+    let fracture = bar.fracture().expect("it fractures");
+    for arm in &arms {
+        // One end stopped at the junction, on another crack's path ...
+        let junction = arm.front().iter().find(|n| !n.active).expect("a junction");
+        let on_parent = fracture
+            .cracks()
+            .iter()
+            .filter(|c| !std::ptr::eq(*c, arm) && c.vertices() != arm.vertices())
+            .any(|c| c.distance_to_vertices(&junction.at) < 1e-9);
+        assert!(
+            on_parent,
+            "a branch whose junction {:?} is on no crack",
+            junction.at
+        );
+        // ... the other running, away from the junction.
+        let tip = arm
+            .front()
+            .iter()
+            .find(|n| n.active)
+            .expect("a running end");
+        assert!((tip.at - junction.at).dot(&tip.heading) >= 0.0);
+    }
+    assert!(fracture.cracks().len() <= FractureParams::DEFAULT_MAX_CRACKS as usize);
 }
