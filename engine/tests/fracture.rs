@@ -4,7 +4,7 @@
 //! continues bit for bit; a step that fails later in the world puts the
 //! cracks back; the `fragment` field labels the pieces.
 
-use meshless_engine::{BuildOptions, FieldKind, Scene, World};
+use meshless_engine::{BuildOptions, FieldKind, Scene, StepError, World};
 
 fn shipped(name: &str) -> Scene {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -197,4 +197,59 @@ fn a_snapshot_whose_cracks_do_not_fit_is_refused() {
     };
     let error = error.to_string();
     assert!(error.contains("fracture"), "{error}");
+}
+
+/// A 2D plate hanging from anchors along its top, solved statically, with
+/// the notch `notch` (a TOML inline table).
+fn hanging_plate(notch: &str) -> World {
+    let text = format!(
+        r#"
+        dimension = 2
+        gravity = [0.0, -9.81, 0.0]
+        [domain]
+        min = [-1.0, -1.0, 0.0]
+        max = [1.0, 1.0, 0.0]
+        [time]
+        dt = 0.01
+        [[systems]]
+        kind = "solid"
+        shape = {{ type = "box", half_extents = [0.2, 0.3, 0.05] }}
+        position = [0.0, 0.0, 0.0]
+        spacing = 0.02
+        young = 1e6
+        poisson = 0.0
+        integrator = "implicit"
+        implicit = {{ scheme = "static", linear_solver = "cholesky" }}
+        anchors = [{{ min = [-0.3, 0.25, 0.0], max = [0.3, 0.4, 0.0] }}]
+        fracture = {{ stress = 1e9, notches = [{notch}] }}
+        "#
+    );
+    build(&Scene::from_toml_str(&text).expect("the scene parses"))
+}
+
+#[test]
+fn a_static_solid_whose_cracks_free_a_piece_faults_naming_the_scheme() {
+    // A notch across the whole width below the anchors: the lower part
+    // hangs from nothing, and a static solve has no equilibrium for it.
+    let mut cut =
+        hanging_plate("{ center = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0], radius = 0.5 }");
+    let error = cut.step().expect_err("a free piece in statics");
+    let StepError::FragmentFreeInStatics {
+        system,
+        particles,
+        step,
+    } = error
+    else {
+        panic!("faulted otherwise: {error}");
+    };
+    assert_eq!((system, step), (0, 1));
+    assert_eq!(particles, 20 * 15, "the lower half of the 20 x 30 plate");
+    assert!(error.to_string().contains("backward_euler"), "{error}");
+
+    // A notch half across: every piece still hangs, and it steps.
+    let mut notched =
+        hanging_plate("{ center = [-0.2, 0.0, 0.0], normal = [0.0, 1.0, 0.0], radius = 0.2 }");
+    for _ in 0..3 {
+        notched.step().expect("the notched plate hangs");
+    }
 }

@@ -146,6 +146,35 @@ impl ElasticSolid {
         body.kinetic_energy() + body.potential_energy() + mass * height + 1e-3 * mass * wave * wave
     }
 
+    /// In the static scheme, the particles of a fragment the cracks have
+    /// freed from every anchor, if any (the largest such): a free body
+    /// under load has no static equilibrium, so its solve is meaningless.
+    /// `None` in the other schemes, where a free piece just moves.
+    pub fn free_in_statics(&self) -> Option<usize> {
+        let statics = matches!(
+            self.body.params.integrator,
+            super::params::Integrator::Implicit(p) if p.scheme == super::params::ImplicitScheme::Static
+        );
+        let fracture = self
+            .body
+            .fracture
+            .as_ref()
+            .filter(|f| f.fragment_count() > 1)?;
+        if !statics {
+            return None;
+        }
+        let count = fracture.fragment_count() as usize;
+        let (mut sizes, mut held) = (vec![0usize; count], vec![false; count]);
+        for (&k, &fixed) in fracture.fragments().iter().zip(&self.body.fixed) {
+            sizes[k as usize] += 1;
+            held[k as usize] |= fixed;
+        }
+        (0..count)
+            .filter(|&k| !held[k] && sizes[k] > 0)
+            .map(|k| sizes[k])
+            .max()
+    }
+
     /// Whether the implicit integrator steps it.
     pub fn is_implicit(&self) -> bool {
         matches!(self.integrator, Integrator::Implicit(_))

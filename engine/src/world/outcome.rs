@@ -119,6 +119,22 @@ pub enum StepError {
         /// The step that failed.
         step: u64,
     },
+    /// A fracturing solid in the static scheme let a fragment break free
+    /// of every anchor: a free body under load has no static equilibrium.
+    #[error(
+        "the solid in systems[{system}] stopped in step {step}: its cracks freed a fragment of \
+         {particles} particles from every anchor, and the static scheme has no equilibrium for \
+         a free body; use scheme = \"backward_euler\" for a solid whose pieces may fall, or \
+         anchor every piece"
+    )]
+    FragmentFreeInStatics {
+        /// Index of the solid's system in the scene.
+        system: usize,
+        /// The free fragment's particles (the largest, where several).
+        particles: usize,
+        /// The step that failed.
+        step: u64,
+    },
     /// A fracturing solid's cracks outgrew the bound on their geometry.
     #[error("the solid in systems[{system}] stopped in step {step}: {reason}")]
     CracksOutgrown {

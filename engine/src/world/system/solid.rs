@@ -114,6 +114,13 @@ impl Simulated for SolidEntry {
                 reason,
                 step: env.step,
             })?;
+        if let Some(particles) = self.solid.free_in_statics() {
+            return Err(StepError::FragmentFreeInStatics {
+                system: self.index,
+                particles,
+                step: env.step,
+            });
+        }
         self.watch.shift(cracked.energy_change);
         self.watch.check_solid(
             &self.solid,
