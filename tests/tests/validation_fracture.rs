@@ -211,14 +211,21 @@ fn a_crack_from_a_slanted_notch_starts_at_its_tips_and_turns_normal_to_the_load(
     assert!(angle.abs() < 10.0, "the crack runs at {angle} degrees");
 
     // Below the threshold, for ten times the updates the crack needed to
-    // run its 6 cm, dynamically: nothing starts and nothing runs.
-    let (started, advanced) = plate
-        .hold(notch, 0.95, 10 * run.steps)
-        .expect("the plate holds");
+    // run its 6 cm, dynamically: nothing starts and nothing runs; a little
+    // above it, the front runs within a hundred.
+    let hold = |fraction: Real, updates: usize| {
+        plate
+            .hold(notch, fraction * run.failure_strain, updates)
+            .expect("the plate holds")
+    };
+    let (started, advanced) = hold(0.95, 10 * run.steps);
     println!(
         "at 95 % of the failure load, {} dynamic updates: {started} cracks started, {advanced} \
          advances",
         10 * run.steps
     );
     assert_eq!((started, advanced), (0, 0));
+    let (_, advanced) = hold(1.05, 100);
+    println!("at 105 %, 100 dynamic updates: {advanced} advances");
+    assert!(advanced > 0, "a front held past its failure load never ran");
 }

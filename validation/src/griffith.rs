@@ -356,6 +356,7 @@ impl Griffith {
         let (stress, mut strain, _) = self.bracket(&solid)?;
         let mut run = NotchRun {
             failure: stress,
+            failure_strain: strain,
             paths: solid.fracture().map_or_else(Vec::new, |f| {
                 f.cracks()[0].front().iter().map(|n| vec![n.at]).collect()
             }),
@@ -392,25 +393,22 @@ impl Griffith {
 }
 
 impl Griffith {
-    /// Below the threshold: the plate cut by `notch` in static equilibrium
-    /// at `fraction` of the grip strain at which its front first runs,
-    /// then stepped dynamically (explicit, from rest there) for `updates`
-    /// steps of the time an elastic wave takes to cross four spacings,
-    /// each followed by the fracture update. Returns the cracks started and
-    /// the front advances.
+    /// The plate cut by `notch` in static equilibrium with its grips at
+    /// `strain` (below [`NotchRun::failure_strain`]: a plate held below
+    /// its threshold), then stepped dynamically (explicit, from rest
+    /// there) for `updates` steps of the time an elastic wave takes to
+    /// cross four spacings, each followed by the fracture update. Returns
+    /// the cracks started and the front advances.
     ///
     /// # Errors
-    /// [`GriffithError`] when the plate cannot be built or no load below
-    /// the strength runs the front.
+    /// [`GriffithError`] when the plate cannot be built.
     pub fn hold(
         &self,
         notch: Notch,
-        fraction: Real,
+        strain: Real,
         updates: usize,
     ) -> Result<(u32, u32), GriffithError> {
-        let mut statics = self.plate(notch)?;
-        let (_, strain, _) = self.bracket(&statics)?;
-        self.stretch(&mut statics, fraction * strain);
+        let (statics, _) = self.loaded(notch, strain)?;
         let mut solid = self.plate_with(notch, Integrator::Explicit { cfl: 0.5 })?;
         solid.positions.clone_from(&statics.positions);
         let wave = (self.young / DENSITY).sqrt();
@@ -486,6 +484,8 @@ impl Griffith {
 pub struct NotchRun {
     /// The remote stress at which the notch's front first ran, Pa.
     pub failure: Real,
+    /// The grips' strain at that stress.
+    pub failure_strain: Real,
     /// Each front node of the notch's crack, where it was after each step
     /// that moved it, from where it began (the notch's tips).
     pub paths: Vec<Vec<Vector>>,

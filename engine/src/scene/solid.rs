@@ -9,9 +9,7 @@ use crate::geometry::Shape;
 use crate::geometry::TriMesh;
 use crate::math::{Real, Vector, vector};
 use crate::solid::embedded::{EmbeddedSurface, EmbeddingMethod};
-use crate::solid::fracture::{
-    Crack, CrackCriterion, Discontinuity, Notch, Threshold, VERTICES_PER_PARTICLE,
-};
+use crate::solid::fracture::{CrackCriterion, Discontinuity, Notch, Threshold, check_room};
 use crate::solid::{
     FractureParams, Hyperelastic, ImplicitParams, ImplicitScheme, Integrator, Material, Plasticity,
     SolidParams,
@@ -240,8 +238,8 @@ impl FractureSpec {
 }
 
 /// A fracture table's notches, for a solid of `particles` particles:
-/// each in range, no more cracks than `max_cracks`, and no more crack
-/// vertices than the solid may hold (what `Body::notch` checks again).
+/// each in range, and room for them all (`check_room`, as `Body::notch`
+/// checks again).
 fn check_notches(
     at: &str,
     fracture: &FractureSpec,
@@ -250,35 +248,19 @@ fn check_notches(
     particles: usize,
 ) -> Result<(), SceneError> {
     let field = format!("{at}.fracture.notches");
-    if fracture.notches.len() > fracture.max_cracks as usize {
-        return Err(SceneError::invalid(
-            field,
-            format!(
-                "{} notches, past max_cracks = {}; raise max_cracks or drop notches",
-                fracture.notches.len(),
-                fracture.max_cracks
-            ),
-        ));
-    }
-    let mut vertices = 0;
-    for (k, notch) in fracture.notches.iter().enumerate() {
-        let notch = notch.notch();
+    let notches: Vec<Notch> = fracture.notches.iter().map(NotchSpec::notch).collect();
+    for (k, notch) in notches.iter().enumerate() {
         notch
             .validate(dim)
             .map_err(|e| SceneError::invalid(format!("{field}[{k}]"), e.to_string()))?;
-        vertices += Crack::notch_vertices(dim, &notch, spacing);
     }
-    let limit = VERTICES_PER_PARTICLE * particles + 1024;
-    if vertices > limit {
-        return Err(SceneError::invalid(
-            field,
-            format!(
-                "the notches need {vertices} crack vertices, past the {limit} a solid of \
-                 {particles} particles may hold; make them smaller"
-            ),
-        ));
-    }
-    Ok(())
+    check_room(
+        &notches,
+        (0, 0),
+        fracture.max_cracks,
+        (dim, spacing, particles),
+    )
+    .map_err(|e| SceneError::invalid(field, e.to_string()))
 }
 
 /// The surface embedded in a solid (tutorial Section 7.2): the shape's own

@@ -9,8 +9,8 @@ use super::body::Body;
 use super::fracture::{
     Crack, Discontinuity, Fracture, FractureError, FractureParams, FractureParamsError,
     FractureSnapshot, FractureStep, FrontNode, Notch, SearchCache, Threshold,
-    VERTICES_PER_PARTICLE, cauchy, crack_faces, label, largest_principal, lengthened, opacity,
-    principal, split, stress_bound, transparent_weight, undersampling,
+    VERTICES_PER_PARTICLE, cauchy, check_room, crack_faces, label, largest_principal, lengthened,
+    opacity, principal, split, stress_bound, transparent_weight, undersampling,
 };
 use super::material::StressState;
 use super::topology::Reweigh;
@@ -189,28 +189,20 @@ impl Body {
         if notches.is_empty() {
             return Ok(());
         }
-        let cracks = fracture.cracks.len() + notches.len();
-        if cracks > fracture.params.max_cracks as usize {
-            return Err(FractureParamsError::Notch(format!(
-                "{cracks} cracks with the notches, past max_cracks = {}; raise max_cracks",
-                fracture.params.max_cracks
-            )));
-        }
+        check_room(
+            notches,
+            (fracture.cracks.len(), fracture.vertex_count()),
+            fracture.params.max_cracks,
+            (p.dim, p.spacing, self.len()),
+        )?;
         let mut fracture = fracture.clone();
         fracture.cracks.extend(
             notches
                 .iter()
                 .map(|n| Crack::notch(p.dim, n, p.spacing, p.support)),
         );
-        let limit = VERTICES_PER_PARTICLE * self.len() + 1024;
-        if fracture.vertex_count() > limit {
-            return Err(FractureParamsError::Notch(format!(
-                "the notches need {} crack vertices, past the {limit} a solid of {} particles may \
-                 hold; make them smaller",
-                fracture.vertex_count(),
-                self.len()
-            )));
-        }
+        // Every pair is looked at once, so the fragments are labelled
+        // afresh rather than split pair by pair.
         let all: Vec<usize> = (0..self.len()).collect();
         self.recut(&mut fracture, &all);
         self.fracture = Some(fracture);
@@ -563,20 +555,29 @@ impl Body {
         }
         near.sort_unstable();
         near.dedup();
-        let (refitted, energy_change) = self.recut(fracture, &near);
-        out.refitted = refitted;
-        out.energy_change = energy_change;
+        let recut = self.recut(fracture, &near);
+        out.refitted = recut.refitted;
+        out.energy_change = recut.energy_change;
+        // 4. Fragments: only a pair cut through can split one, and only
+        // if no other chain of pairs still joins its ends.
+        for (a, b) in recut.cut {
+            split(
+                a,
+                b,
+                |i| self.connected_neighbours(i, &fracture.extra),
+                &mut fracture.fragments,
+                &mut fracture.fragment_count,
+            );
+        }
         out.refit = refitting.elapsed();
         Ok(out)
     }
 
-    /// Steps 3 and 4 of the update for the particles `near` (sorted,
-    /// distinct) what the cracks changed: each of their pairs' terms from
-    /// the cracks as they are, the shape functions of the particles whose
-    /// terms grew, and the fragments a pair cut through may have split.
-    /// Returns how many particles it refitted and the stored energy that
-    /// changed by.
-    fn recut(&mut self, fracture: &mut Fracture, near: &[usize]) -> (u32, Real) {
+    /// Step 3 of the update for the particles `near` (sorted, distinct)
+    /// what the cracks changed: each of their pairs' terms from the cracks
+    /// as they are, and the shape functions of the particles whose terms
+    /// grew; the pairs it cut through are for the caller's fragments.
+    fn recut(&mut self, fracture: &mut Fracture, near: &[usize]) -> Recut {
         let p = self.params;
         let (dim, spacing, h) = (p.dim, p.spacing, p.support);
         let params = fracture.params;
@@ -650,20 +651,22 @@ impl Body {
             );
         }
         let energy_change = shares(self) - before;
-
-        // 4. Fragments: only a pair cut through can split one, and only
-        // if no other chain of pairs still joins its ends.
         cut.sort_unstable();
         cut.dedup();
-        for (a, b) in cut {
-            split(
-                a,
-                b,
-                |i| self.connected_neighbours(i, &fracture.extra),
-                &mut fracture.fragments,
-                &mut fracture.fragment_count,
-            );
+        Recut {
+            refitted: refit.len() as u32,
+            energy_change,
+            cut,
         }
-        (refit.len() as u32, energy_change)
     }
+}
+
+/// What [`Body::recut`] changed.
+struct Recut {
+    /// Particles refitted.
+    refitted: u32,
+    /// The stored energy's change at the current positions, J.
+    energy_change: Real,
+    /// The pairs it cut through (lower end first, each once).
+    cut: Vec<(usize, usize)>,
 }

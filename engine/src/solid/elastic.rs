@@ -155,14 +155,14 @@ impl ElasticSolid {
             self.body.params.integrator,
             super::params::Integrator::Implicit(p) if p.scheme == super::params::ImplicitScheme::Static
         );
+        if !statics {
+            return None;
+        }
         let fracture = self
             .body
             .fracture
             .as_ref()
             .filter(|f| f.fragment_count() > 1)?;
-        if !statics {
-            return None;
-        }
         let count = fracture.fragment_count() as usize;
         let (mut sizes, mut held) = (vec![0usize; count], vec![false; count]);
         for (&k, &fixed) in fracture.fragments().iter().zip(&self.body.fixed) {

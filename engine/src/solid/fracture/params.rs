@@ -105,6 +105,45 @@ impl Notch {
     }
 }
 
+/// Whether `notches` fit a solid of `particles` particles and particle
+/// `spacing` that already holds `held` cracks of `held_vertices`
+/// vertices: no more cracks than `max_cracks`, no more crack vertices than
+/// the solid's bound ([`VERTICES_PER_PARTICLE`] each and an allowance).
+/// What a scene checks before the build, and [`Body::notch`] again.
+///
+/// [`VERTICES_PER_PARTICLE`]: super::VERTICES_PER_PARTICLE
+/// [`Body::notch`]: crate::solid::Body::notch
+///
+/// # Errors
+/// [`FractureParamsError::Notch`] saying which bound and what to change.
+pub fn check_room(
+    notches: &[Notch],
+    (held, held_vertices): (usize, usize),
+    max_cracks: u32,
+    (dim, spacing, particles): (usize, Real, usize),
+) -> Result<(), FractureParamsError> {
+    let cracks = held + notches.len();
+    if cracks > max_cracks as usize {
+        return Err(FractureParamsError::Notch(format!(
+            "{cracks} cracks with the notches, past max_cracks = {max_cracks}; raise max_cracks \
+             or drop notches"
+        )));
+    }
+    let vertices = held_vertices
+        + notches
+            .iter()
+            .map(|n| super::Crack::notch_vertices(dim, n, spacing))
+            .sum::<usize>();
+    let limit = super::VERTICES_PER_PARTICLE * particles + 1024;
+    if vertices > limit {
+        return Err(FractureParamsError::Notch(format!(
+            "the notches need {vertices} crack vertices, past the {limit} a solid of \
+             {particles} particles may hold; make them smaller"
+        )));
+    }
+    Ok(())
+}
+
 /// How a crack cuts the weight between two particles on either side of it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
