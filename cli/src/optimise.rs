@@ -274,6 +274,7 @@ fn particles_frame(k: usize, time: f64, positions: &[[f64; 3]]) -> Frame {
         density_error: 0.0,
         capped: false,
         unconverged: 0,
+        added: 0,
         particle_count: positions.len(),
         fields: vec![FieldData {
             kind: FieldKind::Position,

@@ -79,6 +79,12 @@ pub enum Knob {
     /// Fracture: transparency's kappa in spacings, or `visibility`
     /// (Griffith's plate).
     FractureKappa,
+    /// Fracture: resampling's `Q_min` (tutorial Eq. 71), or `off`
+    /// (Griffith's plate, split beside its crack).
+    FractureQMin,
+    /// Fracture: resampling's smallest radius over the support radius
+    /// (Griffith's plate).
+    FractureRadiusRatio,
 }
 
 impl Knob {
@@ -109,6 +115,8 @@ impl Knob {
             Self::DesignAdaptive => "design_adaptive",
             Self::FractureResolution => "fracture_resolution",
             Self::FractureKappa => "fracture_kappa",
+            Self::FractureQMin => "fracture_q_min",
+            Self::FractureRadiusRatio => "fracture_radius_ratio",
         }
     }
 
@@ -147,7 +155,13 @@ impl Knob {
     }
 
     fn is_fracture(self) -> bool {
-        matches!(self, Self::FractureResolution | Self::FractureKappa)
+        matches!(
+            self,
+            Self::FractureResolution
+                | Self::FractureKappa
+                | Self::FractureQMin
+                | Self::FractureRadiusRatio
+        )
     }
 
     fn presets(self) -> &'static [&'static str] {
@@ -186,6 +200,8 @@ impl Knob {
             Self::DesignAdaptive => &["1.0", "0.5", "0.2", "0.1", "0.05", "off"],
             Self::FractureResolution => &["1.5", "2", "3", "4", "6"],
             Self::FractureKappa => &["visibility", "0.5", "1", "2"],
+            Self::FractureQMin => &["off", "4", "6", "8"],
+            Self::FractureRadiusRatio => &["0.3", "0.4", "0.5", "0.55"],
         }
     }
 
@@ -233,7 +249,10 @@ impl Knob {
             Self::DesignParticles | Self::DesignTolerance | Self::DesignAdaptive => {
                 bail!("{} is a design knob, not a dam-break one", self.name())
             }
-            Self::FractureResolution | Self::FractureKappa => {
+            Self::FractureResolution
+            | Self::FractureKappa
+            | Self::FractureQMin
+            | Self::FractureRadiusRatio => {
                 bail!("{} is a fracture knob, not a dam-break one", self.name())
             }
             Self::ModalCell

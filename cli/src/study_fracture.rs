@@ -7,7 +7,7 @@
 use crate::sweep::{report, sweep};
 use anyhow::{Context, Result, bail};
 use meshless_engine::math::Real;
-use meshless_engine::solid::fracture::Discontinuity;
+use meshless_engine::solid::fracture::{Discontinuity, Resampling};
 use meshless_validation::griffith::Griffith;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -57,6 +57,35 @@ fn setting(name: &str, value: &str) -> Result<Griffith> {
             };
             Griffith {
                 discontinuity,
+                ..base
+            }
+        }
+        "fracture_q_min" => {
+            let resample = match value {
+                "off" => None,
+                _ => {
+                    let q_min: f64 = value.parse().ok().unwrap_or(Real::NAN);
+                    if !(q_min.is_finite() && (1.0..=65.0).contains(&q_min)) {
+                        bail!("fracture_q_min: {value}; use 1 to 65 neighbours or off");
+                    }
+                    Some(Resampling {
+                        q_min,
+                        ..Resampling::new()
+                    })
+                }
+            };
+            Griffith { resample, ..base }
+        }
+        "fracture_radius_ratio" => {
+            let ratio = number()?;
+            if !(ratio > 0.0 && ratio < 1.0) {
+                bail!("fracture_radius_ratio: {value}; use a fraction of the support in (0, 1)");
+            }
+            Griffith {
+                resample: Some(Resampling {
+                    min_radius_ratio: ratio,
+                    ..Resampling::new()
+                }),
                 ..base
             }
         }

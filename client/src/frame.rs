@@ -178,6 +178,9 @@ pub struct FrameView {
     /// Solves of the last step that stopped at their iteration cap above
     /// their tolerance.
     pub unconverged: u32,
+    /// Particles the systems gained at the start of the last step (ids
+    /// after their system's last): a resampling solid's, a fluid's.
+    pub added: u32,
     /// The real-valued particle fields: position first, then the scene's
     /// `output.fields`, each once.
     pub fields: Vec<FieldView>,
@@ -265,6 +268,7 @@ impl FrameView {
             density_error,
             capped,
             unconverged,
+            added,
         } = header;
         let mut real = Vec::with_capacity(fields.len());
         let mut ids = None;
@@ -296,6 +300,7 @@ impl FrameView {
             density_error,
             capped,
             unconverged,
+            added,
             fields: real,
             ids,
             bodies,
@@ -417,6 +422,7 @@ mod tests {
                 density_error: 0.0,
                 capped: false,
                 unconverged: 0,
+                added: 0,
             }),
             fields: vec![v1::FieldData {
                 kind: v1::FieldKind::Density as i32,

@@ -116,6 +116,10 @@ pub struct Frame {
     /// Solves of the last step that stopped at their iteration cap above
     /// their tolerance (DFSPH pressure, implicit solids' Newton).
     pub unconverged: u32,
+    /// Particles the systems gained at the start of the last step (a
+    /// resampling solid's splits, a fluid's queued insertions), with ids
+    /// after their system's last.
+    pub added: u32,
     /// Particles over all systems: the length of each field.
     pub particle_count: usize,
     /// Positions first, then the requested real-valued fields in scene

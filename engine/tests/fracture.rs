@@ -253,3 +253,102 @@ fn a_static_solid_whose_cracks_free_a_piece_faults_naming_the_scheme() {
         notched.step().expect("the notched plate hangs");
     }
 }
+
+/// The shipped beam resampling by `resample` (a TOML inline table), its
+/// frames carrying ids.
+fn resampling_beam(resample: &str) -> Scene {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/brittle_beam.toml");
+    let text = std::fs::read_to_string(path).expect("the shipped scene");
+    let text = text
+        .replace(
+            "advance = 0.5 }",
+            &format!("advance = 0.5, resample = {resample} }}"),
+        )
+        .replace(
+            r#"fields = ["velocity", "fragment"]"#,
+            r#"fields = ["velocity", "fragment", "id"]"#,
+        );
+    assert!(text.contains("resample"), "the beam's fracture table moved");
+    Scene::from_toml_str(&text).expect("the scene parses")
+}
+
+#[test]
+fn a_resampling_beam_grows_its_frames_keeping_ids_and_continues_from_a_snapshot() {
+    let scene = resampling_beam("{ q_min = 10 }");
+    let mut world = build(&scene);
+    let built = world.frame().particle_count;
+    let first_ids = world.frame().ids.expect("ids asked for");
+    let mut grew = None;
+    for _ in 0..150 {
+        let info = world.step().expect("the beam steps");
+        let frame = world.frame();
+        assert_eq!(frame.added, info.added);
+        if info.added > 0 {
+            grew = Some(frame);
+            break;
+        }
+    }
+    let frame = grew.expect("the crack's neighbours split within 150 steps");
+    // The frame holds the new particles after the old, whose ids stay.
+    let ids = frame.ids.expect("ids");
+    assert_eq!(frame.particle_count, built + frame.added as usize);
+    assert_eq!(ids[..built], first_ids[..]);
+    assert!(
+        ids[built..]
+            .iter()
+            .copied()
+            .eq(built as u32..frame.particle_count as u32)
+    );
+    assert_eq!(frame.solids[0].count, frame.particle_count);
+    // A snapshot of the grown world continues bit for bit.
+    let state = world.state();
+    let mut restored = build(&scene).restored(&state).expect("the state fits");
+    for _ in 0..30 {
+        world.step().expect("steps");
+        restored.step().expect("steps");
+    }
+    let (_, a) = world.solids().next().expect("one solid");
+    let (_, b) = restored.solids().next().expect("one solid");
+    assert!(a.positions == b.positions, "positions differ");
+    assert!(a.fracture() == b.fracture(), "cracks differ");
+}
+
+#[test]
+fn a_beam_that_would_outgrow_its_limit_faults_with_the_reason_and_nothing_changed() {
+    let built = build(&shipped("brittle_beam.toml")).frame().particle_count;
+    let scene = resampling_beam(&format!("{{ max_particles = {} }}", built + 1));
+    let mut world = build(&scene);
+    let error = loop {
+        let before = world.state();
+        match world.step() {
+            Ok(_) => assert!(world.frame().step < 150, "never outgrew its limit"),
+            Err(error) => {
+                assert_eq!(world.state(), before, "a refused step changed the world");
+                break error;
+            }
+        }
+    };
+    let StepError::ParticleLimit { system, .. } = &error else {
+        panic!("faulted otherwise: {error}");
+    };
+    assert_eq!(*system, 0);
+    assert!(error.to_string().contains("max_particles"), "{error}");
+
+    // A limit under the particles built is refused with the key named.
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/brittle_beam.toml"),
+    )
+    .expect("the shipped scene")
+    .replace(
+        "advance = 0.5 }",
+        "advance = 0.5, resample = { max_particles = 10 } }",
+    );
+    let error = Scene::from_toml_str(&text)
+        .expect("parses")
+        .check(&BuildOptions::default())
+        .expect_err("a limit under the built count");
+    assert!(
+        error.to_string().contains("resample.max_particles"),
+        "{error}"
+    );
+}

@@ -239,6 +239,7 @@ impl Metrics {
             Some(StepError::Collapsed { .. }) => "solid_collapsed",
             Some(StepError::CracksOutgrown { .. }) => "cracks_outgrown",
             Some(StepError::FragmentFreeInStatics { .. }) => "fragment_free_in_statics",
+            Some(StepError::ParticleLimit { .. }) => "particle_limit",
             Some(StepError::Compressed { .. }) => "compressed",
             Some(StepError::EnergyGained { .. }) => "energy_gained",
             Some(StepError::SolidEnergyGained { .. }) => "solid_energy_gained",

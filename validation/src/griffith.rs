@@ -39,7 +39,7 @@
 use meshless_engine::approx::mls::Order;
 use meshless_engine::geometry::Shape;
 use meshless_engine::math::{Real, Vector};
-use meshless_engine::solid::fracture::{Discontinuity, Notch, Threshold};
+use meshless_engine::solid::fracture::{Discontinuity, Notch, Resampling, Threshold};
 use meshless_engine::solid::{
     ElasticSolid, FractureParams, ImplicitParams, ImplicitScheme, Integrator, LinearSolver,
     Material, Obstacles, SolidParams,
@@ -70,6 +70,9 @@ pub struct Griffith {
     pub discontinuity: Discontinuity,
     /// Relative width of the final load bracket.
     pub resolution: Real,
+    /// Resampling beside the crack (tutorial Eq. 71), done once the
+    /// notch is cut; none keeps the lattice.
+    pub resample: Option<Resampling>,
 }
 
 impl Default for Griffith {
@@ -88,6 +91,7 @@ impl Default for Griffith {
             support: 2.0,
             discontinuity: Discontinuity::Visibility,
             resolution: 2e-3,
+            resample: None,
         }
     }
 }
@@ -209,6 +213,7 @@ impl Griffith {
                 advance: FractureParams::DEFAULT_ADVANCE,
                 max_cracks: 4,
                 branching: None,
+                resample: self.resample,
             }),
         };
         let shape = Shape::Box {
@@ -230,6 +235,9 @@ impl Griffith {
         .map_err(|e| GriffithError::Build(e.to_string()))?;
         solid
             .notch(&[notch])
+            .map_err(|e| GriffithError::Build(e.to_string()))?;
+        solid
+            .resample()
             .map_err(|e| GriffithError::Build(e.to_string()))?;
         Ok(solid)
     }

@@ -52,6 +52,7 @@ pub fn frame_to_proto(session_id: &str, frame: &Frame) -> v1::Frame {
             density_error: frame.density_error,
             capped: frame.capped,
             unconverged: frame.unconverged,
+            added: frame.added,
             fields: fields.iter().map(|f| f.kind).collect(),
         }),
         fields,
@@ -158,6 +159,7 @@ pub fn frame_from_proto(frame: v1::Frame) -> Result<Frame> {
         density_error,
         capped,
         unconverged,
+        added,
     } = required(header, "header")?;
     let particle_count = usize::try_from(particle_count).map_err(|_| {
         WireError::new(
@@ -213,6 +215,7 @@ pub fn frame_from_proto(frame: v1::Frame) -> Result<Frame> {
         density_error,
         capped,
         unconverged,
+        added,
         particle_count,
         fields: real,
         ids,

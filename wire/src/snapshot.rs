@@ -76,6 +76,7 @@ fn system_to_proto(system: &SystemState) -> v1::SystemSnapshot {
                 .map(|(_, v)| v.clone())
                 .unwrap_or_default(),
             escalated: solid.escalated,
+            radii: solid.radii.clone().unwrap_or_default(),
             energy_start: energy_start.map(|(e, _)| e),
             energy_scale: energy_start.map(|(_, s)| s),
         }),
@@ -209,6 +210,7 @@ fn system_from_proto(message: v1::SystemSnapshot, field: &str) -> Result<SystemS
                 energy_start,
                 energy_scale,
                 fracture,
+                radii,
             } = s;
             let field = format!("{field}.solid");
             let energy_start = energy_pair(energy_start, energy_scale, &field)?;
@@ -244,6 +246,7 @@ fn system_from_proto(message: v1::SystemSnapshot, field: &str) -> Result<SystemS
                     fracture: fracture
                         .map(|f| fracture_from_proto(f, &format!("{field}.fracture")))
                         .transpose()?,
+                    radii: (!radii.is_empty()).then_some(radii),
                 },
                 energy_start,
             }

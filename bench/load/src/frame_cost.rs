@@ -63,6 +63,7 @@ pub fn engine_frame(particles: usize) -> Frame {
         density_error: 0.0,
         capped: false,
         unconverged: 0,
+        added: 0,
         particle_count: particles,
         fields: vec![field(FieldKind::Position), field(FieldKind::Velocity)],
         ids: None,

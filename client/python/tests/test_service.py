@@ -446,3 +446,61 @@ def test_a_brittle_beam_breaks_and_its_pieces_and_cracks_are_served(server):
         assert np.array_equal(a.positions, b.positions)
         assert np.array_equal(a.fields["fragment"], b.fields["fragment"])
         assert np.array_equal(a.crack_surfaces[0].vertices, b.crack_surfaces[0].vertices)
+
+
+def test_a_resampling_beam_grows_its_frames_and_a_limit_faults_the_session(server):
+    """The brittle beam resampling beside its crack (tutorial Eq. 71) over
+    gRPC: frames grow, saying how many particles the step added, the old
+    ids keep their rows; a snapshot of the grown beam restores and steps
+    on identically; a limit it outgrows faults the session with the
+    reason."""
+    from conftest import ROOT
+    from meshless import Client, MeshlessError
+    from meshless.v1 import simulation_pb2
+
+    base = (ROOT / "scenes" / "brittle_beam.toml").read_text()
+    base = base.replace('fields = ["velocity", "fragment"]', 'fields = ["velocity", "fragment", "id"]')
+    scene = base.replace("advance = 0.5 }", "advance = 0.5, resample = { q_min = 10 } }")
+    assert scene != base
+    with Client(server.grpc_target) as client:
+        session = client.create_session(scene)
+        assert session.scene.systems[0].solid.fracture.resample.q_min == 10
+        first = client.latest_frame(session.id)
+        built = first.particle_count
+        grown = None
+        for _ in range(40):
+            client.step(session.id, 1)
+            frame = client.latest_frame(session.id)
+            if frame.header.added > 0:
+                grown = frame
+                break
+        assert grown is not None, "no particle split in 40 steps"
+        assert grown.particle_count == built + grown.header.added
+        np.testing.assert_array_equal(grown.ids[:built], first.ids)
+        np.testing.assert_array_equal(grown.ids[built:], np.arange(built, grown.particle_count))
+        assert grown.solids[0].count == grown.particle_count
+        assert grown.fields["velocity"].shape == (grown.particle_count, 3)
+
+        copy = client.restore(client.snapshot(session.id))
+        client.step(session.id, 10)
+        client.step(copy.id, 10)
+        a, b = client.latest_frame(session.id), client.latest_frame(copy.id)
+        assert a.particle_count == b.particle_count
+        assert np.array_equal(a.positions, b.positions)
+
+        limited = client.create_session(
+            base.replace("advance = 0.5 }", f"advance = 0.5, resample = {{ max_particles = {built + 1} }} }}")
+        )
+        faulted = None
+        for _ in range(40):
+            try:
+                client.step(limited.id, 1)
+            except MeshlessError:  # the step that faults
+                pass
+            status = client.get_session(limited.id).status
+            if status.state == simulation_pb2.SESSION_STATE_FAULTED:
+                faulted = status
+                break
+        assert faulted is not None, "the session outgrew its limit without a fault"
+        assert "max_particles" in faulted.reason, faulted.reason
+        assert client.latest_frame(limited.id).particle_count == built

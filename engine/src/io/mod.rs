@@ -68,6 +68,7 @@ pub(crate) mod test_frame {
             density_error: 0.0,
             capped: false,
             unconverged: 0,
+            added: 0,
             particle_count: 2,
             fields: vec![
                 FieldData {

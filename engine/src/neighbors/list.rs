@@ -93,6 +93,27 @@ impl NeighborList {
         }
     }
 
+    /// Keeps only the pairs `(i, j)` for which `keep(i, j)` holds, in
+    /// their order: a list built at the largest of several radii narrowed
+    /// to each pair's own (particles with support radii of their own).
+    pub fn retain(&mut self, keep: impl Fn(usize, u32) -> bool) {
+        let mut write = 0;
+        let mut start = 0;
+        for i in 0..self.len() {
+            let end = self.offsets[i + 1] as usize;
+            for k in start..end {
+                let j = self.indices[k];
+                if keep(i, j) {
+                    self.indices[write] = j;
+                    write += 1;
+                }
+            }
+            start = end;
+            self.offsets[i + 1] = write as u32;
+        }
+        self.indices.truncate(write);
+    }
+
     /// Neighbours of particle `i`, itself included.
     #[inline]
     pub fn of(&self, i: usize) -> &[u32] {

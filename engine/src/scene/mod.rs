@@ -691,7 +691,8 @@ impl Scene {
                 SystemSpec::Solid(solid) => {
                     let sampled =
                         solid.prepare(&format!("systems[{s}]"), &context, options.max_particles)?;
-                    let count = sampled.particles.len();
+                    // Admitted for all it may grow to.
+                    let count = solid.capacity(sampled.particles.len());
                     solid_particles += count as f64;
                     footprint.add_solid(
                         count as f64,

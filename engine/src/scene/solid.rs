@@ -9,7 +9,9 @@ use crate::geometry::Shape;
 use crate::geometry::TriMesh;
 use crate::math::{Real, Vector, vector};
 use crate::solid::embedded::{EmbeddedSurface, EmbeddingMethod};
-use crate::solid::fracture::{CrackCriterion, Discontinuity, Notch, Threshold, check_room};
+use crate::solid::fracture::{
+    CrackCriterion, Discontinuity, Notch, Resampling, Threshold, check_room,
+};
 use crate::solid::{
     FractureParams, Hyperelastic, ImplicitParams, ImplicitScheme, Integrator, Material, Plasticity,
     SolidParams,
@@ -173,6 +175,10 @@ pub struct FractureSpec {
     /// count against `max_cracks`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub notches: Vec<NotchSpec>,
+    /// Adaptive resampling where cracks hide neighbours (tutorial Eq.
+    /// 71); none keeps the particles the solid is built with.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub resample: Option<Resampling>,
 }
 
 /// A crack a solid is built with, world frame at the build: in 2D a
@@ -233,6 +239,7 @@ impl FractureSpec {
             advance: self.advance,
             max_cracks: self.max_cracks,
             branching: self.branching,
+            resample: self.resample,
         }
     }
 }
@@ -616,6 +623,18 @@ impl SolidSpec {
         }
         if let Some(f) = &solid.fracture {
             check_notches(at, f, solid.spacing, dim, particles.len())?;
+            if let Some(limit) = f.resample.and_then(|r| r.max_particles)
+                && (limit as usize) < particles.len()
+            {
+                return Err(SceneError::invalid(
+                    format!("{at}.fracture.resample.max_particles"),
+                    format!(
+                        "is {limit}, under the {} particles the solid is built with; raise it \
+                         or leave it out (twice the built count)",
+                        particles.len()
+                    ),
+                ));
+            }
         }
         if let Some(surface) = &solid.surface {
             let field = format!("{at}.surface");
@@ -644,6 +663,15 @@ impl SolidSpec {
             .transpose()
             .map_err(|e| SceneError::invalid(format!("{at}.surface"), e))?;
         Ok(SampledSolid { particles, surface })
+    }
+
+    /// The most particles the solid may hold once built with `built`:
+    /// more only where it resamples. What the scene is admitted with.
+    pub(crate) fn capacity(&self, built: usize) -> usize {
+        self.fracture
+            .as_ref()
+            .and_then(|f| f.resample)
+            .map_or(built, |r| r.capacity(built).max(built))
     }
 }
 

@@ -34,6 +34,15 @@ pub struct Body {
     pub(super) obstacles: Obstacles,
     /// Cracks and the pairs they cut, only when the solid fractures.
     pub(super) fracture: Option<Fracture>,
+    /// Each particle's support radius once resampling split some
+    /// (`resampling.rs`); `None` while all have `params.support`.
+    pub(super) radii: Option<Vec<Real>>,
+    /// The particles the solid was built with: the first `built` are the
+    /// scene's, the rest were split off them.
+    pub(super) built: usize,
+    /// The most particles the solid may hold (more than it was built
+    /// with only when it resamples).
+    pub(super) capacity: usize,
 }
 
 /// Why a solid cannot be built.
@@ -118,6 +127,12 @@ impl Body {
             plastic: params.plasticity.map(|_| vec![Matrix3::zeros(); n]),
             obstacles,
             fracture,
+            radii: None,
+            built: n,
+            capacity: params
+                .fracture
+                .and_then(|f| f.resample)
+                .map_or(n, |r| r.capacity(n).max(n)),
             params,
         };
         body.label_fragments();

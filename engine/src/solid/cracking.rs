@@ -54,7 +54,7 @@ impl Body {
                     .gradients
                     .range(i)
                     .filter(|&e| edges[e] as usize != i)
-                    .map(|e| (t.rest_offset[e].norm() * inv_h, extra.map_or(0.0, |x| x[e])));
+                    .map(|e| (t.q(e, inv_h), extra.map_or(0.0, |x| x[e])));
                 undersampling(kernel, pairs)
             })
             .collect()
@@ -211,7 +211,7 @@ impl Body {
     }
 
     /// The neighbours `i` still interacts with under the terms `extra`.
-    fn connected_neighbours<'a>(
+    pub(super) fn connected_neighbours<'a>(
         &'a self,
         i: usize,
         extra: &'a [Real],
@@ -223,9 +223,7 @@ impl Body {
         t.gradients
             .range(i)
             .filter(move |&e| edges[e] as usize != i)
-            .filter(move |&e| {
-                transparent_weight(kernel, t.rest_offset[e].norm() * inv_h, extra[e]).is_some()
-            })
+            .filter(move |&e| transparent_weight(kernel, t.q(e, inv_h), extra[e]).is_some())
             .map(move |e| edges[e] as usize)
     }
 
@@ -611,7 +609,7 @@ impl Body {
                         .map(|x| opacity(params.discontinuity, x.to_front, spacing))
                         .sum();
                     if added > fracture.extra[e] {
-                        let q = t.rest_offset[e].norm() * inv_h;
+                        let q = t.q(e, inv_h);
                         if transparent_weight(kernel, q, fracture.extra[e]).is_some()
                             && transparent_weight(kernel, q, added).is_none()
                         {

@@ -7,6 +7,7 @@ use super::fracture::{FractureError, FractureStep};
 use super::integrate::{Integrator, SolidStep};
 use super::material::Hyperelastic;
 use super::params::SolidParams;
+use super::resampling::{Resample, ResampleError};
 use crate::cancel::{Cancel, Cancelled};
 use crate::math::{Real, Vector};
 use crate::stats::StageTimer;
@@ -93,6 +94,25 @@ impl ElasticSolid {
     pub fn fracture_step(&mut self) -> Result<FractureStep, FractureError> {
         let states = self.integrator.states();
         self.body.fracture_step(states)
+    }
+
+    /// Splits the particles cracks left short of neighbours (tutorial Eq.
+    /// 71; `resampling.rs`), between steps: new particles are appended,
+    /// so every particle keeps its index. Nothing for a solid that does
+    /// not resample. The integrator's buffers start again for the new
+    /// count (its one carried decision, `auto`'s switch to Cholesky,
+    /// kept).
+    ///
+    /// # Errors
+    /// [`ResampleError::ParticleLimit`] past [`Body::capacity`].
+    pub fn resample(&mut self) -> Result<Resample, ResampleError> {
+        let done = self.body.resample()?;
+        if done.added > 0 {
+            let escalated = self.integrator.escalated();
+            self.integrator = Integrator::new(&self.body.params.integrator);
+            self.integrator.set_escalated(escalated);
+        }
+        Ok(done)
     }
 
     /// Mechanical energy under `gravity` after a step of `dt`: kinetic,

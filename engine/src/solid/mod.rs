@@ -15,6 +15,8 @@
 //!   sparse Cholesky solve);
 //! - `plasticity.rs`: Eq. 69 and the reference-shape update;
 //! - `cracking.rs`: the body's fracture update (what `fracture/` holds);
+//! - `resampling.rs`: particles split where cracks hid their neighbours
+//!   (Eq. 71);
 //! - `contact.rs`: obstacles and walls;
 //! - `embedded.rs`: high-resolution surfaces that follow the particles
 //!   (Section 7.2);
@@ -32,6 +34,7 @@ mod integrate;
 mod material;
 mod params;
 mod plasticity;
+mod resampling;
 mod snapshot;
 mod topology;
 
@@ -44,4 +47,5 @@ pub use material::{Hyperelastic, Material, StressState, cofactor, green_strain};
 pub use params::{
     ImplicitParams, ImplicitScheme, Integrator, LinearSolver, Plasticity, SolidParams,
 };
+pub use resampling::{Resample, ResampleError};
 pub use snapshot::SolidSnapshot;

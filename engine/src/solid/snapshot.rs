@@ -6,9 +6,10 @@
 
 use super::body::Body;
 use super::elastic::ElasticSolid;
-use super::fracture::FractureSnapshot;
+use super::fracture::{FractureSnapshot, SearchCache, lengthened};
 use super::integrate::Integrator;
 use super::topology::Topology;
+use crate::approx::mls::{Mls, MlsParams};
 use crate::math::{Real, Vector};
 use crate::snapshot::{SnapshotError, check_finite, check_length, check_vectors};
 use nalgebra::Matrix3;
@@ -31,6 +32,12 @@ pub struct SolidSnapshot {
     pub escalated: bool,
     /// The cracks of a fracturing solid; `None` for one that cannot crack.
     pub fracture: Option<FractureSnapshot>,
+    /// Each particle's support radius once resampling split some (the
+    /// particles past those the solid was built with are the new ones;
+    /// `reference` then holds every particle's reference position and
+    /// volume); `None` for a solid that holds the particles it was built
+    /// with.
+    pub radii: Option<Vec<Real>>,
 }
 
 impl ElasticSolid {
@@ -45,9 +52,11 @@ impl ElasticSolid {
             positions: body.positions.clone(),
             velocities: body.velocities.clone(),
             plastic: body.plastic.clone(),
-            reference: rebases.then(|| (body.rest.clone(), body.volumes.clone())),
+            reference: (rebases || body.radii.is_some())
+                .then(|| (body.rest.clone(), body.volumes.clone())),
             escalated: self.integrator.escalated(),
             fracture: body.fracture_snapshot(),
+            radii: body.radii.clone(),
         }
     }
 
@@ -59,7 +68,12 @@ impl ElasticSolid {
     /// [`SnapshotError`] when the state does not fit this solid; the solid
     /// is then unchanged.
     pub fn restore_snapshot(&mut self, state: &SolidSnapshot) -> Result<(), SnapshotError> {
-        let topology = check(&self.body, state)?;
+        let resized = resize(&self.body, state)?;
+        let topology = check(resized.as_ref().unwrap_or(&self.body), state)?;
+        if let Some(resized) = resized {
+            self.body = resized;
+            self.integrator = Integrator::new(&self.body.params.integrator);
+        }
         let body = &mut self.body;
         body.positions.clone_from(&state.positions);
         body.velocities.clone_from(&state.velocities);
@@ -75,6 +89,108 @@ impl ElasticSolid {
         self.integrator.set_escalated(state.escalated);
         Ok(())
     }
+}
+
+/// The body with the particles of a resampled `state` (or with those it
+/// was built with, for a state taken before any split, where `body` has
+/// split since): reference shape, volumes, masses, radii, anchors and
+/// neighbourhoods, its cracks to be put back by the caller. `None` where
+/// `state` holds as many particles as `body` with the same radii rule.
+///
+/// # Errors
+/// [`SnapshotError`] for a count past the solid's capacity or under the
+/// particles it was built with, radii or a reference shape out of range,
+/// or a shape whose pairs could not be bounded; `body` is unchanged.
+fn resize(body: &Body, state: &SolidSnapshot) -> Result<Option<Body>, SnapshotError> {
+    let params = &body.params;
+    let n = state.positions.len();
+    let (rest, volumes, radii) = match (&state.radii, &body.radii) {
+        (None, None) => return Ok(None),
+        (None, Some(_)) => {
+            let built = body.built;
+            let volume = params.particle_volume();
+            (body.rest[..built].to_vec(), vec![volume; built], None)
+        }
+        (Some(radii), _) => {
+            if n < body.built || n > body.capacity {
+                return Err(SnapshotError::Length {
+                    what: "particles of a resampled solid (at least those built, at most its capacity)",
+                    expected: body.capacity,
+                    got: n,
+                });
+            }
+            let Some((rest, volumes)) = &state.reference else {
+                return Err(SnapshotError::Length {
+                    what: "reference positions of a resampled solid",
+                    expected: n,
+                    got: 0,
+                });
+            };
+            check_length("support radii", radii.len(), n)?;
+            if let Some(index) = radii
+                .iter()
+                .position(|&r| !(r > 0.0 && r <= params.support))
+            {
+                return Err(SnapshotError::Invalid {
+                    what: "support radius (positive, at most the solid's)",
+                    index,
+                    value: radii[index],
+                });
+            }
+            check_vectors("reference positions", rest, n)?;
+            check_volumes(volumes, n)?;
+            check_crowding(rest, params.support, body.topology.owner.len())?;
+            (rest.clone(), volumes.clone(), Some(radii.clone()))
+        }
+    };
+    let mut grown = body.clone();
+    let count = rest.len();
+    grown.masses = volumes.iter().map(|v| v * params.density).collect();
+    grown.fixed.resize(count, false);
+    let mls = Mls::new(params.dim, MlsParams::new(params.order, params.support))
+        .expect("the solid's MLS parameters were valid when it was built");
+    let (topology, extra) = match &radii {
+        Some(radii) => Topology::build_with_radii(
+            &rest,
+            radii,
+            (params.dim, params.order, params.support),
+            |_, _| 0.0,
+            lengthened(&mls),
+        ),
+        None => Topology::build(&rest, params.dim, params.order, params.support).map(|t| {
+            let edges = t.owner.len();
+            (t, vec![0.0; edges])
+        }),
+    }
+    .expect("the solid's MLS parameters were valid when it was built");
+    if let Some(fracture) = &mut grown.fracture {
+        fracture.extra = extra;
+        fracture.fragments = vec![0; count];
+        fracture.search = SearchCache::default();
+    }
+    grown.topology = topology;
+    grown.rest = rest;
+    grown.volumes = volumes;
+    grown.radii = radii;
+    grown.positions.resize(count, Vector::zeros());
+    grown.velocities.resize(count, Vector::zeros());
+    if let Some(plastic) = &mut grown.plastic {
+        plastic.resize(count, Matrix3::zeros());
+    }
+    Ok(Some(grown))
+}
+
+/// Reference volumes: `n` of them, each positive and finite.
+fn check_volumes(volumes: &[Real], n: usize) -> Result<(), SnapshotError> {
+    check_length("reference volumes", volumes.len(), n)?;
+    if let Some(index) = volumes.iter().position(|&v| !(v > 0.0 && v.is_finite())) {
+        return Err(SnapshotError::Invalid {
+            what: "reference volumes",
+            index,
+            value: volumes[index],
+        });
+    }
+    Ok(())
 }
 
 /// Checks `state` against `body`, and builds the neighbourhoods of a
@@ -103,14 +219,7 @@ fn check(body: &Body, state: &SolidSnapshot) -> Result<Option<Topology>, Snapsho
         return Ok(None);
     };
     check_vectors("reference positions", rest, n)?;
-    check_length("reference volumes", volumes.len(), n)?;
-    if let Some(index) = volumes.iter().position(|&v| !(v > 0.0 && v.is_finite())) {
-        return Err(SnapshotError::Invalid {
-            what: "reference volumes",
-            index,
-            value: volumes[index],
-        });
-    }
+    check_volumes(volumes, n)?;
     if *rest == body.rest {
         return Ok(Some(body.topology.clone()));
     }

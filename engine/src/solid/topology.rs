@@ -5,7 +5,9 @@
 //! parallel instead of scattered under locks.
 //!
 //! Built once from the reference positions, and again only when a
-//! plastic solid re-bases its reference shape.
+//! plastic solid re-bases its reference shape or a fracturing one
+//! resamples (`solid/resampling.rs`), which gives particles radii of
+//! their own.
 
 use crate::approx::mls::{
     GradientKind, GradientWeights, LagrangianGradients, Mls, MlsError, Order,
@@ -39,6 +41,12 @@ pub struct Topology {
     /// For each particle `k`, the edges `(i -> k)` that end at it.
     pub reverse_offsets: Vec<u32>,
     pub reverse_edges: Vec<u32>,
+    /// `1 / h_ij` of each edge, `h_ij = (h_i + h_j) / 2` the pair's mean
+    /// support radius (tutorial Section 3.1), once particles carry radii
+    /// of their own (a resampled solid); `None` while every particle has
+    /// the solid's support radius, so that a solid that never resamples
+    /// computes what it did before radii existed, bit for bit.
+    pub edge_inv_support: Option<Vec<Real>>,
 }
 
 impl Topology {
@@ -54,10 +62,74 @@ impl Topology {
         let mut list = NeighborList::default();
         list.build(&search, rest, h);
         let gradients = LagrangianGradients::build(&mls, GradientKind::Direct, rest, &list)?;
+        let weight = Kernel::new(KernelKind::Poly6, dim, h);
+        Ok(Self::connect(gradients, rest, |_, r| weight.value(r), None))
+    }
 
+    /// The topology of particles at `rest` with support radii `radii`
+    /// (tutorial Section 3.1: a pair interacts within its mean radius
+    /// `h_ij = (h_i + h_j) / 2`, found by a search at the largest radius),
+    /// every pair's weights cut by the cracks' terms `extra(i, j)` (Eq.
+    /// 70; 0 where none crosses). `h` is the solid's support radius, the
+    /// basis scale; particles whose remaining neighbours resolve no
+    /// gradient drop to the constant order as [`Self::reweigh`] drops
+    /// them.
+    ///
+    /// # Errors
+    /// [`MlsError`] for invalid MLS parameters. Returns the topology and
+    /// each edge's term.
+    pub fn build_with_radii(
+        rest: &[Vector],
+        radii: &[Real],
+        (dim, order, h): (usize, Order, Real),
+        extra: impl Fn(usize, usize) -> Real,
+        weight: impl Fn(Real, Real) -> Option<Real>,
+    ) -> Result<(Self, Vec<Real>), MlsError> {
+        let mls = Mls::new(dim, crate::approx::mls::MlsParams::new(order, h))?;
+        let largest = radii.iter().copied().fold(0.0, Real::max);
+        let mut search = KdTree::new(largest);
+        search.rebuild(rest);
+        let mut list = NeighborList::default();
+        list.build(&search, rest, largest);
+        list.retain(|i, j| {
+            let mean = 0.5 * (radii[i] + radii[j as usize]);
+            (rest[j as usize] - rest[i]).norm_squared() < mean * mean
+        });
+        let gradients = LagrangianGradients::build(&mls, GradientKind::Direct, rest, &list)?;
+        let edges = gradients.neighbour_indices();
+        let mut inv_support = vec![0.0; edges.len()];
+        let mut terms = vec![0.0; edges.len()];
+        for i in 0..rest.len() {
+            for e in gradients.range(i) {
+                let j = edges[e] as usize;
+                inv_support[e] = 2.0 / (radii[i] + radii[j]);
+                terms[e] = extra(i, j);
+            }
+        }
+        let supports = inv_support.clone();
+        let mut topology = Self::connect(
+            gradients,
+            rest,
+            |e, r| Kernel::new(KernelKind::Poly6, dim, 1.0 / supports[e]).value(r),
+            Some(inv_support),
+        );
+        let mut scratch = Reweigh::default();
+        for i in 0..rest.len() {
+            topology.reweigh(i, rest, &mls, &terms, &weight, &mut scratch);
+        }
+        Ok((topology, terms))
+    }
+
+    /// Owners, offsets, normalised pair weights (`pair(e, r)` before
+    /// normalising), `sum_g` and the reverse adjacency of `gradients`.
+    fn connect(
+        gradients: LagrangianGradients,
+        rest: &[Vector],
+        pair: impl Fn(usize, Real) -> Real,
+        edge_inv_support: Option<Vec<Real>>,
+    ) -> Self {
         let n = rest.len();
         let edges = gradients.neighbour_indices();
-        let weight = Kernel::new(KernelKind::Poly6, dim, h);
         let mut owner = vec![0u32; edges.len()];
         let mut rest_offset = vec![Vector::zeros(); edges.len()];
         let mut pair_weight = vec![0.0; edges.len()];
@@ -72,7 +144,7 @@ impl Topology {
                 rest_offset[e] = rest[j] - rest[i];
                 sum_g[i] += g[e];
                 if j != i {
-                    pair_weight[e] = weight.value(rest_offset[e].norm());
+                    pair_weight[e] = pair(e, rest_offset[e].norm());
                     total += pair_weight[e];
                 }
             }
@@ -96,7 +168,7 @@ impl Topology {
             reverse_edges[fill[j as usize] as usize] = e as u32;
             fill[j as usize] += 1;
         }
-        Ok(Self {
+        Self {
             gradients,
             owner,
             rest_offset,
@@ -104,7 +176,17 @@ impl Topology {
             sum_g,
             reverse_offsets,
             reverse_edges,
-        })
+            edge_inv_support,
+        }
+    }
+
+    /// Edge `e`'s normalised distance `|X_j - X_i| / h_ij`, with
+    /// `inv_h = 1 / h` the solid's support radius where particles carry
+    /// none of their own.
+    #[inline]
+    pub fn q(&self, e: usize, inv_h: Real) -> Real {
+        let inv = self.edge_inv_support.as_ref().map_or(inv_h, |v| v[e]);
+        self.rest_offset[e].norm() * inv
     }
 
     /// Recomputes particle `i`'s gradient weights, pair weights and
@@ -129,13 +211,22 @@ impl Topology {
         let h = mls.params().h;
         let inv_h = 1.0 / h;
         let dim = mls.dim();
+        let inv_support = self.edge_inv_support.as_deref();
         self.gradients.refit_direct(
             mls,
             i,
             rest,
             |k, d| {
                 let r = d[..dim].iter().map(|v| v * v).sum::<Real>().sqrt();
-                weight(r * inv_h, extra[first + k])
+                match inv_support {
+                    None => weight(r * inv_h, extra[first + k]),
+                    // The kernel of the pair's own radius, `W(q) / h_ij^d`,
+                    // relative to the solid's.
+                    Some(inv) => {
+                        let inv = inv[first + k];
+                        weight(r * inv, extra[first + k]).map(|w| w * (h * inv).powi(dim as i32))
+                    }
+                }
             },
             &mut scratch.weights,
             &mut scratch.nodes,
@@ -154,10 +245,13 @@ impl Topology {
                 continue;
             }
             let r = self.rest_offset[e].norm();
-            self.pair_weight[e] = if extra[e] == 0.0 {
-                plain.value(r)
-            } else {
-                weight(r * inv_h, extra[e]).map_or(0.0, |w| w * plain.value(0.0))
+            self.pair_weight[e] = match self.edge_inv_support.as_deref() {
+                None if extra[e] == 0.0 => plain.value(r),
+                None => weight(r * inv_h, extra[e]).map_or(0.0, |w| w * plain.value(0.0)),
+                Some(inv) => {
+                    let own = Kernel::new(KernelKind::Poly6, dim, 1.0 / inv[e]);
+                    weight(r * inv[e], extra[e]).map_or(0.0, |w| w * own.value(0.0))
+                }
             };
             total += self.pair_weight[e];
         }

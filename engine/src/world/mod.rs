@@ -252,14 +252,15 @@ impl World {
         if cancel.is_cancelled() {
             return Err(StepError::Cancelled { step: env.step });
         }
-        // Stage 1, between steps: removals and sorting change the particle
-        // slots, so they happen here, never during a solve.
+        // Stage 1, between steps: removals, insertions, resampling and
+        // sorting change the particle slots, so they happen here, never
+        // during a solve.
+        let mut info = StepInfo::start(env.dt);
         for system in &mut self.systems {
-            system.simulated_mut().start_step();
+            info.added += system.simulated_mut().start_step(env.step)?;
         }
         // Stage 2: each system in turn, saved first, so that a blow-up in
         // any of them puts back every system stepped so far.
-        let mut info = StepInfo::start(env.dt);
         for k in 0..self.systems.len() {
             let system = self.systems[k].simulated_mut();
             system.save();
@@ -313,6 +314,7 @@ impl World {
             density_error: self.last_step.density_error,
             capped: self.last_step.capped,
             unconverged: self.last_step.unconverged,
+            added: self.last_step.added,
             particle_count: self.particle_count(),
             fields,
             ids: self

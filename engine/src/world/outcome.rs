@@ -28,6 +28,10 @@ pub struct StepInfo {
     /// DFSPH pressure solves and implicit solids' Newton solves. Nonzero
     /// means the step is not as accurate as the scene asked.
     pub unconverged: u32,
+    /// Particles the systems gained at the step's start, new ids after
+    /// their system's last (a fracturing solid's resampling, a fluid's
+    /// queued insertions).
+    pub added: u32,
 }
 
 impl StepInfo {
@@ -42,6 +46,7 @@ impl StepInfo {
             solid_iterations: 0,
             solid_residual: 0.0,
             unconverged: 0,
+            added: 0,
         }
     }
 
@@ -56,6 +61,7 @@ impl StepInfo {
         self.solid_iterations += system.solid_iterations;
         self.solid_residual = self.solid_residual.max(system.solid_residual);
         self.unconverged += system.unconverged;
+        self.added += system.added;
     }
 }
 
@@ -132,6 +138,17 @@ pub enum StepError {
         system: usize,
         /// The free fragment's particles (the largest, where several).
         particles: usize,
+        /// The step that failed.
+        step: u64,
+    },
+    /// A resampling solid would grow past the particles it was admitted
+    /// with.
+    #[error("the solid in systems[{system}] stopped in step {step}: {reason}")]
+    ParticleLimit {
+        /// Index of the solid's system in the scene.
+        system: usize,
+        /// How many, and what to change.
+        reason: crate::solid::ResampleError,
         /// The step that failed.
         step: u64,
     },

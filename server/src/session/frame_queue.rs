@@ -117,6 +117,7 @@ mod tests {
                 density_error: 0.0,
                 capped: false,
                 unconverged: 0,
+                added: 0,
                 particle_count: particles,
                 fields: vec![FieldData {
                     kind: FieldKind::Position,

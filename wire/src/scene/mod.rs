@@ -208,6 +208,7 @@ mod tests {
         SolidSurfaceSpec,
     };
     use meshless_engine::solid::embedded::EmbeddingMethod;
+    use meshless_engine::solid::fracture::Resampling;
     use meshless_engine::solid::{ImplicitParams, ImplicitScheme, LinearSolver, Plasticity};
 
     fn dam_break() -> Scene {
@@ -347,6 +348,11 @@ mod tests {
         let fracture = solid.fracture.as_mut().expect("the beam fractures");
         fracture.toughness = Some(1e5);
         fracture.branching = Some(2.0);
+        fracture.resample = Some(Resampling {
+            q_min: 8.0,
+            min_radius_ratio: 0.4,
+            max_particles: Some(12_345),
+        });
         fracture.notches = vec![
             NotchSpec {
                 center: [0.1, 0.02, 0.0],

@@ -13,7 +13,7 @@ use meshless_engine::scene::{
 };
 use meshless_engine::solid::FractureParams;
 use meshless_engine::solid::embedded::EmbeddingMethod;
-use meshless_engine::solid::fracture::CrackCriterion;
+use meshless_engine::solid::fracture::{CrackCriterion, Resampling};
 use meshless_engine::solid::{
     Hyperelastic, ImplicitParams, ImplicitScheme, LinearSolver, Plasticity,
 };
@@ -90,6 +90,7 @@ fn fracture_from_proto(fracture: v1::Fracture, field: &str) -> Result<FractureSp
         toughness,
         notches,
         branching,
+        resample,
     } = fracture;
     Ok(FractureSpec {
         stress,
@@ -104,6 +105,13 @@ fn fracture_from_proto(fracture: v1::Fracture, field: &str) -> Result<FractureSp
         advance: advance.unwrap_or(FractureParams::DEFAULT_ADVANCE),
         max_cracks: max_cracks.unwrap_or(FractureParams::DEFAULT_MAX_CRACKS),
         branching,
+        resample: resample.map(|r| Resampling {
+            q_min: r.q_min.unwrap_or(Resampling::DEFAULT_Q_MIN),
+            min_radius_ratio: r
+                .min_radius_ratio
+                .unwrap_or(Resampling::DEFAULT_MIN_RADIUS_RATIO),
+            max_particles: r.max_particles,
+        }),
         notches: notches
             .into_iter()
             .enumerate()
@@ -134,6 +142,7 @@ fn to_fracture(fracture: &FractureSpec) -> v1::Fracture {
         advance,
         max_cracks,
         branching,
+        resample,
         ref notches,
     } = *fracture;
     v1::Fracture {
@@ -145,6 +154,11 @@ fn to_fracture(fracture: &FractureSpec) -> v1::Fracture {
         max_cracks: Some(max_cracks),
         toughness,
         branching,
+        resample: resample.map(|r| v1::Resample {
+            q_min: Some(r.q_min),
+            min_radius_ratio: Some(r.min_radius_ratio),
+            max_particles: r.max_particles,
+        }),
         notches: notches
             .iter()
             .map(|n| v1::Notch {

@@ -48,8 +48,8 @@ mod tests;
 pub use crack::{Crack, Crossing, FrontNode};
 pub(in crate::solid) use fragments::{label, split};
 pub use params::{
-    CrackCriterion, Discontinuity, FractureParams, FractureParamsError, Notch, Threshold,
-    check_room,
+    CrackCriterion, Discontinuity, FractureParams, FractureParamsError, Notch, Resampling,
+    Threshold, check_room,
 };
 pub(in crate::solid) use surface::crack_faces;
 pub use transparency::{opacity, transparent_weight, undersampling};

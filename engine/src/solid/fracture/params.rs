@@ -206,6 +206,95 @@ pub struct FractureParams {
     /// it turns as far to the other; none never branches.
     #[serde(default)]
     pub branching: Option<Real>,
+    /// Adaptive resampling near cracks (tutorial Eq. 71); none keeps the
+    /// particles the solid was built with.
+    #[serde(default)]
+    pub resample: Option<Resampling>,
+}
+
+/// Adaptive resampling (tutorial Section 7.3, Eq. 71, after Pauly et al.
+/// 2005): at the start of a step a particle whose neighbours the cracks
+/// hid (its transparency-weighted count `Q_i` under `min(q_min, N_i)`,
+/// `N_i` the neighbours its support holds uncut) is split into itself and
+/// an even number of new particles around it on its side of every crack,
+/// `ceil` of the shortfall, its volume and mass shared evenly and every
+/// part's support radius shrunk by `(parts)^(1/dim)` so the density
+/// stays; never below `min_radius_ratio` times the solid's radius.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Resampling {
+    /// `Q_min`, the neighbour count a particle is kept at (Pauly et al.
+    /// use 10).
+    #[serde(default = "Resampling::default_q_min")]
+    pub q_min: Real,
+    /// The smallest support radius a split may leave, as a fraction of
+    /// the solid's support radius, in (0, 1): what stops runaway
+    /// splitting beside a crack.
+    #[serde(default = "Resampling::default_min_radius_ratio")]
+    pub min_radius_ratio: Real,
+    /// The most particles the solid may grow to; none: twice those it
+    /// was built with. Growth past it ends the step with
+    /// `ResampleError::ParticleLimit`.
+    #[serde(default)]
+    pub max_particles: Option<u32>,
+}
+
+impl Resampling {
+    /// Default [`Self::q_min`] (Pauly et al. 2005).
+    pub const DEFAULT_Q_MIN: Real = 10.0;
+    /// Default [`Self::min_radius_ratio`]: two generations of splits in
+    /// 2D, three in 3D.
+    pub const DEFAULT_MIN_RADIUS_RATIO: Real = 0.5;
+    /// Most particles one particle may be split into in one step.
+    pub const MAX_PARTS: usize = 65;
+
+    fn default_q_min() -> Real {
+        Self::DEFAULT_Q_MIN
+    }
+
+    fn default_min_radius_ratio() -> Real {
+        Self::DEFAULT_MIN_RADIUS_RATIO
+    }
+
+    /// The defaults: `Q_min` 10, half the support radius, twice the
+    /// particles.
+    pub fn new() -> Self {
+        Self {
+            q_min: Self::DEFAULT_Q_MIN,
+            min_radius_ratio: Self::DEFAULT_MIN_RADIUS_RATIO,
+            max_particles: None,
+        }
+    }
+
+    /// The most particles a solid built with `built` may hold.
+    pub fn capacity(&self, built: usize) -> usize {
+        self.max_particles
+            .map_or(built.saturating_mul(2), |m| m as usize)
+    }
+
+    fn validate(&self) -> Result<(), FractureParamsError> {
+        if !(self.q_min.is_finite() && (1.0..=(Self::MAX_PARTS as Real)).contains(&self.q_min)) {
+            return Err(FractureParamsError::OutOfRange {
+                what: "resample.q_min",
+                range: "between 1 and 65 neighbours",
+                got: Brief(self.q_min),
+            });
+        }
+        if !(self.min_radius_ratio > 0.0 && self.min_radius_ratio < 1.0) {
+            return Err(FractureParamsError::OutOfRange {
+                what: "resample.min_radius_ratio",
+                range: "in (0, 1), a fraction of the support radius",
+                got: Brief(self.min_radius_ratio),
+            });
+        }
+        Ok(())
+    }
+}
+
+impl Default for Resampling {
+    fn default() -> Self {
+        Self::new()
+    }
 }
 
 /// Why fracture parameters are refused.
@@ -281,6 +370,7 @@ impl FractureParams {
             advance: Self::DEFAULT_ADVANCE,
             max_cracks: Self::DEFAULT_MAX_CRACKS,
             branching: None,
+            resample: None,
         }
     }
 
@@ -359,6 +449,9 @@ impl FractureParams {
         }
         if rebases {
             return Err(FractureParamsError::Rebase);
+        }
+        if let Some(resample) = &self.resample {
+            resample.validate()?;
         }
         Ok(())
     }

@@ -42,7 +42,7 @@ impl Explicit {
         cancel: &Cancel,
         timer: &mut StageTimer,
     ) -> Result<SolidStep, Cancelled> {
-        let limit = body.params.stable_dt(self.cfl);
+        let limit = body.stable_dt(self.cfl);
         let wanted = (dt / limit).ceil().max(1.0);
         let count = wanted.min(max_substeps.max(1) as Real);
         let sub = dt / count;

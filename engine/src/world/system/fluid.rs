@@ -64,7 +64,8 @@ impl Simulated for FluidEntry {
         self.fluid.fluid().len()
     }
 
-    fn start_step(&mut self) {
+    fn start_step(&mut self, _step: u64) -> Result<u32, StepError> {
+        let mut added = 0;
         if !self.changes.is_empty() {
             let (removed, positions, velocities) = self.changes.take().into_parts();
             if !removed.is_empty() {
@@ -73,10 +74,12 @@ impl Simulated for FluidEntry {
             if !positions.is_empty() {
                 // The ids were checked when the particles were queued.
                 let _ = self.fluid.insert(&positions, &velocities);
+                added = positions.len() as u32;
             }
             self.watch.restart();
         }
         self.fluid.reorder_if_due();
+        Ok(added)
     }
 
     fn save(&mut self) {

@@ -102,7 +102,9 @@ impl Simulated for ModalEntry {
     }
 
     /// Nodes never change.
-    fn start_step(&mut self) {}
+    fn start_step(&mut self, _step: u64) -> Result<u32, StepError> {
+        Ok(0)
+    }
 
     fn save(&mut self) {
         self.backup = self.solid.state();

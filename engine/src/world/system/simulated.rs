@@ -275,9 +275,15 @@ pub(crate) trait Simulated {
     /// ([`crate::frame::Frame::solids`]).
     fn is_solid(&self) -> bool;
 
-    /// Between steps: applies the particle changes marked since the last
-    /// step and anything else that changes the particle slots.
-    fn start_step(&mut self);
+    /// Between steps, before step `step`: applies the particle changes
+    /// marked since the last step and anything else that changes the
+    /// particle slots (a solid's resampling); returns the particles
+    /// added.
+    ///
+    /// # Errors
+    /// A [`StepError`] when the changes cannot be made; the system is
+    /// then as it was.
+    fn start_step(&mut self, step: u64) -> Result<u32, StepError>;
 
     /// Keeps the state a failed step goes back to.
     fn save(&mut self);

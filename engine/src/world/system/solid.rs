@@ -50,8 +50,24 @@ impl Simulated for SolidEntry {
         self.solid.len()
     }
 
-    /// A solid's particles never change slots.
-    fn start_step(&mut self) {}
+    /// A resampling solid splits the particles its cracks left short of
+    /// neighbours; new particles are appended, so every slot keeps its
+    /// particle.
+    fn start_step(&mut self, step: u64) -> Result<u32, StepError> {
+        let done = self
+            .solid
+            .resample()
+            .map_err(|reason| StepError::ParticleLimit {
+                system: self.index,
+                reason,
+                step,
+            })?;
+        if done.added > 0 {
+            // The new shape functions change the energy's form.
+            self.watch.restart();
+        }
+        Ok(done.added)
+    }
 
     fn save(&mut self) {
         self.solid.save(&mut self.backup);
@@ -84,6 +100,7 @@ impl Simulated for SolidEntry {
             solid_iterations: step.iterations,
             solid_residual: step.residual,
             unconverged: u32::from(step.unconverged),
+            added: 0,
         };
         if let Some(invalid) = self.first_invalid() {
             return Err(StepError::SolidUnstable {
@@ -179,7 +196,7 @@ impl Simulated for SolidEntry {
         }
     }
 
-    /// A solid's particles never change: their ids are their indices.
+    /// New particles are appended and none removed: ids are indices.
     fn write_ids(&self, out: &mut Vec<u32>) {
         out.extend(0..self.solid.len() as u32);
     }
