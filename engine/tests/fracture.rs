@@ -352,3 +352,108 @@ fn a_beam_that_would_outgrow_its_limit_faults_with_the_reason_and_nothing_change
         "{error}"
     );
 }
+
+/// Mass, linear momentum and angular momentum about z of a solid.
+fn totals(solid: &meshless_engine::solid::ElasticSolid) -> (f64, f64, f64) {
+    let mut mass = 0.0;
+    let mut momentum = meshless_engine::math::Vector::zeros();
+    let mut angular = 0.0;
+    for ((x, v), m) in solid
+        .positions
+        .iter()
+        .zip(&solid.velocities)
+        .zip(solid.masses())
+    {
+        mass += m;
+        momentum += v * *m;
+        angular += m * (x.x * v.y - x.y * v.x);
+    }
+    (mass, momentum.norm(), angular)
+}
+
+/// The shipped ductile bar (tutorial Figure 8's ductile fracture): spun
+/// about its centre, its middle flows, thins and tears, and the halves
+/// fly apart; resampling keeps the particles beside the tear sampled;
+/// mass, momentum and angular momentum hold through it all.
+#[test]
+fn the_spinning_ductile_bar_necks_and_tears_in_two_with_resampling_keeping_its_samples() {
+    let mut world = build(&shipped("ductile_spin.toml"));
+    let (_, solid) = world.solids().next().expect("one solid");
+    let built = solid.len();
+    let (mass, _, angular) = totals(solid);
+    // The top and bottom particles of the reference columns at the
+    // centre, halfway out and near the ends.
+    let rest = solid.rest_positions().to_vec();
+    let at = |x: f64, y: f64| {
+        rest.iter()
+            .position(|r| (r.x - x).abs() < 1e-9 && (r.y - y).abs() < 1e-9)
+            .expect("a particle there")
+    };
+    let columns: Vec<(usize, usize)> = [0.005, 0.095, 0.195]
+        .iter()
+        .map(|&x| (at(x, 0.025), at(x, -0.025)))
+        .collect();
+    let mut necked = None;
+    let mut halves = None;
+    for step in 1..=100 {
+        world.step().expect("the bar steps");
+        let (_, solid) = world.solids().next().expect("one solid");
+        let fracture = solid.fracture().expect("it fractures");
+        if necked.is_none() && !fracture.cracks().is_empty() {
+            necked = Some(
+                columns
+                    .iter()
+                    .map(|&(a, b)| (solid.positions[a] - solid.positions[b]).norm())
+                    .collect::<Vec<f64>>(),
+            );
+        }
+        // What the next step's start will do meets Eq. 71 along the tear.
+        if step % 10 == 0 && solid.radii().is_some() {
+            let mut next = solid.clone();
+            next.resample().expect("within its limit");
+            let (q, count) = next.sampling();
+            let short = (0..next.len())
+                .filter(|&i| {
+                    q[i] < (10.0f64).min(count[i]) - 1e-9
+                        && next.support_radius(i) / 3f64.sqrt() >= 0.5 * 0.02
+                })
+                .count();
+            // Only a particle a crack runs through (no room on its side)
+            // may stay short while it could still split.
+            assert!(
+                short * 100 <= next.len(),
+                "step {step}: {short} of {} short",
+                next.len()
+            );
+        }
+        let (m, p, l) = totals(solid);
+        assert!((m - mass).abs() < 1e-12 * mass, "step {step}: mass {m}");
+        assert!(p < 1e-10 * mass, "step {step}: momentum {p}");
+        assert!(
+            (l - angular).abs() < 1e-9 * angular,
+            "step {step}: angular momentum {l} of {angular}"
+        );
+        let mut parts = vec![0.0; fracture.fragment_count() as usize];
+        for (&k, m) in fracture.fragments().iter().zip(solid.masses()) {
+            parts[k as usize] += m;
+        }
+        parts.sort_by(|a, b| b.total_cmp(a));
+        if parts.len() >= 2 && parts[1] > 0.45 * mass {
+            halves = Some((step, solid.len()));
+            break;
+        }
+    }
+    // Necked first: at the first crack the middle is thinner than
+    // halfway out, and that than near the ends, which barely thinned.
+    let thickness = necked.expect("a crack started within 0.2 s");
+    assert!(
+        thickness[0] < thickness[1]
+            && thickness[1] < thickness[2]
+            && thickness[0] < 0.75 * thickness[2],
+        "no neck: {thickness:?}"
+    );
+    assert!(thickness[2] > 0.049, "{thickness:?}");
+    // Then in two halves, and grown where the tear split particles.
+    let (step, count) = halves.expect("the bar tore in two within 0.2 s");
+    assert!(count > built, "no particle split by step {step}");
+}

@@ -43,6 +43,9 @@ pub struct Body {
     /// The most particles the solid may hold (more than it was built
     /// with only when it resamples).
     pub(super) capacity: usize,
+    /// `Body::stiffness` as built, which the explicit step limit of a
+    /// solid that split is measured against (`resampling.rs`).
+    pub(super) built_stiffness: Real,
 }
 
 /// Why a solid cannot be built.
@@ -128,6 +131,7 @@ impl Body {
             obstacles,
             fracture,
             radii: None,
+            built_stiffness: 0.0,
             built: n,
             capacity: params
                 .fracture
@@ -136,6 +140,9 @@ impl Body {
             params,
         };
         body.label_fragments();
+        if body.params.fracture.is_some_and(|f| f.resample.is_some()) {
+            body.built_stiffness = body.stiffness();
+        }
         Ok(body)
     }
 

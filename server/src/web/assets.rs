@@ -61,6 +61,10 @@ pub const SCENES: &[(&str, &str)] = &[
         include_str!("../../../scenes/dam_break_2d.toml"),
     ),
     (
+        "ductile_spin",
+        include_str!("../../../scenes/ductile_spin.toml"),
+    ),
+    (
         "elastic_beam",
         include_str!("../../../scenes/elastic_beam.toml"),
     ),
