@@ -158,6 +158,41 @@ async fn run_writes_the_crack_faces_of_a_breaking_solid() {
     );
 }
 
+/// The number of points a PLY frame holds, from its header.
+fn ply_points(ply: &[u8]) -> usize {
+    let header = String::from_utf8_lossy(&ply[..ply.len().min(2048)]);
+    header
+        .lines()
+        .find_map(|l| l.strip_prefix("element vertex "))
+        .and_then(|n| n.trim().parse().ok())
+        .expect("a vertex element")
+}
+
+/// The shipped ductile bar runs embedded past its tear: its frames grow
+/// as resampling splits the particles beside the tear, each PLY holding
+/// every particle of its step.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn run_writes_frames_that_grow_as_a_solid_resamples() {
+    let dir = TempDir::new("ductile");
+    let scene = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes/ductile_spin.toml");
+    let out = dir.0.join("frames");
+    meshless_ok(&[
+        "run",
+        scene.to_str().expect("utf-8"),
+        "--until",
+        "0.14",
+        "--format",
+        "ply",
+        "--output",
+        out.to_str().expect("utf-8"),
+    ])
+    .await;
+    let count = |name: &str| ply_points(&std::fs::read(out.join(name)).expect("a frame"));
+    let (first, last) = (count("frame_000000.ply"), count("frame_000070.ply"));
+    assert_eq!(first, 300, "the bar as built");
+    assert!(last > first, "no particle split: {first} -> {last}");
+}
+
 /// The shipped jelly drop (an elastic solid and a static ball, no fluid)
 /// runs embedded: the summary counts the solid's particles, the PLY
 /// frames hold every one of them, finite, and the solid's embedded
