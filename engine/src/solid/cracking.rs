@@ -7,7 +7,7 @@
 
 use super::body::Body;
 use super::fracture::{
-    Crack, Discontinuity, Fracture, FractureError, FractureParams, FractureParamsError,
+    Crack, CrackIndex, Discontinuity, Fracture, FractureError, FractureParams, FractureParamsError,
     FractureSnapshot, FractureStep, FrontNode, Notch, SearchCache, Threshold,
     VERTICES_PER_PARTICLE, cauchy, check_room, crack_faces, label, largest_principal, lengthened,
     opacity, principal, split, stress_bound, transparent_weight, undersampling,
@@ -587,6 +587,8 @@ impl Body {
         {
             let t = &self.topology;
             let edges = t.gradients.neighbour_indices();
+            let index = CrackIndex::new(&fracture.cracks, h);
+            let mut candidates = Vec::new();
             for &i in near {
                 for e in t.gradients.range(i) {
                     let j = edges[e] as usize;
@@ -602,10 +604,10 @@ impl Body {
                     } else {
                         (rest[j], rest[i])
                     };
-                    let added: Real = fracture
-                        .cracks
+                    index.near(&a, &b, &mut candidates);
+                    let added: Real = candidates
                         .iter()
-                        .filter_map(|c| c.crossing(&a, &b))
+                        .filter_map(|&c| fracture.cracks[c as usize].crossing(&a, &b))
                         .map(|x| opacity(params.discontinuity, x.to_front, spacing))
                         .sum();
                     if added > fracture.extra[e] {

@@ -27,8 +27,11 @@ use tokio::sync::oneshot;
 pub const THREAD_NAME: &str = "meshless-viewer";
 
 /// Runs `work` to its end on a new thread scheduled at `priority`, on a
-/// single-threaded runtime of its own. The receiver resolves when `work`
-/// has ended (or the thread could not run it, which it logs).
+/// single-threaded runtime of its own. Returns once the thread is named
+/// and scheduled, so that a server that says it is ready has its viewer
+/// thread as `top -H` will show it (a test that read the threads at once
+/// found none of that name now and then). The receiver resolves when
+/// `work` has ended (or the thread could not run it, which it logs).
 ///
 /// # Errors
 /// A thread the system cannot start.
@@ -37,10 +40,12 @@ where
     F: Future<Output = ()> + Send + 'static,
 {
     let (ended, done) = oneshot::channel();
+    let (started, scheduled) = std::sync::mpsc::sync_channel(1);
     std::thread::Builder::new()
         .name(THREAD_NAME.into())
         .spawn(move || {
             schedule(priority);
+            let _ = started.send(());
             match tokio::runtime::Builder::new_current_thread()
                 .enable_all()
                 .build()
@@ -51,6 +56,9 @@ where
             // Its connections end with the runtime, here.
             let _ = ended.send(());
         })?;
+    // The thread sends before anything that can fail; a thread that died
+    // first leaves the channel closed, and `done` says so.
+    let _ = scheduled.recv();
     Ok(done)
 }
 

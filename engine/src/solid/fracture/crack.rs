@@ -315,6 +315,11 @@ impl Crack {
         self.refine(max_edge);
     }
 
+    /// The box of the crack's vertices, `(lo, hi)`.
+    pub fn bounds(&self) -> (Vector, Vector) {
+        (self.lo, self.hi)
+    }
+
     /// Where the segment `a -> b` crosses the surface, if it does: the
     /// crossing nearest the front where it crosses more than once. Ends
     /// exactly on the surface do not count, so a particle on a crack's

@@ -33,11 +33,13 @@
 //! - `crack.rs`: crack surfaces as triangulated fronts;
 //! - `transparency.rs`: Eq. 70 and the under-sampling measure Eq. 71;
 //! - `fragments.rs`: connected fragments;
+//! - `index.rs`: a grid over the cracks, for the pairs' crossing tests;
 //! - `surface.rs`: the crack faces a frame shows, each carried by its own
 //!   side's material.
 
 mod crack;
 mod fragments;
+mod index;
 mod params;
 mod surface;
 mod transparency;
@@ -47,6 +49,7 @@ mod tests;
 
 pub use crack::{Crack, Crossing, FrontNode};
 pub(in crate::solid) use fragments::{label, split};
+pub(in crate::solid) use index::CrackIndex;
 pub use params::{
     CrackCriterion, Discontinuity, FractureParams, FractureParamsError, Notch, Resampling,
     Threshold, check_room,

@@ -933,3 +933,47 @@ fn a_front_past_its_branching_stress_splits_into_two_arms_thirty_degrees_apart()
     }
     assert!(fracture.cracks().len() <= FractureParams::DEFAULT_MAX_CRACKS as usize);
 }
+
+/// The extreme of many fragments: a 25,600-particle plate with next to no
+/// strength pulled apart from its centre starts thousands of cracks at
+/// once and is in thousands of pieces within a dozen steps, finite, its
+/// momentum kept (and fast enough to test: the pairs ask only the cracks
+/// near them, `CrackIndex`).
+#[test]
+fn a_plate_shatters_into_thousands_of_fragments_and_stays_finite() {
+    let mut fracture = FractureParams::brittle(1.0);
+    fracture.max_cracks = 4096;
+    fracture.discontinuity = Discontinuity::Visibility;
+    let mut p = params(2, Some(fracture));
+    p.spacing = 0.00625;
+    p.support = 0.0125;
+    let shape = Shape::Box {
+        half_extents: Vector::new(0.5, 0.5, 0.0),
+    };
+    let rest = shape.sample_volume(p.spacing, 2).expect("samples");
+    let velocities = rest.iter().map(|x| x * 2.0).collect();
+    let n = rest.len();
+    let mut plate = ElasticSolid::new(p, rest, velocities, vec![false; n], Obstacles::default())
+        .expect("plate");
+    let p0 = momentum(&plate);
+    run(&mut plate, 12);
+    let f = plate.fracture().expect("it fractures");
+    assert!(f.cracks().len() > 2000, "{} cracks", f.cracks().len());
+    assert!(
+        f.fragment_count() > 2000,
+        "{} fragments",
+        f.fragment_count()
+    );
+    assert!(
+        plate
+            .positions
+            .iter()
+            .chain(&plate.velocities)
+            .all(|x| x.iter().all(|c| c.is_finite()))
+    );
+    assert!(
+        plate.velocities.iter().all(|v| v.norm() < 10.0),
+        "a particle was flung"
+    );
+    assert!((momentum(&plate) - p0).norm() < 1e-9);
+}
