@@ -105,7 +105,8 @@ impl Body {
     /// The explicit step limit. Once particles were split, the wave limit
     /// `cfl spacing / c_p` is shortened by the square root of how much
     /// stiffer the stiffest particle is than the stiffest of the solid as
-    /// built ([`Self::stiffness`]): a split particle's gradient weights
+    /// built (the largest `(1 / V_j) sum_i V_i |g_ij|^2`, with its own
+    /// term, over particles `j`): a split particle's gradient weights
     /// grow as its radius shrinks, and one beside a crack, fitted over a
     /// lopsided neighbourhood, more (its moment matrix conditioned up to
     /// `MAX_REFIT_CONDITION`), which a limit from the radius alone misses
