@@ -457,3 +457,84 @@ fn the_spinning_ductile_bar_necks_and_tears_in_two_with_resampling_keeping_its_s
     let (step, count) = halves.expect("the bar tore in two within 0.2 s");
     assert!(count > built, "no particle split by step {step}");
 }
+
+/// The shipped notched bar, spun: a crack runs from the notch's tip
+/// straight across the ligament (normal to the tension) and the bar
+/// snaps into two halves; the same bar without its notch does not crack
+/// in the same time.
+#[test]
+fn the_spinning_notched_bar_snaps_at_its_notch_and_the_plain_one_holds() {
+    let scene = shipped("notched_spin.toml");
+    let mut world = build(&scene);
+    let mut snapped = None;
+    for step in 1..=100 {
+        world.step().expect("the bar steps");
+        let (_, solid) = world.solids().next().expect("one solid");
+        let fracture = solid.fracture().expect("it fractures");
+        let mut parts = vec![0.0; fracture.fragment_count() as usize];
+        for (&k, m) in fracture.fragments().iter().zip(solid.masses()) {
+            parts[k as usize] += m;
+        }
+        parts.sort_by(|a, b| b.total_cmp(a));
+        let mass: f64 = parts.iter().sum();
+        if parts.len() >= 2 && parts[1] > 0.45 * mass {
+            snapped = Some(step);
+            break;
+        }
+    }
+    let step = snapped.expect("the notched bar snapped in two within 0.05 s");
+    let (_, solid) = world.solids().next().expect("one solid");
+    let fracture = solid.fracture().expect("it fractures");
+    // The notch (crack 0) grew from its tip at (0, 0) across the whole
+    // ligament, within 20 degrees of normal to the tension (the bar's
+    // axis); every other crack started in the fracture zone beside it.
+    let cracks = fracture.cracks();
+    let lowest = cracks[0]
+        .vertices()
+        .iter()
+        .min_by(|a, b| a.y.total_cmp(&b.y))
+        .expect("vertices");
+    assert!(lowest.y < -0.025, "the notch's crack stopped at {lowest:?}");
+    let angle = (lowest.x / -lowest.y).atan().to_degrees();
+    assert!(
+        angle.abs() < 20.0,
+        "the crack ran {angle} degrees off normal"
+    );
+    for crack in &cracks[1..] {
+        assert!(
+            crack.vertices().iter().all(|v| v.x.abs() < 0.1),
+            "a crack started away from the notch"
+        );
+    }
+    // Two halves: every particle left of the fracture zone in one
+    // fragment, every one right of it in another.
+    let labels = fracture.fragments();
+    let rest = solid.rest_positions();
+    let side = |left: bool| -> std::collections::BTreeSet<u32> {
+        labels
+            .iter()
+            .zip(rest)
+            .filter(|(_, x)| (x.x < 0.0) == left && x.x.abs() > 0.1)
+            .map(|(&k, _)| k)
+            .collect()
+    };
+    let (left, right) = (side(true), side(false));
+    assert!(
+        left.len() == 1 && right.len() == 1 && left != right,
+        "{left:?} {right:?}"
+    );
+    // Without the notch, nothing cracks in twice that time.
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/notched_spin.toml"),
+    )
+    .expect("the shipped scene");
+    let start = text.find(", notches = [").expect("the notch");
+    let end = text[start..].find("] }").expect("its end") + start + 1;
+    let plain = format!("{}{}", &text[..start], &text[end..]);
+    let mut world = build(&Scene::from_toml_str(&plain).expect("the plain bar parses"));
+    for _ in 0..2 * step {
+        world.step().expect("the plain bar steps");
+    }
+    let (_, solid) = world.solids().next().expect("one solid");
+    assert!(solid.fracture().expect("fractures").cracks().is_empty());
+}

@@ -80,6 +80,10 @@ pub const SCENES: &[(&str, &str)] = &[
         "modal_beam",
         include_str!("../../../scenes/modal_beam.toml"),
     ),
+    (
+        "notched_spin",
+        include_str!("../../../scenes/notched_spin.toml"),
+    ),
 ];
 
 /// The scenes as the page reads them: `[{name, file, toml}]`.
