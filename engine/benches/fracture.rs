@@ -14,6 +14,11 @@
 //!   follows the particles a crack touches shows as a refit time and a
 //!   time per refit that do not grow with the plate. (A solid holding its
 //!   most cracks scans nothing.)
+//! - resampling (tutorial Eq. 71): the same running crack with
+//!   `resample` on: a step start that splits (a rebuild of the solid's
+//!   neighbourhoods), one that finds nothing to split (a pass over the
+//!   pairs' terms), the particles a split adds, the elastic step and its
+//!   sub-steps before the first split and after.
 //!
 //! Prints the tables; asserts nothing.
 //!
@@ -22,7 +27,7 @@
 use meshless_engine::approx::mls::Order;
 use meshless_engine::geometry::Shape;
 use meshless_engine::math::{Real, Vector};
-use meshless_engine::solid::fracture::Discontinuity;
+use meshless_engine::solid::fracture::{Discontinuity, Resampling};
 use meshless_engine::solid::{
     ElasticSolid, FractureParams, Integrator, Material, Obstacles, SolidParams,
 };
@@ -168,6 +173,66 @@ fn main() {
                 median(&mut per_refit),
             );
         }
+    }
+    resampling(&sides, steps);
+}
+
+/// The third table: a running crack's resampling.
+fn resampling(sides: &[usize], steps: usize) {
+    println!();
+    println!(
+        "resampling beside one running crack (transparency, Q_min 10): ms, median over up to {steps} step starts of each kind"
+    );
+    println!(
+        "| particles | start that splits | start with nothing to split | added per split | elastic step before -> after | sub-steps before -> after |"
+    );
+    println!("|---|---|---|---|---|---|");
+    let mut fracture = FractureParams::brittle(2e4);
+    fracture.max_cracks = 1;
+    fracture.resample = Some(Resampling {
+        max_particles: Some(u32::MAX),
+        ..Resampling::new()
+    });
+    for &side in sides {
+        let mut solid = plate(side, Some(fracture));
+        let gravity = Vector::zeros();
+        let (mut splits, mut checks, mut added) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut before, mut after) = (Vec::new(), Vec::new());
+        let (mut sub_before, mut sub_after) = (Vec::new(), Vec::new());
+        let mut taken = 0;
+        while (splits.len() < steps || checks.len() < steps || after.len() < steps)
+            && taken < 2000
+        {
+            taken += 1;
+            let (done, t) = timed(|| solid.resample().expect("no limit"));
+            let cracked = solid.fracture().is_some_and(|f| !f.cracks().is_empty());
+            if done.added > 0 {
+                splits.push(t);
+                added.push(Real::from(done.added));
+            } else if cracked {
+                checks.push(t);
+            }
+            let (step, t) = timed(|| solid.step(DT, &gravity, 1000));
+            if solid.radii().is_some() {
+                after.push(t);
+                sub_after.push(Real::from(step.substeps));
+            } else {
+                before.push(t);
+                sub_before.push(Real::from(step.substeps));
+            }
+            solid.fracture_step().expect("bounded");
+        }
+        println!(
+            "| {:>9} | {:>17.2} | {:>27.3} | {:>15.0} | {:>12.2} -> {:<12.2} | {:>9.0} -> {:<9.0} |",
+            side * side,
+            median(&mut splits),
+            median(&mut checks),
+            median(&mut added),
+            median(&mut before),
+            median(&mut after),
+            median(&mut sub_before),
+            median(&mut sub_after),
+        );
     }
 }
 
