@@ -200,8 +200,7 @@ fn resampling(sides: &[usize], steps: usize) {
         let (mut before, mut after) = (Vec::new(), Vec::new());
         let (mut sub_before, mut sub_after) = (Vec::new(), Vec::new());
         let mut taken = 0;
-        while (splits.len() < steps || checks.len() < steps || after.len() < steps)
-            && taken < 2000
+        while (splits.len() < steps || checks.len() < steps || after.len() < steps) && taken < 2000
         {
             taken += 1;
             let (done, t) = timed(|| solid.resample().expect("no limit"));

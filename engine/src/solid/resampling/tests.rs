@@ -312,3 +312,69 @@ fn a_smaller_minimal_radius_splits_more_and_out_of_range_knobs_are_refused() {
         assert!(error.to_string().contains(what), "{error}");
     }
 }
+
+#[test]
+fn in_3d_the_particles_beside_a_penny_notch_split_in_opposite_pairs_around_them() {
+    let mut fracture = FractureParams::brittle(2e4);
+    fracture.discontinuity = Discontinuity::Visibility;
+    // A 3D particle holds 26 neighbours at a support of two spacings, and
+    // a notch beside it hides about nine: Pauly's 10 would split none.
+    fracture.resample = Some(Resampling {
+        q_min: 25.0,
+        ..Resampling::new()
+    });
+    let p = SolidParams {
+        dim: 3,
+        ..params(fracture)
+    };
+    let shape = Shape::Box {
+        half_extents: Vector::new(0.25, 0.15, 0.15),
+    };
+    let rest = shape.sample_volume(p.spacing, 3).expect("samples");
+    let velocities = rest
+        .iter()
+        .map(|x| Vector::new(0.3 * x.x.signum(), 0.0, 0.0) + Vector::new(0.0, -x.z, x.y))
+        .collect();
+    let n = rest.len();
+    let mut solid = ElasticSolid::new(p, rest, velocities, vec![false; n], Obstacles::default())
+        .expect("solid");
+    solid
+        .notch(&[Notch {
+            center: Vector::new(0.01, 0.0, 0.0),
+            normal: Vector::x(),
+            radius: 0.08,
+        }])
+        .expect("a notch that fits");
+    let (mass, momentum, angular) = totals(&solid);
+    let done = solid.resample().expect("within the capacity");
+    assert!(done.split > 0, "{done:?}");
+    // Seven parts at most (a radius of 0.52 h), an even number added.
+    assert!(
+        done.added <= 6 * done.split && done.added % 2 == 0,
+        "{done:?}"
+    );
+    let (mass2, momentum2, angular2) = totals(&solid);
+    assert!((mass2 - mass).abs() <= 1e-14 * mass);
+    assert!((momentum2 - momentum).norm() <= 1e-12 * mass);
+    assert!((angular2 - angular).norm() <= 1e-12 * mass);
+    // Off the notch's plane, and never smaller than the smallest radius.
+    let radii = solid.radii().expect("radii");
+    for x in &solid.rest[n..] {
+        assert!(
+            (x.x - 0.01).abs() > 1e-9,
+            "a new particle on the notch's plane"
+        );
+    }
+    assert!(radii[n..].iter().all(|&r| r >= 0.5 * 0.1 && r < 0.1));
+    // Linear fields reproduced by every particle that kept its order.
+    let a = nalgebra::Matrix3::new(0.3, -0.2, 0.1, 0.1, 0.4, -0.3, 0.2, 0.0, 0.1);
+    let u: Vec<Vector> = solid.rest.iter().map(|x| a * x).collect();
+    let t = &solid.topology;
+    for i in 0..solid.len() {
+        if t.gradients.orders()[i] == Order::Linear {
+            let g = t.gradients.vector_gradient(i, &u);
+            assert!((g - a).norm() < 1e-10, "particle {i}: {g}");
+        }
+    }
+    assert_eq!(solid.resample().expect("fits").added, 0);
+}
