@@ -350,7 +350,7 @@ fn in_3d_the_particles_beside_a_penny_notch_split_in_opposite_pairs_around_them(
     assert!(done.split > 0, "{done:?}");
     // Seven parts at most (a radius of 0.52 h), an even number added.
     assert!(
-        done.added <= 6 * done.split && done.added % 2 == 0,
+        done.added <= 6 * done.split && done.added.is_multiple_of(2),
         "{done:?}"
     );
     let (mass2, momentum2, angular2) = totals(&solid);
@@ -365,7 +365,7 @@ fn in_3d_the_particles_beside_a_penny_notch_split_in_opposite_pairs_around_them(
             "a new particle on the notch's plane"
         );
     }
-    assert!(radii[n..].iter().all(|&r| r >= 0.5 * 0.1 && r < 0.1));
+    assert!(radii[n..].iter().all(|r| (0.5 * 0.1..0.1).contains(r)));
     // Linear fields reproduced by every particle that kept its order.
     let a = nalgebra::Matrix3::new(0.3, -0.2, 0.1, 0.1, 0.4, -0.3, 0.2, 0.0, 0.1);
     let u: Vec<Vector> = solid.rest.iter().map(|x| a * x).collect();
