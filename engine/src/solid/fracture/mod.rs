@@ -45,7 +45,7 @@ mod surface;
 mod transparency;
 
 #[cfg(test)]
-mod tests;
+pub(in crate::solid) mod tests;
 
 pub use crack::{Crack, Crossing, FrontNode};
 pub(in crate::solid) use fragments::{label, split};

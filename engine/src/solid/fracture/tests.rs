@@ -5,7 +5,9 @@ use crate::approx::mls::Order;
 use crate::geometry::Shape;
 use crate::solid::{ElasticSolid, Integrator, Material, Obstacles, SolidParams};
 
-fn params(dim: usize, fracture: Option<FractureParams>) -> SolidParams {
+/// The fracturing solids' test material: 5 cm spacing, a support of two
+/// spacings, E = 1 MPa, explicit.
+pub(in crate::solid) fn params(dim: usize, fracture: Option<FractureParams>) -> SolidParams {
     let young = 1e6;
     SolidParams {
         dim,
@@ -618,20 +620,28 @@ fn after_a_split_each_side_still_reproduces_linear_fields_and_momenta_hold() {
     );
 }
 
-#[test]
-fn a_plate_with_next_to_no_strength_shatters_into_many_fragments_and_stays_finite() {
+/// A 1 m plate of next to no strength (1 Pa, up to 4096 cracks) at
+/// `scale` times the test spacing, pulled apart from its centre in every
+/// direction.
+fn shattering_plate(discontinuity: Discontinuity, scale: Real) -> ElasticSolid {
     let mut fracture = FractureParams::brittle(1.0);
     fracture.max_cracks = 4096;
-    let p = params(2, Some(fracture));
+    fracture.discontinuity = discontinuity;
+    let mut p = params(2, Some(fracture));
+    p.spacing *= scale;
+    p.support *= scale;
     let shape = Shape::Box {
         half_extents: Vector::new(0.5, 0.5, 0.0),
     };
     let rest = shape.sample_volume(p.spacing, 2).expect("samples");
-    // Pulled apart from the centre in every direction.
     let velocities = rest.iter().map(|x| x * 2.0).collect();
     let n = rest.len();
-    let mut plate = ElasticSolid::new(p, rest, velocities, vec![false; n], Obstacles::default())
-        .expect("plate");
+    ElasticSolid::new(p, rest, velocities, vec![false; n], Obstacles::default()).expect("plate")
+}
+
+#[test]
+fn a_plate_with_next_to_no_strength_shatters_into_many_fragments_and_stays_finite() {
+    let mut plate = shattering_plate(Discontinuity::default(), 1.0);
     let p0 = momentum(&plate);
     run(&mut plate, 40);
     let f = plate.fracture().expect("it fractures");
@@ -941,20 +951,7 @@ fn a_front_past_its_branching_stress_splits_into_two_arms_thirty_degrees_apart()
 /// near them, `CrackIndex`).
 #[test]
 fn a_plate_shatters_into_thousands_of_fragments_and_stays_finite() {
-    let mut fracture = FractureParams::brittle(1.0);
-    fracture.max_cracks = 4096;
-    fracture.discontinuity = Discontinuity::Visibility;
-    let mut p = params(2, Some(fracture));
-    p.spacing = 0.00625;
-    p.support = 0.0125;
-    let shape = Shape::Box {
-        half_extents: Vector::new(0.5, 0.5, 0.0),
-    };
-    let rest = shape.sample_volume(p.spacing, 2).expect("samples");
-    let velocities = rest.iter().map(|x| x * 2.0).collect();
-    let n = rest.len();
-    let mut plate = ElasticSolid::new(p, rest, velocities, vec![false; n], Obstacles::default())
-        .expect("plate");
+    let mut plate = shattering_plate(Discontinuity::Visibility, 0.125);
     let p0 = momentum(&plate);
     run(&mut plate, 12);
     let f = plate.fracture().expect("it fractures");

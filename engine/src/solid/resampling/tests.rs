@@ -1,27 +1,9 @@
 use super::*;
 use crate::approx::mls::Order;
 use crate::geometry::Shape;
+use crate::solid::fracture::tests::params;
 use crate::solid::fracture::{Discontinuity, FractureParams, Notch};
-use crate::solid::{ElasticSolid, Integrator, Material, Obstacles, SolidParams};
-
-fn params(fracture: FractureParams) -> SolidParams {
-    let young = 1e6;
-    SolidParams {
-        dim: 2,
-        spacing: 0.05,
-        density: 1000.0,
-        young,
-        material: Material::from_young_poisson(young, 0.3, 0.0),
-        order: Order::Linear,
-        support: 0.1,
-        hourglass: 0.1,
-        damping: 0.0,
-        friction: 0.0,
-        integrator: Integrator::Explicit { cfl: 0.5 },
-        plasticity: None,
-        fracture: Some(fracture),
-    }
-}
+use crate::solid::{ElasticSolid, Obstacles};
 
 /// A 1 m x 0.3 m bar whose halves move apart at `speed` and spin at
 /// `spin` rad/s, resampling by `rule`, with a notch of half-length 0.1 m
@@ -35,7 +17,7 @@ fn notched_bar(
     let mut fracture = FractureParams::brittle(2e4);
     fracture.discontinuity = discontinuity;
     fracture.resample = Some(rule);
-    let p = params(fracture);
+    let p = params(2, Some(fracture));
     let shape = Shape::Box {
         half_extents: Vector::new(0.5, 0.15, 0.0),
     };
@@ -323,10 +305,7 @@ fn in_3d_the_particles_beside_a_penny_notch_split_in_opposite_pairs_around_them(
         q_min: 25.0,
         ..Resampling::new()
     });
-    let p = SolidParams {
-        dim: 3,
-        ..params(fracture)
-    };
+    let p = params(3, Some(fracture));
     let shape = Shape::Box {
         half_extents: Vector::new(0.25, 0.15, 0.15),
     };
