@@ -7,8 +7,8 @@
 
 use super::body::Body;
 use super::fracture::{
-    Crack, CrackIndex, Discontinuity, Fracture, FractureError, FractureParams, FractureParamsError,
-    FractureSnapshot, FractureStep, FrontNode, Notch, SearchCache, Threshold,
+    Crack, CrackIndex, Crossing, Discontinuity, Fracture, FractureError, FractureParams,
+    FractureParamsError, FractureSnapshot, FractureStep, FrontNode, Notch, SearchCache, Threshold,
     VERTICES_PER_PARTICLE, cauchy, check_room, crack_faces, label, largest_principal, lengthened,
     opacity, principal, split, stress_bound, transparent_weight, undersampling,
 };
@@ -587,7 +587,9 @@ impl Body {
         {
             let t = &self.topology;
             let edges = t.gradients.neighbour_indices();
-            let index = CrackIndex::new(&fracture.cracks, h);
+            // A few cracks are cheaper to scan than to index.
+            let index = (fracture.cracks.len() > CrackIndex::WORTH)
+                .then(|| CrackIndex::new(&fracture.cracks, h));
             let mut candidates = Vec::new();
             for &i in near {
                 for e in t.gradients.range(i) {
@@ -604,12 +606,23 @@ impl Body {
                     } else {
                         (rest[j], rest[i])
                     };
-                    index.near(&a, &b, &mut candidates);
-                    let added: Real = candidates
-                        .iter()
-                        .filter_map(|&c| fracture.cracks[c as usize].crossing(&a, &b))
-                        .map(|x| opacity(params.discontinuity, x.to_front, spacing))
-                        .sum();
+                    let term = |x: Crossing| opacity(params.discontinuity, x.to_front, spacing);
+                    let added: Real = match &index {
+                        Some(index) => {
+                            index.near(&a, &b, &mut candidates);
+                            candidates
+                                .iter()
+                                .filter_map(|&c| fracture.cracks[c as usize].crossing(&a, &b))
+                                .map(term)
+                                .sum()
+                        }
+                        None => fracture
+                            .cracks
+                            .iter()
+                            .filter_map(|c| c.crossing(&a, &b))
+                            .map(term)
+                            .sum(),
+                    };
                     if added > fracture.extra[e] {
                         let q = t.q(e, inv_h);
                         if transparent_weight(kernel, q, fracture.extra[e]).is_some()

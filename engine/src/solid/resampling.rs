@@ -146,30 +146,31 @@ impl Body {
 
     /// Eq. 71's count `Q_i` and the uncut count `N_i` of every particle.
     pub fn sampling(&self) -> (Vec<Real>, Vec<Real>) {
+        (0..self.len()).map(|i| self.sample(i)).unzip()
+    }
+
+    /// Eq. 71's count `Q_i` and the uncut count `N_i` of particle `i`.
+    fn sample(&self, i: usize) -> (Real, Real) {
         let p = &self.params;
         let t = &self.topology;
         let kernel = MlsParams::new(p.order, p.support).weight;
         let inv_h = 1.0 / p.support;
         let extra = self.fracture.as_ref().map(|f| f.extra.as_slice());
         let edges = t.gradients.neighbour_indices();
-        (0..self.len())
-            .map(|i| {
-                let mut count = 0.0;
-                let mut q = 0.0;
-                for e in t.gradients.range(i) {
-                    if edges[e] as usize == i {
-                        continue;
-                    }
-                    let qe = t.q(e, inv_h);
-                    if let Some(plain) = transparent_weight(kernel, qe, 0.0) {
-                        count += 1.0;
-                        let term = extra.map_or(0.0, |x| x[e]);
-                        q += transparent_weight(kernel, qe, term).unwrap_or(0.0) / plain;
-                    }
-                }
-                (q, count)
-            })
-            .unzip()
+        let mut count = 0.0;
+        let mut q = 0.0;
+        for e in t.gradients.range(i) {
+            if edges[e] as usize == i {
+                continue;
+            }
+            let qe = t.q(e, inv_h);
+            if let Some(plain) = transparent_weight(kernel, qe, 0.0) {
+                count += 1.0;
+                let term = extra.map_or(0.0, |x| x[e]);
+                q += transparent_weight(kernel, qe, term).unwrap_or(0.0) / plain;
+            }
+        }
+        (q, count)
     }
 
     /// Splits the particles the cracks left short of neighbours (the
@@ -225,11 +226,11 @@ impl Body {
         if touched.is_empty() {
             return Vec::new();
         }
-        let (q, count) = self.sampling();
         let mut plan = Vec::new();
         for i in touched {
-            let target = rule.q_min.min(count[i]);
-            if q[i] >= target {
+            let (q, count) = self.sample(i);
+            let target = rule.q_min.min(count);
+            if q >= target {
                 continue;
             }
             let radius = self.support_radius(i);
@@ -237,7 +238,7 @@ impl Body {
             // even number of new particles besides the parent.
             let parts = (radius / smallest).powi(dim as i32) * (1.0 + 1e-12);
             let room = ((parts.floor() as usize).saturating_sub(1) / 2) * 2;
-            let wanted = ((target - q[i]).ceil() as usize).div_ceil(2) * 2;
+            let wanted = ((target - q).ceil() as usize).div_ceil(2) * 2;
             let children = wanted.min(room).min(Resampling::MAX_PARTS - 1);
             if children < 2 {
                 continue;

@@ -21,6 +21,11 @@ pub(in crate::solid) struct CrackIndex {
 }
 
 impl CrackIndex {
+    /// Cracks past which indexing them pays: below it a pair scans them
+    /// all (with one running crack the index's build and lookups cost half
+    /// the update again, `cargo bench --bench fracture`).
+    pub(in crate::solid) const WORTH: usize = 32;
+
     /// The index of `cracks` with cells of side `cell` (the support
     /// radius: a pair's segment then meets at most two cells a side).
     pub(in crate::solid) fn new(cracks: &[Crack], cell: Real) -> Self {
