@@ -167,7 +167,7 @@ pub struct FractureSpec {
     /// Most cracks the solid may hold.
     #[serde(default = "default_max_cracks")]
     pub max_cracks: u32,
-    /// 2D: a running front whose stress passes this many times the
+    /// A running front whose stress passes this many times the
     /// threshold splits in two; none never branches.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub branching: Option<Real>,
@@ -543,7 +543,7 @@ impl SolidSpec {
             }
             let rebases = solid.plasticity.is_some_and(|p| p.rebase.is_some());
             f.params()
-                .validate(dim, solid.spacing, solid.plasticity.is_some(), rebases)
+                .validate(solid.spacing, solid.plasticity.is_some(), rebases)
                 .map_err(|e| SceneError::invalid(format!("{at}.fracture"), e.to_string()))?;
         }
         if dim == 2 {

@@ -101,12 +101,7 @@ impl Body {
         }
         if let Some(fracture) = params.fracture {
             let rebases = params.plasticity.is_some_and(|p| p.rebase.is_some());
-            fracture.validate(
-                params.dim,
-                params.spacing,
-                params.plasticity.is_some(),
-                rebases,
-            )?;
+            fracture.validate(params.spacing, params.plasticity.is_some(), rebases)?;
         }
         let topology = Topology::build(&rest, params.dim, params.order, params.support)?;
         let fracture = params

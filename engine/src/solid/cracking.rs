@@ -7,8 +7,8 @@
 
 use super::body::Body;
 use super::fracture::{
-    Crack, CrackIndex, Crossing, Discontinuity, Fracture, FractureError, FractureParams,
-    FractureParamsError, FractureSnapshot, FractureStep, FrontNode, Notch, SearchCache, Threshold,
+    Crack, CrackIndex, Crossing, Discontinuity, Fracture, FractureError, FractureParamsError,
+    FractureSnapshot, FractureStep, FrontNode, Notch, SearchCache, Threshold,
     VERTICES_PER_PARTICLE, cauchy, check_room, crack_faces, label, largest_principal, lengthened,
     opacity, principal, split, stress_bound, transparent_weight, undersampling,
 };
@@ -394,14 +394,13 @@ impl Body {
                 } else {
                     node.heading
                 };
-                // Branching (2D): past `branching` times the threshold,
-                // and clear of every other crack by twice the support
-                // (so that the two arms of the last branch have parted
-                // before either splits again), a new crack leaves the tip
-                // to one side while this front turns to the other.
+                // Branching: past `branching` times the threshold, and
+                // clear of every other crack by twice the support (so that
+                // the two arms of the last branch have parted before
+                // either splits again), a new crack leaves the tip to one
+                // side while this front turns to the other.
                 let room = fracture.cracks.len() + branches.len() < params.max_cracks as usize;
-                if dim == 2
-                    && room
+                if room
                     && params.branching.is_some_and(|b| ratio >= b)
                     && fracture
                         .cracks
@@ -411,36 +410,13 @@ impl Body {
                         .map(|(_, other)| other)
                         .chain(&branches)
                         .all(|other| other.distance_to_vertices(&node.at) >= 2.0 * h)
+                    && let Some((branch, turned)) =
+                        Crack::branch(dim, node.at, heading, normal, step, h)
                 {
-                    let turn = |angle: Real| {
-                        let (sin, cos) = angle.sin_cos();
-                        Vector::new(
-                            cos * heading.x - sin * heading.y,
-                            sin * heading.x + cos * heading.y,
-                            0.0,
-                        )
-                    };
-                    let arm = turn(FractureParams::BRANCH_ANGLE);
-                    let mut branch = Crack::start(
-                        2,
-                        node.at + arm * (0.5 * step),
-                        Vector::new(-arm.y, arm.x, 0.0),
-                        0.5 * step,
-                        h,
-                    );
-                    // Its end at the junction is no front: it lies on
-                    // this crack.
-                    if let Some(junction) = branch
-                        .front()
-                        .iter()
-                        .position(|f| (f.at - node.at).norm() < 0.25 * step)
-                    {
-                        branch.stop(junction);
-                    }
                     touched.extend(branch.front().iter().map(|f| f.at));
                     branches.push(branch);
                     out.branched += 1;
-                    heading = turn(-FractureParams::BRANCH_ANGLE);
+                    heading = turned;
                 }
                 let mut to = node.at + heading * step;
                 // Joining: a front that meets another crack stops on it.

@@ -223,27 +223,116 @@ impl Crack {
             let [a, b] = [crack.front[0].tips, crack.front[1].tips];
             crack.quad(a, b);
         } else {
-            let (u, v) = plane_axes(&normal);
-            let middle = crack.vertex(center);
-            for k in 0..rim {
-                let angle = std::f64::consts::TAU * k as Real / rim as Real;
-                let heading = u * angle.cos() + v * angle.sin();
-                let at = center + heading * radius;
-                let id = crack.vertex(at);
-                crack.front.push(FrontNode {
-                    at,
-                    heading,
-                    tips: [id, id],
-                    active: true,
-                });
-            }
-            for k in 0..rim {
-                let a = crack.front[k].tips[0];
-                let b = crack.front[(k + 1) % rim].tips[0];
-                crack.triangles.push([middle, a, b]);
-            }
+            crack.rim(center, plane_axes(&normal), radius, rim);
         }
         crack
+    }
+
+    /// A 3D disc's rim of `rim` nodes at `radius` from `center`, the first
+    /// along `u`, then turning towards `v`, fanned from a middle vertex.
+    fn rim(&mut self, center: Vector, (u, v): (Vector, Vector), radius: Real, rim: usize) {
+        let middle = self.vertex(center);
+        for k in 0..rim {
+            let angle = std::f64::consts::TAU * k as Real / rim as Real;
+            let heading = u * angle.cos() + v * angle.sin();
+            let at = center + heading * radius;
+            let id = self.vertex(at);
+            self.front.push(FrontNode {
+                at,
+                heading,
+                tips: [id, id],
+                active: true,
+            });
+        }
+        let first = self.front.len() - rim;
+        for k in 0..rim {
+            let a = self.front[first + k].tips[0];
+            let b = self.front[first + (k + 1) % rim].tips[0];
+            self.triangles.push([middle, a, b]);
+        }
+    }
+
+    /// A branch of the front node at `at`, which advances along the unit
+    /// `heading` with the material opening along the unit `normal` (the
+    /// largest principal direction): a new crack that leaves `at`
+    /// [`FractureParams::BRANCH_ANGLE`] to one side of `heading`, turned
+    /// about the front's tangent, and the heading the front takes to the
+    /// other side. In 2D the tangent is `z` and the branch a segment of
+    /// length `step` from `at`; in 3D a disc of diameter `step` through
+    /// `at`. The branch's end at the junction (in 3D, the half of its rim
+    /// behind its centre, seen along its arm, which lies along the
+    /// parent's front) is no front. `None` where the tangent is undefined
+    /// (`normal` along `heading`).
+    ///
+    /// [`FractureParams::BRANCH_ANGLE`]: super::FractureParams::BRANCH_ANGLE
+    pub fn branch(
+        dim: usize,
+        at: Vector,
+        heading: Vector,
+        normal: Vector,
+        step: Real,
+        depth: Real,
+    ) -> Option<(Self, Vector)> {
+        let angle = super::FractureParams::BRANCH_ANGLE;
+        let radius = 0.5 * step;
+        if dim == 2 {
+            let turn = |angle: Real| {
+                let (sin, cos) = angle.sin_cos();
+                Vector::new(
+                    cos * heading.x - sin * heading.y,
+                    sin * heading.x + cos * heading.y,
+                    0.0,
+                )
+            };
+            let arm = turn(angle);
+            let mut branch = Self::start(
+                2,
+                at + arm * radius,
+                Vector::new(-arm.y, arm.x, 0.0),
+                radius,
+                depth,
+            );
+            if let Some(junction) = branch
+                .front
+                .iter()
+                .position(|f| (f.at - at).norm() < 0.5 * radius)
+            {
+                branch.stop(junction);
+            }
+            return Some((branch, turn(-angle)));
+        }
+        // The front's tangent; turning `heading` about it by `a` gives
+        // `cos a heading + sin a normal`.
+        let tangent = heading.cross(&normal);
+        if tangent.norm() < 1e-9 {
+            return None;
+        }
+        let tangent = tangent.normalize();
+        let turn = |angle: Real| {
+            let (sin, cos) = angle.sin_cos();
+            (heading * cos + normal * sin).normalize()
+        };
+        let arm = turn(angle);
+        let center = at + arm * radius;
+        let mut branch = Self {
+            dim: 3,
+            depth,
+            vertices: Vec::new(),
+            triangles: Vec::new(),
+            front: Vec::new(),
+            lo: center,
+            hi: center,
+        };
+        // The rim's first node at `at`, the junction, and its nodes
+        // running round the disc's plane (spanned by the arm and the
+        // tangent).
+        branch.rim(center, (-arm, tangent), radius, RIM_NODES);
+        for node in &mut branch.front {
+            if (node.at - center).dot(&arm) < 0.0 {
+                node.active = false;
+            }
+        }
+        Some((branch, turn(-angle)))
     }
 
     /// The front, in order.

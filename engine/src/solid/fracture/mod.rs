@@ -9,8 +9,8 @@
 //!    stress where that stress still passes the threshold (with a
 //!    toughness, the stress a critical distance ahead of the front: the
 //!    point method, `Threshold::Toughness`), stopping a front node that
-//!    leaves the body or meets another crack (joining), and in 2D
-//!    splitting one whose stress passes `branching` times the threshold
+//!    leaves the body or meets another crack (joining), and splitting
+//!    one whose stress passes `branching` times the threshold
 //!    (branching);
 //! 2. starts a crack at each particle past the threshold (largest
 //!    first) that no crack is near yet, its plane normal to the

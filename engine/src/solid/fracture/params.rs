@@ -200,10 +200,11 @@ pub struct FractureParams {
     /// ones still grow). Bounds the geometry with the particle count.
     #[serde(default = "FractureParams::default_max_cracks")]
     pub max_cracks: u32,
-    /// Branching (2D): a running front whose stress passes this many
-    /// times the threshold splits in two, a new crack leaving its tip
-    /// [`FractureParams::BRANCH_ANGLE`] to one side of its heading while
-    /// it turns as far to the other; none never branches.
+    /// Branching: a running front whose stress passes this many times
+    /// the threshold splits in two, a new crack leaving its tip
+    /// [`FractureParams::BRANCH_ANGLE`] to one side of its heading
+    /// (turned about the front's tangent; in 2D about `z`) while it turns
+    /// as far to the other; none never branches.
     #[serde(default)]
     pub branching: Option<Real>,
     /// Adaptive resampling near cracks (tutorial Eq. 71); none keeps the
@@ -330,11 +331,6 @@ pub enum FractureParamsError {
         /// The spacing.
         spacing: Brief,
     },
-    /// Branching asked of a 3D solid.
-    #[error(
-        "branching is 2D only: a 3D front's nodes would split into two surfaces; remove branching"
-    )]
-    Branching3d,
     /// Plastic re-basing with fracture.
     #[error(
         "cracks live in the reference shape, which plasticity's rebase moves; drop plasticity.rebase on a fracturing solid"
@@ -374,15 +370,14 @@ impl FractureParams {
         }
     }
 
-    /// Checks every value for a `dim`-dimensional solid of particle
-    /// `spacing`; `plastic` says whether the solid flows and `rebases`
+    /// Checks every value for a solid of particle `spacing` (the same
+    /// rules in 2D and 3D); `plastic` says whether the solid flows and `rebases`
     /// whether that flow re-bases its reference shape.
     ///
     /// # Errors
     /// [`FractureParamsError`] naming the value to change.
     pub fn validate(
         &self,
-        dim: usize,
         spacing: Real,
         plastic: bool,
         rebases: bool,
@@ -428,17 +423,14 @@ impl FractureParams {
                 got: Brief(self.advance),
             });
         }
-        if let Some(branching) = self.branching {
-            if !(branching.is_finite() && branching >= 1.0) {
-                return Err(FractureParamsError::OutOfRange {
-                    what: "branching",
-                    range: "at least 1 (times the threshold) and finite",
-                    got: Brief(branching),
-                });
-            }
-            if dim != 2 {
-                return Err(FractureParamsError::Branching3d);
-            }
+        if let Some(branching) = self.branching
+            && !(branching.is_finite() && branching >= 1.0)
+        {
+            return Err(FractureParamsError::OutOfRange {
+                what: "branching",
+                range: "at least 1 (times the threshold) and finite",
+                got: Brief(branching),
+            });
         }
         if self.max_cracks == 0 {
             return Err(FractureParamsError::OutOfRange {

@@ -184,6 +184,110 @@ fn a_3d_crack_starts_as_a_disc_and_grows_its_rim() {
     assert!(front > 0.17 && front <= 0.2, "{front}");
 }
 
+/// A 3D branch, built directly: its disc passes through the front node,
+/// its arm leaves 15° to one side of the heading (turned about the
+/// front's tangent, towards the opening direction) while the front turns
+/// 15° to the other, and the half of its rim behind its centre is no
+/// front.
+#[test]
+fn a_3d_branch_is_a_disc_tilted_about_the_fronts_tangent() {
+    let at = Vector::new(0.3, -0.2, 0.1);
+    let (heading, normal, step) = (Vector::x(), Vector::y(), 0.02);
+    let (branch, turned) = Crack::branch(3, at, heading, normal, step, 0.0).expect("a branch");
+    let angle = FractureParams::BRANCH_ANGLE;
+    assert!((turned - Vector::new(angle.cos(), -angle.sin(), 0.0)).norm() < 1e-15);
+    let arm = Vector::new(angle.cos(), angle.sin(), 0.0);
+    let plane = arm.cross(&Vector::z());
+    let front = branch.front();
+    assert_eq!(front.len(), 6);
+    assert!(
+        (front[0].at - at).norm() < 1e-15,
+        "the junction is at the tip"
+    );
+    for node in front {
+        // On the disc of diameter `step` through `at`, in the plane of
+        // the arm and the tangent.
+        let center = at + arm * (0.5 * step);
+        assert!(((node.at - center).norm() - 0.5 * step).abs() < 1e-15);
+        assert!((node.at - at).dot(&plane).abs() < 1e-15);
+        assert!(node.heading.dot(&plane).abs() < 1e-15);
+        let ahead = (node.at - center).dot(&arm) >= 0.0;
+        assert_eq!(node.active, ahead, "{node:?}");
+    }
+    assert_eq!(front.iter().filter(|n| n.active).count(), 3);
+    // A segment along the arm, past the junction, crosses nothing; one
+    // across the disc's plane through its middle crosses it.
+    let middle = at + arm * (0.5 * step);
+    assert!(
+        branch
+            .crossing(&(middle - plane * 0.01), &(middle + plane * 0.01))
+            .is_some()
+    );
+    // No tangent where the opening direction is the heading.
+    assert!(Crack::branch(3, at, heading, heading, step, 0.0).is_none());
+}
+
+/// Branching in 3D: a block pulled apart past its branching stress
+/// leaves tilted discs from its fronts, each starting at a vertex of its
+/// parent; without branching, or at 10⁹, none; momentum kept.
+#[test]
+fn a_3d_front_past_its_branching_stress_leaves_tilted_discs() {
+    let run_with = |branching: Option<Real>| {
+        let mut fracture = FractureParams::brittle(2e4);
+        fracture.branching = branching;
+        let mut block = pulled_block(fracture);
+        let before = momentum(&block);
+        let (mut branched, mut arms) = (0, Vec::new());
+        for _ in 0..200 {
+            block.step(2e-4, &Vector::zeros(), 100);
+            let cracks = block.fracture().expect("it fractures").cracks().len();
+            let step = block.fracture_step().expect("bounded");
+            branched += step.branched;
+            if step.branched > 0 {
+                let f = block.fracture().expect("it fractures");
+                arms.extend(f.cracks()[cracks + step.started as usize..].iter().cloned());
+            }
+        }
+        let drift = (momentum(&block) - before).norm();
+        let scale: Real = block.masses().iter().sum::<Real>() * 0.5;
+        assert!(drift < 1e-10 * scale, "momentum drift {drift:e}");
+        (block, branched, arms)
+    };
+    let (_, plain, _) = run_with(None);
+    assert_eq!(plain, 0);
+    let (_, never, _) = run_with(Some(1e9));
+    assert_eq!(never, 0, "a front branched below its branching stress");
+
+    let (block, branched, arms) = run_with(Some(1.0));
+    assert!(branched > 0, "no front branched");
+    assert_eq!(arms.len(), branched as usize);
+    let fracture = block.fracture().expect("it fractures");
+    for arm in &arms {
+        // Its junction, the first rim node, lies on a vertex of another
+        // crack (its parent's front when it branched), and is no front.
+        let junction = &arm.front()[0];
+        assert!(!junction.active);
+        let on_parent = fracture
+            .cracks()
+            .iter()
+            // Not the arm itself, grown since (vertices are only added).
+            .filter(|c| !c.vertices().starts_with(arm.vertices()))
+            .any(|c| c.distance_to_vertices(&junction.at) < 1e-12);
+        assert!(
+            on_parent,
+            "a branch whose junction {:?} is on no crack",
+            junction.at
+        );
+    }
+    assert!(fracture.cracks().len() <= FractureParams::DEFAULT_MAX_CRACKS as usize);
+    let (mesh, _) = block.crack_surface().expect("cracks have faces");
+    assert!(
+        mesh.vertices
+            .iter()
+            .all(|v| v.iter().all(|x| x.is_finite()))
+    );
+}
+
 #[test]
 fn cutting_the_last_pair_between_two_parts_splits_off_the_smaller() {
     // A chain 0-1-2-3-4 with a side branch 1-5; cut 3-4, then 1-2.
@@ -334,7 +438,7 @@ fn a_bar_pulled_past_its_strength_splits_with_visibility() {
 fn fracture_parameters_out_of_range_are_refused_with_what_to_change() {
     let mut p = FractureParams::brittle(-1.0);
     assert!(
-        p.validate(2, 0.05, false, false)
+        p.validate(0.05, false, false)
             .expect_err("refused")
             .to_string()
             .contains("stress must be positive")
@@ -342,7 +446,7 @@ fn fracture_parameters_out_of_range_are_refused_with_what_to_change() {
     p = FractureParams::brittle(1e6);
     p.discontinuity = Discontinuity::Transparency { kappa: 0.0 };
     assert!(
-        p.validate(2, 0.05, false, false)
+        p.validate(0.05, false, false)
             .expect_err("refused")
             .to_string()
             .contains("kappa")
@@ -350,7 +454,7 @@ fn fracture_parameters_out_of_range_are_refused_with_what_to_change() {
     p = FractureParams::brittle(1e6);
     p.advance = 2.0;
     assert!(
-        p.validate(2, 0.05, false, false)
+        p.validate(0.05, false, false)
             .expect_err("refused")
             .to_string()
             .contains("advance")
@@ -360,14 +464,14 @@ fn fracture_parameters_out_of_range_are_refused_with_what_to_change() {
         plastic_strain: 0.1,
     };
     assert_eq!(
-        p.validate(2, 0.05, false, false),
+        p.validate(0.05, false, false),
         Err(FractureParamsError::NeedsPlasticity)
     );
     assert_eq!(
-        p.validate(2, 0.05, true, true),
+        p.validate(0.05, true, true),
         Err(FractureParamsError::Rebase)
     );
-    assert_eq!(p.validate(2, 0.05, true, false), Ok(()));
+    assert_eq!(p.validate(0.05, true, false), Ok(()));
 }
 
 #[test]
@@ -680,9 +784,9 @@ fn a_toughness_samples_at_its_critical_distance_and_refuses_one_the_particles_mi
     assert_eq!(Threshold::Stress { stress: 1.0 }.critical_distance(), None);
     let mut p = FractureParams::brittle(1e6);
     p.threshold = toughness;
-    assert_eq!(p.validate(2, 0.5 * rc, false, false), Ok(()));
+    assert_eq!(p.validate(0.5 * rc, false, false), Ok(()));
     let refused = p
-        .validate(2, 2.0 * rc, false, false)
+        .validate(2.0 * rc, false, false)
         .expect_err("under a spacing");
     assert!(matches!(refused, FractureParamsError::Unresolved { .. }));
     assert!(
@@ -694,7 +798,7 @@ fn a_toughness_samples_at_its_critical_distance_and_refuses_one_the_particles_mi
         toughness: -1.0,
     };
     assert!(matches!(
-        p.validate(2, 0.01, false, false),
+        p.validate(0.01, false, false),
         Err(FractureParamsError::OutOfRange {
             what: "toughness",
             ..

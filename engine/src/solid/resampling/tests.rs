@@ -290,7 +290,7 @@ fn a_smaller_minimal_radius_splits_more_and_out_of_range_knobs_are_refused() {
     ] {
         let mut p = FractureParams::brittle(1e4);
         p.resample = Some(rule);
-        let error = p.validate(2, 0.05, false, false).expect_err("out of range");
+        let error = p.validate(0.05, false, false).expect_err("out of range");
         assert!(error.to_string().contains(what), "{error}");
     }
 }
