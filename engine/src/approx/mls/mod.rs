@@ -16,6 +16,8 @@
 //!
 //! - [`Mls::shape_functions`]: `phi_i` and `grad phi_i` (Eq. 30-31 in the
 //!   centred form, derived in `shape.rs`);
+//! - [`Mls::shape_hessians_weighted`]: `phi_i`, `grad phi_i` and their
+//!   Hessians, for the bending energy of thin shells (`hessian.rs`);
 //! - [`Mls::gradient_weights`]: the direct first-derivative estimate of
 //!   Müller et al. (Eq. 35-38), generalised to any order, which the
 //!   elastic solids use;
@@ -41,12 +43,14 @@
 
 mod basis;
 mod direct;
+mod hessian;
 mod inverse;
 mod lagrangian;
 mod shape;
 
 pub use basis::{MAX_BASIS, Order};
 pub use direct::GradientWeights;
+pub use hessian::ShapeHessians;
 pub use lagrangian::{GradientKind, LagrangianGradients};
 pub use shape::ShapeFunctions;
 
