@@ -22,10 +22,12 @@ MESHLESS_SERVER_BIN, and the Python package (`pip install ./client/python`).
 from __future__ import annotations
 
 import argparse
+import http.client
 import os
 import queue
 import shutil
 import statistics
+import struct
 import subprocess
 import sys
 import threading
@@ -39,6 +41,7 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
 from meshless import Client
+from meshless.v1 import simulation_pb2
 
 ROOT = Path(__file__).resolve().parents[1]
 TIMEOUT = 60.0
@@ -79,11 +82,40 @@ def browser(width: int, height: int) -> webdriver.Chrome:
     return webdriver.Chrome(service=Service(driver), options=options)
 
 
+def fetch_outside(address: str, session_id: str, count: int) -> list[float]:
+    """Times `count` NextFrame calls over gRPC-web on one HTTP/1.1
+    connection, as the page makes them, each answer read whole; ms."""
+    host, port = address.rsplit(":", 1)
+    body = simulation_pb2.NextFrameRequest(session_id=session_id, after=0, wait_ms=0).SerializeToString()
+    framed = b"\0" + struct.pack(">I", len(body)) + body
+    headers = {"content-type": "application/grpc-web+proto", "x-grpc-web": "1"}
+    connection = http.client.HTTPConnection(host, int(port), timeout=TIMEOUT)
+    times = []
+    try:
+        for _ in range(count):
+            started = time.perf_counter()
+            connection.request("POST", "/meshless.v1.Simulation/NextFrame", body=framed, headers=headers)
+            answer = connection.getresponse()
+            data = answer.read()
+            times.append((time.perf_counter() - started) * 1000.0)
+            if answer.status != 200 or len(data) < 5:
+                sys.exit(f"NextFrame over gRPC-web answered HTTP {answer.status} with {len(data)} bytes")
+    finally:
+        connection.close()
+    return times
+
+
 def report(stats: dict) -> None:
     """Prints the median, p95 and largest of the page's timings per frame."""
     decode, upload, shown = stats["decodeMs"], stats["uploadMs"], stats["showMs"]
     both = [a + b for a, b in zip(decode, upload)]
-    rows = (("decode", decode), ("upload to GPU", upload), ("decode + upload", both), ("whole frame", [a + b for a, b in zip(decode, shown)]))
+    rows = (
+        ("fetch", stats.get("fetchMs", [])),
+        ("decode", decode),
+        ("upload to GPU", upload),
+        ("decode + upload", both),
+        ("whole frame", [a + b for a, b in zip(decode, shown)]),
+    )
     for name, values in rows:
         if values:
             q = statistics.quantiles(values, n=20, method="inclusive") if len(values) >= 2 else [values[0]] * 19
@@ -147,7 +179,14 @@ def main() -> None:
                 stats = driver.execute_script("return meshless.stats")
                 print(f"pulled {args.pull} frames: {rate:.1f} frames/s fetched, decoded and uploaded")
                 taken = min(args.pull, len(stats["decodeMs"]))
-                report({key: stats[key][-taken:] for key in ("decodeMs", "uploadMs", "showMs")})
+                report({key: stats[key][-taken:] for key in ("fetchMs", "decodeMs", "uploadMs", "showMs")})
+                # The same call from outside the browser: the server's part
+                # and the loopback's, which the page's fetch includes.
+                times = fetch_outside(addresses["http"], session.id, args.pull)
+                print(
+                    f"the same NextFrame over gRPC-web from Python: median {statistics.median(times):.2f} ms, "
+                    f"max {max(times):.2f} ms"
+                )
             if stats["errors"]:
                 sys.exit(f"the page reported errors: {stats['errors']}")
             print(f"wrote {args.output}")

@@ -39,6 +39,10 @@ const stats = {
   decodeMs: [],
   uploadMs: [],
   showMs: [],
+  // Per pulled frame (`meshless.pull`), ms: from the NextFrame call to
+  // its answer decoded out of the gRPC-web body (the server's part, the
+  // transport and the browser's network stack).
+  fetchMs: [],
   errors: [],
 };
 
@@ -221,12 +225,14 @@ class SessionView {
   async pull(count) {
     const started = performance.now();
     for (let k = 0; k < count; k += 1) {
+      const asked = performance.now();
       const reply = await service.unary(
         "NextFrame",
         { session_id: this.id, after: 0, wait_ms: 0 },
         { signal: this.abort.signal },
       );
       if (reply.frame.length === 0) throw new Error("the session has no frame yet");
+      keep(stats.fetchMs, performance.now() - asked);
       this.take(reply.frame, false);
     }
     const rate = (count * 1000) / (performance.now() - started);
