@@ -3,8 +3,10 @@
 //! (Section 2.2), and moving-least-squares shape functions and gradients
 //! with safe inversion and rank fallback (Section 3), with either radial
 //! weights or the tensor-product weight of the Element-Free Galerkin solids
-//! (Guo–Qin, Eq. 12-13).
+//! (Guo–Qin, Eq. 12-13), and the Gauss–Legendre rules their integration
+//! cells use.
 
+pub mod gauss;
 pub mod kernels;
 pub mod layers;
 pub mod mls;

@@ -12,6 +12,7 @@ mod mesh_shapes;
 mod mesh_solid;
 pub mod octree;
 mod points_implicit;
+pub mod quadtree;
 pub mod read;
 mod sampling;
 mod sdf;
