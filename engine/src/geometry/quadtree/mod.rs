@@ -24,8 +24,10 @@
 //! crosses): nodes carry unknowns, not surface positions, so that is
 //! harmless, as the paper's exterior-boundary nodes.
 //!
-//! **Integration.** Each leaf is an integration cell with the
-//! tensor-product Gauss–Legendre rule; points outside the domain are
+//! **Integration.** Each leaf is cut into `subdivision^2` integration
+//! cells, each with the tensor-product Gauss–Legendre rule (one rule per
+//! leaf misjudges a bending energy, see [`QuadtreeParams::subdivision`]);
+//! points outside the domain are
 //! dropped, so a cell the boundary cuts integrates over its part inside
 //! to the resolution of its points. The weights are parametric areas: the
 //! mechanics multiply them by the surface's area element `lambda^2`.
@@ -83,18 +85,26 @@ pub struct QuadtreeParams {
     pub eta: Real,
     /// Gauss points per axis of a cell, 1 to [`MAX_ORDER`].
     pub gauss_order: usize,
+    /// Integration cells per leaf side, 1 to 8: each leaf is cut into
+    /// `subdivision^2` cells, each with the Gauss rule. The shape
+    /// functions' second derivatives jump where the weight's spline
+    /// changes branch, inside leaves, so one rule per leaf integrates a
+    /// bending energy poorly (the clamped plate in `engine/tests/plate.rs`
+    /// deflects 6 % too far with 1, to 0.2 % with 2).
+    pub subdivision: usize,
     /// Deepest level (the root is level 0), at most [`MAX_DEPTH`].
     pub max_depth: u32,
 }
 
 impl QuadtreeParams {
-    /// Cells of `resolution` on the surface, `eta = 3`, 3 x 3 Gauss points
-    /// per cell, at most 12 levels.
+    /// Cells of `resolution` on the surface, `eta = 3`, 4 x 4 Gauss points
+    /// on each of 2 x 2 integration cells per leaf, at most 12 levels.
     pub fn new(resolution: Real) -> Self {
         Self {
             resolution,
             eta: 3.0,
-            gauss_order: 3,
+            gauss_order: 4,
+            subdivision: 2,
             max_depth: 12,
         }
     }
@@ -310,7 +320,7 @@ impl Quadtree {
         tree.leaves.sort_unstable();
         tree.depth = tree.leaves.iter().map(|c| c.level).max().unwrap_or(0);
         tree.list_covers(cancel)?;
-        tree.integrate(domain, params.gauss_order)?;
+        tree.integrate(domain, params.gauss_order, params.subdivision)?;
         Ok(tree)
     }
 
@@ -507,23 +517,35 @@ impl Quadtree {
 
     /// The Gauss points of every leaf inside the domain; refuses one under
     /// fewer than [`MIN_SUPPORTS`] supports.
-    fn integrate(&mut self, domain: &impl ChartDomain, order: usize) -> Result<(), QuadtreeError> {
+    fn integrate(
+        &mut self,
+        domain: &impl ChartDomain,
+        order: usize,
+        subdivision: usize,
+    ) -> Result<(), QuadtreeError> {
         let (x, w) = gauss_legendre(order);
-        let mut gauss = Vec::with_capacity(self.leaves.len() * order * order);
+        let per_leaf = (order * subdivision).pow(2);
+        let mut gauss = Vec::with_capacity(self.leaves.len() * per_leaf);
         for (k, &leaf) in self.leaves.iter().enumerate() {
             let (lo, side) = self.bounds(leaf);
-            let half = 0.5 * side;
-            for (xa, wa) in x.iter().zip(w) {
-                for (xb, wb) in x.iter().zip(w) {
-                    let at = [lo[0] + half * (1.0 + xa), lo[1] + half * (1.0 + xb)];
-                    if domain.distance(at) > 0.0 {
-                        continue;
+            let cell = side / subdivision as Real;
+            let half = 0.5 * cell;
+            for a in 0..subdivision {
+                for b in 0..subdivision {
+                    let corner = [lo[0] + a as Real * cell, lo[1] + b as Real * cell];
+                    for (xa, wa) in x.iter().zip(w) {
+                        for (xb, wb) in x.iter().zip(w) {
+                            let at = [corner[0] + half * (1.0 + xa), corner[1] + half * (1.0 + xb)];
+                            if domain.distance(at) > 0.0 {
+                                continue;
+                            }
+                            gauss.push(GaussPoint {
+                                at,
+                                weight: wa * wb * half * half,
+                                leaf: k as u32,
+                            });
+                        }
                     }
-                    gauss.push(GaussPoint {
-                        at,
-                        weight: wa * wb * half * half,
-                        leaf: k as u32,
-                    });
                 }
             }
         }
@@ -573,6 +595,13 @@ fn check(params: &QuadtreeParams) -> Result<(), QuadtreeError> {
             what: "gauss_order",
             range: "1 to 5 Gauss points per axis",
             got: Brief(params.gauss_order as Real),
+        });
+    }
+    if !(1..=8).contains(&params.subdivision) {
+        return Err(QuadtreeError::Parameter {
+            what: "subdivision",
+            range: "1 to 8 integration cells per leaf side",
+            got: Brief(params.subdivision as Real),
         });
     }
     if params.max_depth > MAX_DEPTH {

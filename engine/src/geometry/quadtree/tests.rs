@@ -75,13 +75,14 @@ fn a_uniform_factor_gives_cells_of_the_resolution() {
     assert!((tree.half_width(0) - 0.375).abs() < 1e-15);
     let area: Real = tree.gauss_points().iter().map(|g| g.weight).sum();
     assert!((area - 1.0).abs() < 1e-14, "{area}");
-    // 3 x 3 Gauss points integrate x^4 y^2 exactly: 1/5 * 1/3.
+    // 4 x 4 Gauss points integrate x^6 y^2 exactly: 1/7 * 1/3.
     let moment: Real = tree
         .gauss_points()
         .iter()
-        .map(|g| g.weight * g.at[0].powi(4) * g.at[1].powi(2))
+        .map(|g| g.weight * g.at[0].powi(6) * g.at[1].powi(2))
         .sum();
-    assert!((moment - 1.0 / 15.0).abs() < 1e-14, "{moment}");
+    assert!((moment - 1.0 / 21.0).abs() < 1e-14, "{moment}");
+    assert_eq!(tree.gauss_points().len(), 16 * 4 * 16);
 }
 
 /// A factor that grows across the chart grades the tree: every leaf is
@@ -198,6 +199,13 @@ fn bad_requests_are_refused_with_what_to_change() {
                 ..QuadtreeParams::new(0.25)
             },
             "gauss_order",
+        ),
+        (
+            QuadtreeParams {
+                subdivision: 0,
+                ..QuadtreeParams::new(0.25)
+            },
+            "subdivision",
         ),
         (
             QuadtreeParams {
