@@ -5,6 +5,7 @@
 
 mod bvh;
 mod closest;
+pub mod conformal;
 mod error;
 mod implicit;
 mod mesh;

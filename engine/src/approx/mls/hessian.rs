@@ -125,23 +125,7 @@ impl Mls {
             let (_, _, h) = weight(node.index, &d).unwrap_or((0.0, [0.0; 3], [[0.0; 3]; 3]));
             out.weight_hessians.push(h);
         }
-        let no_support = || MlsError::NoSupport {
-            at: [x[0], x[1], x[2]],
-            nodes: count,
-            h: self.params.h,
-        };
-        if s.nodes.is_empty() {
-            return Err(no_support());
-        }
-        let mut order = self.params.order;
-        let (n, inversion) = loop {
-            let n = order.basis_size(self.dim);
-            let inversion = s.invert_moment(0, n, self.params.rank_tolerance);
-            if inversion.rank == n {
-                break (n, inversion);
-            }
-            order = order.lower().ok_or_else(no_support)?;
-        };
+        let (order, n, inversion) = s.fit(self, x, count)?;
         let (dim, inv_h) = (self.dim, self.inv_h);
         let inv = &s.inverse;
         let neg_solve = |v: &[Real; super::MAX_BASIS]| {

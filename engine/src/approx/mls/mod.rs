@@ -300,6 +300,35 @@ impl Scratch {
         }
     }
 
+    /// Inverts the gathered nodes' moment matrix at the highest order up
+    /// to `mls`'s at which it has full rank (the rank fallback); returns
+    /// that order, its basis size and the inversion. `count` is the
+    /// caller's node count, for the error.
+    fn fit(
+        &mut self,
+        mls: &Mls,
+        x: &Vector,
+        count: usize,
+    ) -> Result<(Order, usize, Inversion), MlsError> {
+        let no_support = || MlsError::NoSupport {
+            at: [x[0], x[1], x[2]],
+            nodes: count,
+            h: mls.params.h,
+        };
+        if self.nodes.is_empty() {
+            return Err(no_support());
+        }
+        let mut order = mls.params.order;
+        loop {
+            let n = order.basis_size(mls.dim);
+            let inversion = self.invert_moment(0, n, mls.params.rank_tolerance);
+            if inversion.rank == n {
+                return Ok((order, n, inversion));
+            }
+            order = order.lower().ok_or_else(no_support)?;
+        }
+    }
+
     /// Builds `sum_i w_i p_i p_i^T` over the basis entries
     /// `first..first + n` and pseudo-inverts it into `self.inverse`.
     fn invert_moment(&mut self, first: usize, n: usize, tolerance: Real) -> Inversion {

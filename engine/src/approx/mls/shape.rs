@@ -100,23 +100,7 @@ impl Mls {
         out.gradients.resize(nodes.len(), Vector::zeros());
         let s = &mut out.scratch;
         s.gather(self, x, nodes, weight);
-        let no_support = || MlsError::NoSupport {
-            at: [x[0], x[1], x[2]],
-            nodes: nodes.len(),
-            h: self.params.h,
-        };
-        if s.nodes.is_empty() {
-            return Err(no_support());
-        }
-        let mut order = self.params.order;
-        let (n, inversion) = loop {
-            let n = order.basis_size(self.dim);
-            let inversion = s.invert_moment(0, n, self.params.rank_tolerance);
-            if inversion.rank == n {
-                break (n, inversion);
-            }
-            order = order.lower().ok_or_else(no_support)?;
-        };
+        let (order, n, inversion) = s.fit(self, x, nodes.len())?;
         let inv = &s.inverse;
         // c = M^-1 p(0) = M^-1 e_0, the first column of the inverse.
         let mut c = [0.0; super::MAX_BASIS];

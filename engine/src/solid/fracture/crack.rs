@@ -199,15 +199,7 @@ impl Crack {
         depth: Real,
         rim: usize,
     ) -> Self {
-        let mut crack = Self {
-            dim,
-            depth,
-            vertices: Vec::new(),
-            triangles: Vec::new(),
-            front: Vec::new(),
-            lo: center,
-            hi: center,
-        };
+        let mut crack = Self::empty(dim, depth, center);
         if dim == 2 {
             let tangent = Vector::new(-normal.y, normal.x, 0.0).normalize();
             for heading in [-tangent, tangent] {
@@ -226,6 +218,19 @@ impl Crack {
             crack.rim(center, plane_axes(&normal), radius, rim);
         }
         crack
+    }
+
+    /// A crack with no geometry yet, its box at `center`.
+    fn empty(dim: usize, depth: Real, center: Vector) -> Self {
+        Self {
+            dim,
+            depth,
+            vertices: Vec::new(),
+            triangles: Vec::new(),
+            front: Vec::new(),
+            lo: center,
+            hi: center,
+        }
     }
 
     /// A 3D disc's rim of `rim` nodes at `radius` from `center`, the first
@@ -314,15 +319,7 @@ impl Crack {
         };
         let arm = turn(angle);
         let center = at + arm * radius;
-        let mut branch = Self {
-            dim: 3,
-            depth,
-            vertices: Vec::new(),
-            triangles: Vec::new(),
-            front: Vec::new(),
-            lo: center,
-            hi: center,
-        };
+        let mut branch = Self::empty(3, depth, center);
         // The rim's first node at `at`, the junction, and its nodes
         // running round the disc's plane (spanned by the arm and the
         // tangent).

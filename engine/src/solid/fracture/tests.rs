@@ -184,6 +184,36 @@ fn a_3d_crack_starts_as_a_disc_and_grows_its_rim() {
     assert!(front > 0.17 && front <= 0.2, "{front}");
 }
 
+/// Steps `solid` `steps` times (0.2 ms each) and checks its momentum
+/// held; returns it, how many fronts branched, and each new arm as it was
+/// when it branched.
+fn branching_run(mut solid: ElasticSolid, steps: usize) -> (ElasticSolid, u32, Vec<Crack>) {
+    let before = momentum(&solid);
+    let (mut branched, mut arms) = (0, Vec::new());
+    for _ in 0..steps {
+        solid.step(2e-4, &Vector::zeros(), 100);
+        // Before the step's fracture update.
+        let cracks = solid.fracture().expect("it fractures").cracks().len();
+        let step = solid.fracture_step().expect("bounded");
+        branched += step.branched;
+        if step.branched > 0 {
+            // The update appends the new arms first, then the cracks it
+            // started; each arm leaves a point where its parent's front
+            // just was.
+            let f = solid.fracture().expect("it fractures");
+            arms.extend(
+                f.cracks()[cracks..cracks + step.branched as usize]
+                    .iter()
+                    .cloned(),
+            );
+        }
+    }
+    let drift = (momentum(&solid) - before).norm();
+    let scale: Real = solid.masses().iter().sum::<Real>() * 0.5;
+    assert!(drift < 1e-10 * scale, "momentum drift {drift:e}");
+    (solid, branched, arms)
+}
+
 /// A 3D branch, built directly: its disc passes through the front node,
 /// its arm leaves 15° to one side of the heading (turned about the
 /// front's tangent, towards the opening direction) while the front turns
@@ -235,23 +265,7 @@ fn a_3d_front_past_its_branching_stress_leaves_tilted_discs() {
     let run_with = |branching: Option<Real>| {
         let mut fracture = FractureParams::brittle(2e4);
         fracture.branching = branching;
-        let mut block = pulled_block(fracture);
-        let before = momentum(&block);
-        let (mut branched, mut arms) = (0, Vec::new());
-        for _ in 0..200 {
-            block.step(2e-4, &Vector::zeros(), 100);
-            let cracks = block.fracture().expect("it fractures").cracks().len();
-            let step = block.fracture_step().expect("bounded");
-            branched += step.branched;
-            if step.branched > 0 {
-                let f = block.fracture().expect("it fractures");
-                arms.extend(f.cracks()[cracks + step.started as usize..].iter().cloned());
-            }
-        }
-        let drift = (momentum(&block) - before).norm();
-        let scale: Real = block.masses().iter().sum::<Real>() * 0.5;
-        assert!(drift < 1e-10 * scale, "momentum drift {drift:e}");
-        (block, branched, arms)
+        branching_run(pulled_block(fracture), 200)
     };
     let (_, plain, _) = run_with(None);
     assert_eq!(plain, 0);
@@ -996,25 +1010,7 @@ fn a_front_past_its_branching_stress_splits_into_two_arms_thirty_degrees_apart()
     let run_with = |branching: Option<Real>| {
         let mut fracture = FractureParams::brittle(2e4);
         fracture.branching = branching;
-        let mut bar = pulled_bar(Some(fracture), 0.5);
-        let before = momentum(&bar);
-        let (mut branched, mut arms) = (0, Vec::new());
-        for _ in 0..300 {
-            bar.step(2e-4, &Vector::zeros(), 100);
-            let cracks = bar.fracture().expect("it fractures").cracks().len();
-            let step = bar.fracture_step().expect("bounded");
-            branched += step.branched;
-            if step.branched > 0 {
-                // The new arms are the last cracks; each leaves a point
-                // where its parent's front just was.
-                let f = bar.fracture().expect("it fractures");
-                arms.extend(f.cracks()[cracks + step.started as usize..].iter().cloned());
-            }
-        }
-        let drift = (momentum(&bar) - before).norm();
-        let scale: Real = bar.masses().iter().sum::<Real>() * 0.5;
-        assert!(drift < 1e-10 * scale, "momentum drift {drift:e}");
-        (bar, branched, arms)
+        branching_run(pulled_bar(Some(fracture), 0.5), 300)
     };
     let (_, plain, _) = run_with(None);
     assert_eq!(plain, 0);

@@ -1,0 +1,160 @@
+use super::*;
+use crate::cancel::Cancel;
+use crate::geometry::quadtree::{Quadtree, QuadtreeParams};
+
+/// A grid of `nx x ny` quads over `[0, 1]^2`, each split in two
+/// counter-clockwise, mapped to 3D by `place`; interior vertices are moved
+/// in the parameter plane by up to `jitter` of a cell (a fixed hash).
+fn grid(nx: usize, ny: usize, jitter: Real, place: impl Fn(Real, Real) -> Vector) -> TriMesh {
+    let mut vertices = Vec::new();
+    for j in 0..=ny {
+        for i in 0..=nx {
+            let (mut s, mut t) = (i as Real / nx as Real, j as Real / ny as Real);
+            if i > 0 && i < nx && j > 0 && j < ny {
+                let h = ((i * 7919 + j * 104_729) % 1000) as Real / 1000.0 - 0.5;
+                let g = ((i * 104_729 + j * 7919) % 997) as Real / 997.0 - 0.5;
+                s += jitter * h / nx as Real;
+                t += jitter * g / ny as Real;
+            }
+            vertices.push(place(s, t));
+        }
+    }
+    let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
+    let mut triangles = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    TriMesh {
+        vertices,
+        triangles,
+    }
+}
+
+/// A tilted plane maps by a similarity: no angle or area distortion,
+/// every length kept (the pins are their surface distance apart).
+#[test]
+fn a_plane_maps_by_a_similarity() {
+    let (a, b) = (Vector::new(0.8, 0.1, 0.3), Vector::new(-0.2, 0.5, 0.9));
+    let mesh = grid(10, 7, 0.6, |s, t| {
+        Vector::new(1.0, 2.0, 3.0) + a * s + b * t
+    });
+    let chart = ConformalChart::new(&mesh).expect("a chart");
+    let d = chart.distortion();
+    assert!(d.angle_max - 1.0 < 1e-9, "{d:?}");
+    assert!(d.area_max - 1.0 < 1e-9 && 1.0 - d.area_min < 1e-9, "{d:?}");
+    for (k, lambda) in chart.lambda_vertices().iter().enumerate() {
+        assert!((lambda - 1.0).abs() < 1e-9, "vertex {k}: {lambda}");
+    }
+    let uv = chart.uv();
+    for (p, q) in [(0usize, 50usize), (3, 80), (17, 60)] {
+        let flat = ((uv[p][0] - uv[q][0]).powi(2) + (uv[p][1] - uv[q][1]).powi(2)).sqrt();
+        let space = (mesh.vertices[p] - mesh.vertices[q]).norm();
+        assert!(
+            (flat / space - 1.0).abs() < 1e-9,
+            "{p}-{q}: {flat} against {space}"
+        );
+    }
+}
+
+/// A triangulated cylinder patch unfolds without stretch (its quads are
+/// planar and meet flat at every vertex): the map is exactly conformal
+/// and the factor uniform, as developability says.
+#[test]
+fn a_cylinder_patch_unfolds_without_distortion() {
+    let mesh = grid(16, 6, 0.0, |s, t| {
+        let angle = 1.5 * s;
+        Vector::new(angle.cos(), angle.sin(), t)
+    });
+    let chart = ConformalChart::new(&mesh).expect("a chart");
+    let d = chart.distortion();
+    assert!(d.angle_max - 1.0 < 1e-8, "{d:?}");
+    assert!(d.area_max / d.area_min - 1.0 < 1e-8, "{d:?}");
+}
+
+/// A spherical cap has no isometric map to the plane; a conformal one
+/// keeps angles to the mesh's resolution (measured: mean angle distortion
+/// 1.026 at 8 x 8 quads, 1.013 at 16 x 16), and its factor varies across
+/// the chart (lambda^2 from 0.88 to 1.14 of its mean).
+#[test]
+fn a_spherical_cap_maps_nearly_conformally_with_a_graded_factor() {
+    let cap = |n: usize| {
+        grid(n, n, 0.3, |s, t| {
+            let (x, y) = (1.2 * s - 0.6, 1.2 * t - 0.6);
+            Vector::new(x, y, (1.0 - x * x - y * y).sqrt())
+        })
+    };
+    let coarse = ConformalChart::new(&cap(8)).expect("a chart").distortion();
+    let fine = ConformalChart::new(&cap(16)).expect("a chart").distortion();
+    assert!(
+        fine.angle_mean < coarse.angle_mean,
+        "{coarse:?} then {fine:?}"
+    );
+    assert!(fine.angle_mean < 1.02, "{fine:?}");
+    assert!(
+        fine.area_max / fine.area_min > 1.1,
+        "a graded factor: {fine:?}"
+    );
+}
+
+/// The chart is a quadtree's domain: its vertices lie inside, points far
+/// off outside, its factor is the vertices' at the vertices, and a
+/// quadtree over it builds with every point under three supports.
+#[test]
+fn a_chart_is_a_domain_for_the_quadtree() {
+    let mesh = grid(12, 12, 0.3, |s, t| {
+        let (x, y) = (1.2 * s - 0.6, 1.2 * t - 0.6);
+        Vector::new(x, y, (1.0 - x * x - y * y).sqrt())
+    });
+    let chart = ConformalChart::new(&mesh).expect("a chart");
+    let inner = 6 * 13 + 6;
+    assert!(chart.distance(chart.uv()[inner]) < 0.0);
+    let (lo, hi) = chart.bounds();
+    assert!(chart.distance([hi[0] + 1.0, hi[1] + 1.0]) > 0.5);
+    for k in [0usize, inner, 100] {
+        let l = chart.lambda(chart.uv()[k]);
+        assert!((l - chart.lambda_vertices()[k]).abs() < 1e-9, "vertex {k}");
+    }
+    let tree = Quadtree::build(&chart, lo, hi, &QuadtreeParams::new(0.1), &Cancel::new())
+        .expect("a quadtree over the chart");
+    let area: Real = tree
+        .gauss_points()
+        .iter()
+        .map(|g| g.weight * chart.lambda(g.at).powi(2))
+        .sum();
+    let surface = mesh.area();
+    assert!(
+        (area / surface - 1.0).abs() < 0.05,
+        "{area} against {surface}"
+    );
+}
+
+/// Closed, degenerate and folded patches are refused with what to do.
+#[test]
+fn patches_that_are_not_disks_are_refused() {
+    let tetrahedron = TriMesh {
+        vertices: vec![Vector::zeros(), Vector::x(), Vector::y(), Vector::z()],
+        triangles: vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]],
+    };
+    let error = ConformalChart::new(&tetrahedron).expect_err("closed");
+    assert!(
+        matches!(
+            error,
+            ChartError::NotDisk {
+                euler: 2,
+                boundary: 0,
+                ..
+            }
+        ),
+        "{error}"
+    );
+    assert!(error.to_string().contains("cut the surface"));
+    let mut flat = grid(3, 3, 0.0, |s, t| Vector::new(s, t, 0.0));
+    flat.vertices[5] = flat.vertices[6];
+    assert!(matches!(
+        ConformalChart::new(&flat).expect_err("degenerate"),
+        ChartError::Degenerate { .. }
+    ));
+}
