@@ -8,13 +8,13 @@
 //! area and summed; two vertices are pinned and the rest follow from one
 //! sparse symmetric positive definite solve (faer's Cholesky, over 2 x 2
 //! blocks, `linalg/sparse.rs`). Why it and not a harder discrete
-//! conformal map: it is linear (one factorisation, no iterations, the
-//! issue's 5 s budget for 50k points), it is exact wherever a patch
-//! unfolds without stretch (planes, cylinders, cones: the tests check
-//! it), its boundary is free, so the map is not forced into a disk and
-//! stays close to conformal on curved patches, and what it does not get
-//! exactly is measured per chart (the distortion below), so a chart that
-//! is too curved is seen and cut smaller.
+//! conformal map: it is linear (one factorisation, no iterations), it is
+//! exact wherever a patch unfolds without stretch (planes and cylinders
+//! in the tests; any developable patch), its boundary is free, so the
+//! map is not forced into a disk and stays close to conformal on curved
+//! patches, and what it does not get exactly is measured per chart (the
+//! distortion below), so a chart that is too curved is seen and cut
+//! smaller.
 //!
 //! With a triangle's corners at `(x_k, y_k)` in its own orthonormal frame,
 //! area `A`, and `W_k = (x_{k+2} - x_{k+1}) + i (y_{k+2} - y_{k+1})`, the
