@@ -135,20 +135,10 @@ impl ConformalChart {
         // Each triangle's W / sqrt(2 A), as (a, b) per corner.
         let mut coefficients = Vec::with_capacity(mesh.triangles.len());
         for (t, tri) in mesh.triangles.iter().enumerate() {
-            let [p0, p1, p2] = tri.map(|k| mesh.vertices[k as usize]);
-            let (e1, e2) = (p1 - p0, p2 - p0);
-            let normal = e1.cross(&e2);
-            let area = 0.5 * normal.norm();
+            let (area, local) = local_frame(tri.map(|k| mesh.vertices[k as usize]));
             if !(area.is_finite() && area > 0.0) {
                 return Err(ChartError::Degenerate { triangle: t });
             }
-            let x_axis = e1.normalize();
-            let y_axis = normal.normalize().cross(&x_axis);
-            let local = [
-                [0.0, 0.0],
-                [e1.norm(), 0.0],
-                [e2.dot(&x_axis), e2.dot(&y_axis)],
-            ];
             let scale = 1.0 / (2.0 * area).sqrt();
             let mut ab = [[0.0; 2]; 3];
             for k in 0..3 {
@@ -286,16 +276,11 @@ impl ConformalChart {
         let mut weight_sum = vec![0.0; n];
         let mut squares = Vec::with_capacity(mesh.triangles.len());
         for tri in &mesh.triangles {
-            let [p0, p1, p2] = tri.map(|k| mesh.vertices[k as usize]);
+            let (area, [_, l1, l2]) = local_frame(tri.map(|k| mesh.vertices[k as usize]));
             let [q0, q1, q2] = tri.map(|k| uv[k as usize]);
-            let (e1, e2) = (p1 - p0, p2 - p0);
-            let normal = e1.cross(&e2);
-            let area = 0.5 * normal.norm();
-            let x_axis = e1.normalize();
-            let y_axis = normal.normalize().cross(&x_axis);
             // Surface (local 2D) -> plane: J S = Q, S and Q the edge
             // matrices.
-            let s = nalgebra::Matrix2::new(e1.norm(), e2.dot(&x_axis), 0.0, e2.dot(&y_axis));
+            let s = nalgebra::Matrix2::new(l1[0], l2[0], l1[1], l2[1]);
             let q =
                 nalgebra::Matrix2::new(q1[0] - q0[0], q2[0] - q0[0], q1[1] - q0[1], q2[1] - q0[1]);
             let plane_area = 0.5 * q.determinant();
@@ -404,6 +389,23 @@ impl ChartDomain for ConformalChart {
         });
         nearest.map_or(1.0, |k| self.lambda_vertices[k as usize])
     }
+}
+
+/// A triangle's area and its corners in its own orthonormal frame: the
+/// first at the origin, the second on the x axis, the third above it.
+fn local_frame([p0, p1, p2]: [Vector; 3]) -> (Real, [Point2; 3]) {
+    let (e1, e2) = (p1 - p0, p2 - p0);
+    let normal = e1.cross(&e2);
+    let x_axis = e1.normalize();
+    let y_axis = normal.normalize().cross(&x_axis);
+    (
+        0.5 * normal.norm(),
+        [
+            [0.0, 0.0],
+            [e1.norm(), 0.0],
+            [e2.dot(&x_axis), e2.dot(&y_axis)],
+        ],
+    )
 }
 
 /// The vertices farthest apart, approximately: the farthest from vertex

@@ -7,7 +7,7 @@
 
 use super::body::Body;
 use super::fracture::{
-    Crack, CrackIndex, Crossing, Discontinuity, Fracture, FractureError, FractureParamsError,
+    Crack, CrackIndex, Discontinuity, Fracture, FractureError, FractureParamsError,
     FractureSnapshot, FractureStep, FrontNode, Notch, SearchCache, Threshold,
     VERTICES_PER_PARTICLE, cauchy, check_room, crack_faces, label, largest_principal, lengthened,
     opacity, principal, split, stress_bound, transparent_weight, undersampling,
@@ -563,9 +563,7 @@ impl Body {
         {
             let t = &self.topology;
             let edges = t.gradients.neighbour_indices();
-            // A few cracks are cheaper to scan than to index.
-            let index = (fracture.cracks.len() > CrackIndex::WORTH)
-                .then(|| CrackIndex::new(&fracture.cracks, h));
+            let index = CrackIndex::new(&fracture.cracks, h);
             let mut candidates = Vec::new();
             for &i in near {
                 for e in t.gradients.range(i) {
@@ -582,23 +580,12 @@ impl Body {
                     } else {
                         (rest[j], rest[i])
                     };
-                    let term = |x: Crossing| opacity(params.discontinuity, x.to_front, spacing);
-                    let added: Real = match &index {
-                        Some(index) => {
-                            index.near(&a, &b, &mut candidates);
-                            candidates
-                                .iter()
-                                .filter_map(|&c| fracture.cracks[c as usize].crossing(&a, &b))
-                                .map(term)
-                                .sum()
-                        }
-                        None => fracture
-                            .cracks
-                            .iter()
-                            .filter_map(|c| c.crossing(&a, &b))
-                            .map(term)
-                            .sum(),
-                    };
+                    index.near(&a, &b, &mut candidates);
+                    let added: Real = candidates
+                        .iter()
+                        .filter_map(|&c| fracture.cracks[c as usize].crossing(&a, &b))
+                        .map(|x| opacity(params.discontinuity, x.to_front, spacing))
+                        .sum();
                     if added > fracture.extra[e] {
                         let q = t.q(e, inv_h);
                         if transparent_weight(kernel, q, fracture.extra[e]).is_some()

@@ -40,6 +40,9 @@ pub struct ShapeHessians {
     /// Each supporting node's weight Hessian, in the order of the
     /// scratch's nodes.
     weight_hessians: Vec<[[Real; 3]; 3]>,
+    /// Each supporting node's basis derivatives `P_k = dp_i/dx_k`, same
+    /// order, formed once per fit.
+    basis_slopes: Vec<[[Real; super::MAX_BASIS]; 3]>,
     scratch: Scratch,
 }
 
@@ -138,22 +141,27 @@ impl Mls {
         let dot = |u: &[Real], v: &[Real]| -> Real {
             u[..n].iter().zip(&v[..n]).map(|(a, b)| a * b).sum()
         };
-        let curvature = basis_curvature(dim, order);
-        // The x-derivatives of node j's basis: P_k and P_kl.
-        let first = |dp: &[Real; super::MAX_BASIS]| {
-            let mut out = [0.0; super::MAX_BASIS];
-            for a in 0..n {
-                out[a] = -inv_h * dp[a];
+        // The x-derivatives of the nodes' bases: P_k per node, P_kl (the
+        // same for every node).
+        out.basis_slopes.clear();
+        out.basis_slopes.extend(s.nodes.iter().map(|node| {
+            let mut pk = [[0.0; super::MAX_BASIS]; 3];
+            for (pk, dp) in pk.iter_mut().zip(&node.basis.dp).take(dim) {
+                for (out, d) in pk.iter_mut().zip(dp).take(n) {
+                    *out = -inv_h * d;
+                }
             }
-            out
-        };
-        let second = |k: usize, l: usize| {
-            let mut out = [0.0; super::MAX_BASIS];
-            for a in 0..n {
-                out[a] = inv_h * inv_h * curvature[k][l][a];
+            pk
+        }));
+        let mut pkl_all = basis_curvature(dim, order);
+        for row in &mut pkl_all {
+            for entry in row.iter_mut() {
+                for v in entry.iter_mut() {
+                    *v *= inv_h * inv_h;
+                }
             }
-            out
-        };
+        }
+        let slopes = &out.basis_slopes;
 
         let mut c = [0.0; super::MAX_BASIS];
         for a in 0..n {
@@ -161,12 +169,12 @@ impl Mls {
         }
         // M_k c, then c_k.
         let mut dm_c = [[0.0; super::MAX_BASIS]; 3];
-        for node in &s.nodes {
+        for (node, pks) in s.nodes.iter().zip(slopes) {
             let p = &node.basis.p;
             let pc = dot(p, &c);
             for (k, acc) in dm_c.iter_mut().enumerate().take(dim) {
-                let pk = first(&node.basis.dp[k]);
-                let pkc = dot(&pk, &c);
+                let pk = &pks[k];
+                let pkc = dot(pk, &c);
                 for a in 0..n {
                     acc[a] += node.dw[k] * pc * p[a] + node.w * (pk[a] * pc + p[a] * pkc);
                 }
@@ -180,15 +188,14 @@ impl Mls {
         let mut ddc = [[[0.0; super::MAX_BASIS]; 3]; 3];
         for k in 0..dim {
             for l in k..dim {
-                let pkl = second(k, l);
+                let pkl = &pkl_all[k][l];
                 let mut v = [0.0; super::MAX_BASIS];
-                for (node, wh) in s.nodes.iter().zip(&out.weight_hessians) {
+                for ((node, wh), pks) in s.nodes.iter().zip(&out.weight_hessians).zip(slopes) {
                     let p = &node.basis.p;
-                    let (pk, pl) = (first(&node.basis.dp[k]), first(&node.basis.dp[l]));
-                    let (pc, pkc, plc, pklc) =
-                        (dot(p, &c), dot(&pk, &c), dot(&pl, &c), dot(&pkl, &c));
-                    let (pcl, pkcl) = (dot(p, &dc[l]), dot(&pk, &dc[l]));
-                    let (pck, plck) = (dot(p, &dc[k]), dot(&pl, &dc[k]));
+                    let (pk, pl) = (&pks[k], &pks[l]);
+                    let (pc, pkc, plc, pklc) = (dot(p, &c), dot(pk, &c), dot(pl, &c), dot(pkl, &c));
+                    let (pcl, pkcl) = (dot(p, &dc[l]), dot(pk, &dc[l]));
+                    let (pck, plck) = (dot(p, &dc[k]), dot(pl, &dc[k]));
                     let (w, wk, wl, wkl) = (node.w, node.dw[k], node.dw[l], wh[k][l]);
                     for a in 0..n {
                         // M_kl c
@@ -206,21 +213,19 @@ impl Mls {
                 ddc[l][k] = ddc[k][l];
             }
         }
-        for (node, wh) in s.nodes.iter().zip(&out.weight_hessians) {
+        for ((node, wh), pk_all) in s.nodes.iter().zip(&out.weight_hessians).zip(slopes) {
             let p = &node.basis.p;
             let pc = dot(p, &c);
             let i = node.index;
             out.values[i] = node.w * pc;
-            let mut pk_all = [[0.0; super::MAX_BASIS]; 3];
             for k in 0..dim {
-                pk_all[k] = first(&node.basis.dp[k]);
                 out.gradients[i][k] =
                     node.dw[k] * pc + node.w * (dot(&dc[k], p) + dot(&c, &pk_all[k]));
             }
             for k in 0..dim {
                 for l in k..dim {
                     let (pk, pl) = (&pk_all[k], &pk_all[l]);
-                    let pkl = second(k, l);
+                    let pkl = &pkl_all[k][l];
                     let value = wh[k][l] * pc
                         + node.dw[k] * (dot(&dc[l], p) + dot(&c, pl))
                         + node.dw[l] * (dot(&dc[k], p) + dot(&c, pk))
@@ -228,7 +233,7 @@ impl Mls {
                             * (dot(&ddc[k][l], p)
                                 + dot(&dc[k], pl)
                                 + dot(&dc[l], pk)
-                                + dot(&c, &pkl));
+                                + dot(&c, pkl));
                     out.hessians[i][(k, l)] = value;
                     out.hessians[i][(l, k)] = value;
                 }

@@ -15,20 +15,30 @@ const MAX_CELLS_PER_CRACK: i64 = 4096;
 /// Cracks by the grid cells their bounding boxes overlap.
 #[derive(Debug, Default)]
 pub(in crate::solid) struct CrackIndex {
+    /// Set when there are too few cracks to index (at most [`Self::WORTH`]):
+    /// then every query answers all of them.
+    scan: Option<u32>,
     inv_cell: Real,
     cells: HashMap<[i64; 3], Vec<u32>>,
     large: Vec<u32>,
 }
 
 impl CrackIndex {
-    /// Cracks past which indexing them pays: below it a pair scans them
-    /// all (with one running crack the index's build and lookups cost half
-    /// the update again, `cargo bench --bench fracture`).
-    pub(in crate::solid) const WORTH: usize = 32;
+    /// Cracks past which indexing them pays: up to it a query answers
+    /// them all, unindexed (with one running crack the index's build and
+    /// lookups cost half the update again, `cargo bench --bench
+    /// fracture`).
+    const WORTH: usize = 32;
 
     /// The index of `cracks` with cells of side `cell` (the support
     /// radius: a pair's segment then meets at most two cells a side).
     pub(in crate::solid) fn new(cracks: &[Crack], cell: Real) -> Self {
+        if cracks.len() <= Self::WORTH {
+            return Self {
+                scan: Some(cracks.len() as u32),
+                ..Self::default()
+            };
+        }
         let mut index = Self {
             inv_cell: 1.0 / cell,
             ..Self::default()
@@ -61,6 +71,10 @@ impl CrackIndex {
     /// what summing over every crack adds, in the same order.
     pub(in crate::solid) fn near(&self, a: &Vector, b: &Vector, out: &mut Vec<u32>) {
         out.clear();
+        if let Some(all) = self.scan {
+            out.extend(0..all);
+            return;
+        }
         out.extend_from_slice(&self.large);
         let (lo, hi) = (self.cell_of(&a.inf(b)), self.cell_of(&a.sup(b)));
         for x in lo[0]..=hi[0] {
