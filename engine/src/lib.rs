@@ -25,6 +25,7 @@ pub mod modal;
 pub mod neighbors;
 pub mod rigid;
 pub mod scene;
+pub mod shell;
 pub mod snapshot;
 pub mod solid;
 pub mod stats;

@@ -1,0 +1,453 @@
+//! What the static, vibration and dynamic routes share: loads, supports,
+//! internal forces, and the assembly of the tangent and mass over one
+//! sparse pattern.
+//!
+//! **Supports are penalties.** A support holds a linear functional of the
+//! displacement at zero: the displacement along a direction, or the slope
+//! of the normal displacement across a boundary (a clamp's rotation). Each
+//! adds `1/2 alpha L (c . u)^2` for the boundary length `L` its point
+//! stands for. Why penalties rather than multipliers: the tangent stays
+//! positive definite (one Cholesky, no saddle point) and the pattern is
+//! the stiffness's own, and MLS shape functions do not interpolate, so a
+//! support cannot be set on a node anyway. The stiffness is scaled with
+//! the cell `h` on the surface so that the penalty keeps pace with the
+//! shell as it refines: `beta D / h^3` for a normal displacement (bending
+//! carries it), `beta E t / ((1 - nu^2) h)` for a tangential one
+//! (membrane), blended by the direction's angle to the normal, and
+//! `beta D / h` for a slope; `beta = 10` by default (on the clamped plate
+//! of `engine/tests/plate.rs` at 16 cells, 1 lets it sag 48 % further and
+//! 100 6 % less: too weak a penalty frees the edge, too strong a one
+//! stiffens the approximation beside it).
+
+use super::error::ShellError;
+use super::kirchhoff::{LOCAL, LocalGradient, LocalHessian, SLOTS, gradient_hessian};
+use super::model::{ShellModel, Stencil, SurfacePoint};
+use crate::approx::gauss::gauss_legendre;
+use crate::geometry::quadtree::Point2;
+use crate::linalg::sparse::{BlockColumn, BlockPattern};
+use crate::math::{Real, Vector};
+use rayon::prelude::*;
+
+/// What a support holds at zero.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SupportKind {
+    /// The displacement along this unit direction.
+    Displacement(Vector),
+    /// The slope of the normal displacement across this unit parametric
+    /// direction (with zero displacement, a clamp).
+    Slope(Point2),
+}
+
+/// A support at one point of the parametric domain.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Support {
+    /// Where.
+    pub at: Point2,
+    /// The length of boundary on the surface it stands for.
+    pub length: Real,
+    /// What it holds.
+    pub kind: SupportKind,
+}
+
+/// Loads on a shell, in the reference configuration (dead loads).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Load {
+    /// Force per unit reference area (self weight: `rho t g`).
+    pub per_area: Vector,
+    /// Pressure on the reference normal's side, per unit reference area.
+    pub pressure: Real,
+    /// Point forces at points of the parametric domain.
+    pub points: Vec<(Point2, Vector)>,
+}
+
+/// A support as the assembly reads it: `1/2 stiffness (sum_I c_I u_I .
+/// direction)^2`.
+#[derive(Debug, Clone)]
+pub(super) struct Constraint {
+    stencil: Stencil,
+    coefficients: Vec<Real>,
+    direction: Vector,
+    stiffness: Real,
+}
+
+impl Constraint {
+    pub(super) fn value(&self, u: &[Vector]) -> Real {
+        self.stencil
+            .nodes
+            .iter()
+            .zip(&self.coefficients)
+            .map(|(&k, c)| c * u[k as usize].dot(&self.direction))
+            .sum()
+    }
+}
+
+impl ShellModel {
+    /// Supports of `kinds` at 4-point Gauss rules on `pieces` equal pieces
+    /// of the parametric segment `from -> to`, each weighted by the
+    /// surface length it stands for.
+    ///
+    /// # Errors
+    /// [`ShellError`] where a point of the segment lies outside the chart
+    /// or its supports cannot carry the basis.
+    pub fn edge_supports(
+        &self,
+        from: Point2,
+        to: Point2,
+        pieces: usize,
+        kinds: &[SupportKind],
+    ) -> Result<Vec<Support>, ShellError> {
+        let (x, w) = gauss_legendre(4);
+        let d = [to[0] - from[0], to[1] - from[1]];
+        let mut out = Vec::new();
+        for piece in 0..pieces {
+            for (xa, wa) in x.iter().zip(w) {
+                let s = (piece as Real + 0.5 * (1.0 + xa)) / pieces as Real;
+                let at = [from[0] + s * d[0], from[1] + s * d[1]];
+                let q = self.stencil(at)?.local(self.reference());
+                let tangent = d[0] * q[0] + d[1] * q[1];
+                let length = 0.5 * wa * tangent.norm() / pieces as Real;
+                out.extend(kinds.iter().map(|&kind| Support { at, length, kind }));
+            }
+        }
+        Ok(out)
+    }
+
+    /// The interpolated displacement at `u` for nodal coefficients
+    /// `displacement`.
+    ///
+    /// # Errors
+    /// As [`ShellModel::stencil`].
+    pub fn displacement_at(
+        &self,
+        u: Point2,
+        displacement: &[Vector],
+    ) -> Result<Vector, ShellError> {
+        Ok(self.stencil(u)?.value(displacement))
+    }
+
+    /// The nodal load vector of `load`.
+    ///
+    /// # Errors
+    /// As [`ShellModel::stencil`], for a point load off the chart.
+    pub fn load_vector(&self, load: &Load) -> Result<Vec<Vector>, ShellError> {
+        let mut f = vec![Vector::zeros(); self.node_count()];
+        for p in self.points() {
+            let r = &p.reference;
+            let per_area = (load.per_area + load.pressure * r.normal) * (p.weight * r.area);
+            for (&k, row) in p.stencil.nodes.iter().zip(&p.stencil.rows) {
+                f[k as usize] += row[0] * per_area;
+            }
+        }
+        for (at, force) in &load.points {
+            let s = self.stencil(*at)?;
+            for (&k, row) in s.nodes.iter().zip(&s.rows) {
+                f[k as usize] += row[0] * force;
+            }
+        }
+        Ok(f)
+    }
+
+    pub(super) fn constraint(
+        &self,
+        support: &Support,
+        beta: Real,
+    ) -> Result<Constraint, ShellError> {
+        let stencil = self.stencil(support.at)?;
+        let q = stencil.local(self.reference());
+        let area = q[0].cross(&q[1]);
+        let normal = area.normalize();
+        let leaf = self
+            .tree()
+            .leaf_of(support.at)
+            .ok_or(ShellError::Outside { at: support.at })?;
+        let (_, side) = self.tree().bounds(self.tree().leaves()[leaf]);
+        let h = side * area.norm().sqrt();
+        let m = self.material();
+        let (bending, membrane) = (m.bending_stiffness(), m.membrane_stiffness());
+        let (coefficients, direction, stiffness) = match support.kind {
+            SupportKind::Displacement(e) => {
+                let e = e.try_normalize(0.0).ok_or(ShellError::Parameter {
+                    what: "support direction",
+                    got: 0.0,
+                    range: "a non-zero vector",
+                })?;
+                let cos2 = e.dot(&normal).powi(2);
+                let alpha = cos2 * bending / h.powi(3) + (1.0 - cos2) * membrane / h;
+                let c = stencil.rows.iter().map(|r| r[0]).collect();
+                (c, e, alpha)
+            }
+            SupportKind::Slope(d) => {
+                let along = (d[0] * q[0] + d[1] * q[1]).norm();
+                if !along.is_finite() || along <= 0.0 {
+                    return Err(ShellError::Parameter {
+                        what: "slope direction",
+                        got: 0.0,
+                        range: "a non-zero parametric direction",
+                    });
+                }
+                let c = stencil
+                    .rows
+                    .iter()
+                    .map(|r| (d[0] * r[1] + d[1] * r[2]) / along)
+                    .collect();
+                (c, normal, bending / h)
+            }
+        };
+        Ok(Constraint {
+            stencil,
+            coefficients,
+            direction,
+            stiffness: beta * stiffness * support.length,
+        })
+    }
+
+    /// The internal forces `dU/du_I` at nodal displacements `u`, and the
+    /// strain energy `U`.
+    ///
+    /// # Errors
+    /// [`ShellError::Folded`] where the surface folds flat.
+    pub fn internal_forces(&self, u: &[Vector]) -> Result<(Vec<Vector>, Real), ShellError> {
+        let mut local = vec![([0.0; LOCAL], [[0.0; LOCAL]; LOCAL]); self.points().len()];
+        self.evaluate(u, &mut local)
+    }
+
+    /// [`Self::internal_forces`], with each point's energy gradient and
+    /// Hessian left in `local`.
+    pub(super) fn evaluate(
+        &self,
+        u: &[Vector],
+        local: &mut [(LocalGradient, LocalHessian)],
+    ) -> Result<(Vec<Vector>, Real), ShellError> {
+        let x: Vec<Vector> = self.reference().iter().zip(u).map(|(a, b)| a + b).collect();
+        let thickness = self.material().thickness;
+        let points = self.points();
+        let energy = local
+            .par_iter_mut()
+            .zip(points)
+            .map(|((g, h), p)| {
+                let q = p.stencil.local(&x);
+                gradient_hessian(&p.reference, thickness, &q, g, h)
+                    .map(|w| w * p.weight * p.reference.area)
+                    .ok_or(ShellError::Folded { at: p.at })
+            })
+            .try_reduce(|| 0.0, |a, b| Ok(a + b))?;
+        let mut f = vec![Vector::zeros(); u.len()];
+        for (p, (g, _)) in points.iter().zip(local.iter()) {
+            let w = p.weight * p.reference.area;
+            for (&k, row) in p.stencil.nodes.iter().zip(&p.stencil.rows) {
+                let fk = &mut f[k as usize];
+                for s in 0..SLOTS {
+                    let c = w * row[s + 1];
+                    for comp in 0..3 {
+                        fk[comp] += c * g[3 * s + comp];
+                    }
+                }
+            }
+        }
+        Ok((f, energy))
+    }
+}
+
+/// One shell's sparse assembly with its supports: the pattern over every
+/// stencil, the items (quadrature points, then supports) each node is
+/// in, and each point's energy gradient and Hessian at the last
+/// evaluation.
+#[derive(Debug)]
+pub(super) struct Assembly {
+    pub(super) pattern: BlockPattern,
+    touching: Vec<Vec<(u32, u32)>>,
+    constraints: Vec<Constraint>,
+    local: Vec<(LocalGradient, LocalHessian)>,
+}
+
+impl Assembly {
+    /// The assembly of `model` held by `supports` with penalty scale
+    /// `beta`.
+    pub(super) fn new(
+        model: &ShellModel,
+        supports: &[Support],
+        beta: Real,
+    ) -> Result<Self, ShellError> {
+        if !(beta > 0.0 && beta.is_finite()) {
+            return Err(ShellError::Parameter {
+                what: "penalty",
+                got: beta,
+                range: "a finite value > 0",
+            });
+        }
+        let constraints = supports
+            .iter()
+            .map(|s| model.constraint(s, beta))
+            .collect::<Result<Vec<_>, _>>()?;
+        let points = model.points();
+        let stencils = || {
+            points
+                .iter()
+                .map(|p| &p.stencil)
+                .chain(constraints.iter().map(|c| &c.stencil))
+        };
+        let pattern = model.pattern(stencils())?;
+        let mut touching: Vec<Vec<(u32, u32)>> = vec![Vec::new(); model.node_count()];
+        for (item, s) in stencils().enumerate() {
+            for (a, &n) in s.nodes.iter().enumerate() {
+                touching[n as usize].push((item as u32, a as u32));
+            }
+        }
+        let local = vec![([0.0; LOCAL], [[0.0; LOCAL]; LOCAL]); points.len()];
+        Ok(Self {
+            pattern,
+            touching,
+            constraints,
+            local,
+        })
+    }
+
+    /// The internal and support forces at nodal displacements `u`, and
+    /// the strain energy (supports' included); keeps each point's
+    /// Hessian for [`Self::column`].
+    pub(super) fn forces(
+        &mut self,
+        model: &ShellModel,
+        u: &[Vector],
+    ) -> Result<(Vec<Vector>, Real), ShellError> {
+        let (mut f, mut energy) = model.evaluate(u, &mut self.local)?;
+        for c in &self.constraints {
+            let value = c.value(u);
+            energy += 0.5 * c.stiffness * value * value;
+            let force = c.stiffness * value * c.direction;
+            for (&k, ck) in c.stencil.nodes.iter().zip(&c.coefficients) {
+                f[k as usize] += *ck * force;
+            }
+        }
+        Ok((f, energy))
+    }
+
+    /// Block column `node` of `stiffness K + mass M`: `K` the tangent at
+    /// the last [`Self::forces`] with the supports' penalties, scaled by
+    /// `stiffness`; `M` the consistent mass.
+    pub(super) fn column(
+        &self,
+        model: &ShellModel,
+        node: usize,
+        column: &mut BlockColumn<'_>,
+        stiffness: Real,
+        mass: Real,
+    ) {
+        let points = model.points();
+        let areal_mass = model.material().density * model.material().thickness;
+        for &(item, a) in &self.touching[node] {
+            let (item, a) = (item as usize, a as usize);
+            if let Some(p) = points.get(item) {
+                let w = p.weight * p.reference.area;
+                if stiffness != 0.0 {
+                    add_point_stiffness(column, p, &self.local[item].1, a, stiffness * w);
+                }
+                let m = mass * areal_mass * w * p.stencil.rows[a][0];
+                if m != 0.0 {
+                    for (&k, rb) in p.stencil.nodes.iter().zip(&p.stencil.rows).skip(a) {
+                        let Some(slot) = column.slot(k) else { continue };
+                        for c in 0..3 {
+                            column.add(slot, c, c, m * rb[0]);
+                        }
+                    }
+                }
+            } else if stiffness != 0.0 {
+                let c = &self.constraints[item - points.len()];
+                let ca = stiffness * c.stiffness * c.coefficients[a];
+                let e = &c.direction;
+                for (&k, cb) in c.stencil.nodes.iter().zip(&c.coefficients).skip(a) {
+                    let Some(slot) = column.slot(k) else { continue };
+                    for alpha in 0..3 {
+                        for beta in 0..3 {
+                            column.add(slot, alpha, beta, ca * cb * e[alpha] * e[beta]);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl Assembly {
+    /// `(stiffness K + mass M) v`, matrix-free: `K` the tangent at the last
+    /// [`Self::forces`] with the supports' penalties, `M` the consistent
+    /// mass.
+    pub(super) fn product(
+        &self,
+        model: &ShellModel,
+        v: &[Vector],
+        stiffness: Real,
+        mass: Real,
+    ) -> Vec<Vector> {
+        let areal_mass = model.material().density * model.material().thickness;
+        let mut out = vec![Vector::zeros(); v.len()];
+        for (p, (_, hess)) in model.points().iter().zip(&self.local) {
+            let w = p.weight * p.reference.area;
+            let s = &p.stencil;
+            if stiffness != 0.0 {
+                let q = s.local(v);
+                let mut hq = [0.0; LOCAL];
+                for (r, hr) in hq.iter_mut().zip(hess) {
+                    *r = (0..LOCAL).map(|c| hr[c] * q[c / 3][c % 3]).sum::<Real>() * stiffness * w;
+                }
+                for (&k, row) in s.nodes.iter().zip(&s.rows) {
+                    let ok = &mut out[k as usize];
+                    for slot in 0..SLOTS {
+                        for comp in 0..3 {
+                            ok[comp] += row[slot + 1] * hq[3 * slot + comp];
+                        }
+                    }
+                }
+            }
+            if mass != 0.0 {
+                let value = s.value(v) * (mass * areal_mass * w);
+                for (&k, row) in s.nodes.iter().zip(&s.rows) {
+                    out[k as usize] += row[0] * value;
+                }
+            }
+        }
+        if stiffness != 0.0 {
+            for c in &self.constraints {
+                let force = stiffness * c.stiffness * c.value(v) * c.direction;
+                for (&k, ck) in c.stencil.nodes.iter().zip(&c.coefficients) {
+                    out[k as usize] += *ck * force;
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Adds a point's energy Hessian `hess`, mapped to the nodes and scaled by
+/// `scale`, to the column of its node `a`.
+fn add_point_stiffness(
+    column: &mut BlockColumn<'_>,
+    p: &SurfacePoint,
+    hess: &LocalHessian,
+    a: usize,
+    scale: Real,
+) {
+    let ra = &p.stencil.rows[a];
+    // t[alpha][j] = sum_s N_a,s H[3 s + alpha][j].
+    let mut t = [[0.0; LOCAL]; 3];
+    for s in 0..SLOTS {
+        let c = scale * ra[s + 1];
+        if c == 0.0 {
+            continue;
+        }
+        for (alpha, row) in t.iter_mut().enumerate() {
+            for (tj, hj) in row.iter_mut().zip(&hess[3 * s + alpha]) {
+                *tj += c * hj;
+            }
+        }
+    }
+    for (&m, rb) in p.stencil.nodes.iter().zip(&p.stencil.rows).skip(a) {
+        let Some(slot) = column.slot(m) else { continue };
+        for (alpha, row) in t.iter().enumerate() {
+            for beta in 0..3 {
+                let v: Real = (0..SLOTS).map(|s| rb[s + 1] * row[3 * s + beta]).sum();
+                column.add(slot, alpha, beta, v);
+            }
+        }
+    }
+}

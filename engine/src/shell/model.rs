@@ -1,0 +1,392 @@
+//! A shell's discretisation on one chart: the quadtree's nodes, the MLS
+//! shape functions with their first and second derivatives at every
+//! quadrature point (a [`Stencil`] each), and the reference middle
+//! surface.
+//!
+//! **The surface is carried by the nodes.** The reference surface is not
+//! read from the input at the quadrature points but fitted: nodal
+//! positions `X_I` minimising `int |sum_I N_I X_I - x(u)|^2 du` (an L2
+//! projection, one sparse Cholesky), and the deformed surface is
+//! `sum_I N_I (X_I + u_I)`. Reference and deformed surfaces are then the
+//! same kind of function, so a rigid motion of the nodes strains nothing
+//! exactly (the patch test), and a surface the basis spans (a plane, a
+//! paraboloid under the quadratic basis) is reproduced exactly. The cost
+//! is a small geometric error where it does not (a cylinder's arc), which
+//! shrinks with the cells.
+
+use super::error::ShellError;
+use super::kirchhoff::{Local, Reference};
+use crate::approx::mls::{Mls, MlsParams, Order, ShapeHessians};
+use crate::approx::tensor::tensor_weight_hessian;
+use crate::cancel::Cancel;
+use crate::geometry::quadtree::{ChartDomain, Point2, Quadtree, QuadtreeParams};
+use crate::linalg::sparse::{BlockPattern, SparseCholesky};
+use crate::math::{Real, Vector};
+use rayon::prelude::*;
+
+/// A chart whose domain is a patch of a shell's reference middle surface.
+pub trait ShellSurface: ChartDomain + Sync {
+    /// The reference surface's point at `u` (inside the domain).
+    fn position(&self, u: Point2) -> Vector;
+}
+
+/// A shell's material: thickness, density, Young's modulus and Poisson's
+/// ratio (consistent units).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Material {
+    /// Thickness `t`.
+    pub thickness: Real,
+    /// Mass per unit volume.
+    pub density: Real,
+    /// Young's modulus `E`.
+    pub young: Real,
+    /// Poisson's ratio `nu`, in `[0, 0.5)`.
+    pub poisson: Real,
+}
+
+impl Material {
+    /// Bending stiffness `D = E t^3 / (12 (1 - nu^2))`.
+    pub fn bending_stiffness(&self) -> Real {
+        self.young * self.thickness.powi(3) / (12.0 * (1.0 - self.poisson * self.poisson))
+    }
+
+    /// Membrane stiffness `E t / (1 - nu^2)`.
+    pub fn membrane_stiffness(&self) -> Real {
+        self.young * self.thickness / (1.0 - self.poisson * self.poisson)
+    }
+
+    fn validate(&self) -> Result<(), ShellError> {
+        let positive = |what, got: Real| {
+            if got > 0.0 && got.is_finite() {
+                Ok(())
+            } else {
+                Err(ShellError::Parameter {
+                    what,
+                    got,
+                    range: "a finite value > 0",
+                })
+            }
+        };
+        positive("thickness", self.thickness)?;
+        positive("young", self.young)?;
+        if !(self.density >= 0.0 && self.density.is_finite()) {
+            return Err(ShellError::Parameter {
+                what: "density",
+                got: self.density,
+                range: "a finite value >= 0",
+            });
+        }
+        if !(0.0..0.5).contains(&self.poisson) {
+            return Err(ShellError::Parameter {
+                what: "poisson",
+                got: self.poisson,
+                range: "0 <= nu < 0.5 (plane stress in the shell's surface)",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// How a shell is discretised.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShellParams {
+    /// The MLS basis: bending needs second derivatives that reproduce a
+    /// constant curvature, so [`Order::Quadratic`] unless only membranes
+    /// matter.
+    pub order: Order,
+    /// The quadtree: resolution, support size `eta`, quadrature.
+    pub quadtree: QuadtreeParams,
+}
+
+impl ShellParams {
+    /// Cells of `resolution` on the surface, the quadratic basis, one
+    /// ring of exterior leaves and supports of `eta = 4` cells: a
+    /// quadratic fit needs three nodes along each axis over every point,
+    /// the domain's corners included.
+    pub fn new(resolution: Real) -> Self {
+        Self {
+            order: Order::Quadratic,
+            quadtree: QuadtreeParams {
+                eta: 4.0,
+                exterior: 1,
+                ..QuadtreeParams::new(resolution)
+            },
+        }
+    }
+}
+
+/// One shape function's value and derivatives at a point:
+/// `N, N_,1, N_,2, N_,11, N_,22, N_,12`.
+pub type ShapeRow = [Real; 6];
+
+/// The nodes whose supports hold a point, with their shape functions
+/// there.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Stencil {
+    /// Node indices, ascending.
+    pub nodes: Vec<u32>,
+    /// Each node's [`ShapeRow`].
+    pub rows: Vec<ShapeRow>,
+}
+
+impl Stencil {
+    /// The surface's local unknowns at this point (`x_,1`, `x_,2`,
+    /// `x_,11`, `x_,22`, `x_,12`) for nodal values `x`.
+    pub fn local(&self, x: &[Vector]) -> Local {
+        let mut q = [Vector::zeros(); 5];
+        for (&k, row) in self.nodes.iter().zip(&self.rows) {
+            let xk = &x[k as usize];
+            for (s, qs) in q.iter_mut().enumerate() {
+                *qs += row[s + 1] * xk;
+            }
+        }
+        q
+    }
+
+    /// The interpolated value `sum_I N_I x_I`.
+    pub fn value(&self, x: &[Vector]) -> Vector {
+        self.nodes
+            .iter()
+            .zip(&self.rows)
+            .map(|(&k, row)| row[0] * x[k as usize])
+            .sum()
+    }
+}
+
+/// A quadrature point of the middle surface.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SurfacePoint {
+    /// Where, in the parametric domain.
+    pub at: Point2,
+    /// Parametric area it stands for; the reference area is
+    /// `weight * reference.area`.
+    pub weight: Real,
+    /// Its shape functions.
+    pub stencil: Stencil,
+    /// The reference surface there.
+    pub reference: Reference,
+}
+
+/// A shell discretised on one chart (see the module's documentation).
+#[derive(Debug, Clone)]
+pub struct ShellModel {
+    tree: Quadtree,
+    material: Material,
+    order: Order,
+    /// Nodes in the parametric plane, as 3-vectors with zero `z` (the MLS
+    /// routines' points).
+    nodes: Vec<Vector>,
+    /// Half the side of each node's support.
+    half: Vec<Real>,
+    /// Reference nodal positions `X_I`.
+    reference: Vec<Vector>,
+    points: Vec<SurfacePoint>,
+}
+
+impl ShellModel {
+    /// Discretises the chart `surface`, whose domain lies in the box
+    /// `lo..hi`, with `params`, for a shell of `material`; checks `cancel`
+    /// as it goes.
+    ///
+    /// # Errors
+    /// [`ShellError`]: a material or parameter out of range, the
+    /// quadtree's refusals, a point whose supports cannot carry the basis
+    /// (raise `eta`), a reference surface the projection cannot fit or
+    /// that folds, cancellation.
+    pub fn new(
+        surface: &impl ShellSurface,
+        lo: Point2,
+        hi: Point2,
+        material: Material,
+        params: &ShellParams,
+        cancel: &Cancel,
+    ) -> Result<Self, ShellError> {
+        material.validate()?;
+        if params.order == Order::Constant {
+            return Err(ShellError::ConstantBasis);
+        }
+        let tree = Quadtree::build(surface, lo, hi, &params.quadtree, cancel)?;
+        let nodes: Vec<Vector> = tree
+            .nodes()
+            .iter()
+            .map(|u| Vector::new(u[0], u[1], 0.0))
+            .collect();
+        let half = (0..nodes.len()).map(|k| tree.half_width(k)).collect();
+        let mut model = Self {
+            tree,
+            material,
+            order: params.order,
+            nodes,
+            half,
+            reference: Vec::new(),
+            points: Vec::new(),
+        };
+        let gauss = model.tree.gauss_points().to_vec();
+        let stencils: Vec<(Point2, Real, Stencil)> = gauss
+            .par_iter()
+            .map(|g| {
+                cancel.check().map_err(|_| ShellError::Cancelled)?;
+                Ok((g.at, g.weight, model.stencil(g.at)?))
+            })
+            .collect::<Result<_, ShellError>>()?;
+        model.reference = model.project(surface, &stencils)?;
+        let (young, poisson) = (material.young, material.poisson);
+        model.points = stencils
+            .into_par_iter()
+            .map(|(at, weight, stencil)| {
+                let reference = Reference::new(&stencil.local(&model.reference), young, poisson)
+                    .ok_or(ShellError::Degenerate { at })?;
+                Ok(SurfacePoint {
+                    at,
+                    weight,
+                    stencil,
+                    reference,
+                })
+            })
+            .collect::<Result<_, ShellError>>()?;
+        Ok(model)
+    }
+
+    /// The shell's material.
+    pub fn material(&self) -> &Material {
+        &self.material
+    }
+
+    /// The quadtree the nodes come from.
+    pub fn tree(&self) -> &Quadtree {
+        &self.tree
+    }
+
+    /// Number of nodes.
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Reference nodal positions `X_I` (not points of the surface: the
+    /// surface is `sum_I N_I X_I`).
+    pub fn reference(&self) -> &[Vector] {
+        &self.reference
+    }
+
+    /// The quadrature points.
+    pub fn points(&self) -> &[SurfacePoint] {
+        &self.points
+    }
+
+    /// The shape functions at `u`.
+    ///
+    /// # Errors
+    /// [`ShellError::Outside`] outside every leaf, or
+    /// [`ShellError::Undersupported`] where the nodes covering `u` cannot
+    /// carry the basis.
+    pub fn stencil(&self, u: Point2) -> Result<Stencil, ShellError> {
+        let leaf = self.tree.leaf_of(u).ok_or(ShellError::Outside { at: u })?;
+        let near: Vec<u32> = self.tree.covering(u).collect();
+        let positions: Vec<Vector> = near.iter().map(|&k| self.nodes[k as usize]).collect();
+        let mls = Mls::new(2, MlsParams::new(self.order, self.half[leaf]))
+            .map_err(|_| ShellError::Outside { at: u })?;
+        let mut shapes = ShapeHessians::new();
+        let undersupported = ShellError::Undersupported {
+            at: u,
+            supports: near.len(),
+        };
+        let fit = mls
+            .shape_hessians_weighted(
+                &Vector::new(u[0], u[1], 0.0),
+                &positions,
+                |i, d| {
+                    let h = self.half[near[i] as usize];
+                    tensor_weight_hessian(2, d, &[h; 3])
+                },
+                &mut shapes,
+            )
+            .map_err(|_| undersupported.clone())?;
+        if fit.order != self.order {
+            return Err(undersupported);
+        }
+        let rows = (0..near.len())
+            .map(|i| {
+                let (g, h) = (shapes.gradients()[i], shapes.hessians()[i]);
+                [
+                    shapes.values()[i],
+                    g[0],
+                    g[1],
+                    h[(0, 0)],
+                    h[(1, 1)],
+                    h[(0, 1)],
+                ]
+            })
+            .collect();
+        Ok(Stencil { nodes: near, rows })
+    }
+
+    /// The sparsity of a matrix coupling the nodes that share a stencil,
+    /// in 3 x 3 blocks.
+    pub(super) fn pattern<'a>(
+        &self,
+        stencils: impl Iterator<Item = &'a Stencil>,
+    ) -> Result<BlockPattern, ShellError> {
+        let mut columns: Vec<Vec<u32>> = (0..self.nodes.len() as u32).map(|n| vec![n]).collect();
+        for s in stencils {
+            for (a, &n) in s.nodes.iter().enumerate() {
+                columns[n as usize].extend_from_slice(&s.nodes[a + 1..]);
+            }
+        }
+        for c in &mut columns {
+            c[1..].sort_unstable();
+            c.dedup();
+        }
+        BlockPattern::new(3, &columns).ok_or(ShellError::TooLarge {
+            nodes: self.nodes.len(),
+        })
+    }
+
+    /// Nodal positions whose interpolant is the L2 projection of the
+    /// surface (see the module's documentation).
+    fn project(
+        &self,
+        surface: &impl ShellSurface,
+        stencils: &[(Point2, Real, Stencil)],
+    ) -> Result<Vec<Vector>, ShellError> {
+        let pattern = self.pattern(stencils.iter().map(|(_, _, s)| s))?;
+        let mut touching: Vec<Vec<(u32, u32)>> = vec![Vec::new(); self.nodes.len()];
+        for (p, (_, _, s)) in stencils.iter().enumerate() {
+            for (a, &n) in s.nodes.iter().enumerate() {
+                touching[n as usize].push((p as u32, a as u32));
+            }
+        }
+        let mut rhs = vec![0.0; 3 * self.nodes.len()];
+        for (at, weight, s) in stencils {
+            let x = surface.position(*at);
+            for (&k, row) in s.nodes.iter().zip(&s.rows) {
+                for c in 0..3 {
+                    rhs[3 * k as usize + c] += weight * row[0] * x[c];
+                }
+            }
+        }
+        let mut solver = SparseCholesky::default();
+        let solution = solver
+            .solve(
+                &pattern,
+                |n, column| {
+                    for &(p, a) in &touching[n] {
+                        let (_, weight, s) = &stencils[p as usize];
+                        let na = weight * s.rows[a as usize][0];
+                        for (&m, row) in s.nodes.iter().zip(&s.rows).skip(a as usize) {
+                            if let Some(slot) = column.slot(m) {
+                                for c in 0..3 {
+                                    column.add(slot, c, c, na * row[0]);
+                                }
+                            }
+                        }
+                    }
+                },
+                rhs,
+            )
+            .ok_or(ShellError::Projection)?;
+        Ok(solution
+            .chunks_exact(3)
+            .map(|c| Vector::new(c[0], c[1], c[2]))
+            .collect())
+    }
+}
