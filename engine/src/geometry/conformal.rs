@@ -38,6 +38,7 @@ use super::TriMesh;
 use super::quadtree::{ChartDomain, Point2};
 use crate::linalg::sparse::{BlockPattern, SparseCholesky};
 use crate::math::{Real, Vector};
+use grid::ChartGrid;
 
 /// Why a patch could not be charted. Each message says what to change.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -109,6 +110,9 @@ pub struct ConformalChart {
     lambda_vertices: Vec<Real>,
     distortion: Distortion,
     boundary: Vec<[u32; 2]>,
+    /// The patch's vertices on the surface.
+    positions: Vec<Vector>,
+    grid: ChartGrid,
     lo: Point2,
     hi: Point2,
 }
@@ -268,6 +272,49 @@ impl ConformalChart {
         (self.lo, self.hi)
     }
 
+    /// The patch's boundary edges, as vertex pairs.
+    pub fn boundary(&self) -> &[[u32; 2]] {
+        &self.boundary
+    }
+
+    /// The triangle holding `u` and `u`'s barycentric weights in it.
+    pub fn locate(&self, u: Point2) -> Option<(usize, [Real; 3])> {
+        self.grid.triangles_at(u).iter().find_map(|&t| {
+            let tri = self.triangles[t as usize];
+            let [a, b, c] = tri.map(|k| self.uv[k as usize]);
+            barycentric(u, a, b, c).map(|w| (t as usize, w))
+        })
+    }
+
+    /// The point of the surface patch at `u`: interpolated in the
+    /// triangle holding it, or at the nearest point of the boundary for a
+    /// point just outside (a Gauss point on the boundary, rounded).
+    pub fn surface_point(&self, u: Point2) -> Vector {
+        if let Some((t, w)) = self.locate(u) {
+            let tri = self.triangles[t];
+            return (0..3).map(|k| w[k] * self.positions[tri[k] as usize]).sum();
+        }
+        let edge = match self.grid.nearest_edge(u, |e| self.edge_distance(u, e)) {
+            Ok((e, _)) => e,
+            Err(_) => (0..self.boundary.len() as u32)
+                .min_by(|&a, &b| {
+                    self.edge_distance(u, a)
+                        .total_cmp(&self.edge_distance(u, b))
+                })
+                .unwrap_or(0),
+        };
+        let Some(&[a, b]) = self.boundary.get(edge as usize) else {
+            return Vector::zeros();
+        };
+        let t = segment_parameter(u, self.uv[a as usize], self.uv[b as usize]);
+        (1.0 - t) * self.positions[a as usize] + t * self.positions[b as usize]
+    }
+
+    fn edge_distance(&self, u: Point2, e: u32) -> Real {
+        let [a, b] = self.boundary[e as usize];
+        segment_distance(u, self.uv[a as usize], self.uv[b as usize])
+    }
+
     fn measure(mesh: &TriMesh, uv: Vec<Point2>) -> Result<Self, ChartError> {
         let n = mesh.vertices.len();
         let (mut angle_max, mut angle_sum, mut area_sum) = (1.0 as Real, 0.0, 0.0);
@@ -324,8 +371,11 @@ impl ConformalChart {
                 hi[a] = hi[a].max(p[a]);
             }
         }
+        let boundary = boundary_edges(&mesh.triangles);
         Ok(Self {
-            boundary: boundary_edges(&mesh.triangles),
+            grid: ChartGrid::new(&uv, &mesh.triangles, &boundary),
+            boundary,
+            positions: mesh.vertices.clone(),
             triangles: mesh.triangles.clone(),
             uv,
             lambda_vertices,
@@ -342,27 +392,15 @@ impl ConformalChart {
 }
 
 /// The chart's domain is its triangles' image: the distance to the image
-/// of the boundary edges, negative inside; `lambda` interpolated in the
-/// triangle holding a point, or the nearest boundary vertex's outside.
-/// Both scan the chart (its boundary, its triangles): a domain for tests
-/// and small charts, not for a 50k-point surface (a grid over the
-/// triangles would be its index).
+/// of the boundary edges, negative inside a triangle; `lambda`
+/// interpolated in the triangle holding a point, or the nearest boundary
+/// vertex's outside. Both read the chart's grid, a few cells per query.
 impl ChartDomain for ConformalChart {
     fn distance(&self, u: Point2) -> Real {
-        let mut nearest = Real::INFINITY;
-        let mut crossings = 0;
-        for &[a, b] in &self.boundary {
-            let (p, q) = (self.uv[a as usize], self.uv[b as usize]);
-            nearest = nearest.min(segment_distance(u, p, q));
-            // Even-odd crossings of the ray from u along +u.
-            if (p[1] > u[1]) != (q[1] > u[1]) {
-                let x = p[0] + (u[1] - p[1]) / (q[1] - p[1]) * (q[0] - p[0]);
-                if x > u[0] {
-                    crossings += 1;
-                }
-            }
-        }
-        if crossings % 2 == 1 {
+        let nearest = match self.grid.nearest_edge(u, |e| self.edge_distance(u, e)) {
+            Ok((_, d)) | Err(d) => d,
+        };
+        if self.locate(u).is_some() {
             -nearest
         } else {
             nearest
@@ -370,24 +408,24 @@ impl ChartDomain for ConformalChart {
     }
 
     fn lambda(&self, u: Point2) -> Real {
-        for tri in &self.triangles {
-            let [a, b, c] = tri.map(|k| self.uv[k as usize]);
-            if let Some(w) = barycentric(u, a, b, c) {
-                return tri
-                    .iter()
-                    .zip(w)
-                    .map(|(k, w)| w * self.lambda_vertices[*k as usize])
-                    .sum();
-            }
+        if let Some((t, w)) = self.locate(u) {
+            let tri = self.triangles[t];
+            return (0..3)
+                .map(|k| w[k] * self.lambda_vertices[tri[k] as usize])
+                .sum();
         }
-        let nearest = self.boundary.iter().flat_map(|e| *e).min_by(|&a, &b| {
-            let d = |k: u32| {
-                let p = self.uv[k as usize];
-                (p[0] - u[0]).powi(2) + (p[1] - u[1]).powi(2)
-            };
-            d(a).total_cmp(&d(b))
-        });
-        nearest.map_or(1.0, |k| self.lambda_vertices[k as usize])
+        match self.grid.nearest_edge(u, |e| self.edge_distance(u, e)) {
+            Ok((e, _)) => {
+                let [a, b] = self.boundary[e as usize];
+                let t = segment_parameter(u, self.uv[a as usize], self.uv[b as usize]);
+                (1.0 - t) * self.lambda_vertices[a as usize] + t * self.lambda_vertices[b as usize]
+            }
+            // Far outside: any boundary value continues it.
+            Err(_) => self
+                .boundary
+                .first()
+                .map_or(1.0, |e| self.lambda_vertices[e[0] as usize]),
+        }
     }
 }
 
@@ -452,14 +490,21 @@ fn boundary_edges(triangles: &[[u32; 3]]) -> Vec<[u32; 2]> {
 }
 
 fn segment_distance(u: Point2, p: Point2, q: Point2) -> Real {
+    let t = segment_parameter(u, p, q);
+    let d = [q[0] - p[0], q[1] - p[1]];
+    ((u[0] - p[0] - t * d[0]).powi(2) + (u[1] - p[1] - t * d[1]).powi(2)).sqrt()
+}
+
+/// Where on the segment `p q` the point nearest `u` lies, 0 at `p` and 1
+/// at `q`.
+fn segment_parameter(u: Point2, p: Point2, q: Point2) -> Real {
     let d = [q[0] - p[0], q[1] - p[1]];
     let length = d[0] * d[0] + d[1] * d[1];
-    let t = if length > 0.0 {
+    if length > 0.0 {
         (((u[0] - p[0]) * d[0] + (u[1] - p[1]) * d[1]) / length).clamp(0.0, 1.0)
     } else {
         0.0
-    };
-    ((u[0] - p[0] - t * d[0]).powi(2) + (u[1] - p[1] - t * d[1]).powi(2)).sqrt()
+    }
 }
 
 /// Barycentric weights of `u` in the triangle `a b c`, if it lies inside
@@ -476,5 +521,6 @@ fn barycentric(u: Point2, a: Point2, b: Point2, c: Point2) -> Option<[Real; 3]> 
     (wa >= e && wb >= e && wc >= e).then_some([wa, wb, wc])
 }
 
+mod grid;
 #[cfg(test)]
 mod tests;

@@ -14,12 +14,15 @@
 //!   load steps);
 //! - `vibration.rs`: free vibration, the lowest modes about the
 //!   reference;
+//! - `embedded.rs`: points carried by the shell (an input mesh's
+//!   vertices), and a mesh's conformal chart as a shell's surface;
 //! - `dynamics.rs`: [`ShellDynamics`], implicit time stepping (backward
 //!   Euler or Newmark, Rayleigh damping, Newton per step);
 //! - `error.rs`: [`ShellError`].
 
 mod assembly;
 mod dynamics;
+mod embedded;
 mod error;
 pub mod kirchhoff;
 mod model;
@@ -28,6 +31,7 @@ mod vibration;
 
 pub use assembly::{Load, Support, SupportKind};
 pub use dynamics::{DynamicParams, Integrator, ShellDynamics, ShellEnergy, ShellStep};
+pub use embedded::Embedded;
 pub use error::ShellError;
 pub use model::{Material, ShapeRow, ShellModel, ShellParams, ShellSurface, Stencil, SurfacePoint};
 pub use statics::{StaticParams, StaticSolution};

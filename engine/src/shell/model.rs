@@ -178,6 +178,11 @@ pub struct ShellModel {
     nodes: Vec<Vector>,
     /// Half the side of each node's support.
     half: Vec<Real>,
+    /// Each quadtree node's index among `nodes`, or `u32::MAX` for a node
+    /// dropped because its support holds no quadrature point (an
+    /// exterior leaf's beyond a curved boundary: it would carry nothing,
+    /// and leave the projection singular).
+    of_tree: Vec<u32>,
     /// Reference nodal positions `X_I`.
     reference: Vec<Vector>,
     points: Vec<SurfacePoint>,
@@ -213,6 +218,7 @@ impl ShellModel {
             .collect();
         let half = (0..nodes.len()).map(|k| tree.half_width(k)).collect();
         let mut model = Self {
+            of_tree: (0..nodes.len() as u32).collect(),
             tree,
             material,
             order: params.order,
@@ -229,6 +235,7 @@ impl ShellModel {
                 Ok((g.at, g.weight, model.stencil(g.at)?))
             })
             .collect::<Result<_, ShellError>>()?;
+        let stencils = model.drop_unused(stencils);
         model.reference = model.project(surface, &stencils)?;
         let (young, poisson) = (material.young, material.poisson);
         model.points = stencils
@@ -281,9 +288,14 @@ impl ShellModel {
     /// carry the basis.
     pub fn stencil(&self, u: Point2) -> Result<Stencil, ShellError> {
         let leaf = self.tree.leaf_of(u).ok_or(ShellError::Outside { at: u })?;
-        let near: Vec<u32> = self.tree.covering(u).collect();
+        let near: Vec<u32> = self
+            .tree
+            .covering(u)
+            .map(|k| self.of_tree[k as usize])
+            .filter(|&k| k != u32::MAX)
+            .collect();
         let positions: Vec<Vector> = near.iter().map(|&k| self.nodes[k as usize]).collect();
-        let mls = Mls::new(2, MlsParams::new(self.order, self.half[leaf]))
+        let mls = Mls::new(2, MlsParams::new(self.order, self.tree.half_width(leaf)))
             .map_err(|_| ShellError::Outside { at: u })?;
         let mut shapes = ShapeHessians::new();
         let undersupported = ShellError::Undersupported {
@@ -318,6 +330,40 @@ impl ShellModel {
             })
             .collect();
         Ok(Stencil { nodes: near, rows })
+    }
+
+    /// Drops the nodes no quadrature point's stencil holds (see
+    /// `of_tree`), renumbering the others in `stencils`.
+    fn drop_unused(
+        &mut self,
+        mut stencils: Vec<(Point2, Real, Stencil)>,
+    ) -> Vec<(Point2, Real, Stencil)> {
+        let mut used = vec![false; self.nodes.len()];
+        for (_, _, s) in &stencils {
+            for &k in &s.nodes {
+                used[k as usize] = true;
+            }
+        }
+        if used.iter().all(|&u| u) {
+            return stencils;
+        }
+        let mut next = 0u32;
+        for (map, &u) in self.of_tree.iter_mut().zip(&used) {
+            *map = if u {
+                next += 1;
+                next - 1
+            } else {
+                u32::MAX
+            };
+        }
+        retain_used(&mut self.nodes, &used);
+        retain_used(&mut self.half, &used);
+        for (_, _, s) in &mut stencils {
+            for k in &mut s.nodes {
+                *k = self.of_tree[*k as usize];
+            }
+        }
+        stencils
     }
 
     /// The sparsity of a matrix coupling the nodes that share a stencil,
@@ -389,4 +435,13 @@ impl ShellModel {
             .map(|c| Vector::new(c[0], c[1], c[2]))
             .collect())
     }
+}
+
+/// Keeps the entries of `v` whose `used` is true, in order.
+fn retain_used<T>(v: &mut Vec<T>, used: &[bool]) {
+    let mut k = 0;
+    v.retain(|_| {
+        k += 1;
+        used[k - 1]
+    });
 }

@@ -159,3 +159,49 @@ fn patches_that_are_not_disks_are_refused() {
         ChartError::Degenerate { .. }
     ));
 }
+
+/// The grid's answers are the whole chart's: the signed distance to the
+/// boundary (exact near it, a lower bound far out), the triangle under a
+/// point, and the surface point there (each vertex at its own place).
+#[test]
+fn the_grid_answers_as_a_scan_of_the_chart() {
+    let mesh = grid(30, 20, 0.4, |s, t| {
+        Vector::new(s, t, 0.3 * (2.0 * s).sin() * t)
+    });
+    let chart = ConformalChart::new(&mesh).expect("a disk");
+    let (lo, hi) = chart.bounds();
+    let scan = |u: Point2| {
+        let nearest = chart
+            .boundary()
+            .iter()
+            .map(|&[a, b]| segment_distance(u, chart.uv()[a as usize], chart.uv()[b as usize]))
+            .fold(Real::INFINITY, Real::min);
+        let inside = mesh.triangles.iter().any(|t| {
+            let [a, b, c] = t.map(|k| chart.uv()[k as usize]);
+            barycentric(u, a, b, c).is_some()
+        });
+        if inside { -nearest } else { nearest }
+    };
+    let span = [hi[0] - lo[0], hi[1] - lo[1]];
+    for i in 0..=40 {
+        for j in 0..=40 {
+            let u = [
+                lo[0] - 0.5 * span[0] + 2.0 * span[0] * i as Real / 40.0,
+                lo[1] - 0.5 * span[1] + 2.0 * span[1] * j as Real / 40.0,
+            ];
+            let (fast, slow) = (chart.distance(u), scan(u));
+            assert_eq!(fast.signum(), slow.signum(), "inside or out at {u:?}");
+            assert!(fast.abs() <= slow.abs() + 1e-12, "a bound at {u:?}");
+            if slow.abs() < 0.1 * span[0] {
+                assert!(
+                    (fast - slow).abs() < 1e-12,
+                    "{fast} against {slow} at {u:?}"
+                );
+            }
+        }
+    }
+    for (v, p) in mesh.vertices.iter().enumerate() {
+        let at = chart.surface_point(chart.uv()[v]);
+        assert!((at - p).norm() < 1e-9, "vertex {v}: {at} against {p}");
+    }
+}

@@ -1,0 +1,194 @@
+//! Thin shells against the class of Guo–Qin's Table 2 (about 400-520
+//! nodes and 40,000-50,000 surface points; 20-26 ms per frame and 62-100 s
+//! of parameterisation on their 2006 machine).
+//!
+//! The surface is a spherical cap of radius 1 and 100 degrees of arc,
+//! given as a triangle mesh of about 50,000 vertices (a jittered grid
+//! over the cap, so the chart's triangles are not all alike); the shell
+//! (t = 0.01, E = 1e6, nu = 0.3, rho = 1000) is clamped along its rim and
+//! falls under gravity. The precompute stages are timed one by one: the
+//! least-squares conformal chart, the discretisation (quadtree, stencils,
+//! the reference surface's projection), the embedding of every vertex,
+//! and the dynamic system's assembly (supports, pattern, the initial
+//! acceleration). Then each frame of h = 1/60 s by backward Euler: the
+//! Newton step and the surface update (every vertex moved and its
+//! normal), medians over the frames. Prints a table; asserts nothing.
+//!
+//!     cargo bench -p meshless-engine --bench shell
+
+use meshless_engine::cancel::Cancel;
+use meshless_engine::geometry::TriMesh;
+use meshless_engine::geometry::conformal::ConformalChart;
+use meshless_engine::math::{Real, Vector};
+use meshless_engine::shell::{
+    DynamicParams, Load, Material, ShellDynamics, ShellModel, ShellParams, SupportKind,
+};
+use std::time::Instant;
+
+#[path = "common/smoke.rs"]
+mod smoke;
+
+/// A spherical cap of radius 1 and half-angle `half`, as `n x n`
+/// jittered grid quads over the polar disk, each split in two.
+fn cap(n: usize, half: Real) -> TriMesh {
+    let mut vertices = Vec::with_capacity((n + 1) * (n + 1));
+    for j in 0..=n {
+        for i in 0..=n {
+            let (mut s, mut t) = (i as Real / n as Real, j as Real / n as Real);
+            if i > 0 && i < n && j > 0 && j < n {
+                s += 0.3 * (((i * 7919 + j * 104_729) % 1000) as Real / 1000.0 - 0.5) / n as Real;
+                t += 0.3 * (((i * 104_729 + j * 7919) % 997) as Real / 997.0 - 0.5) / n as Real;
+            }
+            // The square onto the disk (Shirley's concentric map keeps
+            // the cells near square), then onto the sphere.
+            let (a, b) = (2.0 * s - 1.0, 2.0 * t - 1.0);
+            let (r, phi) = if a.abs() > b.abs() {
+                (a, std::f64::consts::FRAC_PI_4 * b / a)
+            } else if b != 0.0 {
+                (
+                    b,
+                    std::f64::consts::FRAC_PI_2 - std::f64::consts::FRAC_PI_4 * a / b,
+                )
+            } else {
+                (0.0, 0.0)
+            };
+            let polar = r.abs() * half;
+            let azimuth = if r < 0.0 {
+                phi + std::f64::consts::PI
+            } else {
+                phi
+            };
+            vertices.push(Vector::new(
+                polar.sin() * azimuth.cos(),
+                polar.sin() * azimuth.sin(),
+                polar.cos(),
+            ));
+        }
+    }
+    let id = |i: usize, j: usize| (j * (n + 1) + i) as u32;
+    let mut triangles = Vec::with_capacity(2 * n * n);
+    for j in 0..n {
+        for i in 0..n {
+            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    TriMesh {
+        vertices,
+        triangles,
+    }
+}
+
+fn ms(since: Instant) -> f64 {
+    since.elapsed().as_secs_f64() * 1e3
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    let (grid, resolution, frames) = smoke::pick((223, 0.13, 30), (30, 0.4, 2));
+    let material = Material {
+        thickness: 0.01,
+        density: 1000.0,
+        young: 1.0e6,
+        poisson: 0.3,
+    };
+    let mesh = cap(grid, 50.0_f64.to_radians());
+    let cancel = Cancel::new();
+
+    let start = Instant::now();
+    let chart = ConformalChart::new(&mesh).expect("the cap is a disk");
+    let chart_ms = ms(start);
+
+    let start = Instant::now();
+    let (lo, hi) = chart.bounds();
+    let model = ShellModel::new(
+        &chart,
+        lo,
+        hi,
+        material,
+        &ShellParams::new(resolution),
+        &cancel,
+    )
+    .expect("the cap discretises");
+    let discretise_ms = ms(start);
+
+    let start = Instant::now();
+    let embedded = model
+        .embed(chart.uv(), &mesh.vertices)
+        .expect("every vertex on the chart");
+    let embed_ms = ms(start);
+
+    let start = Instant::now();
+    let uv = chart.uv();
+    let mut supports = Vec::new();
+    for &[a, b] in chart.boundary() {
+        supports.extend(
+            model
+                .edge_supports(
+                    uv[a as usize],
+                    uv[b as usize],
+                    1,
+                    &[
+                        SupportKind::Displacement(Vector::x()),
+                        SupportKind::Displacement(Vector::y()),
+                        SupportKind::Displacement(Vector::z()),
+                    ],
+                )
+                .expect("on the chart"),
+        );
+    }
+    let gravity = Load {
+        per_area: Vector::new(0.0, 0.0, -9.81 * material.density * material.thickness),
+        ..Load::default()
+    };
+    let nodes = model.node_count();
+    let points = model.points().len();
+    let mut dynamics =
+        ShellDynamics::new(model, &supports, &gravity, DynamicParams::new(1.0 / 60.0))
+            .expect("dynamics");
+    let assemble_ms = ms(start);
+
+    let (mut steps, mut surfaces, mut iterations) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..frames {
+        let start = Instant::now();
+        let step = dynamics.step(&cancel).expect("a step");
+        steps.push(ms(start));
+        iterations.push(step.iterations as f64);
+        let start = Instant::now();
+        let moved = embedded.positions(dynamics.displacement());
+        let x: Vec<Vector> = dynamics
+            .model()
+            .reference()
+            .iter()
+            .zip(dynamics.displacement())
+            .map(|(x, u)| x + u)
+            .collect();
+        let normals = embedded.normals(&x);
+        surfaces.push(ms(start));
+        std::hint::black_box((moved, normals));
+    }
+    println!(
+        "shell cap: {} vertices, {nodes} nodes, {points} Gauss points, {} threads",
+        mesh.vertices.len(),
+        rayon::current_num_threads()
+    );
+    println!("| stage | ms |");
+    println!("|---|---:|");
+    println!("| conformal chart | {chart_ms:.0} |");
+    println!("| discretisation | {discretise_ms:.0} |");
+    println!("| embedding | {embed_ms:.0} |");
+    println!("| supports and assembly | {assemble_ms:.0} |");
+    println!(
+        "| frame: step (median of {frames}, {} Newton iterations) | {:.1} |",
+        median(iterations),
+        median(steps.clone())
+    );
+    println!(
+        "| frame: surface update (median) | {:.1} |",
+        median(surfaces)
+    );
+}
