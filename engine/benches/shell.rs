@@ -31,52 +31,37 @@ mod smoke;
 /// A spherical cap of radius 1 and half-angle `half`, as `n x n`
 /// jittered grid quads over the polar disk, each split in two.
 fn cap(n: usize, half: Real) -> TriMesh {
-    let mut vertices = Vec::with_capacity((n + 1) * (n + 1));
-    for j in 0..=n {
-        for i in 0..=n {
-            let (mut s, mut t) = (i as Real / n as Real, j as Real / n as Real);
-            if i > 0 && i < n && j > 0 && j < n {
-                s += 0.3 * (((i * 7919 + j * 104_729) % 1000) as Real / 1000.0 - 0.5) / n as Real;
-                t += 0.3 * (((i * 104_729 + j * 7919) % 997) as Real / 997.0 - 0.5) / n as Real;
-            }
-            // The square onto the disk (Shirley's concentric map keeps
-            // the cells near square), then onto the sphere.
-            let (a, b) = (2.0 * s - 1.0, 2.0 * t - 1.0);
-            let (r, phi) = if a.abs() > b.abs() {
-                (a, std::f64::consts::FRAC_PI_4 * b / a)
-            } else if b != 0.0 {
-                (
-                    b,
-                    std::f64::consts::FRAC_PI_2 - std::f64::consts::FRAC_PI_4 * a / b,
-                )
-            } else {
-                (0.0, 0.0)
-            };
-            let polar = r.abs() * half;
-            let azimuth = if r < 0.0 {
-                phi + std::f64::consts::PI
-            } else {
-                phi
-            };
-            vertices.push(Vector::new(
-                polar.sin() * azimuth.cos(),
-                polar.sin() * azimuth.sin(),
-                polar.cos(),
-            ));
+    TriMesh::grid(n, n, |i, j| {
+        let (mut s, mut t) = (i as Real / n as Real, j as Real / n as Real);
+        if i > 0 && i < n && j > 0 && j < n {
+            s += 0.3 * (((i * 7919 + j * 104_729) % 1000) as Real / 1000.0 - 0.5) / n as Real;
+            t += 0.3 * (((i * 104_729 + j * 7919) % 997) as Real / 997.0 - 0.5) / n as Real;
         }
-    }
-    let id = |i: usize, j: usize| (j * (n + 1) + i) as u32;
-    let mut triangles = Vec::with_capacity(2 * n * n);
-    for j in 0..n {
-        for i in 0..n {
-            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
-    TriMesh {
-        vertices,
-        triangles,
-    }
+        // The square onto the disk (Shirley's concentric map keeps the
+        // cells near square), then onto the sphere.
+        let (a, b) = (2.0 * s - 1.0, 2.0 * t - 1.0);
+        let (r, phi) = if a.abs() > b.abs() {
+            (a, std::f64::consts::FRAC_PI_4 * b / a)
+        } else if b != 0.0 {
+            (
+                b,
+                std::f64::consts::FRAC_PI_2 - std::f64::consts::FRAC_PI_4 * a / b,
+            )
+        } else {
+            (0.0, 0.0)
+        };
+        let polar = r.abs() * half;
+        let azimuth = if r < 0.0 {
+            phi + std::f64::consts::PI
+        } else {
+            phi
+        };
+        Vector::new(
+            polar.sin() * azimuth.cos(),
+            polar.sin() * azimuth.sin(),
+            polar.cos(),
+        )
+    })
 }
 
 fn ms(since: Instant) -> f64 {

@@ -90,11 +90,31 @@ fn scordelis_lo(cells: Real) -> Real {
             .edge_supports([-HALF_ARC, LENGTH], [HALF_ARC, LENGTH], pieces, &diaphragm)
             .expect("on the chart"),
     );
-    // The diaphragms leave the roof free to slide along its axis: hold
-    // the crown of one end (the load is symmetric; it carries nothing).
+    let solution = roof_under_self_weight(&model, supports, [0.0, 0.0], LENGTH / cells);
+    let at_edge = model
+        .displacement_at([HALF_ARC, 0.5 * LENGTH], &solution.displacement)
+        .expect("on the chart");
+    eprintln!(
+        "Scordelis-Lo, {cells} cells along the roof: {} nodes, edge sags {:.4}",
+        model.node_count(),
+        -at_edge[2]
+    );
+    -at_edge[2]
+}
+
+/// The roof's linear static solution under its self weight, held by
+/// `supports` and at the crown of one end, `crown`, along its axis: the
+/// diaphragms leave it free to slide that way (the load is symmetric; the
+/// hold carries nothing). `cell` is the length that hold stands for.
+fn roof_under_self_weight(
+    model: &ShellModel,
+    mut supports: Vec<Support>,
+    crown: Point2,
+    cell: Real,
+) -> meshless_engine::shell::StaticSolution {
     supports.push(Support {
-        at: [0.0, 0.0],
-        length: LENGTH / cells,
+        at: crown,
+        length: cell,
         kind: SupportKind::Displacement(Vector::y()),
     });
     let load = Load {
@@ -105,18 +125,9 @@ fn scordelis_lo(cells: Real) -> Real {
         linear: true,
         ..StaticParams::default()
     };
-    let solution = model
+    model
         .solve_static(&load, &supports, &params, &Cancel::new())
-        .expect("the roof is supported");
-    let at_edge = model
-        .displacement_at([HALF_ARC, 0.5 * LENGTH], &solution.displacement)
-        .expect("on the chart");
-    eprintln!(
-        "Scordelis-Lo, {cells} cells along the roof: {} nodes, edge sags {:.4}",
-        model.node_count(),
-        -at_edge[2]
-    );
-    -at_edge[2]
+        .expect("the roof is supported")
 }
 
 /// The free edge's midpoint sags towards MacNeal & Harder's 0.3024 as the
@@ -296,28 +307,12 @@ fn a_clamped_circular_plate_stiffens_as_it_stretches() {
 /// The Scordelis–Lo roof as a triangle mesh of `across x along` quads,
 /// each split in two.
 fn roof_mesh(across: usize, along: usize) -> TriMesh {
-    let mut vertices = Vec::new();
-    for j in 0..=along {
-        for i in 0..=across {
-            let u = [
-                -HALF_ARC + 2.0 * HALF_ARC * i as Real / across as Real,
-                LENGTH * j as Real / along as Real,
-            ];
-            vertices.push(Roof.position(u));
-        }
-    }
-    let id = |i: usize, j: usize| (j * (across + 1) + i) as u32;
-    let mut triangles = Vec::new();
-    for j in 0..along {
-        for i in 0..across {
-            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
-    TriMesh {
-        vertices,
-        triangles,
-    }
+    TriMesh::grid(across, along, |i, j| {
+        Roof.position([
+            -HALF_ARC + 2.0 * HALF_ARC * i as Real / across as Real,
+            LENGTH * j as Real / along as Real,
+        ])
+    })
 }
 
 /// The roof from its mesh, as a shell is given one: charted by the
@@ -366,23 +361,7 @@ fn a_meshed_roof_sags_through_its_conformal_chart() {
             );
         }
     }
-    let crown = across / 2;
-    supports.push(Support {
-        at: uv[crown],
-        length: LENGTH / 32.0,
-        kind: SupportKind::Displacement(Vector::y()),
-    });
-    let load = Load {
-        per_area: Vector::new(0.0, 0.0, -90.0),
-        ..Load::default()
-    };
-    let params = StaticParams {
-        linear: true,
-        ..StaticParams::default()
-    };
-    let solution = model
-        .solve_static(&load, &supports, &params, &Cancel::new())
-        .expect("the roof is supported");
+    let solution = roof_under_self_weight(&model, supports, uv[across / 2], LENGTH / 32.0);
     let edge = (along / 2) * (across + 1) + across;
     let sag = -model
         .displacement_at(uv[edge], &solution.displacement)

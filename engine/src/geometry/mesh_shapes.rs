@@ -6,6 +6,29 @@ use crate::math::{Real, Vector};
 use std::collections::HashMap;
 
 impl TriMesh {
+    /// An open sheet of `nx x ny` quads, each split in two: vertex
+    /// `(i, j)` (for `i <= nx`, `j <= ny`, stored at `j (nx + 1) + i`) at
+    /// `place(i, j)`, the triangles counter-clockwise in `(i, j)`. A
+    /// patch's usual test and benchmark surface (a plane, a roof, a cap).
+    pub fn grid(nx: usize, ny: usize, place: impl Fn(usize, usize) -> Vector) -> TriMesh {
+        let vertices = (0..=ny)
+            .flat_map(|j| (0..=nx).map(move |i| (i, j)))
+            .map(|(i, j)| place(i, j))
+            .collect();
+        let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
+        let mut triangles = Vec::with_capacity(2 * nx * ny);
+        for j in 0..ny {
+            for i in 0..nx {
+                triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+        TriMesh {
+            vertices,
+            triangles,
+        }
+    }
+
     /// The axis-aligned box `[min, max]`: 8 vertices, 12 outward triangles.
     pub fn cuboid(min: Vector, max: Vector) -> TriMesh {
         let vertices = (0..8)

@@ -6,31 +6,16 @@ use crate::geometry::quadtree::{Quadtree, QuadtreeParams};
 /// counter-clockwise, mapped to 3D by `place`; interior vertices are moved
 /// in the parameter plane by up to `jitter` of a cell (a fixed hash).
 fn grid(nx: usize, ny: usize, jitter: Real, place: impl Fn(Real, Real) -> Vector) -> TriMesh {
-    let mut vertices = Vec::new();
-    for j in 0..=ny {
-        for i in 0..=nx {
-            let (mut s, mut t) = (i as Real / nx as Real, j as Real / ny as Real);
-            if i > 0 && i < nx && j > 0 && j < ny {
-                let h = ((i * 7919 + j * 104_729) % 1000) as Real / 1000.0 - 0.5;
-                let g = ((i * 104_729 + j * 7919) % 997) as Real / 997.0 - 0.5;
-                s += jitter * h / nx as Real;
-                t += jitter * g / ny as Real;
-            }
-            vertices.push(place(s, t));
+    TriMesh::grid(nx, ny, |i, j| {
+        let (mut s, mut t) = (i as Real / nx as Real, j as Real / ny as Real);
+        if i > 0 && i < nx && j > 0 && j < ny {
+            let h = ((i * 7919 + j * 104_729) % 1000) as Real / 1000.0 - 0.5;
+            let g = ((i * 104_729 + j * 7919) % 997) as Real / 997.0 - 0.5;
+            s += jitter * h / nx as Real;
+            t += jitter * g / ny as Real;
         }
-    }
-    let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
-    let mut triangles = Vec::new();
-    for j in 0..ny {
-        for i in 0..nx {
-            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
-    TriMesh {
-        vertices,
-        triangles,
-    }
+        place(s, t)
+    })
 }
 
 /// A tilted plane maps by a similarity: no angle or area distortion,
