@@ -255,7 +255,12 @@ impl ShellModel {
 #[derive(Debug)]
 pub(super) struct Assembly {
     pub(super) pattern: BlockPattern,
-    touching: Vec<Vec<(u32, u32)>>,
+    /// Per node, the items it is in: `(item, a, start)`, the node being
+    /// the item's `a`-th, `slots[start + b - a]` the place in its block
+    /// column of the item's `b`-th node, for every `b >= a` (found once
+    /// here, not by a search per pair and assembly).
+    touching: Vec<Vec<(u32, u32, u32)>>,
+    slots: Vec<u32>,
     constraints: Vec<Constraint>,
     local: Vec<(LocalGradient, LocalHessian)>,
 }
@@ -286,17 +291,31 @@ impl Assembly {
                 .map(|p| &p.stencil)
                 .chain(constraints.iter().map(|c| &c.stencil))
         };
-        let pattern = model.pattern(stencils())?;
-        let mut touching: Vec<Vec<(u32, u32)>> = vec![Vec::new(); model.node_count()];
+        let (pattern, columns) = model.pattern(stencils())?;
+        let mut touching: Vec<Vec<(u32, u32, u32)>> = vec![Vec::new(); model.node_count()];
+        let mut slots = Vec::new();
         for (item, s) in stencils().enumerate() {
             for (a, &n) in s.nodes.iter().enumerate() {
-                touching[n as usize].push((item as u32, a as u32));
+                let start = u32::try_from(slots.len()).map_err(|_| ShellError::TooLarge {
+                    nodes: model.node_count(),
+                })?;
+                touching[n as usize].push((item as u32, a as u32, start));
+                let rows = &columns[n as usize];
+                for m in &s.nodes[a..] {
+                    // Every pair of a stencil is in the pattern (built from
+                    // these stencils).
+                    let slot = rows.binary_search(m).map_err(|_| ShellError::TooLarge {
+                        nodes: model.node_count(),
+                    })?;
+                    slots.push(slot as u32);
+                }
             }
         }
         let local = vec![([0.0; LOCAL], [[0.0; LOCAL]; LOCAL]); points.len()];
         Ok(Self {
             pattern,
             touching,
+            slots,
             constraints,
             local,
         })
@@ -335,28 +354,20 @@ impl Assembly {
     ) {
         let points = model.points();
         let areal_mass = model.material().density * model.material().thickness;
-        for &(item, a) in &self.touching[node] {
+        for &(item, a, start) in &self.touching[node] {
             let (item, a) = (item as usize, a as usize);
+            let slots = &self.slots[start as usize..];
             if let Some(p) = points.get(item) {
                 let w = p.weight * p.reference.area;
-                if stiffness != 0.0 {
-                    add_point_stiffness(column, p, &self.local[item].1, a, stiffness * w);
-                }
-                let m = mass * areal_mass * w * p.stencil.rows[a][0];
-                if m != 0.0 {
-                    for (&k, rb) in p.stencil.nodes.iter().zip(&p.stencil.rows).skip(a) {
-                        let Some(slot) = column.slot(k) else { continue };
-                        for c in 0..3 {
-                            column.add(slot, c, c, m * rb[0]);
-                        }
-                    }
-                }
+                let scales = (stiffness * w, mass * areal_mass * w);
+                add_point_block(column, p, &self.local[item].1, a, scales, slots);
             } else if stiffness != 0.0 {
                 let c = &self.constraints[item - points.len()];
                 let ca = stiffness * c.stiffness * c.coefficients[a];
                 let e = &c.direction;
-                for (&k, cb) in c.stencil.nodes.iter().zip(&c.coefficients).skip(a) {
-                    let Some(slot) = column.slot(k) else { continue };
+                let rest = c.coefficients.iter().skip(a).zip(slots);
+                for (cb, &slot) in rest {
+                    let slot = slot as usize;
                     for alpha in 0..3 {
                         for beta in 0..3 {
                             column.add(slot, alpha, beta, ca * cb * e[alpha] * e[beta]);
@@ -418,34 +429,42 @@ impl Assembly {
     }
 }
 
-/// Adds a point's energy Hessian `hess`, mapped to the nodes and scaled by
-/// `scale`, to the column of its node `a`.
-fn add_point_stiffness(
+/// Adds a point's energy Hessian `hess` mapped to the nodes and its
+/// consistent mass, scaled by `(stiffness, mass)`, to the column of its
+/// node `a`; `slots[b - a]` is node `b`'s place in that column.
+fn add_point_block(
     column: &mut BlockColumn<'_>,
     p: &SurfacePoint,
     hess: &LocalHessian,
     a: usize,
-    scale: Real,
+    (stiffness, mass): (Real, Real),
+    slots: &[u32],
 ) {
     let ra = &p.stencil.rows[a];
     // t[alpha][j] = sum_s N_a,s H[3 s + alpha][j].
     let mut t = [[0.0; LOCAL]; 3];
-    for s in 0..SLOTS {
-        let c = scale * ra[s + 1];
-        if c == 0.0 {
-            continue;
-        }
-        for (alpha, row) in t.iter_mut().enumerate() {
-            for (tj, hj) in row.iter_mut().zip(&hess[3 * s + alpha]) {
-                *tj += c * hj;
+    if stiffness != 0.0 {
+        for s in 0..SLOTS {
+            let c = stiffness * ra[s + 1];
+            if c == 0.0 {
+                continue;
+            }
+            for (alpha, row) in t.iter_mut().enumerate() {
+                for (tj, hj) in row.iter_mut().zip(&hess[3 * s + alpha]) {
+                    *tj += c * hj;
+                }
             }
         }
     }
-    for (&m, rb) in p.stencil.nodes.iter().zip(&p.stencil.rows).skip(a) {
-        let Some(slot) = column.slot(m) else { continue };
+    let ma = mass * ra[0];
+    for (rb, &slot) in p.stencil.rows[a..].iter().zip(slots) {
+        let slot = slot as usize;
         for (alpha, row) in t.iter().enumerate() {
             for beta in 0..3 {
-                let v: Real = (0..SLOTS).map(|s| rb[s + 1] * row[3 * s + beta]).sum();
+                let mut v: Real = (0..SLOTS).map(|s| rb[s + 1] * row[3 * s + beta]).sum();
+                if alpha == beta {
+                    v += ma * rb[0];
+                }
                 column.add(slot, alpha, beta, v);
             }
         }

@@ -235,18 +235,29 @@ pub fn gradient_hessian(
             .sum();
     }
 
-    // Gauss–Newton part: t de^T D de + t^3/12 dk^T D dk.
-    let dm = membrane_stiffness * d;
-    let db = bending_stiffness * d;
-    for r in 0..LOCAL {
-        for c in 0..LOCAL {
-            let mut v = 0.0;
-            for i in 0..3 {
-                for m in 0..3 {
-                    v += de[i][r] * dm[(i, m)] * de[m][c] + dk[i][r] * db[(i, m)] * dk[m][c];
-                }
+    // Gauss–Newton part: t de^T D de + t^3/12 dk^T D dk, through
+    // `(D de)` and `(D dk)` (3 x 15 each) and by symmetry.
+    let mut dde = [[0.0; LOCAL]; 3];
+    let mut ddk = [[0.0; LOCAL]; 3];
+    for i in 0..3 {
+        for m in 0..3 {
+            let (cm, cb) = (
+                membrane_stiffness * d[(i, m)],
+                bending_stiffness * d[(i, m)],
+            );
+            for c in 0..LOCAL {
+                dde[i][c] += cm * de[m][c];
+                ddk[i][c] += cb * dk[m][c];
             }
+        }
+    }
+    for r in 0..LOCAL {
+        for c in r..LOCAL {
+            let v = (0..3)
+                .map(|i| de[i][r] * dde[i][c] + dk[i][r] * ddk[i][c])
+                .sum();
             hess[r][c] = v;
+            hess[c][r] = v;
         }
     }
 

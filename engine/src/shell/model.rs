@@ -368,10 +368,11 @@ impl ShellModel {
 
     /// The sparsity of a matrix coupling the nodes that share a stencil,
     /// in 3 x 3 blocks.
+    /// Also returns each block column's rows (sorted, the diagonal first).
     pub(super) fn pattern<'a>(
         &self,
         stencils: impl Iterator<Item = &'a Stencil>,
-    ) -> Result<BlockPattern, ShellError> {
+    ) -> Result<(BlockPattern, Vec<Vec<u32>>), ShellError> {
         let mut columns: Vec<Vec<u32>> = (0..self.nodes.len() as u32).map(|n| vec![n]).collect();
         for s in stencils {
             for (a, &n) in s.nodes.iter().enumerate() {
@@ -382,9 +383,10 @@ impl ShellModel {
             c[1..].sort_unstable();
             c.dedup();
         }
-        BlockPattern::new(3, &columns).ok_or(ShellError::TooLarge {
+        let pattern = BlockPattern::new(3, &columns).ok_or(ShellError::TooLarge {
             nodes: self.nodes.len(),
-        })
+        })?;
+        Ok((pattern, columns))
     }
 
     /// Nodal positions whose interpolant is the L2 projection of the
@@ -394,7 +396,7 @@ impl ShellModel {
         surface: &impl ShellSurface,
         stencils: &[(Point2, Real, Stencil)],
     ) -> Result<Vec<Vector>, ShellError> {
-        let pattern = self.pattern(stencils.iter().map(|(_, _, s)| s))?;
+        let (pattern, _) = self.pattern(stencils.iter().map(|(_, _, s)| s))?;
         let mut touching: Vec<Vec<(u32, u32)>> = vec![Vec::new(); self.nodes.len()];
         for (p, (_, _, s)) in stencils.iter().enumerate() {
             for (a, &n) in s.nodes.iter().enumerate() {
