@@ -8,8 +8,8 @@ mod shell_charts;
 use meshless_engine::cancel::Cancel;
 use meshless_engine::math::{Real, Vector};
 use meshless_engine::shell::{
-    DynamicParams, Integrator, Load, Material, ShellDynamics, ShellError, ShellModel, ShellParams,
-    StaticParams, Support, SupportKind,
+    DynamicParams, Grab, Integrator, Load, Material, ShellDynamics, ShellError, ShellModel,
+    ShellParams, StaticParams, Support, SupportKind,
 };
 use shell_charts::UnitSquare as Square;
 use std::f64::consts::PI;
@@ -293,4 +293,84 @@ fn bad_shell_inputs_are_refused() {
         )
         .expect_err("nothing holds it");
     assert_eq!(e, ShellError::Singular);
+}
+
+/// A grab pulls the centre of a simply supported plate to its target
+/// (its spring a thousand times the plate's stiffness there: within 1 %),
+/// follows the target as it is dragged, and lets go: the plate returns
+/// to rest. A bad grab is refused and the grabs stay as they were.
+#[test]
+fn a_grab_pulls_drags_and_lets_go() {
+    let cells = 8.0;
+    let model = plate(cells, PLATE);
+    let supports = simply_supported(&model, cells);
+    let period = 2.0 * PI / omega_11(&PLATE);
+    // Huge steps of backward Euler: each lands on the equilibrium.
+    let mut dynamics = ShellDynamics::new(
+        model,
+        &supports,
+        &Load::default(),
+        DynamicParams::new(100.0 * period),
+    )
+    .expect("dynamics");
+    let centre = |d: &ShellDynamics| {
+        d.model()
+            .displacement_at([0.5, 0.5], d.displacement())
+            .expect("the centre")[2]
+    };
+    let settle = |d: &mut ShellDynamics| {
+        for _ in 0..3 {
+            d.step(&Cancel::new()).expect("a step");
+        }
+    };
+    // The plate's own stiffness under a centre load, P / w = D / (0.0116 a^2).
+    let stiffness = 1e3 * PLATE.bending_stiffness() / 0.0116;
+    let lift = 0.1 * PLATE.thickness;
+    dynamics
+        .set_grabs(&[Grab {
+            at: [0.5, 0.5],
+            target: Vector::new(0.5, 0.5, lift),
+            stiffness,
+        }])
+        .expect("a grab");
+    settle(&mut dynamics);
+    let w = centre(&dynamics);
+    eprintln!("grabbed centre at {:.5} of the target", w / lift);
+    assert!((w / lift - 1.0).abs() < 0.01, "{w} against {lift}");
+
+    dynamics
+        .move_grab(0, Vector::new(0.5, 0.5, -lift))
+        .expect("a grab to drag");
+    settle(&mut dynamics);
+    assert!((centre(&dynamics) / -lift - 1.0).abs() < 0.01);
+
+    for bad in [
+        Grab {
+            at: [0.5, 0.5],
+            target: Vector::zeros(),
+            stiffness: -1.0,
+        },
+        Grab {
+            at: [0.5, 0.5],
+            target: Vector::new(Real::NAN, 0.0, 0.0),
+            stiffness,
+        },
+        Grab {
+            at: [7.0, 0.5],
+            target: Vector::zeros(),
+            stiffness,
+        },
+    ] {
+        let e = dynamics.set_grabs(&[bad]).expect_err("a bad grab");
+        eprintln!("refused: {e}");
+    }
+    assert!(dynamics.move_grab(3, Vector::zeros()).is_err());
+    // The drag still holds: the refusals changed nothing.
+    settle(&mut dynamics);
+    assert!((centre(&dynamics) / -lift - 1.0).abs() < 0.01);
+
+    dynamics.set_grabs(&[]).expect("let go");
+    settle(&mut dynamics);
+    let w = centre(&dynamics);
+    assert!(w.abs() < 1e-6 * lift, "released, the plate rests: {w}");
 }

@@ -1,6 +1,8 @@
 //! What the static, vibration and dynamic routes share: loads, supports,
-//! internal forces, and the assembly of the tangent and mass over one
-//! sparse pattern.
+//! grabs, internal forces, and the assembly of the tangent and mass over
+//! one sparse pattern. A grab is a support whose held value is not zero
+//! (the target's offset from the reference), three springs of a given
+//! stiffness, one per axis.
 //!
 //! **Supports are penalties.** A support holds a linear functional of the
 //! displacement at zero: the displacement along a direction, or the slope
@@ -49,6 +51,19 @@ pub struct Support {
     pub kind: SupportKind,
 }
 
+/// A position grab: a spring of `stiffness` (force per length) pulling
+/// the surface's point at `at` to `target` (Guo–Qin 5.3.3's grabs, as a
+/// penalty).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Grab {
+    /// Where, in the parametric domain.
+    pub at: Point2,
+    /// Where the point is pulled.
+    pub target: Vector,
+    /// Spring stiffness.
+    pub stiffness: Real,
+}
+
 /// Loads on a shell, in the reference configuration (dead loads).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Load {
@@ -68,9 +83,12 @@ pub(super) struct Constraint {
     coefficients: Vec<Real>,
     direction: Vector,
     stiffness: Real,
+    /// The value held: zero for a support, a grab's target offset.
+    offset: Real,
 }
 
 impl Constraint {
+    /// `sum_I c_I u_I . direction` (the held value not subtracted).
     pub(super) fn value(&self, u: &[Vector]) -> Real {
         self.stencil
             .nodes
@@ -198,7 +216,38 @@ impl ShellModel {
             coefficients,
             direction,
             stiffness: beta * stiffness * support.length,
+            offset: 0.0,
         })
+    }
+
+    /// A grab's three springs (one per axis), and the reference surface's
+    /// point where it holds.
+    fn grab_constraints(&self, grab: &Grab) -> Result<([Constraint; 3], Vector), ShellError> {
+        if !(grab.stiffness > 0.0 && grab.stiffness.is_finite()) {
+            return Err(ShellError::Parameter {
+                what: "grab stiffness",
+                got: grab.stiffness,
+                range: "a finite value > 0 (force per length)",
+            });
+        }
+        if !grab.target.iter().all(|v| v.is_finite()) {
+            return Err(ShellError::Parameter {
+                what: "grab target",
+                got: Real::NAN,
+                range: "a finite point",
+            });
+        }
+        let stencil = self.stencil(grab.at)?;
+        let rest = stencil.value(self.reference());
+        let coefficients: Vec<Real> = stencil.rows.iter().map(|r| r[0]).collect();
+        let spring = |axis: usize| Constraint {
+            stencil: stencil.clone(),
+            coefficients: coefficients.clone(),
+            direction: Vector::ith(axis, 1.0),
+            stiffness: grab.stiffness,
+            offset: grab.target[axis] - rest[axis],
+        };
+        Ok(([spring(0), spring(1), spring(2)], rest))
     }
 
     /// The internal forces `dU/du_I` at nodal displacements `u`, and the
@@ -261,16 +310,23 @@ pub(super) struct Assembly {
     /// here, not by a search per pair and assembly).
     touching: Vec<Vec<(u32, u32, u32)>>,
     slots: Vec<u32>,
+    /// The supports' penalties, then three springs per grab.
     constraints: Vec<Constraint>,
+    /// Each grab's point of the reference surface.
+    grab_rest: Vec<Vector>,
     local: Vec<(LocalGradient, LocalHessian)>,
+    /// The norm of the supports' and grabs' forces at the last
+    /// [`Self::forces`]: a force scale where they balance the shell.
+    spring_norm: Real,
 }
 
 impl Assembly {
     /// The assembly of `model` held by `supports` with penalty scale
-    /// `beta`.
+    /// `beta`, and pulled by `grabs`.
     pub(super) fn new(
         model: &ShellModel,
         supports: &[Support],
+        grabs: &[Grab],
         beta: Real,
     ) -> Result<Self, ShellError> {
         if !(beta > 0.0 && beta.is_finite()) {
@@ -280,10 +336,16 @@ impl Assembly {
                 range: "a finite value > 0",
             });
         }
-        let constraints = supports
+        let mut constraints = supports
             .iter()
             .map(|s| model.constraint(s, beta))
             .collect::<Result<Vec<_>, _>>()?;
+        let mut grab_rest = Vec::with_capacity(grabs.len());
+        for grab in grabs {
+            let (springs, rest) = model.grab_constraints(grab)?;
+            constraints.extend(springs);
+            grab_rest.push(rest);
+        }
         let points = model.points();
         let stencils = || {
             points
@@ -317,7 +379,9 @@ impl Assembly {
             touching,
             slots,
             constraints,
+            grab_rest,
             local,
+            spring_norm: 0.0,
         })
     }
 
@@ -330,13 +394,22 @@ impl Assembly {
         u: &[Vector],
     ) -> Result<(Vec<Vector>, Real), ShellError> {
         let (mut f, mut energy) = model.evaluate(u, &mut self.local)?;
+        let mut springs = vec![Vector::zeros(); f.len()];
         for c in &self.constraints {
-            let value = c.value(u);
+            let value = c.value(u) - c.offset;
             energy += 0.5 * c.stiffness * value * value;
             let force = c.stiffness * value * c.direction;
             for (&k, ck) in c.stencil.nodes.iter().zip(&c.coefficients) {
-                f[k as usize] += *ck * force;
+                springs[k as usize] += *ck * force;
             }
+        }
+        self.spring_norm = springs
+            .iter()
+            .map(|v| v.norm_squared())
+            .sum::<Real>()
+            .sqrt();
+        for (fk, sk) in f.iter_mut().zip(&springs) {
+            *fk += sk;
         }
         Ok((f, energy))
     }
@@ -426,6 +499,25 @@ impl Assembly {
             }
         }
         out
+    }
+}
+
+impl Assembly {
+    /// See `spring_norm`.
+    pub(super) fn spring_force_norm(&self) -> Real {
+        self.spring_norm
+    }
+
+    /// Moves grab `index`'s target; `false` when there is no such grab.
+    pub(super) fn move_grab(&mut self, index: usize, target: Vector) -> bool {
+        let Some(rest) = self.grab_rest.get(index) else {
+            return false;
+        };
+        let first = self.constraints.len() - 3 * self.grab_rest.len() + 3 * index;
+        for (axis, c) in self.constraints[first..first + 3].iter_mut().enumerate() {
+            c.offset = target[axis] - rest[axis];
+        }
+        true
     }
 }
 

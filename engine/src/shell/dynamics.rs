@@ -26,7 +26,7 @@
 //! stiffness damping's own change with `u` left out). A step that fails
 //! (no convergence, a fold, cancellation) leaves the state as it was.
 
-use super::assembly::{Assembly, Load, Support};
+use super::assembly::{Assembly, Grab, Load, Support};
 use super::error::ShellError;
 use super::model::ShellModel;
 use crate::cancel::Cancel;
@@ -57,8 +57,8 @@ pub struct DynamicParams {
     /// Penalty scale of the supports (as the static route's).
     pub penalty: Real,
     /// Newton stops when the residual is this fraction of the largest of
-    /// the internal, inertial and external forces and the momentum per
-    /// step.
+    /// the internal, inertial, external and support or grab forces (now
+    /// and at the step's start) and the momentum per step.
     pub tolerance: Real,
     /// Most Newton iterations per step.
     pub max_iterations: usize,
@@ -134,7 +134,8 @@ pub struct ShellStep {
 pub struct ShellEnergy {
     /// `1/2 v^T M v`.
     pub kinetic: Real,
-    /// Membrane and bending energy, the supports' penalties included.
+    /// Membrane and bending energy, the supports' and grabs' springs
+    /// included.
     pub strain: Real,
     /// Work the (dead) external load has done, `f_ext . u`.
     pub work: Real,
@@ -144,6 +145,10 @@ pub struct ShellEnergy {
 #[derive(Debug)]
 pub struct ShellDynamics {
     model: ShellModel,
+    /// The largest extent of the reference nodes: the length that
+    /// round-off is measured against.
+    size: Real,
+    supports: Vec<Support>,
     assembly: Assembly,
     load: Vec<Vector>,
     params: DynamicParams,
@@ -179,11 +184,21 @@ impl ShellDynamics {
                 range: "a value > 0 (a shell in motion needs mass)",
             });
         }
-        let assembly = Assembly::new(&model, supports, params.penalty)?;
+        let assembly = Assembly::new(&model, supports, &[], params.penalty)?;
         let load = model.load_vector(load)?;
         let n = model.node_count();
+        let (lo, hi) = model.reference().iter().fold(
+            (
+                Vector::repeat(Real::INFINITY),
+                Vector::repeat(Real::NEG_INFINITY),
+            ),
+            |(lo, hi), x| (lo.inf(x), hi.sup(x)),
+        );
+        let size = (hi - lo).max();
         let mut dynamics = Self {
             model,
+            size,
+            supports: supports.to_vec(),
             assembly,
             load,
             params,
@@ -291,9 +306,11 @@ impl ShellDynamics {
             (a1, v1)
         };
         let mut iterations = 0;
-        loop {
+        let mut start = 0.0;
+        let (u1, a1, v1, iterations, residual) = loop {
             cancel.check().map_err(|_| ShellError::Cancelled)?;
             let (f, _) = self.assembly.forces(&self.model, &u1)?;
+            let springs = self.assembly.spring_force_norm();
             let (a1, v1) = kinematics(&u1);
             let model = &self.model;
             let inertia = self.assembly.product(model, &a1, 0.0, 1.0);
@@ -306,21 +323,21 @@ impl ShellDynamics {
                 .zip(inertia.iter().zip(&damping))
                 .map(|((f, l), (i, c))| f - l + i + c)
                 .collect();
+            // The forces at the step's start stay a scale as the shell
+            // comes to rest (everything else then tends to zero).
+            if iterations == 0 {
+                start = norm(&f).max(springs);
+            }
             let scale = norm(&f)
+                .max(springs)
+                .max(start)
                 .max(momentum)
                 .max(norm(&self.load))
                 .max(norm(&inertia))
                 .max(Real::MIN_POSITIVE);
             let residual = norm(&r) / scale;
             if residual <= p.tolerance {
-                self.displacement = u1;
-                self.velocity = v1;
-                self.acceleration = a1;
-                self.time += h;
-                return Ok(ShellStep {
-                    iterations,
-                    residual,
-                });
+                break (u1, a1, v1, iterations, residual);
             }
             if iterations == p.max_iterations {
                 return Err(ShellError::NotConverged {
@@ -338,10 +355,66 @@ impl ShellDynamics {
                     r.iter().flat_map(|v| [-v[0], -v[1], -v[2]]),
                 )
                 .ok_or(ShellError::Singular)?;
+            let correction = delta.iter().fold(0.0 as Real, |m, d| m.max(d.abs()));
             for (uk, d) in u1.iter_mut().zip(delta.chunks_exact(3)) {
                 *uk += Vector::new(d[0], d[1], d[2]);
             }
             iterations += 1;
+            // A correction at round-off of the shell's size, or a tolerance
+            // of the step's motion, is converged however small the forces
+            // (a shell at rest has no force to measure against).
+            let moved = u1
+                .iter()
+                .zip(u0)
+                .fold(0.0 as Real, |m, (a, b)| m.max((a - b).amax()));
+            if correction <= 1e-12 * self.size || correction <= p.tolerance * moved {
+                let (a1, v1) = kinematics(&u1);
+                break (u1, a1, v1, iterations, residual);
+            }
+        };
+        self.displacement = u1;
+        self.velocity = v1;
+        self.acceleration = a1;
+        self.time += h;
+        Ok(ShellStep {
+            iterations,
+            residual,
+        })
+    }
+
+    /// Replaces the grabs (none to release them all): their points are
+    /// pulled from the next step on. The grabs' sparsity is new, so the
+    /// assembly is rebuilt; to drag a grab, [`Self::move_grab`].
+    ///
+    /// # Errors
+    /// [`ShellError`] for a grab off the chart, a stiffness out of range
+    /// or a target not finite; the grabs are then as they were.
+    pub fn set_grabs(&mut self, grabs: &[Grab]) -> Result<(), ShellError> {
+        self.assembly = Assembly::new(&self.model, &self.supports, grabs, self.params.penalty)?;
+        Ok(())
+    }
+
+    /// Moves grab `index` (in the order [`Self::set_grabs`] was given)
+    /// to `target`.
+    ///
+    /// # Errors
+    /// [`ShellError::Parameter`] for no such grab or a target not finite.
+    pub fn move_grab(&mut self, index: usize, target: Vector) -> Result<(), ShellError> {
+        if !target.iter().all(|v| v.is_finite()) {
+            return Err(ShellError::Parameter {
+                what: "grab target",
+                got: Real::NAN,
+                range: "a finite point",
+            });
+        }
+        if self.assembly.move_grab(index, target) {
+            Ok(())
+        } else {
+            Err(ShellError::Parameter {
+                what: "grab index",
+                got: index as Real,
+                range: "the index of a grab set by set_grabs",
+            })
         }
     }
 

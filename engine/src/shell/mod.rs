@@ -29,7 +29,7 @@ mod model;
 mod statics;
 mod vibration;
 
-pub use assembly::{Load, Support, SupportKind};
+pub use assembly::{Grab, Load, Support, SupportKind};
 pub use dynamics::{DynamicParams, Integrator, ShellDynamics, ShellEnergy, ShellStep};
 pub use embedded::Embedded;
 pub use error::ShellError;

@@ -84,7 +84,7 @@ impl ShellModel {
                 range: "at least 1 each",
             });
         }
-        let mut assembly = Assembly::new(self, supports, params.penalty)?;
+        let mut assembly = Assembly::new(self, supports, &[], params.penalty)?;
         let load = self.load_vector(load)?;
         let load_norm = load.iter().map(|f| f.norm_squared()).sum::<Real>().sqrt();
         let mut u = vec![Vector::zeros(); self.node_count()];

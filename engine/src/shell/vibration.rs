@@ -42,7 +42,7 @@ impl ShellModel {
                 range: "a value > 0 (free vibration needs mass)",
             });
         }
-        let mut assembly = Assembly::new(self, supports, penalty)?;
+        let mut assembly = Assembly::new(self, supports, &[], penalty)?;
         assembly.forces(self, &vec![Vector::zeros(); self.node_count()])?;
         let (mut stiffness, mut mass) = (Vec::new(), Vec::new());
         let assembly = &assembly;
