@@ -1,7 +1,8 @@
 //! The static route: a shell's equilibrium under loads and supports, by
 //! Newton's method on the assembled sparse tangent (faer's sparse
-//! Cholesky), in load steps. It is what the validation problems are
-//! solved with (Scordelis–Lo, plates, pressure vessels).
+//! Cholesky), in load steps, or the linearised problem in one step. It is
+//! what the validation problems are solved with (the Scordelis–Lo roof,
+//! clamped plates, `engine/tests/shells.rs`).
 
 use super::assembly::{Assembly, Load, Support};
 use super::error::ShellError;
@@ -13,8 +14,7 @@ use crate::math::{Real, Vector};
 /// How the static route solves.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StaticParams {
-    /// Penalty scale `beta` of the supports (see the module's
-    /// documentation).
+    /// Penalty scale `beta` of the supports (see `assembly.rs`).
     pub penalty: Real,
     /// Solve the linearised problem (one Newton step from the reference,
     /// small deflections) instead of the nonlinear one.
