@@ -133,9 +133,9 @@ fn roof_under_self_weight(
 /// The free edge's midpoint sags towards MacNeal & Harder's 0.3024 as the
 /// cells shrink, from below (the quadratic basis locks a little, as
 /// low-order shells do): 0.336, 0.850, 0.972 and 0.988 of it at 8, 16, 32
-/// and 64 cells along the roof (at 128, 0.991: Kirchhoff–Love
-/// discretisations converge to about 0.3006, the 0.6 % that transverse
-/// shear adds to MacNeal & Harder's deep-shell value being absent).
+/// and 64 cells along the roof (Kirchhoff–Love discretisations are
+/// reported to converge to about 0.3006, the 0.6 % that transverse shear
+/// adds to MacNeal & Harder's deep-shell value being absent).
 #[test]
 fn the_scordelis_lo_roof_sags_as_macneal_and_harder_say() {
     let reference = 0.3024;
