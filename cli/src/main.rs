@@ -35,6 +35,7 @@ mod study_design;
 mod study_fracture;
 #[cfg(feature = "embedded")]
 mod study_modal;
+mod study_shell;
 #[cfg(feature = "embedded")]
 mod study_solid;
 mod summary;

@@ -98,7 +98,8 @@ fn run_steps(world: &mut World, steps: u64, files: &FrameFiles) -> Result<Totals
         };
         totals.substeps += u64::from(info.substeps);
         totals.solid_iterations += u64::from(info.solid_iterations);
-        totals.pressure_iterations += u64::from(info.solver_iterations - info.solid_iterations);
+        totals.pressure_iterations +=
+            u64::from(info.solver_iterations.saturating_sub(info.solid_iterations));
         totals.worst_density_error = totals.worst_density_error.max(info.density_error);
         totals.worst_residual = totals.worst_residual.max(info.solid_residual);
         totals.capped += u64::from(info.capped);

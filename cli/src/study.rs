@@ -2,7 +2,8 @@
 //! and report the surge-front error against Martin & Moyce (1952) and the
 //! cost of each setting, as CSV and a PNG chart. The `solid-*` knobs sweep
 //! the cantilever instead (`study_solid.rs`), the `modal-*` knobs the
-//! modal EFG cantilever (`study_modal.rs`), the `design-*` knobs the
+//! modal EFG cantilever (`study_modal.rs`), the `shell-*` knobs the
+//! thin-shell cantilever plate (`study_shell.rs`), the `design-*` knobs the
 //! shape and motion optimiser's experiments (`study_design.rs`), the
 //! `fracture-*` knobs Griffith's plate (`study_fracture.rs`).
 
@@ -65,6 +66,17 @@ pub enum Knob {
     /// Modal solid: dynamics, modal or nonlinear (released beam; also
     /// draws the bent beam's length against its tip rotation).
     ModalDynamics,
+    /// Shell: largest quadtree cell of the cantilever plate, m (the node
+    /// count).
+    ShellResolution,
+    /// Shell: support side in quadtree leaf sides.
+    ShellEta,
+    /// Shell: Gauss points per axis of an integration cell.
+    ShellQuadrature,
+    /// Shell: MLS basis, linear or quadratic.
+    ShellBasis,
+    /// Shell: Newmark time step of the released plate, s.
+    ShellDt,
     /// Design: particles of the Figure 13 stretch with the volume energy
     /// (`stretch:N`) and of the cube passing a ball (`passage:N`).
     DesignParticles,
@@ -110,6 +122,11 @@ impl Knob {
             Self::ModalWarping => "modal_warping",
             Self::ModalDt => "modal_dt",
             Self::ModalDynamics => "modal_dynamics",
+            Self::ShellResolution => "shell_resolution",
+            Self::ShellEta => "shell_eta",
+            Self::ShellQuadrature => "shell_quadrature",
+            Self::ShellBasis => "shell_basis",
+            Self::ShellDt => "shell_dt",
             Self::DesignParticles => "design_particles",
             Self::DesignTolerance => "design_tolerance",
             Self::DesignAdaptive => "design_adaptive",
@@ -132,7 +149,7 @@ impl Knob {
         )
     }
 
-    /// Whether the knob belongs to the design study.
+    /// Whether the knob belongs to the modal cantilever study.
     fn is_modal(self) -> bool {
         matches!(
             self,
@@ -147,6 +164,19 @@ impl Knob {
         )
     }
 
+    /// Whether the knob belongs to the shell cantilever study.
+    fn is_shell(self) -> bool {
+        matches!(
+            self,
+            Self::ShellResolution
+                | Self::ShellEta
+                | Self::ShellQuadrature
+                | Self::ShellBasis
+                | Self::ShellDt
+        )
+    }
+
+    /// Whether the knob belongs to the design study.
     fn is_design(self) -> bool {
         matches!(
             self,
@@ -186,6 +216,12 @@ impl Knob {
             Self::ModalWarping => &["on", "off"],
             Self::ModalDt => &["0.004", "0.0167", "0.05", "0.2"],
             Self::ModalDynamics => &["modal", "nonlinear"],
+            Self::ShellResolution => &["0.125", "0.0625", "0.03125", "0.015625"],
+            Self::ShellEta => &["3", "4", "5"],
+            Self::ShellQuadrature => &["2", "3", "4"],
+            Self::ShellBasis => &["linear", "quadratic"],
+            // 5, 10, 20 and 40 steps a first period (49 ms).
+            Self::ShellDt => &["0.0098", "0.0049", "0.00245", "0.001225"],
             Self::DesignParticles => &[
                 "stretch:30",
                 "stretch:60",
@@ -265,6 +301,13 @@ impl Knob {
             | Self::ModalDynamics => {
                 bail!("{} is a modal-solid knob, not a dam-break one", self.name())
             }
+            Self::ShellResolution
+            | Self::ShellEta
+            | Self::ShellQuadrature
+            | Self::ShellBasis
+            | Self::ShellDt => {
+                bail!("{} is a shell knob, not a dam-break one", self.name())
+            }
         }
         Ok(())
     }
@@ -312,6 +355,14 @@ pub fn study(args: StudyArgs) -> Result<()> {
     }
     if args.knob.is_modal() {
         return crate::study_modal::study(
+            args.knob.name(),
+            args.knob.presets(),
+            &args.values,
+            &args.output,
+        );
+    }
+    if args.knob.is_shell() {
+        return crate::study_shell::study(
             args.knob.name(),
             args.knob.presets(),
             &args.values,

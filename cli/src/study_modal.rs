@@ -7,7 +7,7 @@
 //! the time step measure the released beam come to rest.
 
 use crate::chart;
-use crate::sweep::{report, sweep};
+use crate::sweep::{Figures, figures_table, report, sweep};
 use anyhow::{Context, Result, bail};
 use meshless_engine::approx::mls::Order;
 use meshless_engine::efg::Dynamics;
@@ -107,46 +107,19 @@ pub fn study(name: &str, presets: &[&str], values: &[String], output: &Path) -> 
         Some(Measure::Static) | None => "modal static tip deflection",
     };
     outln!("meshless study: modal EFG cantilever against Timoshenko ({what}), sweeping {name}")?;
-    outln!("  value        nodes  precompute [s]  step [ms]      error")?;
-    let mut csv = String::from(
-        "knob,value,nodes,precompute_seconds,step_ms,wall_seconds,deflection,reference,error,status\n",
-    );
-    for r in &rows {
-        match &r.outcome.1 {
-            Ok(m) => {
-                writeln!(
-                    csv,
-                    "{name},{},{},{:.4},{:.4},{:.3},{:.6e},{:.6e},{:.5},ok",
-                    r.value,
-                    m.nodes,
-                    m.precompute,
-                    m.step_ms,
-                    r.seconds,
-                    m.deflection,
-                    m.reference,
-                    m.error
-                )?;
-                outln!(
-                    "  {:<12} {:>5}  {:>14.3}  {:>9.3}  {:>+8.2} %",
-                    r.value,
-                    m.nodes,
-                    m.precompute,
-                    m.step_ms,
-                    100.0 * m.error
-                )?;
-            }
-            Err(e) => {
-                writeln!(
-                    csv,
-                    "{name},{},,,,{:.3},,,,{}",
-                    r.value,
-                    r.seconds,
-                    e.replace(',', ";")
-                )?;
-                outln!("  {:<12} failed: {e}", r.value)?;
-            }
-        }
-    }
+    let csv = figures_table(name, "deflection", &rows, |(_, outcome)| {
+        outcome
+            .as_ref()
+            .map(|m| Figures {
+                nodes: m.nodes,
+                precompute: m.precompute,
+                step_ms: m.step_ms,
+                measured: m.deflection,
+                reference: m.reference,
+                error: m.error,
+            })
+            .map_err(String::as_str)
+    })?;
     report(
         output,
         name,

@@ -96,3 +96,77 @@ pub fn report<T>(
         &points,
     )
 }
+
+/// One setting's figures in the discretised solids' studies (modal EFG
+/// solids, shells): the nodes, the precompute and per-step cost, and the
+/// measured value against its reference.
+pub struct Figures {
+    /// Nodes of the discretisation.
+    pub nodes: usize,
+    /// Wall time of the precompute, s.
+    pub precompute: f64,
+    /// Mean wall time of a step, ms.
+    pub step_ms: f64,
+    /// What was measured.
+    pub measured: f64,
+    /// Its reference.
+    pub reference: f64,
+    /// `measured / reference - 1`.
+    pub error: f64,
+}
+
+/// Prints the table of a sweep knob `name` over `rows` (value, nodes,
+/// precompute, step, error; a failed setting with its reason) and returns
+/// it as CSV, with `column` naming the measured value's column.
+///
+/// # Errors
+/// When standard output cannot be written.
+pub fn figures_table<T>(
+    name: &str,
+    column: &str,
+    rows: &[Timed<T>],
+    figures: impl Fn(&T) -> std::result::Result<Figures, &str>,
+) -> Result<String> {
+    use std::fmt::Write as _;
+    outln!("  value        nodes  precompute [s]  step [ms]      error")?;
+    let mut csv = format!(
+        "knob,value,nodes,precompute_seconds,step_ms,wall_seconds,{column},reference,error,status\n"
+    );
+    for r in rows {
+        match figures(&r.outcome) {
+            Ok(m) => {
+                writeln!(
+                    csv,
+                    "{name},{},{},{:.4},{:.4},{:.3},{:.6e},{:.6e},{:.5},ok",
+                    r.value,
+                    m.nodes,
+                    m.precompute,
+                    m.step_ms,
+                    r.seconds,
+                    m.measured,
+                    m.reference,
+                    m.error
+                )?;
+                outln!(
+                    "  {:<12} {:>5}  {:>14.3}  {:>9.3}  {:>+8.2} %",
+                    r.value,
+                    m.nodes,
+                    m.precompute,
+                    m.step_ms,
+                    100.0 * m.error
+                )?;
+            }
+            Err(e) => {
+                writeln!(
+                    csv,
+                    "{name},{},,,,{:.3},,,,{}",
+                    r.value,
+                    r.seconds,
+                    e.replace(',', ";")
+                )?;
+                outln!("  {:<12} failed: {e}", r.value)?;
+            }
+        }
+    }
+    Ok(csv)
+}

@@ -38,11 +38,13 @@ pub enum Stage {
     /// A modal solid's step: the reduced (or, under nonlinear dynamics,
     /// the full Newton) solve, or its playback.
     ModalSolve,
+    /// A shell's step: its Newton solve on the sparse tangent.
+    ShellSolve,
 }
 
 impl Stage {
     /// Every stage, in pipeline order.
-    pub const ALL: [Stage; 13] = [
+    pub const ALL: [Stage; 14] = [
         Stage::NeighborSearch,
         Stage::Density,
         Stage::PressureForce,
@@ -56,6 +58,7 @@ impl Stage {
         Stage::SolidIntegrate,
         Stage::SolidContact,
         Stage::ModalSolve,
+        Stage::ShellSolve,
     ];
 
     /// The stage's name for people.
@@ -74,6 +77,7 @@ impl Stage {
             Stage::SolidIntegrate => "solid integration",
             Stage::SolidContact => "solid contact",
             Stage::ModalSolve => "modal solve",
+            Stage::ShellSolve => "shell solve",
         }
     }
 }

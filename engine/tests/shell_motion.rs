@@ -372,3 +372,26 @@ fn a_grab_pulls_drags_and_lets_go() {
     let w = centre(&dynamics);
     assert!(w.abs() < 1e-6 * lift, "released, the plate rests: {w}");
 }
+
+/// The per-node shares frames stream add up to the shell's totals: the
+/// lumped masses to `rho t A` (the partition of unity), the nodal
+/// energies to the assembled membrane and bending energy of a bent plate.
+#[test]
+fn nodal_masses_and_energies_add_up_to_the_shells() {
+    let model = plate(8.0, PLATE);
+    let mass: Real = model.lumped_masses().iter().sum();
+    let expected = PLATE.density * PLATE.thickness;
+    assert!((mass / expected - 1.0).abs() < 1e-12, "{mass}");
+    let u: Vec<Vector> = model
+        .reference()
+        .iter()
+        .map(|x| Vector::new(0.0, 0.0, 0.05 * (PI * x.x).sin() * (PI * x.y).sin()))
+        .collect();
+    let shares: Real = model.nodal_energies(&u).expect("no fold").iter().sum();
+    let (_, energy) = model.internal_forces(&u).expect("no fold");
+    assert!(energy > 0.0);
+    assert!(
+        (shares / energy - 1.0).abs() < 1e-12,
+        "{shares} vs {energy}"
+    );
+}

@@ -233,7 +233,7 @@ fn a_plastic_solid_continues_from_its_rebased_shape() {
 fn fluid_of(state: &mut WorldState) -> &mut FluidSnapshot {
     match &mut state.systems[0] {
         SystemState::Fluid { fluid, .. } => fluid,
-        SystemState::Solid { .. } | SystemState::Modal { .. } => {
+        SystemState::Solid { .. } | SystemState::Modal { .. } | SystemState::Shell { .. } => {
             panic!("the fluid comes first")
         }
     }

@@ -243,6 +243,7 @@ impl Metrics {
             Some(StepError::Compressed { .. }) => "compressed",
             Some(StepError::EnergyGained { .. }) => "energy_gained",
             Some(StepError::SolidEnergyGained { .. }) => "solid_energy_gained",
+            Some(StepError::ShellFailed { .. }) => "shell_failed",
             // Never a fault: the step is undone, or refused untaken.
             Some(StepError::Cancelled { .. } | StepError::CounterFull { .. }) => return,
             None => "internal",
@@ -340,6 +341,7 @@ fn stage_key(stage: Stage) -> &'static str {
         Stage::SolidIntegrate => "solid_integrate",
         Stage::SolidContact => "solid_contact",
         Stage::ModalSolve => "modal_solve",
+        Stage::ShellSolve => "shell_solve",
     }
 }
 

@@ -67,6 +67,12 @@ pub fn small_modal_scene() -> String {
     fixture("small_modal")
 }
 
+/// A small thin shell: a 40 x 20 cm plate clamped along x = 0, frames
+/// every step (`tests/fixtures/small_shell.toml`).
+pub fn small_shell_scene() -> String {
+    fixture("small_shell")
+}
+
 /// Where cargo put one of the workspace's binaries (`meshless-server`,
 /// `meshless`): beside this test executable's `deps/` folder.
 ///

@@ -46,7 +46,8 @@ fn fluid(spec: &mut v1::SceneSpec) -> &mut v1::FluidSpec {
         Some(
             v1::system_spec::Kind::RigidBody(_)
             | v1::system_spec::Kind::Solid(_)
-            | v1::system_spec::Kind::ModalSolid(_),
+            | v1::system_spec::Kind::ModalSolid(_)
+            | v1::system_spec::Kind::Shell(_),
         )
         | None => panic!("a fluid"),
     }
@@ -338,7 +339,8 @@ fn solid(spec: &mut v1::SceneSpec) -> &mut v1::SolidSpec {
         Some(
             v1::system_spec::Kind::Fluid(_)
             | v1::system_spec::Kind::RigidBody(_)
-            | v1::system_spec::Kind::ModalSolid(_),
+            | v1::system_spec::Kind::ModalSolid(_)
+            | v1::system_spec::Kind::Shell(_),
         )
         | None => panic!("a solid"),
     }

@@ -144,8 +144,8 @@ async fn the_metrics_move_with_the_work() {
     assert_eq!(value(&gone, "meshless_particles"), 0.0);
 }
 
-/// Solids and modal solids report where their steps go, as fluids do: a
-/// stage counter per kind moves with that kind's sessions.
+/// Solids, modal solids and shells report where their steps go, as fluids
+/// do: a stage counter per kind moves with that kind's sessions.
 #[tokio::test]
 async fn every_kind_reports_its_stages() {
     let server = ServerProcess::spawn(&["--metrics-addr", "127.0.0.1:0"])
@@ -156,6 +156,7 @@ async fn every_kind_reports_its_stages() {
     for scene in [
         meshless_tests::small_solid_scene(),
         meshless_tests::small_modal_scene(),
+        meshless_tests::small_shell_scene(),
     ] {
         let session = within("create", client.create_session_toml(&scene))
             .await
@@ -170,6 +171,7 @@ async fn every_kind_reports_its_stages() {
         "solid_integrate",
         "solid_contact",
         "modal_solve",
+        "shell_solve",
     ] {
         let series = format!("meshless_stage_seconds_total{{stage=\"{stage}\"}}");
         assert!(value(&text, &series) > 0.0, "{series} did not move");

@@ -13,6 +13,8 @@
 //!   Euler–Bernoulli theory;
 //! - [`modal_cantilever`]: a modal EFG beam (Guo–Qin's solids) under its
 //!   own weight against Timoshenko theory;
+//! - [`shell_cantilever`]: a thin-shell cantilever plate (Guo–Qin's
+//!   shells, through a scene) against Euler–Bernoulli's sag and period;
 //! - [`griffith`]: a plate with a central crack under tension against
 //!   Griffith's failure stress;
 //! - [`design`]: the optimiser's Figure 13 stretch and the cube passing a
@@ -25,4 +27,5 @@ pub mod dam_break;
 pub mod design;
 pub mod griffith;
 pub mod modal_cantilever;
+pub mod shell_cantilever;
 pub mod viscous;

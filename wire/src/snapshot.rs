@@ -10,6 +10,7 @@ use meshless_engine::efg::ModalState;
 use meshless_engine::fluid::FluidSnapshot;
 use meshless_engine::math::{Real, Vector};
 use meshless_engine::rigid::{BodyState, Rotation};
+use meshless_engine::shell::ShellState;
 use meshless_engine::solid::fracture::{Crack, FrontNode};
 use meshless_engine::solid::{FractureSnapshot, SolidSnapshot};
 use meshless_engine::{Clock, SystemState, WorldState};
@@ -83,6 +84,12 @@ fn system_to_proto(system: &SystemState) -> v1::SystemSnapshot {
         SystemState::Modal { state, .. } => v1::system_snapshot::Kind::Modal(v1::ModalSnapshot {
             amplitudes: state.amplitudes.clone(),
             velocities: state.velocities.clone(),
+        }),
+        SystemState::Shell { state, .. } => v1::system_snapshot::Kind::Shell(v1::ShellSnapshot {
+            displacements: flatten(&state.displacement),
+            velocities: flatten(&state.velocity),
+            accelerations: flatten(&state.acceleration),
+            time: state.time,
         }),
     };
     v1::SystemSnapshot {
@@ -196,6 +203,24 @@ fn system_from_proto(message: v1::SystemSnapshot, field: &str) -> Result<SystemS
                 state: ModalState {
                     amplitudes,
                     velocities,
+                },
+            }
+        }
+        v1::system_snapshot::Kind::Shell(s) => {
+            let v1::ShellSnapshot {
+                displacements,
+                velocities,
+                accelerations,
+                time,
+            } = s;
+            let field = format!("{field}.shell");
+            SystemState::Shell {
+                index,
+                state: ShellState {
+                    displacement: vectors(displacements, &format!("{field}.displacements"))?,
+                    velocity: vectors(velocities, &format!("{field}.velocities"))?,
+                    acceleration: vectors(accelerations, &format!("{field}.accelerations"))?,
+                    time,
                 },
             }
         }

@@ -396,6 +396,44 @@ def test_a_modal_solid_is_grabbed_with_dicts_and_streams_its_skin(client):
     client.delete_session(session)
 
 
+def test_a_shell_streams_its_nodes_and_surface_and_restores_from_a_snapshot(client):
+    """A thin shell (``tests/fixtures/small_shell.toml``): its frames list
+    its nodes as one solid and carry the plate's mesh with unit normals,
+    sagging under gravity; a snapshot restored into a new session steps on
+    to the same frame; a closed surface is INVALID_ARGUMENT naming the
+    shape, and no session is made of it."""
+    session = client.create_session(fixture("small_shell"))
+    assert list(session.system_kinds) == ["shell"]
+    rest = client.latest_frame(session)
+    assert [s.system for s in rest.solids] == [0]
+    assert rest.solids[0].count == rest.particle_count
+    plate = rest.solid_surfaces[0]
+    assert plate.vertices.shape == (9 * 5, 3)
+    client.step(session, 5)
+    snapshot = client.snapshot(session)
+    client.step(session, 5)
+    bent = client.latest_frame(session).solid_surfaces[0]
+    assert bent.vertices[:, 1].min() < -1e-3
+    np.testing.assert_allclose(np.linalg.norm(bent.normals, axis=1), 1.0, atol=1e-5)
+    again = client.restore(snapshot)
+    client.step(again, 5)
+    np.testing.assert_array_equal(
+        client.latest_frame(again).solid_surfaces[0].vertices, bent.vertices
+    )
+    before = len(client.list_sessions())
+    closed = fixture("small_shell").replace(
+        'shape = { type = "box", half_extents = [0.2, 0.0, 0.1] }',
+        'shape = { type = "sphere", radius = 0.1 }',
+    )
+    with pytest.raises(MeshlessError) as refused:
+        client.create_session(closed)
+    assert refused.value.code == grpc.StatusCode.INVALID_ARGUMENT
+    assert "systems[0].shape" in refused.value.details and "atlas" in refused.value.details
+    assert len(client.list_sessions()) == before
+    for s in (session, again):
+        client.delete_session(s)
+
+
 def test_next_frame_follows_a_session_frame_by_frame(client):
     session = client.create_session(TANK)
     number, frame = client.next_frame(session, 0, wait=0)

@@ -35,7 +35,7 @@ use rayon::prelude::*;
 
 /// The sparsity of a symmetric block matrix and its symbolic
 /// factorisation.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct BlockPattern {
     dim: usize,
     /// Block rows `m >= n` of each block column `n`, sorted.
@@ -44,7 +44,8 @@ pub struct BlockPattern {
     /// The scalar matrix, compressed sparse columns.
     col_ptr: Vec<u32>,
     row_idx: Vec<u32>,
-    symbolic: SymbolicCholesky<u32>,
+    /// Shared by clones: the analysis never changes once made.
+    symbolic: std::sync::Arc<SymbolicCholesky<u32>>,
 }
 
 impl BlockPattern {
@@ -87,7 +88,7 @@ impl BlockPattern {
             block_rows: columns.concat(),
             col_ptr,
             row_idx,
-            symbolic,
+            symbolic: std::sync::Arc::new(symbolic),
         })
     }
 

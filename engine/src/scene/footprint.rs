@@ -74,6 +74,13 @@ impl Footprint {
         self.bytes += solid.bytes() as Real;
     }
 
+    /// Adds a shell, already built: its nodes and the bytes it holds by
+    /// count ([`super::PreparedShell::bytes`]).
+    pub(super) fn add_shell(&mut self, nodes: usize, bytes: Real) {
+        self.particles += nodes as Real;
+        self.bytes += bytes;
+    }
+
     /// Adds a solid of `particles` with support `support` spacings.
     pub(super) fn add_solid(&mut self, particles: Real, support: Real, dim: usize, implicit: bool) {
         let per_neighbour = SOLID_BYTES_PER_NEIGHBOUR

@@ -17,6 +17,7 @@ mod fluid;
 mod footprint;
 mod mesh;
 mod modal_solid;
+mod shell;
 mod solid;
 #[cfg(test)]
 mod tests;
@@ -32,6 +33,8 @@ pub use mesh::{DEFAULT_MAX_MESH_BYTES, MeshData, MeshFiles};
 pub use modal_solid::{
     GrabSpec, MAX_MODES, MAX_NODES, ModalSolidSpec, PlaybackSpec, defaults as modal_defaults,
 };
+pub(crate) use shell::PreparedShell;
+pub use shell::{MAX_NODES as MAX_SHELL_NODES, ShellSpec, defaults as shell_defaults};
 pub(crate) use solid::SampledSolid;
 pub use solid::{
     AnchorSpec, FractureSpec, IntegratorKind, NotchSpec, SolidSpec, SolidSurfaceSpec,
@@ -252,6 +255,8 @@ pub enum SystemSpec {
     /// An elastic solid in its lowest modes: Element-Free Galerkin on
     /// octree nodes with modal warping (Guo–Qin).
     ModalSolid(ModalSolidSpec),
+    /// A thin Kirchhoff-Love shell on a conformal chart (Guo–Qin).
+    Shell(ShellSpec),
 }
 
 impl SystemSpec {
@@ -262,6 +267,7 @@ impl SystemSpec {
             Self::RigidBody(_) => "rigid_body",
             Self::Solid(_) => "solid",
             Self::ModalSolid(_) => "modal_solid",
+            Self::Shell(_) => "shell",
         }
     }
 
@@ -270,7 +276,8 @@ impl SystemSpec {
         match self {
             Self::RigidBody(RigidBodySpec { shape, .. })
             | Self::Solid(SolidSpec { shape, .. })
-            | Self::ModalSolid(ModalSolidSpec { shape, .. }) => Some(shape),
+            | Self::ModalSolid(ModalSolidSpec { shape, .. })
+            | Self::Shell(ShellSpec { shape, .. }) => Some(shape),
             Self::Fluid(_) => None,
         }
     }
@@ -279,7 +286,7 @@ impl SystemSpec {
     pub fn as_fluid(&self) -> Option<&FluidSpec> {
         match self {
             Self::Fluid(fluid) => Some(fluid),
-            Self::RigidBody(_) | Self::Solid(_) | Self::ModalSolid(_) => None,
+            Self::RigidBody(_) | Self::Solid(_) | Self::ModalSolid(_) | Self::Shell(_) => None,
         }
     }
 
@@ -287,7 +294,7 @@ impl SystemSpec {
     pub fn as_fluid_mut(&mut self) -> Option<&mut FluidSpec> {
         match self {
             Self::Fluid(fluid) => Some(fluid),
-            Self::RigidBody(_) | Self::Solid(_) | Self::ModalSolid(_) => None,
+            Self::RigidBody(_) | Self::Solid(_) | Self::ModalSolid(_) | Self::Shell(_) => None,
         }
     }
 
@@ -295,7 +302,7 @@ impl SystemSpec {
     pub fn as_solid(&self) -> Option<&SolidSpec> {
         match self {
             Self::Solid(solid) => Some(solid),
-            Self::Fluid(_) | Self::RigidBody(_) | Self::ModalSolid(_) => None,
+            Self::Fluid(_) | Self::RigidBody(_) | Self::ModalSolid(_) | Self::Shell(_) => None,
         }
     }
 
@@ -303,7 +310,15 @@ impl SystemSpec {
     pub fn as_modal_solid(&self) -> Option<&ModalSolidSpec> {
         match self {
             Self::ModalSolid(solid) => Some(solid),
-            Self::Fluid(_) | Self::RigidBody(_) | Self::Solid(_) => None,
+            Self::Fluid(_) | Self::RigidBody(_) | Self::Solid(_) | Self::Shell(_) => None,
+        }
+    }
+
+    /// The shell, if this is one.
+    pub fn as_shell(&self) -> Option<&ShellSpec> {
+        match self {
+            Self::Shell(shell) => Some(shell),
+            Self::Fluid(_) | Self::RigidBody(_) | Self::Solid(_) | Self::ModalSolid(_) => None,
         }
     }
 
@@ -311,7 +326,7 @@ impl SystemSpec {
     pub fn as_rigid_body(&self) -> Option<&RigidBodySpec> {
         match self {
             Self::RigidBody(body) => Some(body),
-            Self::Fluid(_) | Self::Solid(_) | Self::ModalSolid(_) => None,
+            Self::Fluid(_) | Self::Solid(_) | Self::ModalSolid(_) | Self::Shell(_) => None,
         }
     }
 }
@@ -319,7 +334,7 @@ impl SystemSpec {
 impl<'de> Deserialize<'de> for SystemSpec {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         use serde::de::Error;
-        const KINDS: &[&str] = &["fluid", "rigid_body", "solid", "modal_solid"];
+        const KINDS: &[&str] = &["fluid", "rigid_body", "solid", "modal_solid", "shell"];
         let mut table = toml::Table::deserialize(deserializer)?;
         let kind = match table.remove("kind") {
             Some(toml::Value::String(kind)) => kind,
@@ -352,6 +367,7 @@ impl<'de> Deserialize<'de> for SystemSpec {
             "rigid_body" => spec(table).map(Self::RigidBody),
             "solid" => spec(table).map(Self::Solid),
             "modal_solid" => spec(table).map(Self::ModalSolid),
+            "shell" => spec(table).map(Self::Shell),
             _ => Err(D::Error::unknown_variant(&kind, KINDS)),
         }
     }
@@ -365,6 +381,10 @@ pub(crate) struct SceneContext<'a> {
     pub dimension: usize,
     /// The simulation domain.
     pub domain: &'a Aabb,
+    /// m/s^2.
+    pub gravity: crate::math::Vector,
+    /// The scene's time step, s.
+    pub dt: Real,
 }
 
 /// A validated scene with what validation made (each body's engine
@@ -390,6 +410,8 @@ pub(crate) enum Prepared {
     Solid(SampledSolid),
     /// A modal solid, discretised and reduced.
     Modal(Box<ModalSolid>),
+    /// A shell, discretised and at rest.
+    Shell(Box<PreparedShell>),
 }
 
 impl Checked {
@@ -509,6 +531,7 @@ impl Scene {
                 SystemSpec::RigidBody(body) => &mut body.shape,
                 SystemSpec::Solid(solid) => &mut solid.shape,
                 SystemSpec::ModalSolid(solid) => &mut solid.shape,
+                SystemSpec::Shell(shell) => &mut shell.shape,
                 SystemSpec::Fluid(_) => continue,
             };
             if let ShapeSpec::Mesh {
@@ -545,8 +568,9 @@ impl Scene {
                     let volume = shape.as_ref().and_then(|s| s.volume(dim)).unwrap_or(0.0);
                     volume / solid.spacing.powi(dim as i32)
                 }
-                // Its nodes are known once its octree is built.
-                SystemSpec::ModalSolid(_) => 0.0,
+                // Its nodes are known once its octree (or quadtree) is
+                // built.
+                SystemSpec::ModalSolid(_) | SystemSpec::Shell(_) => 0.0,
             })
             .sum()
     }
@@ -572,6 +596,7 @@ impl Scene {
                 SystemSpec::RigidBody(body) => &mut body.shape,
                 SystemSpec::Solid(solid) => &mut solid.shape,
                 SystemSpec::ModalSolid(solid) => &mut solid.shape,
+                SystemSpec::Shell(shell) => &mut shell.shape,
                 SystemSpec::Fluid(_) => continue,
             };
             shape.load_mesh(
@@ -708,6 +733,12 @@ impl Scene {
                     footprint.add_modal_solid(&solid);
                     prepared[s] = Prepared::Modal(Box::new(solid));
                 }
+                SystemSpec::Shell(spec) => {
+                    let shell = spec.prepare(&format!("systems[{s}]"), &context, options)?;
+                    solid_particles += shell.dynamics.model().node_count() as f64;
+                    footprint.add_shell(shell.dynamics.model().node_count(), shell.bytes());
+                    prepared[s] = Prepared::Shell(Box::new(shell));
+                }
             }
         }
         if let Some(surface) = &self.output.surface {
@@ -739,6 +770,8 @@ impl Scene {
         SceneContext {
             dimension: self.dimension,
             domain: &self.domain,
+            gravity: crate::math::vector(self.gravity),
+            dt: self.time.dt,
         }
     }
 

@@ -32,7 +32,10 @@ fn rejected_field(scene: &Scene) -> String {
 fn fluid(scene: &mut Scene) -> &mut FluidSpec {
     match &mut scene.systems[0] {
         SystemSpec::Fluid(f) => f,
-        SystemSpec::RigidBody(_) | SystemSpec::Solid(_) | SystemSpec::ModalSolid(_) => {
+        SystemSpec::RigidBody(_)
+        | SystemSpec::Solid(_)
+        | SystemSpec::ModalSolid(_)
+        | SystemSpec::Shell(_) => {
             panic!("the first system is the fluid")
         }
     }

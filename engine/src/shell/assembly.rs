@@ -301,7 +301,7 @@ impl ShellModel {
 /// stencil, the items (quadrature points, then supports) each node is
 /// in, and each point's energy gradient and Hessian at the last
 /// evaluation.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(super) struct Assembly {
     pub(super) pattern: BlockPattern,
     /// Per node, the items it is in: `(item, a, start)`, the node being

@@ -32,11 +32,14 @@ use super::model::ShellModel;
 use crate::cancel::Cancel;
 use crate::linalg::sparse::SparseCholesky;
 use crate::math::{Real, Vector};
+use serde::{Deserialize, Serialize};
 
 /// How a step relates velocity and acceleration to displacement.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Integrator {
     /// First order, numerically damped: robust at any step.
+    #[default]
     BackwardEuler,
     /// Newmark's average acceleration: second order, energy-conserving
     /// for linear systems.
@@ -141,8 +144,22 @@ pub struct ShellEnergy {
     pub work: Real,
 }
 
+/// Everything a shell's next steps read from its past: a snapshot's
+/// share of a shell, restored bit for bit by [`ShellDynamics::restore`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShellState {
+    /// Nodal displacement coefficients.
+    pub displacement: Vec<Vector>,
+    /// Nodal velocity coefficients.
+    pub velocity: Vec<Vector>,
+    /// Nodal acceleration coefficients (Newmark's next step reads them).
+    pub acceleration: Vec<Vector>,
+    /// Simulated time.
+    pub time: Real,
+}
+
 /// A shell stepped in time (see the module's documentation).
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct ShellDynamics {
     model: ShellModel,
     /// The largest extent of the reference nodes: the length that
@@ -382,6 +399,69 @@ impl ShellDynamics {
         })
     }
 
+    /// The state, for a snapshot.
+    pub fn state(&self) -> ShellState {
+        ShellState {
+            displacement: self.displacement.clone(),
+            velocity: self.velocity.clone(),
+            acceleration: self.acceleration.clone(),
+            time: self.time,
+        }
+    }
+
+    /// Moves the shell to `state` as [`Self::state`] gave it, nothing
+    /// recomputed, so that the steps after it are those after the
+    /// snapshot, bit for bit.
+    ///
+    /// # Errors
+    /// [`ShellError::Parameter`] for a length other than the node count or
+    /// a value not finite; the state is then unchanged.
+    pub fn restore(&mut self, state: ShellState) -> Result<(), ShellError> {
+        let n = self.model.node_count();
+        for (what, v) in [
+            ("displacement", &state.displacement),
+            ("velocity", &state.velocity),
+            ("acceleration", &state.acceleration),
+        ] {
+            if v.len() != n || !v.iter().all(|x| x.iter().all(|c| c.is_finite())) {
+                return Err(ShellError::Parameter {
+                    what,
+                    got: v.len() as Real,
+                    range: "one finite vector per node",
+                });
+            }
+        }
+        if !state.time.is_finite() {
+            return Err(ShellError::Parameter {
+                what: "time",
+                got: state.time,
+                range: "a finite time",
+            });
+        }
+        self.displacement = state.displacement;
+        self.velocity = state.velocity;
+        self.acceleration = state.acceleration;
+        self.time = state.time;
+        Ok(())
+    }
+
+    /// The time step.
+    pub fn time_step(&self) -> Real {
+        self.params.dt
+    }
+
+    /// Steps of `dt` from now on (nothing is assembled per step length).
+    ///
+    /// # Errors
+    /// [`ShellError::Parameter`] for a step not finite and positive; the
+    /// step is then unchanged.
+    pub fn set_time_step(&mut self, dt: Real) -> Result<(), ShellError> {
+        let params = DynamicParams { dt, ..self.params };
+        params.validate()?;
+        self.params = params;
+        Ok(())
+    }
+
     /// Replaces the grabs (none to release them all): their points are
     /// pulled from the next step on. The grabs' sparsity is new, so the
     /// assembly is rebuilt; to drag a grab, [`Self::move_grab`].
@@ -443,6 +523,12 @@ impl ShellDynamics {
             strain,
             work,
         })
+    }
+
+    /// The total external force's magnitude, `sum_I |f_I|`: a scale of
+    /// the work the load can do.
+    pub fn load_magnitude(&self) -> Real {
+        self.load.iter().map(|f| f.norm()).sum()
     }
 
     /// The shell's discretisation.

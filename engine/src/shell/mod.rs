@@ -18,6 +18,8 @@
 //!   vertices), and a mesh's conformal chart as a shell's surface;
 //! - `dynamics.rs`: [`ShellDynamics`], implicit time stepping (backward
 //!   Euler or Newmark, Rayleigh damping, Newton per step);
+//! - `nodal.rs`: each node's share of the mass and the strain energy,
+//!   for frames that list the nodes as particles;
 //! - `error.rs`: [`ShellError`].
 
 mod assembly;
@@ -26,11 +28,12 @@ mod embedded;
 mod error;
 pub mod kirchhoff;
 mod model;
+mod nodal;
 mod statics;
 mod vibration;
 
 pub use assembly::{Grab, Load, Support, SupportKind};
-pub use dynamics::{DynamicParams, Integrator, ShellDynamics, ShellEnergy, ShellStep};
+pub use dynamics::{DynamicParams, Integrator, ShellDynamics, ShellEnergy, ShellState, ShellStep};
 pub use embedded::Embedded;
 pub use error::ShellError;
 pub use model::{Material, ShapeRow, ShellModel, ShellParams, ShellSurface, Stencil, SurfacePoint};

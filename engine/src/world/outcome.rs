@@ -152,6 +152,17 @@ pub enum StepError {
         /// The step that failed.
         step: u64,
     },
+    /// A shell's step could not be solved (Newton did not converge, the
+    /// surface folded flat, the tangent was singular).
+    #[error("the shell in systems[{system}] stopped in step {step}: {reason}")]
+    ShellFailed {
+        /// Index of the shell's system in the scene.
+        system: usize,
+        /// Why, with what to change.
+        reason: crate::shell::ShellError,
+        /// The step that failed.
+        step: u64,
+    },
     /// A fracturing solid's cracks outgrew the bound on their geometry.
     #[error("the solid in systems[{system}] stopped in step {step}: {reason}")]
     CracksOutgrown {

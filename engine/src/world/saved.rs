@@ -8,6 +8,7 @@ use crate::efg::ModalState;
 use crate::fluid::FluidSnapshot;
 use crate::math::{Real, Vector};
 use crate::scene::{Scene, SceneError};
+use crate::shell::ShellState;
 use crate::snapshot::SnapshotError;
 use crate::solid::SolidSnapshot;
 
@@ -65,15 +66,24 @@ pub enum SystemState {
         /// Modal amplitudes and velocities.
         state: ModalState,
     },
+    /// A shell: its nodal displacements, velocities and accelerations
+    /// and its clock.
+    Shell {
+        /// Index of its system in the scene.
+        index: usize,
+        /// Its state.
+        state: ShellState,
+    },
 }
 
 impl SystemState {
     /// Index of the system in the scene.
     pub fn index(&self) -> usize {
         match self {
-            Self::Fluid { index, .. } | Self::Solid { index, .. } | Self::Modal { index, .. } => {
-                *index
-            }
+            Self::Fluid { index, .. }
+            | Self::Solid { index, .. }
+            | Self::Modal { index, .. }
+            | Self::Shell { index, .. } => *index,
         }
     }
 
@@ -83,6 +93,7 @@ impl SystemState {
             Self::Fluid { .. } => "fluid",
             Self::Solid { .. } => "solid",
             Self::Modal { .. } => "modal solid",
+            Self::Shell { .. } => "shell",
         }
     }
 }

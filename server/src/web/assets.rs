@@ -84,6 +84,10 @@ pub const SCENES: &[(&str, &str)] = &[
         "notched_spin",
         include_str!("../../../scenes/notched_spin.toml"),
     ),
+    (
+        "shell_plate",
+        include_str!("../../../scenes/shell_plate.toml"),
+    ),
 ];
 
 /// The scenes as the page reads them: `[{name, file, toml}]`.

@@ -1,6 +1,6 @@
 //! Conversions of the scene messages (`scene.proto`): the scene spec,
 //! both directions, with one file per system kind (`fluid.rs`, `solid.rs`,
-//! `body.rs`, `modal.rs`) and the vectors, boxes and shapes they share
+//! `body.rs`, `modal.rs`, `shell.rs`) and the vectors, boxes and shapes they share
 //! (`geometry.rs`, a leaf). Each file holds the tables of the enums its
 //! messages declare. Unset optional fields take the scene file's defaults,
 //! so both front doors (TOML and gRPC) build the same scene; ranges are
@@ -14,6 +14,7 @@ mod body;
 mod fluid;
 mod geometry;
 mod modal;
+mod shell;
 mod solid;
 
 pub(crate) use geometry::{aabb, shape_from_proto, to_aabb, to_shape, to_vec3, vec3};
@@ -118,10 +119,13 @@ fn system_from_proto(system: v1::SystemSpec, field: &str) -> Result<SystemSpec> 
         Some(v1::system_spec::Kind::ModalSolid(solid)) => Ok(SystemSpec::ModalSolid(
             modal::modal_from_proto(solid, field)?,
         )),
+        Some(v1::system_spec::Kind::Shell(shell)) => {
+            Ok(SystemSpec::Shell(shell::shell_from_proto(shell, field)?))
+        }
         None => Err(WireError::new(
             format!("{field}.kind"),
             "unknown or missing system kind; this server simulates: fluid, rigid_body, solid, \
-             modal_solid",
+             modal_solid, shell",
         )),
     }
 }
@@ -154,6 +158,7 @@ pub fn scene_to_proto(scene: &Scene) -> v1::SceneSpec {
                     SystemSpec::ModalSolid(s) => {
                         v1::system_spec::Kind::ModalSolid(modal::to_modal(s))
                     }
+                    SystemSpec::Shell(s) => v1::system_spec::Kind::Shell(shell::to_shell(s)),
                 }),
             })
             .collect(),
@@ -181,6 +186,7 @@ pub fn scene_echo_to_proto(scene: &Scene) -> v1::SceneSpec {
             Some(v1::system_spec::Kind::RigidBody(body)) => body.shape.as_mut(),
             Some(v1::system_spec::Kind::Solid(solid)) => solid.shape.as_mut(),
             Some(v1::system_spec::Kind::ModalSolid(solid)) => solid.shape.as_mut(),
+            Some(v1::system_spec::Kind::Shell(shell)) => shell.shape.as_mut(),
             Some(v1::system_spec::Kind::Fluid(_)) | None => None,
         };
         if let Some(v1::Shape {

@@ -16,6 +16,7 @@
 
 pub(crate) mod fluid;
 pub(crate) mod modal;
+pub(crate) mod shell;
 pub(crate) mod simulated;
 pub(crate) mod solid;
 
@@ -24,6 +25,7 @@ use crate::scene::{MotionKind, Prepared, RigidBodySpec, Scene, SystemSpec, body_
 use crate::solid::Obstacle;
 use fluid::FluidEntry;
 use modal::ModalEntry;
+use shell::ShellEntry;
 pub use simulated::{ChangeError, InsertError, RemoveError};
 pub(crate) use simulated::{Simulated, StepEnv};
 use solid::SolidEntry;
@@ -37,6 +39,8 @@ pub(crate) enum System {
     Solid(Box<SolidEntry>),
     /// A modal EFG solid.
     Modal(Box<ModalEntry>),
+    /// A thin shell.
+    Shell(Box<ShellEntry>),
 }
 
 impl System {
@@ -46,6 +50,7 @@ impl System {
             Self::Fluid(fluid) => fluid.as_ref(),
             Self::Solid(solid) => solid.as_ref(),
             Self::Modal(modal) => modal.as_ref(),
+            Self::Shell(shell) => shell.as_ref(),
         }
     }
 
@@ -55,6 +60,7 @@ impl System {
             Self::Fluid(fluid) => fluid.as_mut(),
             Self::Solid(solid) => solid.as_mut(),
             Self::Modal(modal) => modal.as_mut(),
+            Self::Shell(shell) => shell.as_mut(),
         }
     }
 
@@ -62,7 +68,7 @@ impl System {
     pub(crate) fn as_fluid(&self) -> Option<&FluidEntry> {
         match self {
             Self::Fluid(fluid) => Some(fluid),
-            Self::Solid(_) | Self::Modal(_) => None,
+            Self::Solid(_) | Self::Modal(_) | Self::Shell(_) => None,
         }
     }
 
@@ -70,7 +76,7 @@ impl System {
     pub(crate) fn as_fluid_mut(&mut self) -> Option<&mut FluidEntry> {
         match self {
             Self::Fluid(fluid) => Some(fluid),
-            Self::Solid(_) | Self::Modal(_) => None,
+            Self::Solid(_) | Self::Modal(_) | Self::Shell(_) => None,
         }
     }
 
@@ -78,7 +84,7 @@ impl System {
     pub(crate) fn as_solid(&self) -> Option<&SolidEntry> {
         match self {
             Self::Solid(solid) => Some(solid),
-            Self::Fluid(_) | Self::Modal(_) => None,
+            Self::Fluid(_) | Self::Modal(_) | Self::Shell(_) => None,
         }
     }
 
@@ -86,7 +92,7 @@ impl System {
     pub(crate) fn as_solid_mut(&mut self) -> Option<&mut SolidEntry> {
         match self {
             Self::Solid(solid) => Some(solid),
-            Self::Fluid(_) | Self::Modal(_) => None,
+            Self::Fluid(_) | Self::Modal(_) | Self::Shell(_) => None,
         }
     }
 
@@ -94,7 +100,7 @@ impl System {
     pub(crate) fn as_modal(&self) -> Option<&ModalEntry> {
         match self {
             Self::Modal(modal) => Some(modal),
-            Self::Fluid(_) | Self::Solid(_) => None,
+            Self::Fluid(_) | Self::Solid(_) | Self::Shell(_) => None,
         }
     }
 
@@ -102,7 +108,7 @@ impl System {
     pub(crate) fn as_modal_mut(&mut self) -> Option<&mut ModalEntry> {
         match self {
             Self::Modal(modal) => Some(modal),
-            Self::Fluid(_) | Self::Solid(_) => None,
+            Self::Fluid(_) | Self::Solid(_) | Self::Shell(_) => None,
         }
     }
 
@@ -133,11 +139,18 @@ impl System {
                 (SystemSpec::ModalSolid(spec), Prepared::Modal(solid)) => {
                     Some(Self::Modal(Box::new(modal::build(index, spec, *solid))))
                 }
+                (SystemSpec::Shell(_), Prepared::Shell(shell)) => {
+                    Some(Self::Shell(Box::new(shell::build(index, *shell))))
+                }
                 (SystemSpec::RigidBody(_), _) => None,
                 // `Scene::check` prepares each system as its kind.
-                (SystemSpec::Fluid(_) | SystemSpec::Solid(_) | SystemSpec::ModalSolid(_), _) => {
-                    unreachable!("systems[{index}] was prepared as another kind")
-                }
+                (
+                    SystemSpec::Fluid(_)
+                    | SystemSpec::Solid(_)
+                    | SystemSpec::ModalSolid(_)
+                    | SystemSpec::Shell(_),
+                    _,
+                ) => unreachable!("systems[{index}] was prepared as another kind"),
             })
             .collect();
         // Stable: the solids keep scene order behind the fluid.

@@ -181,6 +181,9 @@ impl Simulated for ModalEntry {
                 // Nonlinear dynamics: its Newton solve, reported as the
                 // elastic solids' is.
                 info.solid_iterations = u32::try_from(report.iterations).unwrap_or(u32::MAX);
+                // Counted among the step's solver iterations, as the
+                // elastic solids' are (`StepInfo::solid_iterations`).
+                info.solver_iterations = info.solid_iterations;
                 info.solid_residual = report.residual;
                 info.unconverged = u32::from(!report.converged);
                 Ok(info)

@@ -1,0 +1,529 @@
+//! Thin shells in a scene (Guo–Qin 4.2 and 5.2): the TOML/protocol
+//! description, its validation, and the build of the engine shell, which
+//! the check does (the chart, the quadtree, the shape functions and the
+//! first factorisation are its admission: a surface the chart or the
+//! supports refuse is refused before a world exists).
+//!
+//! The surface is a flat rectangular plate (a box with one half extent
+//! zero: the plate's plane) or an open triangle mesh of disk topology,
+//! mapped to the plane by one least-squares conformal chart. A closed
+//! surface needs an atlas of charts with seams, which shells do not have
+//! yet: it is refused, saying so.
+
+use super::error::{check_box, check_positive, check_range, check_vector};
+use super::{Aabb, BuildOptions, SceneContext, SceneError, ShapeSpec};
+use crate::approx::gauss::MAX_ORDER;
+use crate::approx::mls::Order;
+use crate::geometry::TriMesh;
+use crate::geometry::conformal::ConformalChart;
+use crate::geometry::quadtree::Point2;
+use crate::geometry::read;
+use crate::math::{Real, Vector, vector};
+use crate::shell::{
+    DynamicParams, Embedded, Integrator, Load, Material, ShellDynamics, ShellError, ShellModel,
+    ShellParams, Support, SupportKind,
+};
+use nalgebra::Rotation3;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Defaults of the optional shell parameters, shared with the protocol
+/// conversion.
+pub mod defaults {
+    use crate::math::Real;
+
+    /// kg/m^3.
+    pub const DENSITY: Real = 1000.0;
+    /// A typical metal's or polymer's.
+    pub const POISSON: Real = 0.3;
+    /// Support side in leaf sides: a quadratic fit needs three nodes
+    /// along each axis over every point, the domain's corners included.
+    pub const ETA: Real = 4.0;
+    /// Gauss points per axis of an integration cell.
+    pub const QUADRATURE_ORDER: u32 = 4;
+    /// Integration cells per leaf side (one per leaf integrates bending
+    /// poorly: `engine/tests/plate.rs`).
+    pub const SUBDIVISION: u32 = 2;
+    /// The supports' penalty scale (`engine/src/shell/assembly.rs`).
+    pub const PENALTY: Real = 10.0;
+    /// Newton's relative residual per step.
+    pub const TOLERANCE: Real = 1e-7;
+    /// Newton iterations per step.
+    pub const MAX_ITERATIONS: u32 = 20;
+    /// Cells of a plate's carried mesh along its longer side.
+    pub const SURFACE_CELLS: u32 = 32;
+}
+
+/// Most nodes a shell may place, by the estimate made before building
+/// it: each step assembles and factorises the tangent over all of them,
+/// and a session waits for the first factorisation at admission.
+pub const MAX_NODES: u64 = 20_000;
+
+/// Most cells along a plate's carried mesh.
+const MAX_SURFACE_CELLS: u32 = 1024;
+
+/// Bytes a shell holds per quadrature point: the energy's gradient and
+/// Hessian in the 15 local unknowns (1,920 B), the stencil of about 25
+/// nodes with six values each (1,300 B) and the reference geometry,
+/// rounded up; the sparse tangent and its factor come on top, per node.
+const BYTES_PER_POINT: Real = 3_600.0;
+
+/// Bytes per node: its block column of the tangent (about 80 coupled
+/// nodes of 9 values) and the Cholesky factor's fill-in, by count and
+/// rounded up.
+const BYTES_PER_NODE: Real = 24_000.0;
+
+/// A thin shell: a Kirchhoff–Love surface discretised on its conformal
+/// chart (Guo–Qin 4.2, 5.2). The knobs that trade speed for accuracy:
+/// `resolution`, `eta`, `basis`, `quadrature_order`, `subdivision`,
+/// `integrator`, and the scene's `time.dt`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShellSpec {
+    /// The middle surface: a plate (`type = "box"` with one half extent
+    /// 0, the plate lying across the other two axes) or an open mesh
+    /// (OBJ or PLY, one piece of disk topology).
+    pub shape: ShapeSpec,
+    /// Where the surface's centre (its bounding box's) goes, m.
+    pub position: [Real; 3],
+    /// Rotation vector of the surface, rad.
+    #[serde(default)]
+    pub orientation: [Real; 3],
+    /// Shell thickness, m.
+    pub thickness: Real,
+    /// kg/m^3.
+    #[serde(default = "default_density")]
+    pub density: Real,
+    /// Young's modulus, Pa.
+    pub young: Real,
+    /// Poisson's ratio, in [0, 0.5).
+    #[serde(default = "default_poisson")]
+    pub poisson: Real,
+    /// Largest quadtree cell on the surface, m (`lambda l`): the
+    /// resolution.
+    pub resolution: Real,
+    /// Support side in quadtree leaf sides.
+    #[serde(default = "default_eta")]
+    pub eta: Real,
+    /// MLS basis: quadratic (bending needs curvature reproduced) or
+    /// linear (cheaper, membranes).
+    #[serde(default = "default_basis")]
+    pub basis: Order,
+    /// Gauss points per axis of an integration cell.
+    #[serde(default = "default_quadrature_order")]
+    pub quadrature_order: u32,
+    /// Integration cells per leaf side.
+    #[serde(default = "default_subdivision")]
+    pub subdivision: u32,
+    /// `"backward_euler"` (robust, damps) or `"newmark"` (second order,
+    /// keeps energy).
+    #[serde(default)]
+    pub integrator: Integrator,
+    /// Rayleigh damping `a` of `C = a M + b K`, 1/s.
+    #[serde(default)]
+    pub mass_damping: Real,
+    /// Rayleigh damping `b` of `C = a M + b K`, s.
+    #[serde(default)]
+    pub stiffness_damping: Real,
+    /// The supports' penalty scale.
+    #[serde(default = "default_penalty")]
+    pub penalty: Real,
+    /// Newton's relative residual per step.
+    #[serde(default = "default_tolerance")]
+    pub tolerance: Real,
+    /// Newton iterations per step.
+    #[serde(default = "default_max_iterations")]
+    pub max_iterations: u32,
+    /// Pressure on the side the surface's normal points to, Pa.
+    #[serde(default)]
+    pub pressure: Real,
+    /// Boxes (world frame): the surface's boundary inside them is
+    /// clamped (held in place and in slope).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub clamped: Vec<Aabb>,
+    /// Boxes (world frame): the surface's boundary inside them is pinned
+    /// (held in place, free to turn: simply supported).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub pinned: Vec<Aabb>,
+    /// Cells of a plate's carried mesh along its longer side (a mesh
+    /// carries its own vertices).
+    #[serde(default = "default_surface_cells")]
+    pub surface_cells: u32,
+}
+
+fn default_density() -> Real {
+    defaults::DENSITY
+}
+fn default_poisson() -> Real {
+    defaults::POISSON
+}
+fn default_eta() -> Real {
+    defaults::ETA
+}
+fn default_basis() -> Order {
+    Order::Quadratic
+}
+fn default_quadrature_order() -> u32 {
+    defaults::QUADRATURE_ORDER
+}
+fn default_subdivision() -> u32 {
+    defaults::SUBDIVISION
+}
+fn default_penalty() -> Real {
+    defaults::PENALTY
+}
+fn default_tolerance() -> Real {
+    defaults::TOLERANCE
+}
+fn default_max_iterations() -> u32 {
+    defaults::MAX_ITERATIONS
+}
+fn default_surface_cells() -> u32 {
+    defaults::SURFACE_CELLS
+}
+
+/// A shell as its check built it: the dynamics at rest, and the surface
+/// it carries in frames.
+#[derive(Debug, Clone)]
+pub(crate) struct PreparedShell {
+    /// The shell, held and loaded.
+    pub dynamics: ShellDynamics,
+    /// The carried mesh's vertices, embedded in the shell.
+    pub surface: Embedded,
+    /// The carried mesh's triangles.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl PreparedShell {
+    /// Bytes it holds, by count.
+    pub(crate) fn bytes(&self) -> Real {
+        let model = self.dynamics.model();
+        model.points().len() as Real * BYTES_PER_POINT
+            + model.node_count() as Real * BYTES_PER_NODE
+            + self.surface.len() as Real * 1_500.0
+    }
+}
+
+impl ShellSpec {
+    /// Checks the shell against `context` and builds it: the chart, the
+    /// quadtree, the shape functions, the supports and the state at rest.
+    pub(super) fn prepare(
+        &self,
+        at: &str,
+        context: &SceneContext,
+        options: &BuildOptions,
+    ) -> Result<PreparedShell, SceneError> {
+        if context.dimension != 3 {
+            return Err(SceneError::invalid(
+                at,
+                "shells are 3D surfaces; set dimension = 3",
+            ));
+        }
+        self.check_values(at)?;
+        let mesh = self.surface_mesh(at)?;
+        let field = |name: &str| format!("{at}.{name}");
+        for v in &mesh.vertices {
+            for a in 0..3 {
+                if v[a] < context.domain.min[a] || v[a] > context.domain.max[a] {
+                    return Err(SceneError::invalid(
+                        field("position"),
+                        "the shell reaches outside the domain; move it or enlarge the domain",
+                    ));
+                }
+            }
+        }
+        // A leaf's side on the surface lies between half the resolution
+        // and the resolution: twice the area over its square bounds the
+        // leaves from above within a factor two, plus the exterior ring.
+        let area = mesh.area();
+        let nodes = 2.0 * area / (self.resolution * self.resolution);
+        let limit = MAX_NODES.min(options.max_particles);
+        if nodes > limit as Real {
+            return Err(SceneError::TooFine {
+                field: field("resolution"),
+                points: nodes.min(u64::MAX as Real) as u64,
+                limit,
+            });
+        }
+        let chart = ConformalChart::new(&mesh).map_err(|e| {
+            SceneError::invalid(
+                field("shape"),
+                format!(
+                    "{e} (a shell is one chart for now: an open surface of disk topology; \
+                     closed surfaces need an atlas of charts, not yet available)"
+                ),
+            )
+        })?;
+        let shell_error = |e: ShellError| match e {
+            ShellError::Cancelled => SceneError::Cancelled,
+            other => SceneError::invalid(at, other.to_string()),
+        };
+        let (lo, hi) = chart.bounds();
+        let model = ShellModel::new(
+            &chart,
+            lo,
+            hi,
+            self.material(),
+            &self.params(),
+            &options.cancel,
+        )
+        .map_err(shell_error)?;
+        let bytes = model.points().len() as Real * BYTES_PER_POINT
+            + model.node_count() as Real * BYTES_PER_NODE;
+        options
+            .budget
+            .reserve(bytes as u64)
+            .map_err(|message| SceneError::OverBudget {
+                field: at.to_owned(),
+                message,
+            })?;
+        let supports = self.supports(at, &mesh, &chart, &model)?;
+        let load = Load {
+            per_area: self.density * self.thickness * context.gravity,
+            pressure: self.pressure,
+            points: Vec::new(),
+        };
+        let params = DynamicParams {
+            integrator: self.integrator,
+            mass_damping: self.mass_damping,
+            stiffness_damping: self.stiffness_damping,
+            penalty: self.penalty,
+            tolerance: self.tolerance,
+            max_iterations: self.max_iterations as usize,
+            ..DynamicParams::new(context.dt)
+        };
+        let surface = model
+            .embed(chart.uv(), &mesh.vertices)
+            .map_err(shell_error)?;
+        let dynamics = ShellDynamics::new(model, &supports, &load, params).map_err(shell_error)?;
+        Ok(PreparedShell {
+            dynamics,
+            surface,
+            triangles: mesh.triangles,
+        })
+    }
+
+    /// Range checks of every number, before anything is built.
+    fn check_values(&self, at: &str) -> Result<(), SceneError> {
+        let field = |name: &str| format!("{at}.{name}");
+        check_vector(&field("position"), self.position)?;
+        check_vector(&field("orientation"), self.orientation)?;
+        check_positive(&field("thickness"), self.thickness)?;
+        check_positive(&field("density"), self.density)?;
+        check_range(&field("density"), self.density, 1e-3, 1e6)?;
+        check_positive(&field("young"), self.young)?;
+        check_range(&field("young"), self.young, 0.0, 1e13)?;
+        check_range(&field("poisson"), self.poisson, 0.0, 0.4999).map_err(|e| {
+            e.with_hint("0.5 is incompressible, which plane stress in the surface cannot hold")
+        })?;
+        check_positive(&field("resolution"), self.resolution)?;
+        if self.thickness > self.resolution * 10.0 {
+            return Err(SceneError::invalid(
+                field("thickness"),
+                format!(
+                    "is {} m, ten times the resolution or more: a Kirchhoff-Love shell is thin \
+                     against its cells; lower the thickness or coarsen the resolution, or model \
+                     the part as a modal_solid",
+                    self.thickness
+                ),
+            ));
+        }
+        check_range(&field("eta"), self.eta, 2.0, 8.0).map_err(|e| {
+            e.with_hint("below 2 a point may be covered by fewer supports than the basis needs")
+        })?;
+        if self.basis == Order::Constant {
+            return Err(SceneError::invalid(
+                field("basis"),
+                "a constant basis has no curvature; use \"quadratic\" (or \"linear\")",
+            ));
+        }
+        for (name, value, max) in [
+            ("quadrature_order", self.quadrature_order, MAX_ORDER as u32),
+            ("subdivision", self.subdivision, 8),
+            ("max_iterations", self.max_iterations, 1000),
+            ("surface_cells", self.surface_cells, MAX_SURFACE_CELLS),
+        ] {
+            if value == 0 || value > max {
+                return Err(SceneError::invalid(
+                    field(name),
+                    format!("must be in [1, {max}], got {value}"),
+                ));
+            }
+        }
+        for (name, value) in [
+            ("mass_damping", self.mass_damping),
+            ("stiffness_damping", self.stiffness_damping),
+        ] {
+            check_range(&field(name), value, 0.0, 1e6)?;
+        }
+        check_positive(&field("penalty"), self.penalty)?;
+        check_range(&field("penalty"), self.penalty, 0.0, 1e8)?;
+        check_positive(&field("tolerance"), self.tolerance)?;
+        check_range(&field("tolerance"), self.tolerance, 0.0, 0.1)?;
+        check_range(&field("pressure"), self.pressure, -1e12, 1e12)?;
+        for (name, boxes) in [("clamped", &self.clamped), ("pinned", &self.pinned)] {
+            for (k, b) in boxes.iter().enumerate() {
+                check_box(&format!("{at}.{name}[{k}]"), b, 3)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn material(&self) -> Material {
+        Material {
+            thickness: self.thickness,
+            density: self.density,
+            young: self.young,
+            poisson: self.poisson,
+        }
+    }
+
+    fn params(&self) -> ShellParams {
+        let mut params = ShellParams::new(self.resolution);
+        params.order = self.basis;
+        params.quadtree.eta = self.eta;
+        params.quadtree.gauss_order = self.quadrature_order as usize;
+        params.quadtree.subdivision = self.subdivision as usize;
+        params
+    }
+
+    /// The middle surface in the world frame: a plate's grid of split
+    /// squares, or the mesh file centred on its bounding box's centre.
+    fn surface_mesh(&self, at: &str) -> Result<TriMesh, SceneError> {
+        let shape_at = format!("{at}.shape");
+        let (centre, rotation) = (
+            vector(self.position),
+            Rotation3::new(vector(self.orientation)),
+        );
+        let mut mesh = match &self.shape {
+            ShapeSpec::Box { half_extents } => self.plate(&shape_at, *half_extents)?,
+            ShapeSpec::Mesh { path, data, scale } => {
+                let label = path.clone().unwrap_or_else(|| format!("{shape_at}.data"));
+                let Some(data) = data else {
+                    return Err(SceneError::invalid(
+                        format!("{shape_at}.path"),
+                        "the mesh was not loaded; load it first (`Scene::check` does)",
+                    ));
+                };
+                let scale = scale.unwrap_or(1.0);
+                check_positive(&format!("{shape_at}.scale"), scale)?;
+                let loaded = read::parse(Path::new(&label), data.format, &data.content)
+                    .map_err(|e| SceneError::invalid(&shape_at, e.to_string()))?;
+                if loaded.mesh.triangles.is_empty() {
+                    return Err(SceneError::invalid(
+                        shape_at,
+                        "has no triangles; a shell's surface is a triangle mesh (point clouds \
+                         are not yet taken)",
+                    ));
+                }
+                let mut mesh = loaded.mesh;
+                let (lo, hi) = mesh.vertices.iter().fold(
+                    (
+                        Vector::repeat(Real::INFINITY),
+                        Vector::repeat(Real::NEG_INFINITY),
+                    ),
+                    |(lo, hi), v| (lo.inf(v), hi.sup(v)),
+                );
+                let middle = 0.5 * (lo + hi);
+                for v in &mut mesh.vertices {
+                    *v = (*v - middle) * scale;
+                }
+                mesh
+            }
+            ShapeSpec::Sphere { .. } | ShapeSpec::Capsule { .. } | ShapeSpec::Plane { .. } => {
+                return Err(SceneError::invalid(
+                    shape_at,
+                    "a shell is a plate (type = \"box\" with one half extent 0) or an open \
+                     mesh of disk topology; closed surfaces need an atlas of charts, not yet \
+                     available",
+                ));
+            }
+        };
+        for v in &mut mesh.vertices {
+            *v = centre + rotation * *v;
+        }
+        Ok(mesh)
+    }
+
+    /// A plate across the two axes of `half_extents` that are not zero.
+    fn plate(&self, at: &str, half_extents: [Real; 3]) -> Result<TriMesh, SceneError> {
+        check_vector(&format!("{at}.half_extents"), half_extents)?;
+        let flat: Vec<usize> = (0..3).filter(|&a| half_extents[a] == 0.0).collect();
+        let [normal] = flat[..] else {
+            return Err(SceneError::invalid(
+                format!("{at}.half_extents"),
+                "a shell's plate is a box with exactly one half extent 0 (the plate's normal \
+                 axis); its thickness is the shell's `thickness`",
+            ));
+        };
+        let (u, v) = ((normal + 1) % 3, (normal + 2) % 3);
+        let (hu, hv) = (half_extents[u], half_extents[v]);
+        if hu <= 0.0 || hv <= 0.0 {
+            return Err(SceneError::invalid(
+                format!("{at}.half_extents"),
+                "the plate's two other half extents must be > 0",
+            ));
+        }
+        let longer = hu.max(hv);
+        let cells = |h: Real| ((h / longer * self.surface_cells as Real).round() as usize).max(1);
+        let (nu, nv) = (cells(hu), cells(hv));
+        Ok(TriMesh::grid(nu, nv, |i, j| {
+            let mut p = Vector::zeros();
+            p[u] = hu * (2.0 * i as Real / nu as Real - 1.0);
+            p[v] = hv * (2.0 * j as Real / nv as Real - 1.0);
+            p
+        }))
+    }
+
+    /// The penalty supports of the boundary edges inside the clamped and
+    /// pinned boxes: each such edge held at four Gauss points.
+    fn supports(
+        &self,
+        at: &str,
+        mesh: &TriMesh,
+        chart: &ConformalChart,
+        model: &ShellModel,
+    ) -> Result<Vec<Support>, SceneError> {
+        let uv = chart.uv();
+        let held = [
+            SupportKind::Displacement(Vector::x()),
+            SupportKind::Displacement(Vector::y()),
+            SupportKind::Displacement(Vector::z()),
+        ];
+        let mut supports = Vec::new();
+        for (name, boxes, clamp) in [
+            ("clamped", &self.clamped, true),
+            ("pinned", &self.pinned, false),
+        ] {
+            for (k, b) in boxes.iter().enumerate() {
+                let inside = |p: &Vector| (0..3).all(|a| p[a] >= b.min[a] && p[a] <= b.max[a]);
+                let mut edges = 0;
+                for &[i, j] in chart.boundary() {
+                    let (i, j) = (i as usize, j as usize);
+                    if !(inside(&mesh.vertices[i]) && inside(&mesh.vertices[j])) {
+                        continue;
+                    }
+                    edges += 1;
+                    let (from, to): (Point2, Point2) = (uv[i], uv[j]);
+                    let d = [to[0] - from[0], to[1] - from[1]];
+                    let length = d[0].hypot(d[1]);
+                    let mut kinds = held.to_vec();
+                    if clamp && length > 0.0 {
+                        kinds.push(SupportKind::Slope([d[1] / length, -d[0] / length]));
+                    }
+                    supports.extend(model.edge_supports(from, to, 1, &kinds).map_err(|e| {
+                        SceneError::invalid(format!("{at}.{name}[{k}]"), e.to_string())
+                    })?);
+                }
+                if edges == 0 {
+                    return Err(SceneError::invalid(
+                        format!("{at}.{name}[{k}]"),
+                        "holds no edge of the surface's boundary; move the box over an edge \
+                         (a support holds boundary edges whose two ends lie in it)",
+                    ));
+                }
+            }
+        }
+        Ok(supports)
+    }
+}

@@ -1,0 +1,321 @@
+//! A thin shell as the world keeps it: the adapter between
+//! [`ShellDynamics`] (built by its scene check) and the world's
+//! [`Simulated`] trait. Frames list the shell's nodes as particles (their
+//! positions are the nodal coefficients `X_I + u_I`) and carry the
+//! surface the shell was given, deformed, as a solid surface.
+
+use super::simulated::{Invalid, RemoveError, Simulated, StepEnv};
+use crate::frame::{FieldKind, SolidSurface};
+use crate::geometry::TriMesh;
+use crate::math::{Real, Vector};
+use crate::scene::{PreparedShell, Scene};
+use crate::shell::{Embedded, ShellDynamics, ShellError, ShellState};
+use crate::snapshot::{SnapshotError, check_vectors};
+use crate::stats::{Stage, StageTimer};
+use crate::world::outcome::{StepError, StepInfo};
+use crate::world::saved::{StateError, SystemState};
+use crate::world::watch::{EnergyWatch, MAX_ENERGY_GAIN};
+
+/// A shell of the scene.
+#[derive(Debug, Clone)]
+pub(crate) struct ShellEntry {
+    /// Index of its system in the scene.
+    pub index: usize,
+    /// The shell.
+    pub dynamics: ShellDynamics,
+    /// Its state at the start of the current step.
+    backup: ShellState,
+    /// The surface it carries in frames.
+    surface: Embedded,
+    triangles: Vec<[u32; 3]>,
+    /// Each node's lumped mass, for the per-particle fields.
+    masses: Vec<Real>,
+    /// Backward Euler and damping only lose energy, and Newmark keeps a
+    /// linear shell's; a nonlinear Newmark step that gains energy from
+    /// nowhere faults instead of running on.
+    watch: EnergyWatch,
+}
+
+/// What to change when a shell gains energy.
+const ENERGY_ADVICE: &str =
+    "lower time.dt, or set integrator = \"backward_euler\", which damps what Newmark keeps";
+
+impl ShellEntry {
+    fn failed(&self, reason: ShellError, step: u64) -> StepError {
+        StepError::ShellFailed {
+            system: self.index,
+            reason,
+            step,
+        }
+    }
+
+    /// `E = KE + U - f_ext . u` and the scale its gain is measured
+    /// against: `KE_0 + U_0 + |f_ext| L + M E / (1000 rho)` (`L` the
+    /// shell's extent; the last term the energy of straining it by about
+    /// 4.5 %, so that a shell at rest without load does not fault on
+    /// round-off).
+    fn energy(&mut self) -> Result<(Real, Real), ShellError> {
+        let e = self.dynamics.energy()?;
+        let mechanical = e.kinetic + e.strain - e.work;
+        let model = self.dynamics.model();
+        let material = model.material();
+        let mass: Real = self.masses.iter().sum();
+        let (lo, hi) = model.reference().iter().fold(
+            (
+                Vector::repeat(Real::INFINITY),
+                Vector::repeat(Real::NEG_INFINITY),
+            ),
+            |(lo, hi), x| (lo.inf(x), hi.sup(x)),
+        );
+        let scale = e.kinetic
+            + e.strain
+            + self.dynamics.load_magnitude() * (hi - lo).norm()
+            + 1e-3 * mass * material.young / material.density;
+        Ok((mechanical, scale))
+    }
+}
+
+impl Simulated for ShellEntry {
+    fn index(&self) -> usize {
+        self.index
+    }
+
+    fn kind_name(&self) -> &'static str {
+        "shell"
+    }
+
+    fn is_solid(&self) -> bool {
+        true
+    }
+
+    fn kind_article(&self) -> &'static str {
+        "a shell"
+    }
+
+    fn particle_count(&self) -> usize {
+        self.dynamics.model().node_count()
+    }
+
+    /// Nodes never change.
+    fn start_step(&mut self, _step: u64) -> Result<u32, StepError> {
+        Ok(0)
+    }
+
+    fn save(&mut self) {
+        self.backup = self.dynamics.state();
+    }
+
+    fn restore(&mut self) {
+        // The backup was taken from this shell: its lengths match.
+        let _ = self.dynamics.restore(self.backup.clone());
+    }
+
+    /// One implicit step (Newton on the sparse tangent) of any length:
+    /// both integrators are unconditionally stable for a linear shell, so
+    /// no sub-steps.
+    fn step(&mut self, env: &StepEnv, timer: &mut StageTimer) -> Result<StepInfo, StepError> {
+        env.check()?;
+        if env.dt != self.dynamics.time_step() {
+            self.dynamics
+                .set_time_step(env.dt)
+                .map_err(|e| self.failed(e, env.step))?;
+        }
+        if self.watch.start().is_none() {
+            let start = self.energy().map_err(|e| self.failed(e, env.step))?;
+            self.watch.begin_with(|| start);
+        }
+        let dynamics = &mut self.dynamics;
+        let report = timer
+            .time(Stage::ShellSolve, || dynamics.step(env.cancel))
+            .map_err(|e| {
+                if matches!(e, ShellError::Cancelled) {
+                    env.cancelled()
+                } else {
+                    self.failed(e, env.step)
+                }
+            })?;
+        if let Some(invalid) = self.first_invalid() {
+            return Err(StepError::SolidUnstable {
+                system: self.index,
+                quantity: invalid.quantity,
+                particle: invalid.particle,
+                value: invalid.value,
+                step: env.step,
+            });
+        }
+        let (energy, _) = self.energy().map_err(|e| self.failed(e, env.step))?;
+        if let Some((gained, fraction)) = self.watch.excess(energy) {
+            return Err(StepError::SolidEnergyGained {
+                system: self.index,
+                gained,
+                fraction,
+                limit: MAX_ENERGY_GAIN,
+                advice: ENERGY_ADVICE,
+                step: env.step,
+            });
+        }
+        let mut info = StepInfo::start(env.dt);
+        info.substeps = 1;
+        info.solid_iterations = u32::try_from(report.iterations).unwrap_or(u32::MAX);
+        // Of the step's solver iterations (`StepInfo::solid_iterations`).
+        info.solver_iterations = info.solid_iterations;
+        info.solid_residual = report.residual;
+        Ok(info)
+    }
+
+    fn first_invalid(&self) -> Option<Invalid> {
+        for (quantity, values) in [
+            ("displacement", self.dynamics.displacement()),
+            ("velocity", self.dynamics.velocity()),
+        ] {
+            if let Some((particle, v)) = values
+                .iter()
+                .enumerate()
+                .find(|(_, v)| !v.iter().all(|c| c.is_finite()))
+            {
+                return Some(Invalid {
+                    quantity,
+                    particle,
+                    value: v.norm(),
+                });
+            }
+        }
+        None
+    }
+
+    fn write_field(&self, kind: FieldKind, out: &mut Vec<f32>) {
+        let model = self.dynamics.model();
+        let n = model.node_count();
+        let u = self.dynamics.displacement();
+        let v = self.dynamics.velocity();
+        let vectors = |it: &mut dyn Iterator<Item = Vector>, out: &mut Vec<f32>| {
+            out.extend(it.flat_map(|x| [x.x as f32, x.y as f32, x.z as f32]));
+        };
+        let density = model.material().density;
+        match kind {
+            FieldKind::Position => {
+                vectors(
+                    &mut model.reference().iter().zip(u).map(|(x, u)| x + u),
+                    out,
+                );
+            }
+            FieldKind::Velocity => vectors(&mut v.iter().copied(), out),
+            FieldKind::Density => out.extend(std::iter::repeat_n(density as f32, n)),
+            // A shell's stresses are not a pressure: zero, as for the
+            // modal solids.
+            FieldKind::Pressure => out.extend(std::iter::repeat_n(0.0, n)),
+            FieldKind::Mass => out.extend(self.masses.iter().map(|&m| m as f32)),
+            FieldKind::Volume => out.extend(self.masses.iter().map(|&m| (m / density) as f32)),
+            // Lumped: the consistent mass's row sums.
+            FieldKind::KineticEnergy => out.extend(
+                self.masses
+                    .iter()
+                    .zip(v)
+                    .map(|(m, v)| (0.5 * m * v.norm_squared()) as f32),
+            ),
+            // Each node's share of the membrane and bending energy; a
+            // state the last step accepted does not fold, but a fold
+            // would show as zeros rather than fail the frame.
+            FieldKind::ElasticEnergy => match model.nodal_energies(u) {
+                Ok(e) => out.extend(e.into_iter().map(|e| e as f32)),
+                Err(_) => out.extend(std::iter::repeat_n(0.0, n)),
+            },
+            // Exact below 2^24; frames carry ids as integers.
+            FieldKind::Id => out.extend((0..n).map(|id| id as f32)),
+            // A shell does not tear yet: one fragment.
+            FieldKind::Fragment => out.extend(std::iter::repeat_n(0.0, n)),
+        }
+    }
+
+    /// Nodes never change: their ids are their indices.
+    fn write_ids(&self, out: &mut Vec<u32>) {
+        out.extend(0..self.particle_count() as u32);
+    }
+
+    fn mark_removed(&mut self, _ids: &[usize]) -> Result<(), RemoveError> {
+        Err(RemoveError::Unsupported {
+            system: self.index,
+            kind: self.kind_article(),
+        })
+    }
+
+    /// The carried surface, deformed, with the middle surface's normals.
+    fn solid_surface(&self) -> Option<SolidSurface> {
+        let model = self.dynamics.model();
+        let u = self.dynamics.displacement();
+        let nodes: Vec<Vector> = model
+            .reference()
+            .iter()
+            .zip(u)
+            .map(|(x, u)| x + u)
+            .collect();
+        Some(SolidSurface {
+            system: self.index,
+            mesh: TriMesh {
+                vertices: self.surface.positions(u),
+                triangles: self.triangles.clone(),
+            },
+            normals: self.surface.normals(&nodes),
+        })
+    }
+
+    fn capture(&self) -> SystemState {
+        SystemState::Shell {
+            index: self.index,
+            state: self.dynamics.state(),
+        }
+    }
+
+    fn restore_state(&mut self, saved: &SystemState, _scene: &Scene) -> Result<(), StateError> {
+        let SystemState::Shell { state, .. } = saved else {
+            return Err(StateError::kind((self.kind_name(), self.index), saved));
+        };
+        let at = |source| StateError::System {
+            system: self.index,
+            source,
+        };
+        let n = self.particle_count();
+        for (what, values) in [
+            ("shell displacements", &state.displacement),
+            ("shell velocities", &state.velocity),
+            ("shell accelerations", &state.acceleration),
+        ] {
+            check_vectors(what, values, n).map_err(at)?;
+        }
+        if !state.time.is_finite() {
+            return Err(at(SnapshotError::Invalid {
+                what: "shell time",
+                index: 0,
+                value: state.time,
+            }));
+        }
+        // Checked above: the restore takes it.
+        self.dynamics.restore(state.clone()).map_err(|_| {
+            at(SnapshotError::Length {
+                what: "shell state",
+                expected: n,
+                got: state.displacement.len(),
+            })
+        })?;
+        self.watch.restart();
+        Ok(())
+    }
+}
+
+/// The shell of system `index`, as its check built it.
+pub(super) fn build(index: usize, shell: PreparedShell) -> ShellEntry {
+    let PreparedShell {
+        dynamics,
+        surface,
+        triangles,
+    } = shell;
+    ShellEntry {
+        index,
+        backup: dynamics.state(),
+        masses: dynamics.model().lumped_masses(),
+        dynamics,
+        surface,
+        triangles,
+        watch: EnergyWatch::default(),
+    }
+}

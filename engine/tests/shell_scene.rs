@@ -1,0 +1,282 @@
+//! Shells served as a system of a scene (`kind = "shell"`): the shipped
+//! plate runs and streams its nodes and its surface; a cantilever plate
+//! settles to Euler–Bernoulli's sag; snapshots continue a shell bit for
+//! bit; bad keys are refused naming them; the extremes of the time step
+//! stay stable.
+
+use meshless_engine::approx::mls::Order;
+use meshless_engine::frame::FieldKind;
+use meshless_engine::scene::{Aabb, ShapeSpec, ShellSpec, SystemSpec};
+use meshless_engine::{BuildOptions, Scene, SceneError, StepError, World};
+use std::path::Path;
+
+fn shipped() -> Scene {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/shell_plate.toml");
+    Scene::from_toml_file(Path::new(path)).expect("the shipped scene parses")
+}
+
+fn build(scene: &Scene) -> World {
+    scene
+        .build(&BuildOptions::default())
+        .expect("a valid scene")
+}
+
+/// A cantilever plate of `length` x 0.2 m in the x-z plane, clamped at
+/// x = 0, gravity along -y, with `extra` keys appended to the shell.
+fn cantilever(length: f64, dt: f64, extra: &str) -> Scene {
+    Scene::from_toml_str(&format!(
+        r#"
+        [domain]
+        min = [-0.1, -1.0, -0.5]
+        max = [{max}, 0.5, 0.5]
+        [time]
+        dt = {dt}
+        [[systems]]
+        kind = "shell"
+        shape = {{ type = "box", half_extents = [{half}, 0.0, 0.1] }}
+        position = [{half}, 0.0, 0.0]
+        thickness = 0.01
+        young = 1e10
+        poisson = 0.0
+        density = 1000.0
+        resolution = {resolution}
+        clamped = [{{ min = [-0.001, -0.01, -0.2], max = [0.001, 0.01, 0.2] }}]
+        {extra}
+        "#,
+        max = length + 0.1,
+        half = length / 2.0,
+        resolution = length / 16.0,
+    ))
+    .expect("the scene parses")
+}
+
+/// The shipped plate builds, steps, and every frame lists its nodes with
+/// every field and carries its surface with unit normals; the nodes'
+/// masses add up to the plate's.
+#[test]
+fn the_shipped_plate_streams_its_nodes_and_surface() {
+    let mut world = build(&shipped());
+    for _ in 0..3 {
+        world.step().expect("a stable step");
+    }
+    let frame = world.frame();
+    let nodes = frame.solids[0].count;
+    assert!(nodes > 50, "{nodes} nodes");
+    let mass: f64 = world
+        .field_values(FieldKind::Mass)
+        .iter()
+        .map(|&m| f64::from(m))
+        .sum();
+    // rho t A = 1200 x 0.005 x 1 x 0.5, to the quadrature of the leaves
+    // that straddle the plate's edge (their Gauss points outside it are
+    // dropped): 2.4e-4 at this resolution.
+    assert!((mass / 3.0 - 1.0).abs() < 1e-3, "{mass}");
+    for kind in [
+        FieldKind::Velocity,
+        FieldKind::KineticEnergy,
+        FieldKind::ElasticEnergy,
+        FieldKind::Fragment,
+    ] {
+        assert_eq!(
+            world.field_values(kind).len(),
+            nodes * kind.components(),
+            "{kind:?}"
+        );
+    }
+    let surface = &frame.solid_surfaces[0];
+    assert_eq!(surface.mesh.vertices.len(), 33 * 17);
+    assert_eq!(surface.normals.len(), surface.mesh.vertices.len());
+    assert!(
+        surface
+            .normals
+            .iter()
+            .all(|n| (n.norm() - 1.0).abs() < 1e-9)
+    );
+    // Released into gravity along -y: the free edge has started down.
+    let tip = surface
+        .mesh
+        .vertices
+        .iter()
+        .map(|v| v.y)
+        .fold(f64::INFINITY, f64::min);
+    assert!(tip < -1e-3, "{tip}");
+}
+
+/// A stiff cantilever plate (nu = 0, so its strip bends as a beam of
+/// stiffness E t^3 / 12) stepped by backward Euler with steps far longer
+/// than its period settles where Euler–Bernoulli puts it: a tip sag of
+/// rho t g L^4 / (8 D).
+#[test]
+fn a_cantilever_plate_settles_to_euler_bernoulli_sag() {
+    let length = 0.5;
+    let mut world = build(&cantilever(length, 10.0, ""));
+    let mut sag = 0.0;
+    for _ in 0..4 {
+        world.step().expect("a stable step");
+        let surface = &world.frame().solid_surfaces[0];
+        sag = -surface
+            .mesh
+            .vertices
+            .iter()
+            .map(|v| v.y)
+            .fold(f64::INFINITY, f64::min);
+    }
+    let d = 1e10 * 0.01_f64.powi(3) / 12.0;
+    let expected = 1000.0 * 0.01 * 9.81 * length.powi(4) / (8.0 * d);
+    eprintln!(
+        "cantilever plate sag {sag:.4e}, {:.4} of Euler-Bernoulli's {expected:.4e}",
+        sag / expected
+    );
+    assert!((sag / expected - 1.0).abs() < 0.02, "{sag} vs {expected}");
+}
+
+/// Every number a frame carries, as bits, with the surface's.
+fn frame_bits(world: &World) -> Vec<u64> {
+    let frame = world.frame();
+    let mut bits = vec![frame.step, frame.time.to_bits()];
+    for field in &frame.fields {
+        bits.extend(field.values.iter().map(|v| u64::from(v.to_bits())));
+    }
+    for surface in &frame.solid_surfaces {
+        for v in surface.mesh.vertices.iter().chain(&surface.normals) {
+            bits.extend(v.iter().map(|c| c.to_bits()));
+        }
+    }
+    bits
+}
+
+/// A snapshot taken mid-swing and restored into a fresh build steps on
+/// exactly as the original (Newmark reads the acceleration it kept).
+#[test]
+fn a_shell_continues_bit_for_bit_from_a_snapshot() {
+    let scene = cantilever(0.5, 0.005, "integrator = \"newmark\"");
+    let mut world = build(&scene);
+    for _ in 0..3 {
+        world.step().expect("a stable step");
+    }
+    let state = world.state();
+    let mut restored = build(&scene).restored(&state).expect("the state fits");
+    assert_eq!(restored.state(), state);
+    for k in 0..3 {
+        world.step().expect("a stable step");
+        restored.step().expect("a stable step");
+        assert_eq!(frame_bits(&restored), frame_bits(&world), "step {k}");
+    }
+}
+
+/// The field a refused scene names, and its message.
+fn refused(scene: &Scene) -> (String, String) {
+    match scene.validate(&BuildOptions::default()) {
+        Err(SceneError::Invalid { field, message }) => (field, message),
+        Err(SceneError::TooFine { field, .. }) => (field, "too fine".into()),
+        other => panic!("expected a refusal, got {other:?}"),
+    }
+}
+
+/// A change to a shell's keys.
+type Change = fn(&mut ShellSpec);
+
+/// The cantilever's shell, to change.
+fn shell_of(scene: &mut Scene) -> &mut ShellSpec {
+    match &mut scene.systems[0] {
+        SystemSpec::Shell(shell) => shell,
+        other => panic!("expected a shell, got {other:?}"),
+    }
+}
+
+/// Each bad key is refused naming it, with what to change.
+#[test]
+fn bad_shell_keys_are_refused_naming_them() {
+    let cases: [(Change, &str, &str); 11] = [
+        (|s| s.thickness = 0.5, "systems[0].thickness", "thin"),
+        (|s| s.poisson = 0.5, "systems[0].poisson", "incompressible"),
+        (|s| s.eta = 1.0, "systems[0].eta", "supports"),
+        (
+            |s| s.basis = Order::Constant,
+            "systems[0].basis",
+            "curvature",
+        ),
+        (
+            |s| s.quadrature_order = 9,
+            "systems[0].quadrature_order",
+            "[1, 5]",
+        ),
+        (
+            |s| {
+                s.pinned = vec![Aabb {
+                    min: [0.2, -0.1, -0.05],
+                    max: [0.3, 0.1, 0.05],
+                }]
+            },
+            "systems[0].pinned[0]",
+            "no edge",
+        ),
+        (|s| s.tolerance = 0.0, "systems[0].tolerance", "> 0"),
+        (
+            |s| s.max_iterations = 0,
+            "systems[0].max_iterations",
+            "[1, 1000]",
+        ),
+        (|s| s.resolution = 2e-3, "systems[0].resolution", "too fine"),
+        (
+            |s| s.shape = ShapeSpec::Sphere { radius: 0.1 },
+            "systems[0].shape",
+            "atlas",
+        ),
+        (
+            |s| {
+                s.shape = ShapeSpec::Box {
+                    half_extents: [0.25, 0.0, 0.0],
+                }
+            },
+            "systems[0].shape.half_extents",
+            "exactly one half extent 0",
+        ),
+    ];
+    for (change, field, says) in cases {
+        let mut scene = cantilever(0.5, 0.01, "");
+        change(shell_of(&mut scene));
+        let (got, message) = refused(&scene);
+        assert_eq!(got, field, "{message}");
+        assert!(message.contains(says), "{field}: {message}");
+    }
+    let mut flat = cantilever(0.5, 0.01, "");
+    flat.dimension = 2;
+    assert_eq!(refused(&flat).0, "systems[0]");
+}
+
+/// Steps from a microsecond to far beyond the period stay stable and
+/// finite; a free plate (no support) falls as a rigid body at g.
+#[test]
+fn shells_are_stable_at_tiny_and_huge_steps_and_fall_freely() {
+    for dt in [1e-6, 100.0] {
+        let mut world = build(&cantilever(0.5, dt, ""));
+        for _ in 0..2 {
+            world.step().expect("a stable step");
+        }
+        assert!(
+            world
+                .field_values(FieldKind::Position)
+                .iter()
+                .all(|v| v.is_finite())
+        );
+    }
+    let mut free = cantilever(0.5, 0.01, "");
+    shell_of(&mut free).clamped.clear();
+    let mut world = build(&free);
+    for _ in 0..5 {
+        world.step().expect("a stable step");
+    }
+    let velocity = world.field_values(FieldKind::Velocity);
+    // Backward Euler is exact for a constant acceleration's velocity.
+    for v in velocity.chunks_exact(3) {
+        assert!((f64::from(v[1]) + 9.81 * 0.05).abs() < 1e-6, "{v:?}");
+        assert!(f64::from(v[0]).abs() < 1e-6 && f64::from(v[2]).abs() < 1e-6);
+    }
+    // A Newton failure is a fault of the shell's, naming it.
+    let mut capped = build(&cantilever(0.5, 10.0, "max_iterations = 1"));
+    match capped.step() {
+        Err(StepError::ShellFailed { system: 0, .. }) => {}
+        other => panic!("expected the shell to stop, got {other:?}"),
+    }
+}
