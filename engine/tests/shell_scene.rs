@@ -1,12 +1,15 @@
 //! Shells served as a system of a scene (`kind = "shell"`): the shipped
 //! plate runs and streams its nodes and its surface; a cantilever plate
 //! settles to Euler–Bernoulli's sag; snapshots continue a shell bit for
-//! bit; bad keys are refused naming them; the extremes of the time step
-//! stay stable.
+//! bit; runtime grabs hold its points; bad keys and grabs are refused
+//! naming them; the extremes of the time step stay stable.
 
 use meshless_engine::approx::mls::Order;
+use meshless_engine::efg::Grab;
 use meshless_engine::frame::FieldKind;
+use meshless_engine::math::Vector;
 use meshless_engine::scene::{Aabb, ShapeSpec, ShellSpec, SystemSpec};
+use meshless_engine::world::{Control, ControlError, ControlKind, Controls};
 use meshless_engine::{BuildOptions, Scene, SceneError, StepError, World};
 use std::path::Path;
 
@@ -273,10 +276,108 @@ fn shells_are_stable_at_tiny_and_huge_steps_and_fall_freely() {
         assert!((f64::from(v[1]) + 9.81 * 0.05).abs() < 1e-6, "{v:?}");
         assert!(f64::from(v[0]).abs() < 1e-6 && f64::from(v[2]).abs() < 1e-6);
     }
-    // A Newton failure is a fault of the shell's, naming it.
-    let mut capped = build(&cantilever(0.5, 10.0, "max_iterations = 1"));
+    // A Newton failure that no split of the step mends is a fault of the
+    // shell's, naming it.
+    let mut one_try = cantilever(0.5, 10.0, "max_iterations = 1");
+    one_try.time.max_substeps = 1;
+    let mut capped = build(&one_try);
     match capped.step() {
         Err(StepError::ShellFailed { system: 0, .. }) => {}
         other => panic!("expected the shell to stop, got {other:?}"),
     }
+}
+
+/// Runtime grabs on a shell, as a session sets them: the free corner
+/// follows its grab, is dragged, and falls back when released; a grab
+/// off the surface, with an orientation, or on no shell is refused
+/// naming it, and the grabs before stay.
+#[test]
+fn a_grab_holds_a_shell_point_and_bad_grabs_change_nothing() {
+    // 8 cells along: the grabs' accuracy is the spring's, not the mesh's.
+    let mut scene = cantilever(0.5, 10.0, "");
+    shell_of(&mut scene).resolution = 0.5 / 8.0;
+    let mut world = build(&scene);
+    let corner = Vector::new(0.5, 0.0, 0.1);
+    let tip = world.frame().solid_surfaces[0]
+        .mesh
+        .vertices
+        .iter()
+        .enumerate()
+        .min_by(|a, b| (a.1 - corner).norm().total_cmp(&(b.1 - corner).norm()))
+        .map(|(k, _)| k)
+        .expect("vertices");
+    let lowest = |world: &World| world.frame().solid_surfaces[0].mesh.vertices[tip];
+    world.step().expect("a stable step");
+    let sag = lowest(&world).y;
+    assert!(sag < -1e-4, "{sag}");
+    let grab = |system: usize, point: Vector, target: Vector, rotation: Option<Vector>| {
+        let mut controls = Controls::new();
+        controls.insert(
+            "corner",
+            Control {
+                system,
+                kind: ControlKind::Grab(Grab {
+                    point,
+                    position: Some(target),
+                    rotation,
+                }),
+            },
+        );
+        controls
+    };
+    for target in [Vector::new(0.5, 0.01, 0.1), Vector::new(0.5, 0.02, 0.1)] {
+        world
+            .set_controls(grab(0, corner, target, None))
+            .expect("a point of the plate");
+        world.step().expect("a stable step");
+        let held = lowest(&world);
+        eprintln!("grabbed corner at {held:?}, target {target:?}");
+        assert!((held - target).norm() < 1e-3 * 0.01, "{held:?}");
+    }
+    // Yanked 20 cm up in one step, which one Newton solve does not take:
+    // the step is taken in pieces, and the corner gets there.
+    let far = Vector::new(0.45, 0.2, 0.1);
+    world
+        .set_controls(grab(0, corner, far, None))
+        .expect("a point of the plate");
+    let info = world.step().expect("taken in pieces");
+    let held = lowest(&world);
+    eprintln!("yanked: {} pieces, corner at {held:?}", info.substeps);
+    assert!(info.substeps > 1, "{info:?}");
+    assert!((held - far).norm() < 1e-3 * 0.2, "{held:?}");
+    let before = (world.state(), world.controls().clone());
+    for (bad, says) in [
+        (
+            grab(0, Vector::new(0.5, 0.2, 0.1), corner, None),
+            "from the shell's",
+        ),
+        (
+            grab(0, corner, corner, Some(Vector::new(0.0, 0.1, 0.0))),
+            "orientation",
+        ),
+        (
+            grab(0, corner, Vector::new(f64::NAN, 0.0, 0.0), None),
+            "finite",
+        ),
+    ] {
+        match world.set_controls(bad) {
+            Err(e @ ControlError::Grab { system: 0, .. }) => {
+                assert!(e.to_string().contains(says), "{e}");
+                assert!(e.to_string().contains("control `corner`"), "{e}");
+            }
+            other => panic!("expected a refused grab, got {other:?}"),
+        }
+    }
+    assert!(matches!(
+        world.set_controls(grab(4, corner, corner, None)),
+        Err(ControlError::NotGrabbable { system: 4, .. })
+    ));
+    assert_eq!((world.state(), world.controls().clone()), before);
+    world.set_controls(Controls::new()).expect("released");
+    world.step().expect("a stable step");
+    let back = lowest(&world).y;
+    assert!(
+        (back / sag - 1.0).abs() < 1e-3,
+        "falls back to {back}, not {sag}"
+    );
 }

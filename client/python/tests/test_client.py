@@ -400,8 +400,9 @@ def test_a_shell_streams_its_nodes_and_surface_and_restores_from_a_snapshot(clie
     """A thin shell (``tests/fixtures/small_shell.toml``): its frames list
     its nodes as one solid and carry the plate's mesh with unit normals,
     sagging under gravity; a snapshot restored into a new session steps on
-    to the same frame; a closed surface is INVALID_ARGUMENT naming the
-    shape, and no session is made of it."""
+    to the same frame; a grab pulls its free corner to a target and one off
+    the surface is INVALID_ARGUMENT and changes nothing; a closed surface
+    is INVALID_ARGUMENT naming the shape, and no session is made of it."""
     session = client.create_session(fixture("small_shell"))
     assert list(session.system_kinds) == ["shell"]
     rest = client.latest_frame(session)
@@ -420,6 +421,20 @@ def test_a_shell_streams_its_nodes_and_surface_and_restores_from_a_snapshot(clie
     np.testing.assert_array_equal(
         client.latest_frame(again).solid_surfaces[0].vertices, bent.vertices
     )
+    corner = [0.4, 0.0, 0.1]
+    tip = int(np.argmin(np.linalg.norm(plate.vertices - corner, axis=1)))
+    target = [0.4, 0.02, 0.1]
+    grab = {"name": "corner", "type": "grab", "system": 0, "point": corner, "position": target}
+    client.edit_constraints(session, add=[grab])
+    client.step(session, 3)
+    np.testing.assert_allclose(
+        client.latest_frame(session).solid_surfaces[0].vertices[tip], target, atol=1e-4
+    )
+    off = dict(grab, name="off", point=[0.4, 0.5, 0.1])
+    assert code_of(lambda: client.edit_constraints(session, add=[off])) == (
+        grpc.StatusCode.INVALID_ARGUMENT
+    )
+    assert [c.name for c in client.list_constraints(session)] == ["corner"]
     before = len(client.list_sessions())
     closed = fixture("small_shell").replace(
         'shape = { type = "box", half_extents = [0.2, 0.0, 0.1] }',

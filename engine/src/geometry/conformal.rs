@@ -35,6 +35,7 @@
 //! apart, so `lambda` is about one where the map keeps lengths.
 
 use super::TriMesh;
+use super::closest_point_on_triangle;
 use super::quadtree::{ChartDomain, Point2};
 use crate::linalg::sparse::{BlockPattern, SparseCholesky};
 use crate::math::{Real, Vector};
@@ -284,6 +285,44 @@ impl ConformalChart {
             let [a, b, c] = tri.map(|k| self.uv[k as usize]);
             barycentric(u, a, b, c).map(|w| (t as usize, w))
         })
+    }
+
+    /// The parametric position of the patch's point nearest to `p`, and
+    /// its distance from `p`: the inverse of [`Self::surface_point`] for
+    /// a point on the patch. A search over every triangle, for a
+    /// user's pick (a grab), not for inner loops.
+    pub fn parameter_of(&self, p: &Vector) -> Option<(Point2, Real)> {
+        let (t, q, d) = self
+            .triangles
+            .iter()
+            .enumerate()
+            .map(|(t, tri)| {
+                let corners = tri.map(|k| self.positions[k as usize]);
+                let (q, _) = closest_point_on_triangle(p, &corners);
+                (t, q, (q - p).norm())
+            })
+            .min_by(|a, b| a.2.total_cmp(&b.2))?;
+        let tri = self.triangles[t].map(|k| k as usize);
+        let [a, b, c] = tri.map(|k| self.positions[k]);
+        // q's barycentric weights, from the triangle's own frame.
+        let (e0, e1, e2) = (b - a, c - a, q - a);
+        let (d00, d01, d11) = (e0.dot(&e0), e0.dot(&e1), e1.dot(&e1));
+        let (d20, d21) = (e2.dot(&e0), e2.dot(&e1));
+        let det = d00 * d11 - d01 * d01;
+        if det <= 0.0 {
+            return None;
+        }
+        let wb = (d11 * d20 - d01 * d21) / det;
+        let wc = (d00 * d21 - d01 * d20) / det;
+        let wa = 1.0 - wb - wc;
+        let [ua, ub, uc] = tri.map(|k| self.uv[k]);
+        Some((
+            [
+                wa * ua[0] + wb * ub[0] + wc * uc[0],
+                wa * ua[1] + wb * ub[1] + wc * uc[1],
+            ],
+            d,
+        ))
     }
 
     /// The point of the surface patch at `u`: interpolated in the

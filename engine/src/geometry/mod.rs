@@ -5,6 +5,7 @@
 
 mod bvh;
 mod closest;
+pub(crate) use closest::closest_point_on_triangle;
 pub mod conformal;
 mod error;
 mod implicit;

@@ -192,6 +192,13 @@ pub(crate) struct PreparedShell {
     pub surface: Embedded,
     /// The carried mesh's triangles.
     pub triangles: Vec<[u32; 3]>,
+    /// The surface's chart, where a grab's material point is found.
+    pub chart: ConformalChart,
+    /// How far from the surface a grab's point may lie, m (the
+    /// resolution): it is moved onto the surface.
+    pub grab_reach: Real,
+    /// A grab's spring, N/m: `penalty E t`.
+    pub grab_stiffness: Real,
 }
 
 impl PreparedShell {
@@ -300,6 +307,9 @@ impl ShellSpec {
             dynamics,
             surface,
             triangles: mesh.triangles,
+            chart,
+            grab_reach: self.resolution,
+            grab_stiffness: self.penalty * self.young * self.thickness,
         })
     }
 

@@ -23,7 +23,9 @@
 //!
 //! Both write `a1 = c_a (u1 - u0) + a*`, `v1 = c_v (u1 - u0) + v*`, so
 //! the Newton tangent is `(1 + beta c_v) K + (c_a + alpha c_v) M` (the
-//! stiffness damping's own change with `u` left out). A step that fails
+//! stiffness damping's own change with `u` left out). Where that is
+//! indefinite (buckling, snap-through, a stiff grab yanking the shell),
+//! a multiple of the mass is added until it factors. A step that fails
 //! (no convergence, a fold, cancellation) leaves the state as it was.
 
 use super::assembly::{Assembly, Grab, Load, Support};
@@ -33,6 +35,11 @@ use crate::cancel::Cancel;
 use crate::linalg::sparse::SparseCholesky;
 use crate::math::{Real, Vector};
 use serde::{Deserialize, Serialize};
+
+/// The most mass a Newton iteration adds to an indefinite tangent, in
+/// units of the step's own inertia `c_a M`: past it the step is refused
+/// (the tangent of a shell that needs more is not a shell's).
+const MAX_SHIFT: Real = 1e8;
 
 /// How a step relates velocity and acceleration to displacement.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -364,14 +371,26 @@ impl ShellDynamics {
             }
             let (ks, ms) = (1.0 + p.stiffness_damping * c_v, c_a + p.mass_damping * c_v);
             let assembly = &self.assembly;
-            let delta = self
-                .solver
-                .solve(
+            let rhs: Vec<Real> = r.iter().flat_map(|v| [-v[0], -v[1], -v[2]]).collect();
+            // Where the tangent is indefinite (a shell buckling, snapping
+            // through, or yanked by a stiff grab), more of the mass is
+            // added until it factors: a shorter step's tangent, which
+            // Newton still converges with, in more iterations.
+            let mut shift = 0.0;
+            let delta = loop {
+                let solved = self.solver.solve(
                     &assembly.pattern,
-                    |node, column| assembly.column(model, node, column, ks, ms),
-                    r.iter().flat_map(|v| [-v[0], -v[1], -v[2]]),
-                )
-                .ok_or(ShellError::Singular)?;
+                    |node, column| assembly.column(model, node, column, ks, ms + shift),
+                    rhs.iter().copied(),
+                );
+                match solved {
+                    Some(delta) => break delta,
+                    None if shift < MAX_SHIFT * ms => {
+                        shift = if shift == 0.0 { ms } else { 10.0 * shift };
+                    }
+                    None => return Err(ShellError::Singular),
+                }
+            };
             let correction = delta.iter().fold(0.0 as Real, |m, d| m.max(d.abs()));
             for (uk, d) in u1.iter_mut().zip(delta.chunks_exact(3)) {
                 *uk += Vector::new(d[0], d[1], d[2]);

@@ -1,14 +1,15 @@
 //! Runtime controls of a world's systems, apart from the design
-//! optimiser: named grabs on modal solids (Guo–Qin Section 5.3.3), each
-//! keyed by its system and validated by the system it holds. The world
+//! optimiser: named grabs on modal solids and shells (Guo–Qin Section
+//! 5.3.3), each keyed by its system and validated by the system it holds
+//! (`Simulated::set_runtime_grabs`). The world
 //! keeps the set in force ([`World::controls`]) and replaces it all or
 //! nothing ([`World::set_controls`]); they act from the next step. A
 //! world built or restored afresh holds none: whoever keeps them (a
 //! session, with its snapshots and checkpoints) sets them again.
 
 use super::World;
-use super::system::System;
-use crate::efg::{Grab, GrabError};
+use super::system::GrabRefusal;
+use crate::efg::Grab;
 use std::collections::BTreeMap;
 
 /// A named runtime control of one of the world's systems.
@@ -24,7 +25,8 @@ pub struct Control {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ControlKind {
     /// A material point of a modal solid held at a position, an
-    /// orientation or both (rest shape, world frame).
+    /// orientation or both, or of a shell held at a position (rest shape,
+    /// world frame).
     Grab(Grab),
 }
 
@@ -90,28 +92,28 @@ pub enum ControlError {
     /// A control has an empty name.
     #[error("a control has an empty name; give every control a name")]
     Unnamed,
-    /// The system a grab names is not a modal solid.
+    /// The system a grab names is no system a grab holds.
     #[error(
-        "control `{name}`: systems[{system}] is not a modal solid of this world; grabs hold \
-         points of a system with kind = \"modal_solid\""
+        "control `{name}`: systems[{system}] is not a modal solid or a shell of this world; \
+         grabs hold points of a system with kind = \"modal_solid\" or \"shell\""
     )]
-    NotModal {
+    NotGrabbable {
         /// The control's name.
         name: String,
         /// The index it names.
         system: usize,
     },
-    /// The solid refused a grab; `name` is the grab at fault, or says
-    /// that the solid refused its grabs together (too many rows) or one
+    /// The system refused a grab; `name` is the grab at fault, or says
+    /// that the system refused its grabs together (too many rows) or one
     /// of the scene's own.
-    #[error("control `{name}` on systems[{system}]: {source}")]
+    #[error("control `{name}` on systems[{system}]: {reason}")]
     Grab {
         /// The grab at fault.
         name: String,
-        /// The solid's index.
+        /// The system's index.
         system: usize,
-        /// Why.
-        source: GrabError,
+        /// Why, and what to change.
+        reason: String,
     },
 }
 
@@ -122,8 +124,8 @@ impl World {
     }
 
     /// Replaces the runtime controls with `controls`, all or nothing: each
-    /// modal solid holds its scene's grabs and the grabs `controls` name
-    /// for it, from the next step.
+    /// system a grab holds (modal solids, shells) holds its scene's grabs
+    /// and the grabs `controls` name for it, from the next step.
     ///
     /// # Errors
     /// [`ControlError`] for the first control refused; every system then
@@ -134,33 +136,39 @@ impl World {
         }
         let wanted = controls.grabs();
         if let Some((name, system)) = wanted.iter().find_map(|(&system, grabs)| {
-            let modal = self.modal_solids().any(|(m, _)| m == system);
-            (!modal).then(|| (grabs[0].0.to_owned(), system))
+            let grabbable = self
+                .system(system)
+                .is_some_and(|s| s.simulated().scene_grab_count().is_some());
+            (!grabbable).then(|| (grabs[0].0.to_owned(), system))
         }) {
-            return Err(ControlError::NotModal { name, system });
+            return Err(ControlError::NotGrabbable { name, system });
         }
         let mut done: Vec<(usize, Vec<Grab>)> = Vec::new();
         let mut refused = None;
-        for m in self.systems.iter_mut().filter_map(System::as_modal_mut) {
-            let named = wanted.get(&m.index).map_or(&[][..], Vec::as_slice);
+        for system in &mut self.systems {
+            let held = system.simulated_mut();
+            let Some(scene_grabs) = held.scene_grab_count() else {
+                continue;
+            };
+            let index = held.index();
+            let named = wanted.get(&index).map_or(&[][..], Vec::as_slice);
             let grabs: Vec<Grab> = named.iter().map(|&(_, g)| g).collect();
-            let before = m.extra_grabs().to_vec();
-            if let Err(source) = m.set_grabs(&grabs) {
-                let name = grab_name(&source, m.scene_grabs.len(), named);
+            let before = held.runtime_grabs();
+            if let Err(refusal) = held.set_runtime_grabs(&grabs) {
                 refused = Some(ControlError::Grab {
-                    name,
-                    system: m.index,
-                    source,
+                    name: grab_name(&refusal, scene_grabs, named),
+                    system: index,
+                    reason: refusal.reason,
                 });
                 break;
             }
-            done.push((m.index, before));
+            done.push((index, before));
         }
         if let Some(error) = refused {
             for (index, previous) in done {
-                if let Some(m) = self.system_mut(index).and_then(System::as_modal_mut) {
+                if let Some(system) = self.system_mut(index) {
                     // They held before: they hold again.
-                    let _ = m.set_grabs(&previous);
+                    let _ = system.simulated_mut().set_runtime_grabs(&previous);
                 }
             }
             return Err(error);
@@ -170,17 +178,11 @@ impl World {
     }
 }
 
-/// The name of the grab a solid's error points at: its index counts the
-/// scene's grabs first, then the named ones.
-fn grab_name(error: &GrabError, scene_grabs: usize, named: &[(&str, Grab)]) -> String {
-    let index = match error {
-        GrabError::Empty { index }
-        | GrabError::NotFinite { index }
-        | GrabError::Outside { index, .. }
-        | GrabError::Orientation { index } => *index,
-        GrabError::TooMany { .. } | GrabError::Modal(_) => {
-            return "(the solid's grabs together)".into();
-        }
+/// The name of the grab a system's refusal points at: its index counts
+/// the scene's grabs first, then the named ones.
+fn grab_name(refusal: &GrabRefusal, scene_grabs: usize, named: &[(&str, Grab)]) -> String {
+    let Some(index) = refusal.index else {
+        return "(the system's grabs together)".into();
     };
     match index.checked_sub(scene_grabs) {
         Some(k) => named

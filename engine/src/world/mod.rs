@@ -398,6 +398,13 @@ impl World {
 
     /// The system at index `system` of the scene, if it is one the world
     /// steps (rigid bodies belong to the fluid).
+    fn system(&self, system: usize) -> Option<&System> {
+        self.systems
+            .iter()
+            .find(|s| s.simulated().index() == system)
+    }
+
+    /// [`Self::system`], to change it.
     fn system_mut(&mut self, system: usize) -> Option<&mut System> {
         self.systems
             .iter_mut()

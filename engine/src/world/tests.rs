@@ -577,7 +577,7 @@ mod modal {
         ));
         assert!(matches!(
             world.set_controls(grabs(3, &[outside])),
-            Err(ControlError::NotModal { system: 3, .. })
+            Err(ControlError::NotGrabbable { system: 3, .. })
         ));
         let empty = Grab {
             point,

@@ -27,7 +27,7 @@ use fluid::FluidEntry;
 use modal::ModalEntry;
 use shell::ShellEntry;
 pub use simulated::{ChangeError, InsertError, RemoveError};
-pub(crate) use simulated::{Simulated, StepEnv};
+pub(crate) use simulated::{GrabRefusal, Simulated, StepEnv};
 use solid::SolidEntry;
 
 /// A system of the world (each boxed: their sizes differ by kilobytes).
@@ -98,14 +98,6 @@ impl System {
 
     /// The modal solid, if this is one.
     pub(crate) fn as_modal(&self) -> Option<&ModalEntry> {
-        match self {
-            Self::Modal(modal) => Some(modal),
-            Self::Fluid(_) | Self::Solid(_) | Self::Shell(_) => None,
-        }
-    }
-
-    /// [`Self::as_modal`], to change it.
-    pub(crate) fn as_modal_mut(&mut self) -> Option<&mut ModalEntry> {
         match self {
             Self::Modal(modal) => Some(modal),
             Self::Fluid(_) | Self::Solid(_) | Self::Shell(_) => None,

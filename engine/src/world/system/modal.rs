@@ -2,7 +2,7 @@
 //! [`ModalSolid`] (discretised and reduced by its scene check) and the
 //! world's [`Simulated`] trait, with the scene's mode playback and grabs.
 
-use super::simulated::{Invalid, RemoveError, Simulated, StepEnv};
+use super::simulated::{GrabRefusal, Invalid, RemoveError, Simulated, StepEnv};
 use crate::efg::{
     Grab, GrabError, ModalSolid, ModalState, MotionError, NonlinearError, StepReport,
 };
@@ -95,6 +95,27 @@ impl Simulated for ModalEntry {
 
     fn kind_article(&self) -> &'static str {
         "a modal solid"
+    }
+
+    fn scene_grab_count(&self) -> Option<usize> {
+        Some(self.scene_grabs.len())
+    }
+
+    fn runtime_grabs(&self) -> Vec<Grab> {
+        self.extra_grabs().to_vec()
+    }
+
+    fn set_runtime_grabs(&mut self, grabs: &[Grab]) -> Result<(), GrabRefusal> {
+        self.set_grabs(grabs).map_err(|e| GrabRefusal {
+            index: match e {
+                GrabError::Empty { index }
+                | GrabError::NotFinite { index }
+                | GrabError::Outside { index, .. }
+                | GrabError::Orientation { index } => Some(index),
+                GrabError::TooMany { .. } | GrabError::Modal(_) => None,
+            },
+            reason: e.to_string(),
+        })
     }
 
     fn particle_count(&self) -> usize {

@@ -2,14 +2,18 @@
 //! [`ShellDynamics`] (built by its scene check) and the world's
 //! [`Simulated`] trait. Frames list the shell's nodes as particles (their
 //! positions are the nodal coefficients `X_I + u_I`) and carry the
-//! surface the shell was given, deformed, as a solid surface.
+//! surface the shell was given, deformed, as a solid surface. Runtime
+//! grabs hold material points of the surface at positions, each a spring
+//! pulling the shell's point there.
 
-use super::simulated::{Invalid, RemoveError, Simulated, StepEnv};
+use super::simulated::{GrabRefusal, Invalid, RemoveError, Simulated, StepEnv};
+use crate::efg::Grab;
 use crate::frame::{FieldKind, SolidSurface};
 use crate::geometry::TriMesh;
+use crate::geometry::conformal::ConformalChart;
 use crate::math::{Real, Vector};
 use crate::scene::{PreparedShell, Scene};
-use crate::shell::{Embedded, ShellDynamics, ShellError, ShellState};
+use crate::shell::{self, Embedded, ShellDynamics, ShellError, ShellState, ShellStep};
 use crate::snapshot::{SnapshotError, check_vectors};
 use crate::stats::{Stage, StageTimer};
 use crate::world::outcome::{StepError, StepInfo};
@@ -30,9 +34,19 @@ pub(crate) struct ShellEntry {
     triangles: Vec<[u32; 3]>,
     /// Each node's lumped mass, for the per-particle fields.
     masses: Vec<Real>,
+    /// The surface's chart, where a grab's point is found.
+    chart: ConformalChart,
+    /// How far from the surface a grab's point may lie, m.
+    grab_reach: Real,
+    /// A grab's spring, N/m.
+    grab_stiffness: Real,
+    /// The grabs in force as they were given, and as the shell holds
+    /// them.
+    grabs: Vec<(Grab, shell::Grab)>,
     /// Backward Euler and damping only lose energy, and Newmark keeps a
     /// linear shell's; a nonlinear Newmark step that gains energy from
-    /// nowhere faults instead of running on.
+    /// nowhere faults instead of running on. Not watched while grabbed
+    /// (a grab supplies energy).
     watch: EnergyWatch,
 }
 
@@ -41,6 +55,97 @@ const ENERGY_ADVICE: &str =
     "lower time.dt, or set integrator = \"backward_euler\", which damps what Newmark keeps";
 
 impl ShellEntry {
+    /// The shell's grab of `grab`, the `index`-th: its material point
+    /// found on the surface's chart.
+    fn held(&self, index: usize, grab: &Grab) -> Result<shell::Grab, GrabRefusal> {
+        let refuse = |reason: String| GrabRefusal {
+            index: Some(index),
+            reason: format!("grab {index}: {reason}"),
+        };
+        if grab.rotation.is_some() {
+            return Err(refuse(
+                "sets an orientation, which a shell does not hold yet (its grabs are position \
+                 springs); hold two or three points instead"
+                    .into(),
+            ));
+        }
+        let Some(target) = grab.position else {
+            return Err(refuse("sets no position; set one".into()));
+        };
+        if !(grab
+            .point
+            .iter()
+            .chain(target.iter())
+            .all(|c| c.is_finite()))
+        {
+            return Err(refuse("a coordinate is not finite".into()));
+        }
+        let (at, distance) = self
+            .chart
+            .parameter_of(&grab.point)
+            .ok_or_else(|| refuse("the shell's surface has no triangle to hold".into()))?;
+        if distance > self.grab_reach {
+            return Err(refuse(format!(
+                "the point is {distance:.3e} m from the shell's rest surface, more than its \
+                 resolution ({:.3e} m); pick a point of the surface",
+                self.grab_reach
+            )));
+        }
+        self.dynamics
+            .model()
+            .stencil(at)
+            .map_err(|e| refuse(e.to_string()))?;
+        Ok(shell::Grab {
+            at,
+            target,
+            stiffness: self.grab_stiffness,
+        })
+    }
+
+    /// Advances by `env.dt`: one implicit step, or where its Newton solve
+    /// does not converge or its tangent will not factor (a shell yanked
+    /// by a grab, snapping through), the step again in 2, 4, ... pieces,
+    /// whose larger inertia holds Newton, up to `env.max_substeps`.
+    /// Returns the last piece's report (iterations summed) and the
+    /// pieces.
+    fn advance(&mut self, env: &StepEnv) -> Result<(ShellStep, u32), ShellError> {
+        let start = self.dynamics.state();
+        let mut pieces: u32 = 1;
+        loop {
+            self.dynamics.set_time_step(env.dt / Real::from(pieces))?;
+            let mut done = ShellStep {
+                iterations: 0,
+                residual: 0.0,
+            };
+            let mut failure = None;
+            for _ in 0..pieces {
+                match self.dynamics.step(env.cancel) {
+                    Ok(report) => {
+                        done.iterations += report.iterations;
+                        done.residual = done.residual.max(report.residual);
+                    }
+                    Err(e) => {
+                        failure = Some(e);
+                        break;
+                    }
+                }
+            }
+            let Some(error) = failure else {
+                return Ok((done, pieces));
+            };
+            let retry = matches!(
+                error,
+                ShellError::NotConverged { .. } | ShellError::Singular
+            );
+            if !retry || pieces.saturating_mul(2) > env.max_substeps {
+                return Err(error);
+            }
+            // The state the step started from, taken above.
+            self.dynamics.restore(start.clone())?;
+            pieces *= 2;
+        }
+    }
+
     fn failed(&self, reason: ShellError, step: u64) -> StepError {
         StepError::ShellFailed {
             system: self.index,
@@ -96,6 +201,42 @@ impl Simulated for ShellEntry {
         self.dynamics.model().node_count()
     }
 
+    /// A shell's scene names no grabs.
+    fn scene_grab_count(&self) -> Option<usize> {
+        Some(0)
+    }
+
+    fn runtime_grabs(&self) -> Vec<Grab> {
+        self.grabs.iter().map(|(g, _)| *g).collect()
+    }
+
+    /// Grabs at the same points as those in force only move their
+    /// targets (a drag); others rebuild the assembly's pattern.
+    fn set_runtime_grabs(&mut self, grabs: &[Grab]) -> Result<(), GrabRefusal> {
+        let held: Vec<shell::Grab> = grabs
+            .iter()
+            .enumerate()
+            .map(|(k, g)| self.held(k, g))
+            .collect::<Result<_, _>>()?;
+        let same_points = held.len() == self.grabs.len()
+            && held.iter().zip(&self.grabs).all(|(a, (_, b))| a.at == b.at);
+        if same_points {
+            for (k, g) in held.iter().enumerate() {
+                // Checked finite, and `k` indexes a grab in force.
+                let _ = self.dynamics.move_grab(k, g.target);
+            }
+        } else {
+            self.dynamics.set_grabs(&held).map_err(|e| GrabRefusal {
+                index: None,
+                reason: e.to_string(),
+            })?;
+        }
+        self.grabs = grabs.iter().copied().zip(held).collect();
+        // Released or newly held: the energy starts again from here.
+        self.watch.restart();
+        Ok(())
+    }
+
     /// Nodes never change.
     fn start_step(&mut self, _step: u64) -> Result<u32, StepError> {
         Ok(0)
@@ -115,18 +256,13 @@ impl Simulated for ShellEntry {
     /// no sub-steps.
     fn step(&mut self, env: &StepEnv, timer: &mut StageTimer) -> Result<StepInfo, StepError> {
         env.check()?;
-        if env.dt != self.dynamics.time_step() {
-            self.dynamics
-                .set_time_step(env.dt)
-                .map_err(|e| self.failed(e, env.step))?;
-        }
-        if self.watch.start().is_none() {
+        let watched = self.grabs.is_empty();
+        if watched && self.watch.start().is_none() {
             let start = self.energy().map_err(|e| self.failed(e, env.step))?;
             self.watch.begin_with(|| start);
         }
-        let dynamics = &mut self.dynamics;
-        let report = timer
-            .time(Stage::ShellSolve, || dynamics.step(env.cancel))
+        let (report, pieces) = timer
+            .time(Stage::ShellSolve, || self.advance(env))
             .map_err(|e| {
                 if matches!(e, ShellError::Cancelled) {
                     env.cancelled()
@@ -143,8 +279,11 @@ impl Simulated for ShellEntry {
                 step: env.step,
             });
         }
-        let (energy, _) = self.energy().map_err(|e| self.failed(e, env.step))?;
-        if let Some((gained, fraction)) = self.watch.excess(energy) {
+        let energy = match watched {
+            true => Some(self.energy().map_err(|e| self.failed(e, env.step))?.0),
+            false => None,
+        };
+        if let Some((gained, fraction)) = energy.and_then(|e| self.watch.excess(e)) {
             return Err(StepError::SolidEnergyGained {
                 system: self.index,
                 gained,
@@ -155,7 +294,8 @@ impl Simulated for ShellEntry {
             });
         }
         let mut info = StepInfo::start(env.dt);
-        info.substeps = 1;
+        info.substeps = pieces;
+        info.min_substep = env.dt / Real::from(pieces);
         info.solid_iterations = u32::try_from(report.iterations).unwrap_or(u32::MAX);
         // Of the step's solver iterations (`StepInfo::solid_iterations`).
         info.solver_iterations = info.solid_iterations;
@@ -308,6 +448,9 @@ pub(super) fn build(index: usize, shell: PreparedShell) -> ShellEntry {
         dynamics,
         surface,
         triangles,
+        chart,
+        grab_reach,
+        grab_stiffness,
     } = shell;
     ShellEntry {
         index,
@@ -316,6 +459,10 @@ pub(super) fn build(index: usize, shell: PreparedShell) -> ShellEntry {
         dynamics,
         surface,
         triangles,
+        chart,
+        grab_reach,
+        grab_stiffness,
+        grabs: Vec::new(),
         watch: EnergyWatch::default(),
     }
 }

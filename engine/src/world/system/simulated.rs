@@ -6,6 +6,7 @@
 //! systems never import the world.
 
 use crate::cancel::Cancel;
+use crate::efg::Grab;
 use crate::frame::{BodyPose, FieldKind, SolidSurface};
 use crate::geometry::TriMesh;
 use crate::math::{Real, Vector};
@@ -244,6 +245,16 @@ impl ParticleChanges {
     }
 }
 
+/// Why a system refused its runtime grabs; it keeps the grabs it had.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct GrabRefusal {
+    /// The grab at fault, its index counting the scene's grabs first
+    /// (`None`: the grabs together).
+    pub index: Option<usize>,
+    /// Why, and what to change.
+    pub reason: String,
+}
+
 /// A particle value that left its valid range, as a system reports it
 /// (for a fluid's body, `particle` is the body's index among its bodies).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -351,6 +362,31 @@ pub(crate) trait Simulated {
             system: self.index(),
             kind: self.kind_article(),
         })
+    }
+
+    /// How many grabs the system's scene holds it by, or `None` for a
+    /// kind no grab holds.
+    fn scene_grab_count(&self) -> Option<usize> {
+        None
+    }
+
+    /// The grabs set at runtime, besides the scene's.
+    fn runtime_grabs(&self) -> Vec<Grab> {
+        Vec::new()
+    }
+
+    /// Holds the scene's grabs and `grabs` from the next step.
+    ///
+    /// # Errors
+    /// [`GrabRefusal`]; the grabs before then stay.
+    fn set_runtime_grabs(&mut self, grabs: &[Grab]) -> Result<(), GrabRefusal> {
+        match grabs.is_empty() {
+            true => Ok(()),
+            false => Err(GrabRefusal {
+                index: None,
+                reason: format!("{} holds no grab", self.kind_article()),
+            }),
+        }
     }
 
     /// The kind with its article, for errors ("an elastic solid").
