@@ -7,6 +7,8 @@
 use meshless_engine::approx::mls::Order;
 use meshless_engine::efg::Grab;
 use meshless_engine::frame::FieldKind;
+use meshless_engine::geometry::TriMesh;
+use meshless_engine::io::write_obj;
 use meshless_engine::math::Vector;
 use meshless_engine::scene::{Aabb, ShapeSpec, ShellSpec, SystemSpec};
 use meshless_engine::world::{Control, ControlError, ControlKind, Controls};
@@ -380,4 +382,73 @@ fn a_grab_holds_a_shell_point_and_bad_grabs_change_nothing() {
         (back / sag - 1.0).abs() < 1e-3,
         "falls back to {back}, not {sag}"
     );
+}
+
+/// The tip sag of a scene's shell after long backward-Euler steps.
+fn settled_sag(scene: &Scene) -> f64 {
+    let mut world = build(scene);
+    for _ in 0..3 {
+        world.step().expect("a stable step");
+    }
+    -world.frame().solid_surfaces[0]
+        .mesh
+        .vertices
+        .iter()
+        .map(|v| v.y)
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// A shell from a mesh file goes the plate's way: the same grid written
+/// as an OBJ in millimetres (`scale = 0.001`) sags as the box plate does,
+/// to the file's single precision; a closed mesh is refused, saying that
+/// closed surfaces need an atlas.
+#[test]
+fn a_mesh_file_shell_sags_as_the_plate_and_a_closed_mesh_is_refused() {
+    let plate = cantilever(0.5, 10.0, "");
+    // The plate's own grid (`scene/shell.rs`): its first axis is z (13
+    // cells over 0.2 m), its second x (32 over 0.5 m), in millimetres.
+    let grid = TriMesh::grid(13, 32, |i, j| {
+        Vector::new(
+            250.0 * (2.0 * j as f64 / 32.0 - 1.0),
+            0.0,
+            100.0 * (2.0 * i as f64 / 13.0 - 1.0),
+        )
+    });
+    let dir = std::env::temp_dir().join(format!("meshless-shell-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("a temporary folder");
+    let path = dir.join("plate.obj");
+    let mut file = std::fs::File::create(&path).expect("a file");
+    write_obj(&mut file, &grid, None, "the cantilever plate, mm").expect("written");
+    let mut meshed = plate.clone();
+    shell_of(&mut meshed).shape = ShapeSpec::Mesh {
+        path: Some(path.to_string_lossy().into_owned()),
+        data: None,
+        scale: Some(0.001),
+    };
+    let (from_box, from_mesh) = (settled_sag(&plate), settled_sag(&meshed));
+    eprintln!("plate {from_box:.6e}, mesh {from_mesh:.6e}");
+    assert!(
+        (from_mesh / from_box - 1.0).abs() < 1e-5,
+        "{from_mesh} vs {from_box}"
+    );
+
+    let mut closed = plate;
+    shell_of(&mut closed).shape = ShapeSpec::Mesh {
+        path: Some(
+            concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/../scenes/meshes/icosphere.obj"
+            )
+            .to_owned(),
+        ),
+        data: None,
+        scale: Some(0.1),
+    };
+    let (field, message) = refused(&closed);
+    assert_eq!(field, "systems[0].shape");
+    assert!(
+        message.contains("not a disk") && message.contains("atlas"),
+        "{message}"
+    );
+    std::fs::remove_dir_all(&dir).expect("cleaned up");
 }
