@@ -328,6 +328,7 @@ fn a_grab_pulls_drags_and_lets_go() {
         .set_grabs(&[Grab {
             at: [0.5, 0.5],
             target: Vector::new(0.5, 0.5, lift),
+            rotation: None,
             stiffness,
         }])
         .expect("a grab");
@@ -337,7 +338,7 @@ fn a_grab_pulls_drags_and_lets_go() {
     assert!((w / lift - 1.0).abs() < 0.01, "{w} against {lift}");
 
     dynamics
-        .move_grab(0, Vector::new(0.5, 0.5, -lift))
+        .move_grab(0, Vector::new(0.5, 0.5, -lift), None)
         .expect("a grab to drag");
     settle(&mut dynamics);
     assert!((centre(&dynamics) / -lift - 1.0).abs() < 0.01);
@@ -346,23 +347,26 @@ fn a_grab_pulls_drags_and_lets_go() {
         Grab {
             at: [0.5, 0.5],
             target: Vector::zeros(),
+            rotation: None,
             stiffness: -1.0,
         },
         Grab {
             at: [0.5, 0.5],
             target: Vector::new(Real::NAN, 0.0, 0.0),
+            rotation: None,
             stiffness,
         },
         Grab {
             at: [7.0, 0.5],
             target: Vector::zeros(),
+            rotation: None,
             stiffness,
         },
     ] {
         let e = dynamics.set_grabs(&[bad]).expect_err("a bad grab");
         eprintln!("refused: {e}");
     }
-    assert!(dynamics.move_grab(3, Vector::zeros()).is_err());
+    assert!(dynamics.move_grab(3, Vector::zeros(), None).is_err());
     // The drag still holds: the refusals changed nothing.
     settle(&mut dynamics);
     assert!((centre(&dynamics) / -lift - 1.0).abs() < 0.01);

@@ -347,6 +347,27 @@ fn a_grab_holds_a_shell_point_and_bad_grabs_change_nothing() {
     eprintln!("yanked: {} pieces, corner at {held:?}", info.substeps);
     assert!(info.substeps > 1, "{info:?}");
     assert!((held - far).norm() < 1e-3 * 0.2, "{held:?}");
+    // Turned as well: held where it is and twisted 0.2 rad about the
+    // plate's length, the corner's normal turns with the grab.
+    let normal_at = |world: &World| world.frame().solid_surfaces[0].normals[tip];
+    let twist = Vector::new(0.2, 0.0, 0.0);
+    let rest_normal = {
+        world
+            .set_controls(grab(0, corner, corner, None))
+            .expect("a point of the plate");
+        world.step().expect("a stable step");
+        normal_at(&world)
+    };
+    world
+        .set_controls(grab(0, corner, corner, Some(twist)))
+        .expect("a turned grab");
+    world.step().expect("a stable step");
+    let turned = normal_at(&world);
+    let wanted = nalgebra::Rotation3::new(twist) * rest_normal;
+    let miss = turned.angle(&wanted);
+    eprintln!("turned normal {turned:?}, wanted {wanted:?}: {miss:.2e} rad off");
+    assert!(miss < 0.01 * 0.2, "{miss}");
+    assert!((lowest(&world) - corner).norm() < 1e-4, "held in place");
     let before = (world.state(), world.controls().clone());
     for (bad, says) in [
         (
@@ -354,8 +375,22 @@ fn a_grab_holds_a_shell_point_and_bad_grabs_change_nothing() {
             "from the shell's",
         ),
         (
-            grab(0, corner, corner, Some(Vector::new(0.0, 0.1, 0.0))),
-            "orientation",
+            {
+                let mut none = Controls::new();
+                none.insert(
+                    "corner",
+                    Control {
+                        system: 0,
+                        kind: ControlKind::Grab(Grab {
+                            point: corner,
+                            position: None,
+                            rotation: Some(Vector::new(0.1, 0.0, 0.0)),
+                        }),
+                    },
+                );
+                none
+            },
+            "no position",
         ),
         (
             grab(0, corner, Vector::new(f64::NAN, 0.0, 0.0), None),

@@ -51,17 +51,54 @@ pub struct Support {
     pub kind: SupportKind,
 }
 
-/// A position grab: a spring of `stiffness` (force per length) pulling
-/// the surface's point at `at` to `target` (Guo–Qin 5.3.3's grabs, as a
-/// penalty).
+/// A grab (Guo–Qin 5.3.3's, as a penalty): springs of `stiffness` (force
+/// per length) pulling the surface's point at `at` to `target`, and with
+/// a `rotation`, turning the surface there by it: its tangents `a_alpha`
+/// (and so its director, their normalised cross product) held at `R
+/// A_alpha`, by springs of `stiffness s^2` on the tangents (`s` the
+/// point's leaf side in the parametric domain, so that a tangent's
+/// change across the leaf costs what the same change of position does).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Grab {
     /// Where, in the parametric domain.
     pub at: Point2,
     /// Where the point is pulled.
     pub target: Vector,
+    /// The rotation vector (axis times angle, rad) the surface at the
+    /// point is turned by from its rest orientation, if held.
+    pub rotation: Option<Vector>,
     /// Spring stiffness.
     pub stiffness: Real,
+}
+
+/// Where a grab's springs sit among the constraints, and the rest
+/// geometry their held values are measured from.
+#[derive(Debug, Clone)]
+struct GrabHold {
+    /// The reference surface's point.
+    rest: Vector,
+    /// Its tangents `A_1`, `A_2`.
+    tangents: [Vector; 2],
+    /// Its first constraint.
+    first: usize,
+    /// Whether its tangents are held (six springs after the three).
+    turned: bool,
+}
+
+impl GrabHold {
+    /// The held values: the position's offset per axis, then each held
+    /// tangent's, `(R A_alpha - A_alpha) . e_axis`.
+    fn offsets(&self, target: Vector, rotation: Option<Vector>) -> Vec<Real> {
+        let mut out: Vec<Real> = (0..3).map(|k| target[k] - self.rest[k]).collect();
+        if let Some(r) = rotation {
+            let turn = nalgebra::Rotation3::new(r);
+            for t in &self.tangents {
+                let moved = turn * t - t;
+                out.extend((0..3).map(|k| moved[k]));
+            }
+        }
+        out
+    }
 }
 
 /// Loads on a shell, in the reference configuration (dead loads).
@@ -220,9 +257,9 @@ impl ShellModel {
         })
     }
 
-    /// A grab's three springs (one per axis), and the reference surface's
-    /// point where it holds.
-    fn grab_constraints(&self, grab: &Grab) -> Result<([Constraint; 3], Vector), ShellError> {
+    /// A grab's springs (three on the position, one per axis; six more on
+    /// the tangents with a rotation), and where it holds.
+    fn grab_constraints(&self, grab: &Grab) -> Result<(Vec<Constraint>, GrabHold), ShellError> {
         if !(grab.stiffness > 0.0 && grab.stiffness.is_finite()) {
             return Err(ShellError::Parameter {
                 what: "grab stiffness",
@@ -230,24 +267,48 @@ impl ShellModel {
                 range: "a finite value > 0 (force per length)",
             });
         }
-        if !grab.target.iter().all(|v| v.is_finite()) {
+        let finite = |v: &Vector| v.iter().all(|c| c.is_finite());
+        if !finite(&grab.target) || !grab.rotation.as_ref().is_none_or(finite) {
             return Err(ShellError::Parameter {
                 what: "grab target",
                 got: Real::NAN,
-                range: "a finite point",
+                range: "a finite point and rotation",
             });
         }
         let stencil = self.stencil(grab.at)?;
-        let rest = stencil.value(self.reference());
-        let coefficients: Vec<Real> = stencil.rows.iter().map(|r| r[0]).collect();
-        let spring = |axis: usize| Constraint {
-            stencil: stencil.clone(),
-            coefficients: coefficients.clone(),
-            direction: Vector::ith(axis, 1.0),
-            stiffness: grab.stiffness,
-            offset: grab.target[axis] - rest[axis],
+        let q = stencil.local(self.reference());
+        let hold = GrabHold {
+            rest: stencil.value(self.reference()),
+            tangents: [q[0], q[1]],
+            first: 0,
+            turned: grab.rotation.is_some(),
         };
-        Ok(([spring(0), spring(1), spring(2)], rest))
+        let offsets = hold.offsets(grab.target, grab.rotation);
+        let leaf = self
+            .tree()
+            .leaf_of(grab.at)
+            .ok_or(ShellError::Outside { at: grab.at })?;
+        let (_, side) = self.tree().bounds(self.tree().leaves()[leaf]);
+        // Row 0 (N) for the position, rows 1 and 2 (N_,1, N_,2) for the
+        // tangents.
+        let springs = offsets
+            .iter()
+            .enumerate()
+            .map(|(k, &offset)| {
+                let (row, stiffness) = match k / 3 {
+                    0 => (0, grab.stiffness),
+                    alpha => (alpha, grab.stiffness * side * side),
+                };
+                Constraint {
+                    stencil: stencil.clone(),
+                    coefficients: stencil.rows.iter().map(|r| r[row]).collect(),
+                    direction: Vector::ith(k % 3, 1.0),
+                    stiffness,
+                    offset,
+                }
+            })
+            .collect();
+        Ok((springs, hold))
     }
 
     /// The internal forces `dU/du_I` at nodal displacements `u`, and the
@@ -312,8 +373,8 @@ pub(super) struct Assembly {
     slots: Vec<u32>,
     /// The supports' penalties, then three springs per grab.
     constraints: Vec<Constraint>,
-    /// Each grab's point of the reference surface.
-    grab_rest: Vec<Vector>,
+    /// Each grab's springs and rest geometry.
+    grab_rest: Vec<GrabHold>,
     local: Vec<(LocalGradient, LocalHessian)>,
     /// The norm of the supports' and grabs' forces at the last
     /// [`Self::forces`]: a force scale where they balance the shell.
@@ -342,9 +403,10 @@ impl Assembly {
             .collect::<Result<Vec<_>, _>>()?;
         let mut grab_rest = Vec::with_capacity(grabs.len());
         for grab in grabs {
-            let (springs, rest) = model.grab_constraints(grab)?;
+            let (springs, mut hold) = model.grab_constraints(grab)?;
+            hold.first = constraints.len();
             constraints.extend(springs);
-            grab_rest.push(rest);
+            grab_rest.push(hold);
         }
         let points = model.points();
         let stencils = || {
@@ -508,14 +570,24 @@ impl Assembly {
         self.spring_norm
     }
 
-    /// Moves grab `index`'s target; `false` when there is no such grab.
-    pub(super) fn move_grab(&mut self, index: usize, target: Vector) -> bool {
-        let Some(rest) = self.grab_rest.get(index) else {
+    /// Moves grab `index`'s target and turns it to `rotation`; `false`
+    /// when there is no such grab, or `rotation` is given for a grab set
+    /// without one (or not for one set with one).
+    pub(super) fn move_grab(
+        &mut self,
+        index: usize,
+        target: Vector,
+        rotation: Option<Vector>,
+    ) -> bool {
+        let Some(hold) = self.grab_rest.get(index) else {
             return false;
         };
-        let first = self.constraints.len() - 3 * self.grab_rest.len() + 3 * index;
-        for (axis, c) in self.constraints[first..first + 3].iter_mut().enumerate() {
-            c.offset = target[axis] - rest[axis];
+        if hold.turned != rotation.is_some() {
+            return false;
+        }
+        let offsets = hold.offsets(target, rotation);
+        for (c, offset) in self.constraints[hold.first..].iter_mut().zip(offsets) {
+            c.offset = offset;
         }
         true
     }

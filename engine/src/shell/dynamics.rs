@@ -494,25 +494,34 @@ impl ShellDynamics {
     }
 
     /// Moves grab `index` (in the order [`Self::set_grabs`] was given)
-    /// to `target`.
+    /// to `target`, turned by `rotation` (a grab set with a rotation
+    /// takes one, a grab set without none).
     ///
     /// # Errors
-    /// [`ShellError::Parameter`] for no such grab or a target not finite.
-    pub fn move_grab(&mut self, index: usize, target: Vector) -> Result<(), ShellError> {
-        if !target.iter().all(|v| v.is_finite()) {
+    /// [`ShellError::Parameter`] for no such grab, a rotation given or
+    /// left out against how the grab was set, or a value not finite.
+    pub fn move_grab(
+        &mut self,
+        index: usize,
+        target: Vector,
+        rotation: Option<Vector>,
+    ) -> Result<(), ShellError> {
+        let finite = |v: &Vector| v.iter().all(|c| c.is_finite());
+        if !finite(&target) || !rotation.as_ref().is_none_or(finite) {
             return Err(ShellError::Parameter {
                 what: "grab target",
                 got: Real::NAN,
-                range: "a finite point",
+                range: "a finite point and rotation",
             });
         }
-        if self.assembly.move_grab(index, target) {
+        if self.assembly.move_grab(index, target, rotation) {
             Ok(())
         } else {
             Err(ShellError::Parameter {
                 what: "grab index",
                 got: index as Real,
-                range: "the index of a grab set by set_grabs",
+                range: "the index of a grab set by set_grabs, with a rotation where it was set \
+                        with one",
             })
         }
     }

@@ -4,7 +4,8 @@
 //! positions are the nodal coefficients `X_I + u_I`) and carry the
 //! surface the shell was given, deformed, as a solid surface. Runtime
 //! grabs hold material points of the surface at positions, each a spring
-//! pulling the shell's point there.
+//! pulling the shell's point there, and optionally turned (its tangents,
+//! and so its director, held rotated).
 
 use super::simulated::{GrabRefusal, Invalid, RemoveError, Simulated, StepEnv};
 use crate::efg::Grab;
@@ -62,22 +63,14 @@ impl ShellEntry {
             index: Some(index),
             reason: format!("grab {index}: {reason}"),
         };
-        if grab.rotation.is_some() {
+        let Some(target) = grab.position else {
             return Err(refuse(
-                "sets an orientation, which a shell does not hold yet (its grabs are position \
-                 springs); hold two or three points instead"
+                "sets no position; a shell's grab holds a position, and an orientation with it"
                     .into(),
             ));
-        }
-        let Some(target) = grab.position else {
-            return Err(refuse("sets no position; set one".into()));
         };
-        if !(grab
-            .point
-            .iter()
-            .chain(target.iter())
-            .all(|c| c.is_finite()))
-        {
+        let rotation = grab.rotation.unwrap_or_default();
+        if !(grab.point.iter().chain(&target).chain(&rotation)).all(|c| c.is_finite()) {
             return Err(refuse("a coordinate is not finite".into()));
         }
         let (at, distance) = self
@@ -98,6 +91,7 @@ impl ShellEntry {
         Ok(shell::Grab {
             at,
             target,
+            rotation: grab.rotation,
             stiffness: self.grab_stiffness,
         })
     }
@@ -219,11 +213,15 @@ impl Simulated for ShellEntry {
             .map(|(k, g)| self.held(k, g))
             .collect::<Result<_, _>>()?;
         let same_points = held.len() == self.grabs.len()
-            && held.iter().zip(&self.grabs).all(|(a, (_, b))| a.at == b.at);
+            && held
+                .iter()
+                .zip(&self.grabs)
+                .all(|(a, (_, b))| a.at == b.at && a.rotation.is_some() == b.rotation.is_some());
         if same_points {
             for (k, g) in held.iter().enumerate() {
-                // Checked finite, and `k` indexes a grab in force.
-                let _ = self.dynamics.move_grab(k, g.target);
+                // Checked finite, and `k` indexes a grab in force held the
+                // same way.
+                let _ = self.dynamics.move_grab(k, g.target, g.rotation);
             }
         } else {
             self.dynamics.set_grabs(&held).map_err(|e| GrabRefusal {
