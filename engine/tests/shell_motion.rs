@@ -327,7 +327,7 @@ fn a_grab_pulls_drags_and_lets_go() {
     dynamics
         .set_grabs(&[Grab {
             at: [0.5, 0.5],
-            target: Vector::new(0.5, 0.5, lift),
+            target: Some(Vector::new(0.5, 0.5, lift)),
             rotation: None,
             stiffness,
         }])
@@ -338,7 +338,7 @@ fn a_grab_pulls_drags_and_lets_go() {
     assert!((w / lift - 1.0).abs() < 0.01, "{w} against {lift}");
 
     dynamics
-        .move_grab(0, Vector::new(0.5, 0.5, -lift), None)
+        .move_grab(0, Some(Vector::new(0.5, 0.5, -lift)), None)
         .expect("a grab to drag");
     settle(&mut dynamics);
     assert!((centre(&dynamics) / -lift - 1.0).abs() < 0.01);
@@ -346,19 +346,19 @@ fn a_grab_pulls_drags_and_lets_go() {
     for bad in [
         Grab {
             at: [0.5, 0.5],
-            target: Vector::zeros(),
+            target: Some(Vector::zeros()),
             rotation: None,
             stiffness: -1.0,
         },
         Grab {
             at: [0.5, 0.5],
-            target: Vector::new(Real::NAN, 0.0, 0.0),
+            target: Some(Vector::new(Real::NAN, 0.0, 0.0)),
             rotation: None,
             stiffness,
         },
         Grab {
             at: [7.0, 0.5],
-            target: Vector::zeros(),
+            target: Some(Vector::zeros()),
             rotation: None,
             stiffness,
         },
@@ -366,7 +366,7 @@ fn a_grab_pulls_drags_and_lets_go() {
         let e = dynamics.set_grabs(&[bad]).expect_err("a bad grab");
         eprintln!("refused: {e}");
     }
-    assert!(dynamics.move_grab(3, Vector::zeros(), None).is_err());
+    assert!(dynamics.move_grab(3, Some(Vector::zeros()), None).is_err());
     // The drag still holds: the refusals changed nothing.
     settle(&mut dynamics);
     assert!((centre(&dynamics) / -lift - 1.0).abs() < 0.01);

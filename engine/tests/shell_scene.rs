@@ -312,7 +312,7 @@ fn a_grab_holds_a_shell_point_and_bad_grabs_change_nothing() {
     world.step().expect("a stable step");
     let sag = lowest(&world).y;
     assert!(sag < -1e-4, "{sag}");
-    let grab = |system: usize, point: Vector, target: Vector, rotation: Option<Vector>| {
+    let grab = |system: usize, point: Vector, position: Option<Vector>, rotation| {
         let mut controls = Controls::new();
         controls.insert(
             "corner",
@@ -320,7 +320,7 @@ fn a_grab_holds_a_shell_point_and_bad_grabs_change_nothing() {
                 system,
                 kind: ControlKind::Grab(Grab {
                     point,
-                    position: Some(target),
+                    position,
                     rotation,
                 }),
             },
@@ -329,7 +329,7 @@ fn a_grab_holds_a_shell_point_and_bad_grabs_change_nothing() {
     };
     for target in [Vector::new(0.5, 0.01, 0.1), Vector::new(0.5, 0.02, 0.1)] {
         world
-            .set_controls(grab(0, corner, target, None))
+            .set_controls(grab(0, corner, Some(target), None))
             .expect("a point of the plate");
         world.step().expect("a stable step");
         let held = lowest(&world);
@@ -340,7 +340,7 @@ fn a_grab_holds_a_shell_point_and_bad_grabs_change_nothing() {
     // the step is taken in pieces, and the corner gets there.
     let far = Vector::new(0.45, 0.2, 0.1);
     world
-        .set_controls(grab(0, corner, far, None))
+        .set_controls(grab(0, corner, Some(far), None))
         .expect("a point of the plate");
     let info = world.step().expect("taken in pieces");
     let held = lowest(&world);
@@ -353,13 +353,13 @@ fn a_grab_holds_a_shell_point_and_bad_grabs_change_nothing() {
     let twist = Vector::new(0.2, 0.0, 0.0);
     let rest_normal = {
         world
-            .set_controls(grab(0, corner, corner, None))
+            .set_controls(grab(0, corner, Some(corner), None))
             .expect("a point of the plate");
         world.step().expect("a stable step");
         normal_at(&world)
     };
     world
-        .set_controls(grab(0, corner, corner, Some(twist)))
+        .set_controls(grab(0, corner, Some(corner), Some(twist)))
         .expect("a turned grab");
     world.step().expect("a stable step");
     let turned = normal_at(&world);
@@ -368,32 +368,26 @@ fn a_grab_holds_a_shell_point_and_bad_grabs_change_nothing() {
     eprintln!("turned normal {turned:?}, wanted {wanted:?}: {miss:.2e} rad off");
     assert!(miss < 0.01 * 0.2, "{miss}");
     assert!((lowest(&world) - corner).norm() < 1e-4, "held in place");
+    // Turned alone, free to move: the normal still turns with the grab.
+    world
+        .set_controls(grab(0, corner, None, Some(twist)))
+        .expect("a turn alone");
+    world.step().expect("a stable step");
+    let alone = normal_at(&world);
+    eprintln!("turned alone: {:.2e} rad off", alone.angle(&wanted));
+    assert!(alone.angle(&wanted) < 0.01 * 0.2);
     let before = (world.state(), world.controls().clone());
     for (bad, says) in [
         (
-            grab(0, Vector::new(0.5, 0.2, 0.1), corner, None),
+            grab(0, Vector::new(0.5, 0.2, 0.1), Some(corner), None),
             "from the shell's",
         ),
         (
-            {
-                let mut none = Controls::new();
-                none.insert(
-                    "corner",
-                    Control {
-                        system: 0,
-                        kind: ControlKind::Grab(Grab {
-                            point: corner,
-                            position: None,
-                            rotation: Some(Vector::new(0.1, 0.0, 0.0)),
-                        }),
-                    },
-                );
-                none
-            },
-            "no position",
+            grab(0, corner, None, None),
+            "neither a position nor an orientation",
         ),
         (
-            grab(0, corner, Vector::new(f64::NAN, 0.0, 0.0), None),
+            grab(0, corner, Some(Vector::new(f64::NAN, 0.0, 0.0)), None),
             "finite",
         ),
     ] {
@@ -406,7 +400,7 @@ fn a_grab_holds_a_shell_point_and_bad_grabs_change_nothing() {
         }
     }
     assert!(matches!(
-        world.set_controls(grab(4, corner, corner, None)),
+        world.set_controls(grab(4, corner, Some(corner), None)),
         Err(ControlError::NotGrabbable { system: 4, .. })
     ));
     assert_eq!((world.state(), world.controls().clone()), before);

@@ -51,9 +51,9 @@ pub struct Support {
     pub kind: SupportKind,
 }
 
-/// A grab (Guo–Qin 5.3.3's, as a penalty): springs of `stiffness` (force
-/// per length) pulling the surface's point at `at` to `target`, and with
-/// a `rotation`, turning the surface there by it: its tangents `a_alpha`
+/// A grab (Guo–Qin 5.3.3's, as a penalty): with a `target`, springs of
+/// `stiffness` (force per length) pulling the surface's point at `at`
+/// there, and with a `rotation`, turning the surface there by it: its tangents `a_alpha`
 /// (and so its director, their normalised cross product) held at `R
 /// A_alpha`, by springs of `stiffness s^2` on the tangents (`s` the
 /// point's leaf side in the parametric domain, so that a tangent's
@@ -62,8 +62,8 @@ pub struct Support {
 pub struct Grab {
     /// Where, in the parametric domain.
     pub at: Point2,
-    /// Where the point is pulled.
-    pub target: Vector,
+    /// Where the point is pulled, if held in place.
+    pub target: Option<Vector>,
     /// The rotation vector (axis times angle, rad) the surface at the
     /// point is turned by from its rest orientation, if held.
     pub rotation: Option<Vector>,
@@ -81,20 +81,30 @@ struct GrabHold {
     tangents: [Vector; 2],
     /// Its first constraint.
     first: usize,
-    /// Whether its tangents are held (six springs after the three).
+    /// Whether its position is held (three springs first).
+    placed: bool,
+    /// Whether its tangents are held (six springs after those).
     turned: bool,
 }
 
 impl GrabHold {
-    /// The held values: the position's offset per axis, then each held
-    /// tangent's, `(R A_alpha - A_alpha) . e_axis`.
-    fn offsets(&self, target: Vector, rotation: Option<Vector>) -> Vec<Real> {
-        let mut out: Vec<Real> = (0..3).map(|k| target[k] - self.rest[k]).collect();
+    /// Each spring's shape-function row (0: `N`, 1 and 2: `N_,alpha`),
+    /// axis and held value: the position's offset per axis, then each
+    /// held tangent's, `(R A_alpha - A_alpha) . e_axis`.
+    fn springs(
+        &self,
+        target: Option<Vector>,
+        rotation: Option<Vector>,
+    ) -> Vec<(usize, usize, Real)> {
+        let mut out = Vec::with_capacity(9);
+        if let Some(target) = target {
+            out.extend((0..3).map(|k| (0, k, target[k] - self.rest[k])));
+        }
         if let Some(r) = rotation {
             let turn = nalgebra::Rotation3::new(r);
-            for t in &self.tangents {
+            for (alpha, t) in self.tangents.iter().enumerate() {
                 let moved = turn * t - t;
-                out.extend((0..3).map(|k| moved[k]));
+                out.extend((0..3).map(|k| (alpha + 1, k, moved[k])));
             }
         }
         out
@@ -257,8 +267,8 @@ impl ShellModel {
         })
     }
 
-    /// A grab's springs (three on the position, one per axis; six more on
-    /// the tangents with a rotation), and where it holds.
+    /// A grab's springs (three on the position, one per axis, with a
+    /// target; six on the tangents with a rotation), and where it holds.
     fn grab_constraints(&self, grab: &Grab) -> Result<(Vec<Constraint>, GrabHold), ShellError> {
         if !(grab.stiffness > 0.0 && grab.stiffness.is_finite()) {
             return Err(ShellError::Parameter {
@@ -268,7 +278,14 @@ impl ShellModel {
             });
         }
         let finite = |v: &Vector| v.iter().all(|c| c.is_finite());
-        if !finite(&grab.target) || !grab.rotation.as_ref().is_none_or(finite) {
+        if grab.target.is_none() && grab.rotation.is_none() {
+            return Err(ShellError::Parameter {
+                what: "grab",
+                got: 0.0,
+                range: "a target, a rotation or both",
+            });
+        }
+        if !grab.target.as_ref().is_none_or(finite) || !grab.rotation.as_ref().is_none_or(finite) {
             return Err(ShellError::Parameter {
                 what: "grab target",
                 got: Real::NAN,
@@ -281,31 +298,26 @@ impl ShellModel {
             rest: stencil.value(self.reference()),
             tangents: [q[0], q[1]],
             first: 0,
+            placed: grab.target.is_some(),
             turned: grab.rotation.is_some(),
         };
-        let offsets = hold.offsets(grab.target, grab.rotation);
         let leaf = self
             .tree()
             .leaf_of(grab.at)
             .ok_or(ShellError::Outside { at: grab.at })?;
         let (_, side) = self.tree().bounds(self.tree().leaves()[leaf]);
-        // Row 0 (N) for the position, rows 1 and 2 (N_,1, N_,2) for the
-        // tangents.
-        let springs = offsets
-            .iter()
-            .enumerate()
-            .map(|(k, &offset)| {
-                let (row, stiffness) = match k / 3 {
-                    0 => (0, grab.stiffness),
-                    alpha => (alpha, grab.stiffness * side * side),
-                };
-                Constraint {
-                    stencil: stencil.clone(),
-                    coefficients: stencil.rows.iter().map(|r| r[row]).collect(),
-                    direction: Vector::ith(k % 3, 1.0),
-                    stiffness,
-                    offset,
-                }
+        let springs = hold
+            .springs(grab.target, grab.rotation)
+            .into_iter()
+            .map(|(row, axis, offset)| Constraint {
+                stencil: stencil.clone(),
+                coefficients: stencil.rows.iter().map(|r| r[row]).collect(),
+                direction: Vector::ith(axis, 1.0),
+                stiffness: match row {
+                    0 => grab.stiffness,
+                    _ => grab.stiffness * side * side,
+                },
+                offset,
             })
             .collect();
         Ok((springs, hold))
@@ -571,22 +583,23 @@ impl Assembly {
     }
 
     /// Moves grab `index`'s target and turns it to `rotation`; `false`
-    /// when there is no such grab, or `rotation` is given for a grab set
-    /// without one (or not for one set with one).
+    /// when there is no such grab, or it was set holding other things (a
+    /// target or a rotation given where it held none, or left out where
+    /// it held one).
     pub(super) fn move_grab(
         &mut self,
         index: usize,
-        target: Vector,
+        target: Option<Vector>,
         rotation: Option<Vector>,
     ) -> bool {
         let Some(hold) = self.grab_rest.get(index) else {
             return false;
         };
-        if hold.turned != rotation.is_some() {
+        if hold.placed != target.is_some() || hold.turned != rotation.is_some() {
             return false;
         }
-        let offsets = hold.offsets(target, rotation);
-        for (c, offset) in self.constraints[hold.first..].iter_mut().zip(offsets) {
+        let springs = hold.springs(target, rotation);
+        for (c, (_, _, offset)) in self.constraints[hold.first..].iter_mut().zip(springs) {
             c.offset = offset;
         }
         true

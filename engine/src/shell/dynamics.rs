@@ -494,20 +494,21 @@ impl ShellDynamics {
     }
 
     /// Moves grab `index` (in the order [`Self::set_grabs`] was given)
-    /// to `target`, turned by `rotation` (a grab set with a rotation
-    /// takes one, a grab set without none).
+    /// to `target`, turned by `rotation`: each given where the grab was
+    /// set with one, and only there.
     ///
     /// # Errors
-    /// [`ShellError::Parameter`] for no such grab, a rotation given or
-    /// left out against how the grab was set, or a value not finite.
+    /// [`ShellError::Parameter`] for no such grab, a target or rotation
+    /// given or left out against how the grab was set, or a value not
+    /// finite.
     pub fn move_grab(
         &mut self,
         index: usize,
-        target: Vector,
+        target: Option<Vector>,
         rotation: Option<Vector>,
     ) -> Result<(), ShellError> {
         let finite = |v: &Vector| v.iter().all(|c| c.is_finite());
-        if !finite(&target) || !rotation.as_ref().is_none_or(finite) {
+        if !target.as_ref().is_none_or(finite) || !rotation.as_ref().is_none_or(finite) {
             return Err(ShellError::Parameter {
                 what: "grab target",
                 got: Real::NAN,
@@ -520,8 +521,8 @@ impl ShellDynamics {
             Err(ShellError::Parameter {
                 what: "grab index",
                 got: index as Real,
-                range: "the index of a grab set by set_grabs, with a rotation where it was set \
-                        with one",
+                range: "the index of a grab set by set_grabs, with a target and a rotation \
+                        where it was set with them",
             })
         }
     }

@@ -4,8 +4,8 @@
 //! positions are the nodal coefficients `X_I + u_I`) and carry the
 //! surface the shell was given, deformed, as a solid surface. Runtime
 //! grabs hold material points of the surface at positions, each a spring
-//! pulling the shell's point there, and optionally turned (its tangents,
-//! and so its director, held rotated).
+//! pulling the shell's point there, an orientation (its tangents, and so
+//! its director, held rotated), or both.
 
 use super::simulated::{GrabRefusal, Invalid, RemoveError, Simulated, StepEnv};
 use crate::efg::Grab;
@@ -63,13 +63,15 @@ impl ShellEntry {
             index: Some(index),
             reason: format!("grab {index}: {reason}"),
         };
-        let Some(target) = grab.position else {
+        if grab.position.is_none() && grab.rotation.is_none() {
             return Err(refuse(
-                "sets no position; a shell's grab holds a position, and an orientation with it"
-                    .into(),
+                "sets neither a position nor an orientation; set one".into(),
             ));
-        };
-        let rotation = grab.rotation.unwrap_or_default();
+        }
+        let (target, rotation) = (
+            grab.position.unwrap_or_default(),
+            grab.rotation.unwrap_or_default(),
+        );
         if !(grab.point.iter().chain(&target).chain(&rotation)).all(|c| c.is_finite()) {
             return Err(refuse("a coordinate is not finite".into()));
         }
@@ -90,7 +92,7 @@ impl ShellEntry {
             .map_err(|e| refuse(e.to_string()))?;
         Ok(shell::Grab {
             at,
-            target,
+            target: grab.position,
             rotation: grab.rotation,
             stiffness: self.grab_stiffness,
         })
@@ -213,10 +215,11 @@ impl Simulated for ShellEntry {
             .map(|(k, g)| self.held(k, g))
             .collect::<Result<_, _>>()?;
         let same_points = held.len() == self.grabs.len()
-            && held
-                .iter()
-                .zip(&self.grabs)
-                .all(|(a, (_, b))| a.at == b.at && a.rotation.is_some() == b.rotation.is_some());
+            && held.iter().zip(&self.grabs).all(|(a, (_, b))| {
+                a.at == b.at
+                    && a.target.is_some() == b.target.is_some()
+                    && a.rotation.is_some() == b.rotation.is_some()
+            });
         if same_points {
             for (k, g) in held.iter().enumerate() {
                 // Checked finite, and `k` indexes a grab in force held the
