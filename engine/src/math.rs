@@ -12,6 +12,18 @@ pub fn vector(v: [Real; 3]) -> Vector {
     Vector::new(v[0], v[1], v[2])
 }
 
+/// The corners `(lo, hi)` of the box around `points` (infinite, lo above
+/// hi, for none).
+pub fn bounds<'a>(points: impl IntoIterator<Item = &'a Vector>) -> (Vector, Vector) {
+    points.into_iter().fold(
+        (
+            Vector::repeat(Real::INFINITY),
+            Vector::repeat(Real::NEG_INFINITY),
+        ),
+        |(lo, hi), p| (lo.inf(p), hi.sup(p)),
+    )
+}
+
 /// A number as a message shows it: plainly between 1e-4 and 1e6, in
 /// scientific notation beyond. `{}` of an `f64` writes every digit, so
 /// 1e300 became a 301-character message that repeated its input's digits

@@ -13,7 +13,7 @@ use crate::efg::{
 };
 use crate::geometry::read::{self, MeshFormat};
 use crate::geometry::{Ball, ImplicitSurface, MeshSdf, PointSurface, PointSurfaceParams, TriMesh};
-use crate::math::{Real, Vector, vector};
+use crate::math::{Real, Vector, bounds, vector};
 use crate::modal::{Damping, Stabilization};
 use nalgebra::Rotation3;
 use serde::{Deserialize, Serialize};
@@ -362,7 +362,7 @@ impl ModalSolidSpec {
             }
         };
         // Centre meshes and clouds on their bounding box.
-        let (min, max) = bounds_of(&vertices);
+        let (min, max) = bounds(&vertices);
         let middle = match self.shape {
             ShapeSpec::Mesh { .. } => (min + max) / 2.0,
             _ => Vector::zeros(),
@@ -372,7 +372,7 @@ impl ModalSolidSpec {
             .iter()
             .map(|n| rotation * n.try_normalize(0.0).unwrap_or_default())
             .collect();
-        let bounds = bounds_of(&vertices);
+        let bounds = bounds(&vertices);
         let field = format!("{shape_at}.data");
         // A box or a sphere is its exact shape, whatever its display
         // surface's resolution: that is only what frames carry.
@@ -517,16 +517,6 @@ impl ModalSolidSpec {
 fn point_area(points: &[Vector], (min, max): &(Vector, Vector)) -> Real {
     let d = max - min;
     2.0 * (d.x * d.y + d.y * d.z + d.z * d.x) / points.len().max(1) as Real
-}
-
-fn bounds_of(points: &[Vector]) -> (Vector, Vector) {
-    points.iter().fold(
-        (
-            Vector::repeat(Real::INFINITY),
-            Vector::repeat(Real::NEG_INFINITY),
-        ),
-        |(lo, hi), p| (lo.inf(p), hi.sup(p)),
-    )
 }
 
 impl ModalSolidSpec {

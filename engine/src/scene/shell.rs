@@ -18,7 +18,7 @@ use crate::geometry::TriMesh;
 use crate::geometry::conformal::ConformalChart;
 use crate::geometry::quadtree::Point2;
 use crate::geometry::read;
-use crate::math::{Real, Vector, vector};
+use crate::math::{Real, Vector, bounds, vector};
 use crate::shell::{
     DynamicParams, Embedded, Integrator, Load, Material, ShellDynamics, ShellError, ShellModel,
     ShellParams, Support, SupportKind,
@@ -427,13 +427,7 @@ impl ShellSpec {
                     ));
                 }
                 let mut mesh = loaded.mesh;
-                let (lo, hi) = mesh.vertices.iter().fold(
-                    (
-                        Vector::repeat(Real::INFINITY),
-                        Vector::repeat(Real::NEG_INFINITY),
-                    ),
-                    |(lo, hi), v| (lo.inf(v), hi.sup(v)),
-                );
+                let (lo, hi) = bounds(&mesh.vertices);
                 let middle = 0.5 * (lo + hi);
                 for v in &mut mesh.vertices {
                     *v = (*v - middle) * scale;

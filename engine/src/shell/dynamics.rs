@@ -33,7 +33,7 @@ use super::error::ShellError;
 use super::model::ShellModel;
 use crate::cancel::Cancel;
 use crate::linalg::sparse::SparseCholesky;
-use crate::math::{Real, Vector};
+use crate::math::{Real, Vector, bounds};
 use serde::{Deserialize, Serialize};
 
 /// The most mass a Newton iteration adds to an indefinite tangent, in
@@ -211,13 +211,7 @@ impl ShellDynamics {
         let assembly = Assembly::new(&model, supports, &[], params.penalty)?;
         let load = model.load_vector(load)?;
         let n = model.node_count();
-        let (lo, hi) = model.reference().iter().fold(
-            (
-                Vector::repeat(Real::INFINITY),
-                Vector::repeat(Real::NEG_INFINITY),
-            ),
-            |(lo, hi), x| (lo.inf(x), hi.sup(x)),
-        );
+        let (lo, hi) = bounds(model.reference());
         let size = (hi - lo).max();
         let mut dynamics = Self {
             model,

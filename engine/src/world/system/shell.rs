@@ -12,7 +12,7 @@ use crate::efg::Grab;
 use crate::frame::{FieldKind, SolidSurface};
 use crate::geometry::TriMesh;
 use crate::geometry::conformal::ConformalChart;
-use crate::math::{Real, Vector};
+use crate::math::{Real, Vector, bounds};
 use crate::scene::{PreparedShell, Scene};
 use crate::shell::{self, Embedded, ShellDynamics, ShellError, ShellState, ShellStep};
 use crate::snapshot::{SnapshotError, check_vectors};
@@ -35,6 +35,11 @@ pub(crate) struct ShellEntry {
     triangles: Vec<[u32; 3]>,
     /// Each node's lumped mass, for the per-particle fields.
     masses: Vec<Real>,
+    /// The part of the energy watch's scale that never changes: `|f_ext|
+    /// L + M E / (1000 rho)` (`L` the diagonal of the shell's box; the
+    /// last term the energy of straining it by about 4.5 %, so that a
+    /// shell at rest without load does not fault on round-off).
+    scale_floor: Real,
     /// The surface's chart, where a grab's point is found.
     chart: ConformalChart,
     /// How far from the surface a grab's point may lie, m.
@@ -151,28 +156,13 @@ impl ShellEntry {
     }
 
     /// `E = KE + U - f_ext . u` and the scale its gain is measured
-    /// against: `KE_0 + U_0 + |f_ext| L + M E / (1000 rho)` (`L` the
-    /// shell's extent; the last term the energy of straining it by about
-    /// 4.5 %, so that a shell at rest without load does not fault on
-    /// round-off).
+    /// against, `KE_0 + U_0` plus [`Self::scale_floor`].
     fn energy(&mut self) -> Result<(Real, Real), ShellError> {
         let e = self.dynamics.energy()?;
-        let mechanical = e.kinetic + e.strain - e.work;
-        let model = self.dynamics.model();
-        let material = model.material();
-        let mass: Real = self.masses.iter().sum();
-        let (lo, hi) = model.reference().iter().fold(
-            (
-                Vector::repeat(Real::INFINITY),
-                Vector::repeat(Real::NEG_INFINITY),
-            ),
-            |(lo, hi), x| (lo.inf(x), hi.sup(x)),
-        );
-        let scale = e.kinetic
-            + e.strain
-            + self.dynamics.load_magnitude() * (hi - lo).norm()
-            + 1e-3 * mass * material.young / material.density;
-        Ok((mechanical, scale))
+        Ok((
+            e.kinetic + e.strain - e.work,
+            e.kinetic + e.strain + self.scale_floor,
+        ))
     }
 }
 
@@ -280,9 +270,10 @@ impl Simulated for ShellEntry {
                 step: env.step,
             });
         }
-        let energy = match watched {
-            true => Some(self.energy().map_err(|e| self.failed(e, env.step))?.0),
-            false => None,
+        let energy = if watched {
+            Some(self.energy().map_err(|e| self.failed(e, env.step))?.0)
+        } else {
+            None
         };
         if let Some((gained, fraction)) = energy.and_then(|e| self.watch.excess(e)) {
             return Err(StepError::SolidEnergyGained {
@@ -453,10 +444,17 @@ pub(super) fn build(index: usize, shell: PreparedShell) -> ShellEntry {
         grab_reach,
         grab_stiffness,
     } = shell;
+    let model = dynamics.model();
+    let masses = model.lumped_masses();
+    let (lo, hi) = bounds(model.reference());
+    let material = model.material();
+    let scale_floor = dynamics.load_magnitude() * (hi - lo).norm()
+        + 1e-3 * masses.iter().sum::<Real>() * material.young / material.density;
     ShellEntry {
         index,
         backup: dynamics.state(),
-        masses: dynamics.model().lumped_masses(),
+        masses,
+        scale_floor,
         dynamics,
         surface,
         triangles,

@@ -380,12 +380,13 @@ pub(crate) trait Simulated {
     /// # Errors
     /// [`GrabRefusal`]; the grabs before then stay.
     fn set_runtime_grabs(&mut self, grabs: &[Grab]) -> Result<(), GrabRefusal> {
-        match grabs.is_empty() {
-            true => Ok(()),
-            false => Err(GrabRefusal {
+        if grabs.is_empty() {
+            Ok(())
+        } else {
+            Err(GrabRefusal {
                 index: None,
                 reason: format!("{} holds no grab", self.kind_article()),
-            }),
+            })
         }
     }
 
