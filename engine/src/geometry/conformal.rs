@@ -253,6 +253,26 @@ impl ConformalChart {
         Self::measure(mesh, uv)
     }
 
+    /// A chart of `mesh` with the parametric positions `uv` given (one
+    /// per vertex), measured as [`Self::new`] measures its own map: a
+    /// patch of a map made over a larger patch (an atlas's chart).
+    ///
+    /// # Errors
+    /// [`ChartError::Folded`] where a triangle turns over, and
+    /// [`ChartError::Singular`] when `uv` does not hold one point per
+    /// vertex.
+    pub(crate) fn with_map(mesh: &TriMesh, uv: Vec<Point2>) -> Result<Self, ChartError> {
+        if uv.len() != mesh.vertices.len() {
+            return Err(ChartError::Singular { unknowns: uv.len() });
+        }
+        Self::measure(mesh, uv)
+    }
+
+    /// The patch's triangles, as vertex indices.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
     /// The parametric position of each vertex.
     pub fn uv(&self) -> &[Point2] {
         &self.uv

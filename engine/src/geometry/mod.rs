@@ -3,6 +3,7 @@
 //! OBJ and PLY files, checked for closure, measured by signed distance and
 //! sampled with particles; and the analytic solid shapes of rigid bodies.
 
+pub mod atlas;
 mod bvh;
 mod closest;
 pub(crate) use closest::closest_point_on_triangle;

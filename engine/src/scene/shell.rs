@@ -5,18 +5,17 @@
 //! supports refuse is refused before a world exists).
 //!
 //! The surface is a flat rectangular plate (a box with one half extent
-//! zero: the plate's plane) or an open triangle mesh of disk topology,
-//! mapped to the plane by one least-squares conformal chart. A closed
-//! surface needs an atlas of charts with seams, which shells do not have
-//! yet: it is refused, saying so.
+//! zero: the plate's plane), a sphere (an icosphere, closed), or a
+//! triangle mesh from a file, open or closed, of any genus: one
+//! least-squares conformal chart where the surface is a disk, else an
+//! atlas of charts meeting at seams (`geometry/atlas.rs`).
 
 use super::error::{check_box, check_positive, check_range, check_vector};
 use super::{Aabb, BuildOptions, SceneContext, SceneError, ShapeSpec};
 use crate::approx::gauss::MAX_ORDER;
 use crate::approx::mls::Order;
 use crate::geometry::TriMesh;
-use crate::geometry::conformal::ConformalChart;
-use crate::geometry::quadtree::Point2;
+use crate::geometry::atlas::{Atlas, AtlasParams};
 use crate::geometry::read;
 use crate::math::{Real, Vector, bounds, vector};
 use crate::shell::{
@@ -74,15 +73,15 @@ const BYTES_PER_POINT: Real = 3_600.0;
 const BYTES_PER_NODE: Real = 24_000.0;
 
 /// A thin shell: a Kirchhoff–Love surface discretised on its conformal
-/// chart (Guo–Qin 4.2, 5.2). The knobs that trade speed for accuracy:
+/// chart or atlas (Guo–Qin 4.2, 5.2). The knobs that trade speed for accuracy:
 /// `resolution`, `eta`, `basis`, `quadrature_order`, `subdivision`,
 /// `integrator`, and the scene's `time.dt`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ShellSpec {
     /// The middle surface: a plate (`type = "box"` with one half extent
-    /// 0, the plate lying across the other two axes) or an open mesh
-    /// (OBJ or PLY, one piece of disk topology).
+    /// 0, the plate lying across the other two axes), a sphere, or a mesh
+    /// (OBJ or PLY, an orientable manifold, open or closed).
     pub shape: ShapeSpec,
     /// Where the surface's centre (its bounding box's) goes, m.
     pub position: [Real; 3],
@@ -192,8 +191,8 @@ pub(crate) struct PreparedShell {
     pub surface: Embedded,
     /// The carried mesh's triangles.
     pub triangles: Vec<[u32; 3]>,
-    /// The surface's chart, where a grab's material point is found.
-    pub chart: ConformalChart,
+    /// The surface's atlas, where a grab's material point is found.
+    pub atlas: Atlas,
     /// How far from the surface a grab's point may lie, m (the
     /// resolution): it is moved onto the surface.
     pub grab_reach: Real,
@@ -252,29 +251,22 @@ impl ShellSpec {
                 limit,
             });
         }
-        let chart = ConformalChart::new(&mesh).map_err(|e| {
-            SceneError::invalid(
-                field("shape"),
-                format!(
-                    "{e} (a shell is one chart for now: an open surface of disk topology; \
-                     closed surfaces need an atlas of charts, not yet available)"
-                ),
-            )
-        })?;
+        let atlas = Atlas::new(&mesh, &AtlasParams::new(self.eta * self.resolution))
+            .map_err(|e| SceneError::invalid(field("shape"), e.to_string()))?;
         let shell_error = |e: ShellError| match e {
             ShellError::Cancelled => SceneError::Cancelled,
             other => SceneError::invalid(at, other.to_string()),
         };
-        let (lo, hi) = chart.bounds();
-        let model = ShellModel::new(
-            &chart,
-            lo,
-            hi,
-            self.material(),
-            &self.params(),
-            &options.cancel,
-        )
-        .map_err(shell_error)?;
+        let (lo, hi) = atlas.bounds();
+        let mut params = self.params();
+        if atlas.chart_count() > 1 && atlas.boundary().is_empty() {
+            // A closed surface has no rim to put exterior leaves beyond:
+            // across its seams the neighbouring charts' nodes are the
+            // supports.
+            params.quadtree.exterior = 0;
+        }
+        let model = ShellModel::new(&atlas, lo, hi, self.material(), &params, &options.cancel)
+            .map_err(shell_error)?;
         let bytes = model.points().len() as Real * BYTES_PER_POINT
             + model.node_count() as Real * BYTES_PER_NODE;
         options
@@ -284,11 +276,12 @@ impl ShellSpec {
                 field: at.to_owned(),
                 message,
             })?;
-        let supports = self.supports(at, &mesh, &chart, &model)?;
+        let supports = self.supports(at, &mesh, &atlas, &model)?;
         let load = Load {
             per_area: self.density * self.thickness * context.gravity,
             pressure: self.pressure,
             points: Vec::new(),
+            closed: atlas.boundary().is_empty(),
         };
         let params = DynamicParams {
             integrator: self.integrator,
@@ -300,14 +293,14 @@ impl ShellSpec {
             ..DynamicParams::new(context.dt)
         };
         let surface = model
-            .embed(chart.uv(), &mesh.vertices)
+            .embed(atlas.vertex_parameters(), &mesh.vertices)
             .map_err(shell_error)?;
         let dynamics = ShellDynamics::new(model, &supports, &load, params).map_err(shell_error)?;
         Ok(PreparedShell {
             dynamics,
             surface,
             triangles: mesh.triangles,
-            chart,
+            atlas,
             grab_reach: self.resolution,
             grab_stiffness: self.penalty * self.young * self.thickness,
         })
@@ -434,12 +427,19 @@ impl ShellSpec {
                 }
                 mesh
             }
-            ShapeSpec::Sphere { .. } | ShapeSpec::Capsule { .. } | ShapeSpec::Plane { .. } => {
+            ShapeSpec::Sphere { radius } => {
+                check_positive(&format!("{shape_at}.radius"), *radius)?;
+                // Edges of about `2 pi r / surface_cells`: an icosphere's
+                // edge is about 1.1 r / 2^subdivisions.
+                let cells = self.surface_cells as Real * 1.1 / (2.0 * std::f64::consts::PI);
+                let subdivisions = cells.log2().round().clamp(1.0, 7.0) as u32;
+                TriMesh::icosphere(Vector::zeros(), *radius, subdivisions)
+            }
+            ShapeSpec::Capsule { .. } | ShapeSpec::Plane { .. } => {
                 return Err(SceneError::invalid(
                     shape_at,
-                    "a shell is a plate (type = \"box\" with one half extent 0) or an open \
-                     mesh of disk topology; closed surfaces need an atlas of charts, not yet \
-                     available",
+                    "a shell is a plate (type = \"box\" with one half extent 0), a sphere or \
+                     a mesh file",
                 ));
             }
         };
@@ -485,10 +485,9 @@ impl ShellSpec {
         &self,
         at: &str,
         mesh: &TriMesh,
-        chart: &ConformalChart,
+        atlas: &Atlas,
         model: &ShellModel,
     ) -> Result<Vec<Support>, SceneError> {
-        let uv = chart.uv();
         let held = [
             SupportKind::Displacement(Vector::x()),
             SupportKind::Displacement(Vector::y()),
@@ -502,13 +501,12 @@ impl ShellSpec {
             for (k, b) in boxes.iter().enumerate() {
                 let inside = |p: &Vector| (0..3).all(|a| p[a] >= b.min[a] && p[a] <= b.max[a]);
                 let mut edges = 0;
-                for &[i, j] in chart.boundary() {
+                for &([i, j], [from, to]) in atlas.boundary() {
                     let (i, j) = (i as usize, j as usize);
                     if !(inside(&mesh.vertices[i]) && inside(&mesh.vertices[j])) {
                         continue;
                     }
                     edges += 1;
-                    let (from, to): (Point2, Point2) = (uv[i], uv[j]);
                     let d = [to[0] - from[0], to[1] - from[1]];
                     let length = d[0].hypot(d[1]);
                     let mut kinds = held.to_vec();

@@ -7,6 +7,7 @@
 
 use super::error::ShellError;
 use super::model::{ShellModel, ShellSurface, Stencil};
+use crate::geometry::atlas::{Atlas, Transfer};
 use crate::geometry::conformal::ConformalChart;
 use crate::geometry::quadtree::Point2;
 use crate::math::{Real, Vector};
@@ -17,6 +18,19 @@ use rayon::prelude::*;
 impl ShellSurface for ConformalChart {
     fn position(&self, u: Point2) -> Vector {
         self.surface_point(u)
+    }
+}
+
+/// An atlas is a shell's surface across its seams: each chart's points
+/// are the mesh's, and a node near a seam reaches into the neighbouring
+/// chart through the atlas's transfers.
+impl ShellSurface for Atlas {
+    fn position(&self, u: Point2) -> Vector {
+        self.surface_point(u)
+    }
+
+    fn transfers(&self, u: Point2) -> Vec<Transfer> {
+        Atlas::transfers(self, u)
     }
 }
 

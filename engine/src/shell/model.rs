@@ -19,6 +19,7 @@ use super::kirchhoff::{Local, Reference};
 use crate::approx::mls::{Mls, MlsParams, Order, ShapeHessians};
 use crate::approx::tensor::tensor_weight_hessian;
 use crate::cancel::Cancel;
+use crate::geometry::atlas::Transfer;
 use crate::geometry::quadtree::{ChartDomain, Point2, Quadtree, QuadtreeParams};
 use crate::linalg::sparse::{BlockPattern, SparseCholesky};
 use crate::math::{Real, Vector};
@@ -28,6 +29,13 @@ use rayon::prelude::*;
 pub trait ShellSurface: ChartDomain + Sync {
     /// The reference surface's point at `u` (inside the domain).
     fn position(&self, u: Point2) -> Vector;
+
+    /// Where the point `u` also lies in the other charts of an atlas
+    /// (see [`crate::geometry::atlas::Atlas::transfers`]): a node there
+    /// reaches across the seam through them. None for a single chart.
+    fn transfers(&self, _u: Point2) -> Vec<Transfer> {
+        Vec::new()
+    }
 }
 
 /// A shell's material: thickness, density, Young's modulus and Poisson's
@@ -186,6 +194,104 @@ pub struct ShellModel {
     /// Reference nodal positions `X_I`.
     reference: Vec<Vector>,
     points: Vec<SurfacePoint>,
+    /// Nodes seen across a seam from a neighbouring chart, by their
+    /// first coordinate there (empty on a single chart).
+    ghosts: Vec<Ghost>,
+    /// The largest of the ghosts' `reach`.
+    ghost_reach: Real,
+}
+
+/// A node of one chart in a neighbouring chart's place, across a seam
+/// (Guo–Qin Fig. 8c): its support, a square in its own chart, is carried
+/// over by the transition's Jacobian, so the node's weight is the same
+/// function of the surface seen from either side (to the transition's
+/// first order).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Ghost {
+    /// The node, numbered as the quadtree numbers it.
+    tree_node: u32,
+    /// Where it lies in the neighbour's place.
+    at: Point2,
+    /// `d (own chart) / d (neighbour's chart)` at it.
+    jacobian: [[Real; 2]; 2],
+    /// Its support's half side, in its own chart.
+    half: Real,
+    /// Half the side of the box its support covers in the neighbour's
+    /// place.
+    reach: Real,
+}
+
+impl Ghost {
+    /// `jacobian * d`: a step in the neighbour's place, in the node's own
+    /// chart.
+    fn own(&self, d: [Real; 2]) -> [Real; 2] {
+        let j = &self.jacobian;
+        [
+            j[0][0] * d[0] + j[0][1] * d[1],
+            j[1][0] * d[0] + j[1][1] * d[1],
+        ]
+    }
+
+    /// Whether its support covers the point `u` of the neighbour's place.
+    fn covers(&self, u: Point2) -> bool {
+        let e = self.own([u[0] - self.at[0], u[1] - self.at[1]]);
+        e[0].abs() < self.half && e[1].abs() < self.half
+    }
+
+    /// Its weight at the offset `d = x - at` of the neighbour's place,
+    /// with the gradient and Hessian there: the square weight in its own
+    /// chart by the chain rule (`J^T g`, `J^T H J`).
+    fn weight(&self, d: &[Real; 3]) -> Option<crate::approx::tensor::WeightHessian> {
+        let e = self.own([d[0], d[1]]);
+        let (w, g, h) = tensor_weight_hessian(2, &[e[0], e[1], 0.0], &[self.half; 3])?;
+        let j = &self.jacobian;
+        let mut gradient = [0.0; 3];
+        let mut hessian = [[0.0; 3]; 3];
+        for a in 0..2 {
+            gradient[a] = j[0][a] * g[0] + j[1][a] * g[1];
+            for b in 0..2 {
+                hessian[a][b] = (0..2)
+                    .map(|k| (0..2).map(|l| j[k][a] * h[k][l] * j[l][b]).sum::<Real>())
+                    .sum();
+            }
+        }
+        Some((w, gradient, hessian))
+    }
+}
+
+/// The nodes of `tree` that other charts of `surface` hold, in those
+/// charts' places, by their first coordinate there.
+fn ghosts_of(surface: &impl ShellSurface, tree: &Quadtree) -> Vec<Ghost> {
+    let mut ghosts: Vec<Ghost> = (0..tree.nodes().len())
+        .into_par_iter()
+        .flat_map_iter(|k| {
+            let half = tree.half_width(k);
+            surface
+                .transfers(tree.node(k))
+                .into_iter()
+                .filter_map(move |t| {
+                    let j = nalgebra::Matrix2::new(
+                        t.jacobian[0][0],
+                        t.jacobian[0][1],
+                        t.jacobian[1][0],
+                        t.jacobian[1][1],
+                    );
+                    let inverse = j.try_inverse()?;
+                    let spread = (0..2)
+                        .map(|r| inverse[(r, 0)].abs() + inverse[(r, 1)].abs())
+                        .fold(0.0, Real::max);
+                    Some(Ghost {
+                        tree_node: k as u32,
+                        at: t.at,
+                        jacobian: t.jacobian,
+                        half,
+                        reach: half * spread,
+                    })
+                })
+        })
+        .collect();
+    ghosts.sort_by(|a, b| a.at[0].total_cmp(&b.at[0]));
+    ghosts
 }
 
 impl ShellModel {
@@ -217,7 +323,11 @@ impl ShellModel {
             .map(|u| Vector::new(u[0], u[1], 0.0))
             .collect();
         let half = (0..nodes.len()).map(|k| tree.half_width(k)).collect();
+        let ghosts = ghosts_of(surface, &tree);
+        let ghost_reach = ghosts.iter().map(|g| g.reach).fold(0.0, Real::max);
         let mut model = Self {
+            ghosts,
+            ghost_reach,
             of_tree: (0..nodes.len() as u32).collect(),
             tree,
             material,
@@ -288,13 +398,34 @@ impl ShellModel {
     /// carry the basis.
     pub fn stencil(&self, u: Point2) -> Result<Stencil, ShellError> {
         let leaf = self.tree.leaf_of(u).ok_or(ShellError::Outside { at: u })?;
-        let near: Vec<u32> = self
+        let mut near: Vec<(u32, Option<&Ghost>)> = self
             .tree
             .covering(u)
-            .map(|k| self.of_tree[k as usize])
-            .filter(|&k| k != u32::MAX)
+            .map(|k| (self.of_tree[k as usize], None))
+            .filter(|&(k, _)| k != u32::MAX)
             .collect();
-        let positions: Vec<Vector> = near.iter().map(|&k| self.nodes[k as usize]).collect();
+        if !self.ghosts.is_empty() {
+            let first = self
+                .ghosts
+                .partition_point(|g| g.at[0] < u[0] - self.ghost_reach);
+            near.extend(
+                self.ghosts[first..]
+                    .iter()
+                    .take_while(|g| g.at[0] <= u[0] + self.ghost_reach)
+                    .filter(|g| g.covers(u))
+                    .map(|g| (self.of_tree[g.tree_node as usize], Some(g)))
+                    .filter(|&(k, _)| k != u32::MAX),
+            );
+            near.sort_by_key(|&(k, _)| k);
+        }
+        let positions: Vec<Vector> = near
+            .iter()
+            .map(|&(k, ghost)| {
+                ghost.map_or(self.nodes[k as usize], |g| {
+                    Vector::new(g.at[0], g.at[1], 0.0)
+                })
+            })
+            .collect();
         let mls = Mls::new(2, MlsParams::new(self.order, self.tree.half_width(leaf)))
             .map_err(|_| ShellError::Outside { at: u })?;
         let mut shapes = ShapeHessians::new();
@@ -306,9 +437,9 @@ impl ShellModel {
             .shape_hessians_weighted(
                 &Vector::new(u[0], u[1], 0.0),
                 &positions,
-                |i, d| {
-                    let h = self.half[near[i] as usize];
-                    tensor_weight_hessian(2, d, &[h; 3])
+                |i, d| match near[i] {
+                    (_, Some(ghost)) => ghost.weight(d),
+                    (k, None) => tensor_weight_hessian(2, d, &[self.half[k as usize]; 3]),
                 },
                 &mut shapes,
             )
@@ -329,7 +460,10 @@ impl ShellModel {
                 ]
             })
             .collect();
-        Ok(Stencil { nodes: near, rows })
+        Ok(Stencil {
+            nodes: near.into_iter().map(|(k, _)| k).collect(),
+            rows,
+        })
     }
 
     /// Drops the nodes no quadrature point's stencil holds (see

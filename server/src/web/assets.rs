@@ -85,6 +85,10 @@ pub const SCENES: &[(&str, &str)] = &[
         include_str!("../../../scenes/notched_spin.toml"),
     ),
     (
+        "shell_balloon",
+        include_str!("../../../scenes/shell_balloon.toml"),
+    ),
+    (
         "shell_plate",
         include_str!("../../../scenes/shell_plate.toml"),
     ),

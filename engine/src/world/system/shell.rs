@@ -11,7 +11,7 @@ use super::simulated::{GrabRefusal, Invalid, RemoveError, Simulated, StepEnv};
 use crate::efg::Grab;
 use crate::frame::{FieldKind, SolidSurface};
 use crate::geometry::TriMesh;
-use crate::geometry::conformal::ConformalChart;
+use crate::geometry::atlas::Atlas;
 use crate::math::{Real, Vector, bounds};
 use crate::scene::{PreparedShell, Scene};
 use crate::shell::{self, Embedded, ShellDynamics, ShellError, ShellState, ShellStep};
@@ -40,8 +40,8 @@ pub(crate) struct ShellEntry {
     /// last term the energy of straining it by about 4.5 %, so that a
     /// shell at rest without load does not fault on round-off).
     scale_floor: Real,
-    /// The surface's chart, where a grab's point is found.
-    chart: ConformalChart,
+    /// The surface's atlas, where a grab's point is found.
+    atlas: Atlas,
     /// How far from the surface a grab's point may lie, m.
     grab_reach: Real,
     /// A grab's spring, N/m.
@@ -62,7 +62,7 @@ const ENERGY_ADVICE: &str =
 
 impl ShellEntry {
     /// The shell's grab of `grab`, the `index`-th: its material point
-    /// found on the surface's chart.
+    /// found on the surface's atlas.
     fn held(&self, index: usize, grab: &Grab) -> Result<shell::Grab, GrabRefusal> {
         let refuse = |reason: String| GrabRefusal {
             index: Some(index),
@@ -81,7 +81,7 @@ impl ShellEntry {
             return Err(refuse("a coordinate is not finite".into()));
         }
         let (at, distance) = self
-            .chart
+            .atlas
             .parameter_of(&grab.point)
             .ok_or_else(|| refuse("the shell's surface has no triangle to hold".into()))?;
         if distance > self.grab_reach {
@@ -440,7 +440,7 @@ pub(super) fn build(index: usize, shell: PreparedShell) -> ShellEntry {
         dynamics,
         surface,
         triangles,
-        chart,
+        atlas,
         grab_reach,
         grab_stiffness,
     } = shell;
@@ -458,7 +458,7 @@ pub(super) fn build(index: usize, shell: PreparedShell) -> ShellEntry {
         dynamics,
         surface,
         triangles,
-        chart,
+        atlas,
         grab_reach,
         grab_stiffness,
         grabs: Vec::new(),
