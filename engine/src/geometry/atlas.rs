@@ -460,6 +460,11 @@ impl ChartDomain for Atlas {
         let (chart, local) = self.local(u);
         chart.owned.lambda(local)
     }
+
+    fn contains(&self, u: Point2) -> bool {
+        let (chart, local) = self.local(u);
+        chart.owned.contains(local)
+    }
 }
 
 /// The chart of `faces` (a region of `mesh`), mapped with its band, or

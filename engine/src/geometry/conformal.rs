@@ -466,6 +466,12 @@ impl ChartDomain for ConformalChart {
         }
     }
 
+    /// Inside where a triangle holds the point, as the distance's sign
+    /// says, without the search for the nearest boundary edge.
+    fn contains(&self, u: Point2) -> bool {
+        self.locate(u).is_some()
+    }
+
     fn lambda(&self, u: Point2) -> Real {
         if let Some((t, w)) = self.locate(u) {
             let tri = self.triangles[t];
