@@ -174,6 +174,8 @@ impl Atlas {
             Err(ChartError::Degenerate { triangle }) => {
                 return Err(ChartError::Degenerate { triangle }.into());
             }
+            // Nothing to cut.
+            Err(e) if mesh.triangles.is_empty() => return Err(e.into()),
             Err(_) => {}
         }
         let report = mesh.edge_report();

@@ -185,6 +185,12 @@ fn bad_input_is_refused_with_what_to_change() {
         let e = Atlas::new(&mesh, &AtlasParams::new(reach)).expect_err("no reach");
         assert!(e.to_string().contains("reach"), "{e}");
     }
+    let empty = TriMesh {
+        vertices: Vec::new(),
+        triangles: Vec::new(),
+    };
+    let e = Atlas::new(&empty, &AtlasParams::new(0.1)).expect_err("no triangles");
+    assert!(e.to_string().contains("not a disk"), "{e}");
     // Two triangles on one edge with a third: not a manifold.
     let fan = TriMesh {
         vertices: vec![
