@@ -101,7 +101,7 @@ fn run(name: &str, mesh: &TriMesh, resolution: Real, frames: usize) {
     let atlas = Atlas::new(mesh, &AtlasParams::new(params.quadtree.eta * resolution))
         .expect("the surface has an atlas");
     let chart_ms = ms(start);
-    let closed = atlas.boundary().is_empty();
+    let closed = atlas.is_closed();
     if closed {
         params.quadtree.exterior = 0;
     }

@@ -35,7 +35,9 @@
 use super::TriMesh;
 use super::conformal::{ChartError, ConformalChart, Distortion};
 use super::quadtree::{ChartDomain, Point2};
+use super::topology::{HalfEdge, sorted_half_edges};
 use crate::math::{Real, Vector};
+use nalgebra::Matrix2;
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, HashMap};
 
@@ -108,8 +110,8 @@ pub struct Transfer {
     /// The point in the plane, in the other chart's place.
     pub at: Point2,
     /// The transition's Jacobian: a short step `d` in the other chart is
-    /// `jacobian * d` in the point's own chart (row major).
-    pub jacobian: [[Real; 2]; 2],
+    /// `jacobian * d` in the point's own chart.
+    pub jacobian: Matrix2<Real>,
 }
 
 /// Two charts that meet, and along how many edges.
@@ -171,10 +173,8 @@ impl Atlas {
         }
         match ConformalChart::new(mesh) {
             Ok(chart) => return Ok(Self::single(chart)),
-            Err(ChartError::Degenerate { triangle }) => {
-                return Err(ChartError::Degenerate { triangle }.into());
-            }
-            // Nothing to cut.
+            // A degenerate triangle, or nothing to cut.
+            Err(e @ ChartError::Degenerate { .. }) => return Err(e.into()),
             Err(e) if mesh.triangles.is_empty() => return Err(e.into()),
             Err(_) => {}
         }
@@ -212,6 +212,12 @@ impl Atlas {
             lo,
             hi,
         }
+    }
+
+    /// Whether the surface is closed: it has no rim (one chart never is,
+    /// as a chart is a disk).
+    pub fn is_closed(&self) -> bool {
+        self.boundary.is_empty()
     }
 
     /// Number of charts.
@@ -313,7 +319,8 @@ impl Atlas {
     /// Cuts a surface that is not one disk (see the module's
     /// documentation).
     fn cut(mesh: &TriMesh, params: &AtlasParams) -> Result<Self, AtlasError> {
-        let dual = Dual::new(mesh);
+        let half_edges = sorted_half_edges(mesh);
+        let dual = Dual::new(mesh, &half_edges);
         let rings = vertex_rings(mesh);
         let first = dual.farthest(&[0]);
         let mut seeds = vec![first, dual.farthest(&[first])];
@@ -353,7 +360,7 @@ impl Atlas {
                 }
             }
             if more.is_empty() && charts.len() == regions.len() {
-                return Ok(Self::assemble(mesh, charts, &owner, params));
+                return Ok(Self::assemble(mesh, &half_edges, charts, &owner, params));
             }
             if more.is_empty() || seeds.len() + more.len() > MAX_CHARTS {
                 return Err(AtlasError::TooManyCharts { why });
@@ -365,6 +372,7 @@ impl Atlas {
     /// Lays the charts in the plane and indexes them.
     fn assemble(
         mesh: &TriMesh,
+        half_edges: &[HalfEdge],
         mut charts: Vec<Chart>,
         owner: &[u32],
         params: &AtlasParams,
@@ -407,26 +415,23 @@ impl Atlas {
                 vertex_at[v as usize] = place(f, k);
             }
         }
-        let mut edges: HashMap<[u32; 2], Vec<(usize, usize)>> = HashMap::new();
-        for (f, tri) in mesh.triangles.iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                edges.entry([a.min(b), a.max(b)]).or_default().push((f, k));
-            }
-        }
         let mut boundary = Vec::new();
         let mut seams: HashMap<[usize; 2], usize> = HashMap::new();
-        for uses in edges.values() {
-            match uses[..] {
-                [(f, k)] => {
+        for uses in half_edges.chunk_by(|a, b| a.key == b.key) {
+            match uses {
+                [h] => {
+                    let (f, k) = (h.triangle as usize, h.corner as usize);
                     let tri = mesh.triangles[f];
                     boundary.push((
                         [tri[k], tri[(k + 1) % 3]],
                         [place(f, k), place(f, (k + 1) % 3)],
                     ));
                 }
-                [(f, _), (g, _)] if owner[f] != owner[g] => {
-                    let (c, d) = (owner[f] as usize, owner[g] as usize);
+                [h, i] if owner[h.triangle as usize] != owner[i.triangle as usize] => {
+                    let (c, d) = (
+                        owner[h.triangle as usize] as usize,
+                        owner[i.triangle as usize] as usize,
+                    );
                     *seams.entry([c.min(d), c.max(d)]).or_default() += 1;
                 }
                 _ => {}
@@ -498,19 +503,10 @@ fn chart_of(
             params.max_area_distortion
         ));
     }
-    let owned_uv = {
-        let (_, vertices) = patch(mesh, faces);
-        let (_, extended_vertices) = patch(mesh, &extended_faces);
-        let index: HashMap<u32, usize> = extended_vertices
-            .iter()
-            .enumerate()
-            .map(|(k, &v)| (v, k))
-            .collect();
-        vertices
-            .iter()
-            .map(|v| extended.uv()[index[v]])
-            .collect::<Vec<_>>()
-    };
+    // The band's patch lists the region's triangles first and numbers
+    // vertices in the order it meets them, so the region's vertices are
+    // the band's first ones, in the same order.
+    let owned_uv = extended.uv()[..region.vertices.len()].to_vec();
     let owned = ConformalChart::with_map(&region, owned_uv).map_err(|e| e.to_string())?;
     Ok(Chart {
         owned,
@@ -618,17 +614,16 @@ fn corners(chart: &ConformalChart, t: usize) -> [Point2; 3] {
 
 /// The linear map taking the triangle `there` onto `here`, as the
 /// Jacobian `d here / d there`, or `None` for a flat one.
-fn transition(here: &[Point2; 3], there: &[Point2; 3]) -> Option<[[Real; 2]; 2]> {
+fn transition(here: &[Point2; 3], there: &[Point2; 3]) -> Option<Matrix2<Real>> {
     let edges = |q: &[Point2; 3]| {
-        nalgebra::Matrix2::new(
+        Matrix2::new(
             q[1][0] - q[0][0],
             q[2][0] - q[0][0],
             q[1][1] - q[0][1],
             q[2][1] - q[0][1],
         )
     };
-    let j = edges(here) * edges(there).try_inverse()?;
-    Some([[j[(0, 0)], j[(0, 1)]], [j[(1, 0)], j[(1, 1)]]])
+    Some(edges(here) * edges(there).try_inverse()?)
 }
 
 /// A distance that orders (never NaN here: lengths of finite edges).
@@ -655,24 +650,15 @@ struct Dual {
 }
 
 impl Dual {
-    fn new(mesh: &TriMesh) -> Self {
-        let centroid = |f: usize| -> Vector { mesh.corners(f).iter().sum::<Vector>() / 3.0 };
-        let mut edges: HashMap<[u32; 2], Vec<u32>> = HashMap::new();
-        for (f, tri) in mesh.triangles.iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                edges
-                    .entry([a.min(b), a.max(b)])
-                    .or_default()
-                    .push(f as u32);
-            }
-        }
+    /// The triangles of `mesh` joined across the edges two of them share
+    /// (`half_edges` sorted by edge, as `sorted_half_edges` gives them).
+    fn new(mesh: &TriMesh, half_edges: &[HalfEdge]) -> Self {
+        let centroid = |f: u32| -> Vector { mesh.corners(f as usize).iter().sum::<Vector>() / 3.0 };
         let mut neighbours = vec![Vec::new(); mesh.triangles.len()];
-        let mut keys: Vec<_> = edges.into_iter().collect();
-        keys.sort_unstable_by_key(|(e, _)| *e);
-        for (_, faces) in keys {
-            if let [f, g] = faces[..] {
-                let d = (centroid(f as usize) - centroid(g as usize)).norm();
+        for uses in half_edges.chunk_by(|a, b| a.key == b.key) {
+            if let [h, i] = uses {
+                let (f, g) = (h.triangle, i.triangle);
+                let d = (centroid(f) - centroid(g)).norm();
                 neighbours[f as usize].push((g, d));
                 neighbours[g as usize].push((f, d));
             }

@@ -30,15 +30,15 @@ impl EdgeReport {
 /// One directed edge `a -> b` of triangle `triangle` (its local edge
 /// `corner`, from corner `corner` to the next), keyed by the undirected edge.
 #[derive(Debug, Clone, Copy)]
-struct HalfEdge {
-    key: (u32, u32),
+pub(crate) struct HalfEdge {
+    pub(crate) key: (u32, u32),
     forward: bool,
-    triangle: u32,
-    corner: u8,
+    pub(crate) triangle: u32,
+    pub(crate) corner: u8,
 }
 
 /// All half-edges, sorted so the uses of one undirected edge are adjacent.
-fn sorted_half_edges(mesh: &TriMesh) -> Vec<HalfEdge> {
+pub(crate) fn sorted_half_edges(mesh: &TriMesh) -> Vec<HalfEdge> {
     let mut half_edges: Vec<HalfEdge> = mesh
         .triangles
         .iter()

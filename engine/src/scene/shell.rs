@@ -259,7 +259,7 @@ impl ShellSpec {
         };
         let (lo, hi) = atlas.bounds();
         let mut params = self.params();
-        if atlas.chart_count() > 1 && atlas.boundary().is_empty() {
+        if atlas.is_closed() {
             // A closed surface has no rim to put exterior leaves beyond:
             // across its seams the neighbouring charts' nodes are the
             // supports.
@@ -281,7 +281,7 @@ impl ShellSpec {
             per_area: self.density * self.thickness * context.gravity,
             pressure: self.pressure,
             points: Vec::new(),
-            closed: atlas.boundary().is_empty(),
+            closed: atlas.is_closed(),
         };
         let params = DynamicParams {
             integrator: self.integrator,

@@ -122,9 +122,9 @@ pub struct Load {
     pub points: Vec<(Point2, Vector)>,
     /// Whether the surface is closed, so that the pressure has no net
     /// force: its quadrature over the fitted surface leaves a small one
-    /// (0.15 % of `p pi R^2` on the shipped balloon, enough to push it
-    /// away), which is then taken off, spread over the nodes by their
-    /// areas.
+    /// (1.2e-3 of `p pi R^2` on a unit sphere at cells of 0.2, in
+    /// `engine/tests/shells.rs`; enough to push a free ball away), which
+    /// is then taken off, spread over the nodes by their areas.
     pub closed: bool,
 }
 

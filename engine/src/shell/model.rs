@@ -17,12 +17,13 @@
 use super::error::ShellError;
 use super::kirchhoff::{Local, Reference};
 use crate::approx::mls::{Mls, MlsParams, Order, ShapeHessians};
-use crate::approx::tensor::tensor_weight_hessian;
+use crate::approx::tensor::{WeightHessian, tensor_weight_hessian};
 use crate::cancel::Cancel;
 use crate::geometry::atlas::Transfer;
 use crate::geometry::quadtree::{ChartDomain, Point2, Quadtree, QuadtreeParams};
 use crate::linalg::sparse::{BlockPattern, SparseCholesky};
 use crate::math::{Real, Vector};
+use nalgebra::{Matrix2, Vector2};
 use rayon::prelude::*;
 
 /// A chart whose domain is a patch of a shell's reference middle surface.
@@ -213,7 +214,7 @@ struct Ghost {
     /// Where it lies in the neighbour's place.
     at: Point2,
     /// `d (own chart) / d (neighbour's chart)` at it.
-    jacobian: [[Real; 2]; 2],
+    jacobian: Matrix2<Real>,
     /// Its support's half side, in its own chart.
     half: Real,
     /// Half the side of the box its support covers in the neighbour's
@@ -222,14 +223,9 @@ struct Ghost {
 }
 
 impl Ghost {
-    /// `jacobian * d`: a step in the neighbour's place, in the node's own
-    /// chart.
-    fn own(&self, d: [Real; 2]) -> [Real; 2] {
-        let j = &self.jacobian;
-        [
-            j[0][0] * d[0] + j[0][1] * d[1],
-            j[1][0] * d[0] + j[1][1] * d[1],
-        ]
+    /// A step `d` in the neighbour's place, in the node's own chart.
+    fn own(&self, d: [Real; 2]) -> Vector2<Real> {
+        self.jacobian * Vector2::new(d[0], d[1])
     }
 
     /// Whether its support covers the point `u` of the neighbour's place.
@@ -241,28 +237,28 @@ impl Ghost {
     /// Its weight at the offset `d = x - at` of the neighbour's place,
     /// with the gradient and Hessian there: the square weight in its own
     /// chart by the chain rule (`J^T g`, `J^T H J`).
-    fn weight(&self, d: &[Real; 3]) -> Option<crate::approx::tensor::WeightHessian> {
+    fn weight(&self, d: &[Real; 3]) -> Option<WeightHessian> {
         let e = self.own([d[0], d[1]]);
         let (w, g, h) = tensor_weight_hessian(2, &[e[0], e[1], 0.0], &[self.half; 3])?;
         let j = &self.jacobian;
-        let mut gradient = [0.0; 3];
-        let mut hessian = [[0.0; 3]; 3];
-        for a in 0..2 {
-            gradient[a] = j[0][a] * g[0] + j[1][a] * g[1];
-            for b in 0..2 {
-                hessian[a][b] = (0..2)
-                    .map(|k| (0..2).map(|l| j[k][a] * h[k][l] * j[l][b]).sum::<Real>())
-                    .sum();
-            }
-        }
-        Some((w, gradient, hessian))
+        let gradient = j.transpose() * Vector2::new(g[0], g[1]);
+        let hessian = j.transpose() * Matrix2::new(h[0][0], h[0][1], h[1][0], h[1][1]) * j;
+        Some((
+            w,
+            [gradient[0], gradient[1], 0.0],
+            [
+                [hessian[(0, 0)], hessian[(0, 1)], 0.0],
+                [hessian[(1, 0)], hessian[(1, 1)], 0.0],
+                [0.0; 3],
+            ],
+        ))
     }
 }
 
 /// The nodes of `tree` that other charts of `surface` hold, in those
 /// charts' places, by their first coordinate there.
 fn ghosts_of(surface: &impl ShellSurface, tree: &Quadtree) -> Vec<Ghost> {
-    let mut ghosts: Vec<Ghost> = (0..tree.nodes().len())
+    let mut ghosts: Vec<Ghost> = (0..tree.leaves().len())
         .into_par_iter()
         .flat_map_iter(|k| {
             let half = tree.half_width(k);
@@ -270,13 +266,7 @@ fn ghosts_of(surface: &impl ShellSurface, tree: &Quadtree) -> Vec<Ghost> {
                 .transfers(tree.node(k))
                 .into_iter()
                 .filter_map(move |t| {
-                    let j = nalgebra::Matrix2::new(
-                        t.jacobian[0][0],
-                        t.jacobian[0][1],
-                        t.jacobian[1][0],
-                        t.jacobian[1][1],
-                    );
-                    let inverse = j.try_inverse()?;
+                    let inverse = t.jacobian.try_inverse()?;
                     let spread = (0..2)
                         .map(|r| inverse[(r, 0)].abs() + inverse[(r, 1)].abs())
                         .fold(0.0, Real::max);

@@ -140,10 +140,7 @@ fn transfers_name_the_same_surface_point_and_carry_steps_across() {
             let there = chart.extended.surface_point(local);
             assert!((here - there).norm() < 1e-9, "{here} against {there}");
             let d = [1e-4, -0.5e-4];
-            let step = [
-                t.jacobian[0][0] * d[0] + t.jacobian[0][1] * d[1],
-                t.jacobian[1][0] * d[0] + t.jacobian[1][1] * d[1],
-            ];
+            let step = t.jacobian * nalgebra::Vector2::new(d[0], d[1]);
             let own = atlas.surface_point([u[0] + step[0], u[1] + step[1]]);
             let other = chart
                 .extended
