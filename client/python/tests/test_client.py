@@ -444,10 +444,30 @@ def test_a_shell_streams_its_nodes_and_surface_and_restores_from_a_snapshot(clie
         client.create_session(closed)
     assert refused.value.code == grpc.StatusCode.INVALID_ARGUMENT
     assert "systems[0].shape" in refused.value.details
-    assert "a sphere or a mesh file" in refused.value.details
+    assert "a mesh file or an oriented point cloud" in refused.value.details
     assert len(client.list_sessions()) == before
     for s in (session, again):
         client.delete_session(s)
+
+
+def test_a_shell_from_a_scan_streams_the_scans_points(client):
+    """``scenes/shell_scan.toml``: a rubber ball given as 1,200 points with
+    normals and no faces (its PLY sent inline by the scene loader). The
+    server meshes the cloud's surface and charts it; frames carry the
+    scan's own points with unit normals and no triangles, and 2 kPa
+    swells them by about the membrane solution (5.5 mm)."""
+    session = client.create_session(load_scene(ROOT / "scenes" / "shell_scan.toml"))
+    assert list(session.system_kinds) == ["shell"]
+    rest = client.latest_frame(session).solid_surfaces[0]
+    assert rest.vertices.shape == (1200, 3)
+    assert len(rest.triangles) == 0
+    np.testing.assert_allclose(np.linalg.norm(rest.normals, axis=1), 1.0, atol=1e-5)
+    client.step(session, 3)
+    swollen = client.latest_frame(session).solid_surfaces[0]
+    radius = lambda v: np.linalg.norm(v - v.mean(axis=0), axis=1)
+    moved = float(np.mean(radius(swollen.vertices) - radius(rest.vertices)))
+    assert 0.005 < moved < 0.006, moved
+    client.delete_session(session)
 
 
 def test_next_frame_follows_a_session_frame_by_frame(client):

@@ -148,6 +148,8 @@ pub struct Atlas {
     /// For each mesh triangle, the charts whose patch holds it and its
     /// index there (empty for a single chart).
     placed: Vec<Vec<(u32, u32)>>,
+    /// Each mesh triangle's chart (empty for a single chart).
+    face_owner: Vec<u32>,
     /// Each mesh vertex's point in the plane, in a chart owning one of its
     /// triangles.
     vertex_at: Vec<Point2>,
@@ -206,6 +208,7 @@ impl Atlas {
                 start: Real::NEG_INFINITY,
             }],
             placed: Vec::new(),
+            face_owner: Vec::new(),
             vertex_at,
             boundary,
             seams: Vec::new(),
@@ -263,6 +266,31 @@ impl Atlas {
                     .map(|(u, d)| ([u[0] + c.offset[0], u[1] + c.offset[1]], d))
             })
             .min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
+    /// The point in the plane of the mesh triangle `face`'s point with
+    /// barycentric `weights`, in the chart that owns the triangle: where
+    /// a point found on the mesh (a cloud's sample projected onto the
+    /// surface rebuilt from it) lies. `None` for a face the mesh has not.
+    pub fn parameter_in(&self, face: usize, weights: [Real; 3]) -> Option<Point2> {
+        let corners = self.face_corners(face)?;
+        Some([0, 1].map(|a| (0..3).map(|k| weights[k] * corners[k][a]).sum()))
+    }
+
+    /// A mesh triangle's corners in the plane, in its own chart.
+    fn face_corners(&self, face: usize) -> Option<[Point2; 3]> {
+        if self.face_owner.is_empty() {
+            let chart = &self.charts[0].owned;
+            let tri = chart.triangles().get(face)?;
+            return Some(tri.map(|v| self.vertex_at[v as usize]));
+        }
+        let c = *self.face_owner.get(face)?;
+        let &(_, t) = self.placed[face].iter().find(|(o, _)| *o == c)?;
+        let chart = &self.charts[c as usize];
+        Some(
+            corners(&chart.extended, t as usize)
+                .map(|q| [q[0] + chart.offset[0], q[1] + chart.offset[1]]),
+        )
     }
 
     /// The surface's point at `u` (see [`ConformalChart::surface_point`]).
@@ -398,21 +426,24 @@ impl Atlas {
                 placed[f as usize].push((c as u32, t as u32));
             }
         }
-        let place = |face: usize, corner: usize| -> Point2 {
-            let c = owner[face] as usize;
-            let (_, t) = placed[face]
-                .iter()
-                .find(|(o, _)| *o as usize == c)
-                .copied()
-                .unwrap_or((0, 0));
-            let chart = &charts[c];
-            let q = corners(&chart.extended, t as usize)[corner];
-            [q[0] + chart.offset[0], q[1] + chart.offset[1]]
+        let mut atlas = Self {
+            charts,
+            placed,
+            face_owner: owner.to_vec(),
+            vertex_at: Vec::new(),
+            boundary: Vec::new(),
+            seams: Vec::new(),
+            lo: [-0.5 * gap, 0.0],
+            hi: [x - 0.5 * gap, height],
         };
+        // Every face is placed in its owner's patch (the band's patch
+        // lists the region's own faces first).
+        let place = |face: usize| atlas.face_corners(face).unwrap_or_default();
         let mut vertex_at = vec![[0.0; 2]; mesh.vertices.len()];
         for (f, tri) in mesh.triangles.iter().enumerate() {
+            let at = place(f);
             for (k, &v) in tri.iter().enumerate() {
-                vertex_at[v as usize] = place(f, k);
+                vertex_at[v as usize] = at[k];
             }
         }
         let mut boundary = Vec::new();
@@ -422,10 +453,8 @@ impl Atlas {
                 [h] => {
                     let (f, k) = (h.triangle as usize, h.corner as usize);
                     let tri = mesh.triangles[f];
-                    boundary.push((
-                        [tri[k], tri[(k + 1) % 3]],
-                        [place(f, k), place(f, (k + 1) % 3)],
-                    ));
+                    let at = place(f);
+                    boundary.push(([tri[k], tri[(k + 1) % 3]], [at[k], at[(k + 1) % 3]]));
                 }
                 [h, i] if owner[h.triangle as usize] != owner[i.triangle as usize] => {
                     let (c, d) = (
@@ -443,15 +472,10 @@ impl Atlas {
             .map(|(charts, edges)| Seam { charts, edges })
             .collect();
         seams.sort_unstable_by_key(|s| s.charts);
-        Self {
-            charts,
-            placed,
-            vertex_at,
-            boundary,
-            seams,
-            lo: [-0.5 * gap, 0.0],
-            hi: [x - 0.5 * gap, height],
-        }
+        atlas.vertex_at = vertex_at;
+        atlas.boundary = boundary;
+        atlas.seams = seams;
+        atlas
     }
 }
 

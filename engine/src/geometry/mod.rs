@@ -15,6 +15,7 @@ mod mesh_shapes;
 mod mesh_solid;
 pub mod octree;
 mod points_implicit;
+mod projection;
 pub mod quadtree;
 pub mod read;
 mod sampling;
@@ -31,6 +32,7 @@ pub use points_implicit::{
     MAX_NEIGHBOURS, MAX_POINTS, MAX_SUPPORT, MIN_POINTS, PointCloudError, PointSurface,
     PointSurfaceParams, SPACING_CLAMP,
 };
+pub use projection::{Projection, project};
 pub use read::{LoadedMesh, OrientedPoints};
 pub use sampling::{MAX_SAMPLES, sample_surface, sample_volume, surface_candidates};
 pub use sdf::{Closest, MeshSdf};

@@ -427,6 +427,13 @@ impl PointSurface {
         self.spacing
     }
 
+    /// The distance from `x` to the nearest sample: `None` for a
+    /// non-finite `x`. What tells the fitted field's zero set apart from
+    /// its extension past an open cloud's rim, where no sample is near.
+    pub fn distance_to_samples(&self, x: &Vector) -> Option<Real> {
+        self.nearest_sample(x).map(|k| (self.points[k] - x).norm())
+    }
+
     /// The sample nearest `x`: `None` for a non-finite `x` (which the
     /// search would otherwise walk whole, every comparison failing), or
     /// one whose squared distances overflow.

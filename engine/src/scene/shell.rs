@@ -5,23 +5,29 @@
 //! supports refuse is refused before a world exists).
 //!
 //! The surface is a flat rectangular plate (a box with one half extent
-//! zero: the plate's plane), a sphere (an icosphere, closed), or a
-//! triangle mesh from a file, open or closed, of any genus: one
-//! least-squares conformal chart where the surface is a disk, else an
-//! atlas of charts meeting at seams (`geometry/atlas.rs`).
+//! zero: the plate's plane), a sphere (an icosphere, closed), a triangle
+//! mesh from a file, open or closed, of any genus, or an oriented point
+//! cloud (a PLY of points with normals and no faces, the paper's input),
+//! whose surface is meshed first (`surface/reconstruct.rs`) and which
+//! then carries its own points: one least-squares conformal chart where
+//! the surface is a disk, else an atlas of charts meeting at seams
+//! (`geometry/atlas.rs`).
 
 use super::error::{check_box, check_positive, check_range, check_vector};
 use super::{Aabb, BuildOptions, SceneContext, SceneError, ShapeSpec};
 use crate::approx::gauss::MAX_ORDER;
 use crate::approx::mls::Order;
-use crate::geometry::TriMesh;
+use crate::cancel::Cancel;
 use crate::geometry::atlas::{Atlas, AtlasParams};
-use crate::geometry::read;
+use crate::geometry::quadtree::Point2;
+use crate::geometry::read::{self, MeshFormat};
+use crate::geometry::{OrientedPoints, TriMesh, project};
 use crate::math::{Real, Vector, bounds, vector};
 use crate::shell::{
     DynamicParams, Embedded, Integrator, Load, Material, ShellDynamics, ShellError, ShellModel,
     ShellParams, Support, SupportKind,
 };
+use crate::surface::reconstruct::{ReconstructError, reconstruct};
 use nalgebra::Rotation3;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -80,8 +86,9 @@ const BYTES_PER_NODE: Real = 24_000.0;
 #[serde(deny_unknown_fields)]
 pub struct ShellSpec {
     /// The middle surface: a plate (`type = "box"` with one half extent
-    /// 0, the plate lying across the other two axes), a sphere, or a mesh
-    /// (OBJ or PLY, an orientable manifold, open or closed).
+    /// 0, the plate lying across the other two axes), a sphere, a mesh
+    /// (OBJ or PLY, an orientable manifold, open or closed), or an
+    /// oriented point cloud (a PLY with normals and no faces).
     pub shape: ShapeSpec,
     /// Where the surface's centre (its bounding box's) goes, m.
     pub position: [Real; 3],
@@ -187,9 +194,10 @@ fn default_surface_cells() -> u32 {
 pub(crate) struct PreparedShell {
     /// The shell, held and loaded.
     pub dynamics: ShellDynamics,
-    /// The carried mesh's vertices, embedded in the shell.
+    /// The carried mesh's vertices (or the cloud's points), embedded in
+    /// the shell.
     pub surface: Embedded,
-    /// The carried mesh's triangles.
+    /// The carried mesh's triangles (none for a cloud).
     pub triangles: Vec<[u32; 3]>,
     /// The surface's atlas, where a grab's material point is found.
     pub atlas: Atlas,
@@ -226,9 +234,13 @@ impl ShellSpec {
             ));
         }
         self.check_values(at)?;
-        let mesh = self.surface_mesh(at)?;
         let field = |name: &str| format!("{at}.{name}");
-        for v in &mesh.vertices {
+        let (mesh, cloud) = self.surface_mesh(at, &options.cancel)?;
+        for v in mesh
+            .vertices
+            .iter()
+            .chain(cloud.iter().flat_map(|c| &c.points))
+        {
             for a in 0..3 {
                 if v[a] < context.domain.min[a] || v[a] > context.domain.max[a] {
                     return Err(SceneError::invalid(
@@ -292,14 +304,26 @@ impl ShellSpec {
             max_iterations: self.max_iterations as usize,
             ..DynamicParams::new(context.dt)
         };
-        let surface = model
-            .embed(atlas.vertex_parameters(), &mesh.vertices)
-            .map_err(shell_error)?;
+        let (surface, triangles) = match cloud {
+            None => (
+                model
+                    .embed(atlas.vertex_parameters(), &mesh.vertices)
+                    .map_err(shell_error)?,
+                mesh.triangles,
+            ),
+            Some(cloud) => {
+                let at = cloud_parameters(&field("shape"), &mesh, &atlas, &cloud.points)?;
+                (
+                    model.embed(&at, &cloud.points).map_err(shell_error)?,
+                    Vec::new(),
+                )
+            }
+        };
         let dynamics = ShellDynamics::new(model, &supports, &load, params).map_err(shell_error)?;
         Ok(PreparedShell {
             dynamics,
             surface,
-            triangles: mesh.triangles,
+            triangles,
             atlas,
             grab_reach: self.resolution,
             grab_stiffness: self.penalty * self.young * self.thickness,
@@ -391,8 +415,13 @@ impl ShellSpec {
     }
 
     /// The middle surface in the world frame: a plate's grid of split
-    /// squares, or the mesh file centred on its bounding box's centre.
-    fn surface_mesh(&self, at: &str) -> Result<TriMesh, SceneError> {
+    /// squares, or the mesh file centred on its bounding box's centre; for
+    /// a point cloud, the mesh of its surface and the cloud, placed alike.
+    fn surface_mesh(
+        &self,
+        at: &str,
+        cancel: &Cancel,
+    ) -> Result<(TriMesh, Option<Cloud>), SceneError> {
         let shape_at = format!("{at}.shape");
         let (centre, rotation) = (
             vector(self.position),
@@ -410,15 +439,39 @@ impl ShellSpec {
                 };
                 let scale = scale.unwrap_or(1.0);
                 check_positive(&format!("{shape_at}.scale"), scale)?;
-                let loaded = read::parse(Path::new(&label), data.format, &data.content)
-                    .map_err(|e| SceneError::invalid(&shape_at, e.to_string()))?;
-                if loaded.mesh.triangles.is_empty() {
-                    return Err(SceneError::invalid(
-                        shape_at,
-                        "has no triangles; a shell's surface is a triangle mesh (point clouds \
-                         are not yet taken)",
-                    ));
-                }
+                let loaded = match read::parse(Path::new(&label), data.format, &data.content) {
+                    Ok(loaded) if !loaded.mesh.triangles.is_empty() => loaded,
+                    parsed if data.format == MeshFormat::Ply => {
+                        let points = read::parse_oriented_points(Path::new(&label), &data.content)
+                            .map_err(|e| {
+                                let mesh = parsed.err().map_or_else(
+                                    || "it has no faces".to_owned(),
+                                    |m| m.to_string(),
+                                );
+                                SceneError::invalid(
+                                    &shape_at,
+                                    format!(
+                                        "is neither a mesh ({mesh}) nor an oriented point cloud \
+                                         ({e})"
+                                    ),
+                                )
+                            })?;
+                        let cloud = self.cloud(&shape_at, &points, scale, cancel)?;
+                        return Ok(cloud);
+                    }
+                    parsed => {
+                        let why = parsed
+                            .err()
+                            .map_or_else(|| "it has no faces".to_owned(), |e| e.to_string());
+                        return Err(SceneError::invalid(
+                            shape_at,
+                            format!(
+                                "{why}; a shell's surface is a triangle mesh or an oriented \
+                                 point cloud (a PLY with normals)"
+                            ),
+                        ));
+                    }
+                };
                 let mut mesh = loaded.mesh;
                 let (lo, hi) = bounds(&mesh.vertices);
                 let middle = 0.5 * (lo + hi);
@@ -438,15 +491,48 @@ impl ShellSpec {
             ShapeSpec::Capsule { .. } | ShapeSpec::Plane { .. } => {
                 return Err(SceneError::invalid(
                     shape_at,
-                    "a shell is a plate (type = \"box\" with one half extent 0), a sphere or \
-                     a mesh file",
+                    "a shell is a plate (type = \"box\" with one half extent 0), a sphere, \
+                     a mesh file or an oriented point cloud (a PLY with normals)",
                 ));
             }
         };
         for v in &mut mesh.vertices {
             *v = centre + rotation * *v;
         }
-        Ok(mesh)
+        Ok((mesh, None))
+    }
+
+    /// An oriented point cloud placed as a mesh file is (centred on its
+    /// box, scaled, turned and moved), and the mesh of its surface.
+    fn cloud(
+        &self,
+        at: &str,
+        points: &OrientedPoints,
+        scale: Real,
+        cancel: &Cancel,
+    ) -> Result<(TriMesh, Option<Cloud>), SceneError> {
+        let (centre, rotation) = (
+            vector(self.position),
+            Rotation3::new(vector(self.orientation)),
+        );
+        let (lo, hi) = bounds(&points.points);
+        let middle = 0.5 * (lo + hi);
+        let cloud = Cloud {
+            points: points
+                .points
+                .iter()
+                .map(|p| centre + rotation * ((p - middle) * scale))
+                .collect(),
+            normals: points.normals.iter().map(|n| rotation * n).collect(),
+        };
+        // The mesh resolves the leaves' scale, no finer: it carries the
+        // charts, the cloud carries the detail.
+        let built = reconstruct(&cloud.points, &cloud.normals, 0.5 * self.resolution, cancel)
+            .map_err(|e| match e {
+                ReconstructError::Cancelled => SceneError::Cancelled,
+                other => SceneError::invalid(at, other.to_string()),
+            })?;
+        Ok((built.mesh, Some(cloud)))
     }
 
     /// A plate across the two axes of `half_extents` that are not zero.
@@ -528,4 +614,35 @@ impl ShellSpec {
         }
         Ok(supports)
     }
+}
+
+/// An oriented point cloud in the world frame.
+#[derive(Debug, Clone)]
+struct Cloud {
+    points: Vec<Vector>,
+    normals: Vec<Vector>,
+}
+
+/// Each cloud point's place in the plane: the point of the mesh nearest
+/// it, in the chart owning the triangle there.
+fn cloud_parameters(
+    at: &str,
+    mesh: &TriMesh,
+    atlas: &Atlas,
+    points: &[Vector],
+) -> Result<Vec<Point2>, SceneError> {
+    project(mesh, points)
+        .into_iter()
+        .enumerate()
+        .map(|(i, found)| {
+            found
+                .and_then(|p| atlas.parameter_in(p.triangle, p.weights))
+                .ok_or_else(|| {
+                    SceneError::invalid(
+                        at,
+                        format!("point {i} of the cloud has no place on its surface"),
+                    )
+                })
+        })
+        .collect()
 }

@@ -1,4 +1,6 @@
-//! Fluid surfaces: the iso-surface of the SPH colour field
+//! Surfaces meshed by marching cubes: an oriented point cloud's (in
+//! [`reconstruct`], for shells from scans) and, here, fluid surfaces: the
+//! iso-surface of the SPH colour field
 //! `phi(x) = sum_j (m_j / rho_j) W(|x - x_j|, h)`, sampled on a regular grid
 //! and meshed by marching cubes (Lorensen & Cline 1987), as the
 //! Adams–Wicke tutorial's Section 6.5 describes.
@@ -11,6 +13,7 @@
 
 mod field;
 mod marching_cubes;
+pub mod reconstruct;
 
 use crate::approx::Kernel;
 use crate::geometry::TriMesh;
