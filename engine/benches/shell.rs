@@ -12,7 +12,9 @@
 //! and the dynamic system's assembly (supports, pattern, the initial
 //! acceleration). Then each frame of h = 1/60 s by backward Euler: the
 //! Newton step and the surface update (every vertex moved and its
-//! normal), medians over the frames. Then the same for a closed sphere of
+//! normal), medians over the frames; then the same frames under linear
+//! mechanics (the paper's constant `M` and `K`: the first step factorises,
+//! the rest reuse the factor). Then all of it for a closed sphere of
 //! radius 1 (an icosphere of 40,962 vertices) on an atlas of charts,
 //! inflated by 100 Pa. Prints a table for each; asserts nothing.
 //!
@@ -23,7 +25,8 @@ use meshless_engine::geometry::TriMesh;
 use meshless_engine::geometry::atlas::{Atlas, AtlasParams};
 use meshless_engine::math::{Real, Vector};
 use meshless_engine::shell::{
-    DynamicParams, Load, Material, ShellDynamics, ShellModel, ShellParams, SupportKind,
+    DynamicParams, Embedded, Load, Material, Mechanics, ShellDynamics, ShellModel, ShellParams,
+    SupportKind,
 };
 use std::time::Instant;
 
@@ -150,29 +153,21 @@ fn run(name: &str, mesh: &TriMesh, resolution: Real, frames: usize) {
     };
     let nodes = model.node_count();
     let points = model.points().len();
+    let linear_model = model.clone();
     let mut dynamics = ShellDynamics::new(model, &supports, &load, DynamicParams::new(1.0 / 60.0))
         .expect("dynamics");
     let assemble_ms = ms(start);
+    let (steps, surfaces, iterations) = frames_of(&mut dynamics, &embedded, frames);
 
-    let (mut steps, mut surfaces, mut iterations) = (Vec::new(), Vec::new(), Vec::new());
-    for _ in 0..frames {
-        let start = Instant::now();
-        let step = dynamics.step(&cancel).expect("a step");
-        steps.push(ms(start));
-        iterations.push(step.iterations as f64);
-        let start = Instant::now();
-        let moved = embedded.positions(dynamics.displacement());
-        let x: Vec<Vector> = dynamics
-            .model()
-            .reference()
-            .iter()
-            .zip(dynamics.displacement())
-            .map(|(x, u)| x + u)
-            .collect();
-        let normals = embedded.normals(&x);
-        surfaces.push(ms(start));
-        std::hint::black_box((moved, normals));
-    }
+    let start = Instant::now();
+    let params = DynamicParams {
+        mechanics: Mechanics::Linear,
+        ..DynamicParams::new(1.0 / 60.0)
+    };
+    let mut linear =
+        ShellDynamics::new(linear_model, &supports, &load, params).expect("linear dynamics");
+    let linear_ms = ms(start);
+    let (linear_steps, linear_surfaces, _) = frames_of(&mut linear, &embedded, frames + 1);
     println!(
         "{name}: {} vertices, {} charts, {nodes} nodes, {points} Gauss points, {} threads",
         mesh.vertices.len(),
@@ -194,4 +189,40 @@ fn run(name: &str, mesh: &TriMesh, resolution: Real, frames: usize) {
         "| frame: surface update (median) | {:.1} |",
         median(surfaces)
     );
+    println!("| linear: assembly of the constant K and M | {linear_ms:.0} |");
+    println!(
+        "| linear: first step (factorises) | {:.1} |",
+        linear_steps[0]
+    );
+    println!(
+        "| linear frame: step (median of {frames}) | {:.2} |",
+        median(linear_steps[1..].to_vec())
+    );
+    println!(
+        "| linear frame: surface update (median) | {:.2} |",
+        median(linear_surfaces[1..].to_vec())
+    );
+}
+
+/// Steps `dynamics` for `frames` frames, each with the surface's update
+/// (every point moved and its normal): the milliseconds of each step and
+/// each update, and the step's iterations.
+fn frames_of(
+    dynamics: &mut ShellDynamics,
+    embedded: &Embedded,
+    frames: usize,
+) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let cancel = Cancel::new();
+    let (mut steps, mut surfaces, mut iterations) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..frames {
+        let start = Instant::now();
+        let step = dynamics.step(&cancel).expect("a step");
+        steps.push(ms(start));
+        iterations.push(step.iterations as f64);
+        let start = Instant::now();
+        let moved = embedded.surface(dynamics.model().reference(), dynamics.displacement());
+        surfaces.push(ms(start));
+        std::hint::black_box(moved);
+    }
+    (steps, surfaces, iterations)
 }

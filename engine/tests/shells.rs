@@ -384,15 +384,9 @@ fn a_meshed_roof_sags_through_its_conformal_chart() {
     let embedded = model
         .embed(uv, &mesh.vertices)
         .expect("every vertex on the chart");
-    let moved = embedded.positions(&solution.displacement);
-    assert!((moved[edge][2] - mesh.vertices[edge][2] + sag).abs() < 1e-12);
-    let nodes: Vec<Vector> = model
-        .reference()
-        .iter()
-        .zip(&solution.displacement)
-        .map(|(x, u)| x + u)
-        .collect();
-    let normals = embedded.normals(&nodes);
+    let (moved, normals) = embedded.surface(model.reference(), &solution.displacement);
+    // The embedding's weights are single precision.
+    assert!((moved[edge][2] - mesh.vertices[edge][2] + sag).abs() < 1e-6 * sag);
     for (n, p) in normals.iter().zip(&mesh.vertices) {
         assert!((n.norm() - 1.0).abs() < 1e-12);
         // The roof's outward normal is radial; the sag tilts it slightly.
@@ -494,7 +488,8 @@ fn swelling(resolution: Real) -> Swelling {
     let moved = model
         .embed(at, &mesh.vertices)
         .expect("every vertex on a chart")
-        .positions(&solution.displacement);
+        .surface(model.reference(), &solution.displacement)
+        .0;
     let mut sums = [[0.0; 2]; 3];
     let mut charts = vec![[0.0; 2]; atlas.chart_count()];
     let mut along: Real = 0.0;

@@ -152,6 +152,7 @@ impl ShellCantilever {
                 quadrature_order: self.quadrature_order,
                 subdivision: shell_defaults::SUBDIVISION,
                 integrator,
+                mechanics: Default::default(),
                 mass_damping: 0.0,
                 stiffness_damping: 0.0,
                 penalty: shell_defaults::PENALTY,

@@ -175,8 +175,8 @@ impl BlockPattern {
         }
     }
 
-    /// `y = A x` from the stored lower triangle, to check an assembly.
-    #[cfg(test)]
+    /// `y = A x` from the stored lower triangle: to check an assembly, and
+    /// a linear shell's forces from its constant stiffness.
     pub(crate) fn product(&self, values: &[Real], x: &[Real]) -> Vec<Real> {
         let mut y = vec![0.0; x.len()];
         self.multiply(
@@ -413,7 +413,6 @@ impl SparseCholesky {
         finish: impl FnOnce(&mut [Real]),
         rhs: impl IntoIterator<Item = Real>,
     ) -> Option<&[Real]> {
-        let symbolic = &pattern.symbolic;
         // The values' allocation failing is no solve (the factor's too,
         // in `factorize_into`).
         if self
@@ -429,6 +428,33 @@ impl SparseCholesky {
         pattern
             .factorize_into(&self.values, &mut self.factor, par)
             .ok()?;
+        self.solve_factored(pattern, rhs)
+    }
+
+    /// Factorises the matrix with `values` (in `pattern`'s order) and keeps
+    /// the factor for [`Self::solve_factored`]: for a matrix that stays
+    /// the same over many solves. `false` when it is not positive definite
+    /// or the factor's memory cannot be had.
+    pub fn factorize(&mut self, pattern: &BlockPattern, values: &[Real]) -> bool {
+        let par = faer::get_global_parallelism();
+        pattern
+            .factorize_into(values, &mut self.factor, par)
+            .is_ok()
+    }
+
+    /// Solves `A y = b` for `b` from `rhs` with the factor the last
+    /// [`Self::factorize`] (or solve) left, over the same `pattern`;
+    /// returns `y`, or `None` when scratch memory cannot be had.
+    pub fn solve_factored(
+        &mut self,
+        pattern: &BlockPattern,
+        rhs: impl IntoIterator<Item = Real>,
+    ) -> Option<&[Real]> {
+        let symbolic = &pattern.symbolic;
+        if self.factor.len() != symbolic.len_val() {
+            return None;
+        }
+        let par = faer::get_global_parallelism();
         let mut memory =
             MemBuffer::try_new(symbolic.solve_in_place_scratch::<Real>(1, par)).ok()?;
         let n = symbolic.nrows();

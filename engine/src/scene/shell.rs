@@ -24,8 +24,8 @@ use crate::geometry::read::{self, MeshFormat};
 use crate::geometry::{OrientedPoints, TriMesh, project};
 use crate::math::{Real, Vector, bounds, vector};
 use crate::shell::{
-    DynamicParams, Embedded, Integrator, Load, Material, ShellDynamics, ShellError, ShellModel,
-    ShellParams, Support, SupportKind,
+    DynamicParams, Embedded, Integrator, Load, Material, Mechanics, ShellDynamics, ShellError,
+    ShellModel, ShellParams, Support, SupportKind,
 };
 use crate::surface::reconstruct::{ReconstructError, reconstruct};
 use nalgebra::Rotation3;
@@ -74,9 +74,10 @@ const MAX_SURFACE_CELLS: u32 = 1024;
 const BYTES_PER_POINT: Real = 3_600.0;
 
 /// Bytes per node: its block column of the tangent (about 80 coupled
-/// nodes of 9 values) and the Cholesky factor's fill-in, by count and
-/// rounded up.
-const BYTES_PER_NODE: Real = 24_000.0;
+/// nodes of 9 values), the Cholesky factor's fill-in and, under linear
+/// mechanics, its block columns of the constant stiffness and mass (6 kB),
+/// by count and rounded up.
+const BYTES_PER_NODE: Real = 30_000.0;
 
 /// A thin shell: a Kirchhoff–Love surface discretised on its conformal
 /// chart or atlas (Guo–Qin 4.2, 5.2). The knobs that trade speed for accuracy:
@@ -125,6 +126,11 @@ pub struct ShellSpec {
     /// keeps energy).
     #[serde(default)]
     pub integrator: Integrator,
+    /// `"nonlinear"` (large deflections and rotations) or `"linear"` (the
+    /// paper's constant `M` and `K`: small displacements, one solve per
+    /// step with a factor kept between steps).
+    #[serde(default)]
+    pub mechanics: Mechanics,
     /// Rayleigh damping `a` of `C = a M + b K`, 1/s.
     #[serde(default)]
     pub mass_damping: Real,
@@ -297,6 +303,7 @@ impl ShellSpec {
         };
         let params = DynamicParams {
             integrator: self.integrator,
+            mechanics: self.mechanics,
             mass_damping: self.mass_damping,
             stiffness_damping: self.stiffness_damping,
             penalty: self.penalty,

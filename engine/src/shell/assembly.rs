@@ -596,6 +596,22 @@ impl Assembly {
 }
 
 impl Assembly {
+    /// The supports' and grabs' forces at zero displacement (their
+    /// springs pulling towards the held values) and their energy there:
+    /// what a linear shell adds to `K u`.
+    pub(super) fn springs_at_rest(&self, nodes: usize) -> (Vec<Vector>, Real) {
+        let mut f = vec![Vector::zeros(); nodes];
+        let mut energy = 0.0;
+        for c in &self.constraints {
+            energy += 0.5 * c.stiffness * c.offset * c.offset;
+            let force = -c.stiffness * c.offset * c.direction;
+            for (&k, ck) in c.stencil.nodes.iter().zip(&c.coefficients) {
+                f[k as usize] += *ck * force;
+            }
+        }
+        (f, energy)
+    }
+
     /// See `spring_norm`.
     pub(super) fn spring_force_norm(&self) -> Real {
         self.spring_norm

@@ -27,6 +27,10 @@
 //! indefinite (buckling, snap-through, a stiff grab yanking the shell),
 //! a multiple of the mass is added until it factors. A step that fails
 //! (no convergence, a fold, cancellation) leaves the state as it was.
+//!
+//! A second knob, [`Mechanics`], trades the geometric nonlinearity for
+//! speed: the linear route (`linear.rs`) keeps `K` at the reference, so a
+//! step is one solve with a factor kept between steps.
 
 use super::assembly::{Assembly, Grab, Load, Support};
 use super::error::ShellError;
@@ -34,7 +38,10 @@ use super::model::ShellModel;
 use crate::cancel::Cancel;
 use crate::linalg::sparse::SparseCholesky;
 use crate::math::{Real, Vector, bounds};
+use linear::Linear;
 use serde::{Deserialize, Serialize};
+
+mod linear;
 
 /// The most mass a Newton iteration adds to an indefinite tangent, in
 /// units of the step's own inertia `c_a M`: past it the step is refused
@@ -53,6 +60,21 @@ pub enum Integrator {
     Newmark,
 }
 
+/// How the internal forces follow the displacement: the knob that trades
+/// large deformations for speed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Mechanics {
+    /// Kirchhoff–Love's energy of the deformed surface: large deflections
+    /// and rotations right; Newton on the tangent each step.
+    #[default]
+    Nonlinear,
+    /// Its expansion to second order at the reference (Guo–Qin's Eq. 24:
+    /// `M`, `K` constant): small displacements only, a rotation
+    /// stretches; one solve per step with a factor kept between steps.
+    Linear,
+}
+
 /// The dynamic route's parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DynamicParams {
@@ -60,6 +82,8 @@ pub struct DynamicParams {
     pub dt: Real,
     /// The integrator.
     pub integrator: Integrator,
+    /// Nonlinear or linear mechanics.
+    pub mechanics: Mechanics,
     /// Rayleigh damping's mass coefficient `alpha` (1/time).
     pub mass_damping: Real,
     /// Rayleigh damping's stiffness coefficient `beta` (time).
@@ -82,6 +106,7 @@ impl DynamicParams {
         Self {
             dt,
             integrator: Integrator::BackwardEuler,
+            mechanics: Mechanics::Nonlinear,
             mass_damping: 0.0,
             stiffness_damping: 0.0,
             penalty: 10.0,
@@ -176,6 +201,8 @@ pub struct ShellDynamics {
     assembly: Assembly,
     load: Vec<Vector>,
     params: DynamicParams,
+    /// The linear route's matrices, under [`Mechanics::Linear`].
+    linear: Option<Linear>,
     solver: SparseCholesky,
     displacement: Vec<Vector>,
     velocity: Vec<Vector>,
@@ -183,7 +210,7 @@ pub struct ShellDynamics {
     time: Real,
 }
 
-fn norm(v: &[Vector]) -> Real {
+pub(super) fn norm(v: &[Vector]) -> Real {
     v.iter().map(|x| x.norm_squared()).sum::<Real>().sqrt()
 }
 
@@ -208,7 +235,11 @@ impl ShellDynamics {
                 range: "a value > 0 (a shell in motion needs mass)",
             });
         }
-        let assembly = Assembly::new(&model, supports, &[], params.penalty)?;
+        let mut assembly = Assembly::new(&model, supports, &[], params.penalty)?;
+        let linear = match params.mechanics {
+            Mechanics::Nonlinear => None,
+            Mechanics::Linear => Some(Linear::new(&mut assembly, &model)?),
+        };
         let load = model.load_vector(load)?;
         let n = model.node_count();
         let (lo, hi) = bounds(model.reference());
@@ -220,6 +251,7 @@ impl ShellDynamics {
             assembly,
             load,
             params,
+            linear,
             solver: SparseCholesky::default(),
             displacement: vec![Vector::zeros(); n],
             velocity: vec![Vector::zeros(); n],
@@ -254,9 +286,8 @@ impl ShellDynamics {
                 });
             }
         }
-        let (f, _) = self.assembly.forces(&self.model, &displacement)?;
-        let damping = self.assembly.product(
-            &self.model,
+        let (f, _) = self.internal_forces(&displacement)?;
+        let damping = self.product(
             &velocity,
             self.params.stiffness_damping,
             self.params.mass_damping,
@@ -271,6 +302,10 @@ impl ShellDynamics {
                 [r[0], r[1], r[2]]
             });
         let (assembly, model) = (&self.assembly, &self.model);
+        // The mass's factor replaces the linear route's.
+        if let Some(linear) = &mut self.linear {
+            linear.factored = None;
+        }
         let acceleration = self
             .solver
             .solve(
@@ -295,24 +330,14 @@ impl ShellDynamics {
     /// [`ShellError::Singular`] or [`ShellError::Cancelled`]; the state
     /// is then unchanged.
     pub fn step(&mut self, cancel: &Cancel) -> Result<ShellStep, ShellError> {
+        if self.linear.is_some() {
+            return self.step_linear(cancel);
+        }
         let p = self.params;
         let h = p.dt;
-        let (u0, v0, a0) = (&self.displacement, &self.velocity, &self.acceleration);
         // a1 = c_a du + a*, v1 = c_v du + v*.
-        let (c_a, c_v) = match p.integrator {
-            Integrator::BackwardEuler => (1.0 / (h * h), 1.0 / h),
-            Integrator::Newmark => (4.0 / (h * h), 2.0 / h),
-        };
-        let (a_star, v_star): (Vec<Vector>, Vec<Vector>) = match p.integrator {
-            Integrator::BackwardEuler => (
-                v0.iter().map(|v| -v / h).collect(),
-                vec![Vector::zeros(); v0.len()],
-            ),
-            Integrator::Newmark => (
-                v0.iter().zip(a0).map(|(v, a)| -4.0 * v / h - a).collect(),
-                v0.iter().map(|v| -v).collect(),
-            ),
-        };
+        let (c_a, c_v, a_star, v_star) = self.kinematics();
+        let (u0, v0) = (&self.displacement, &self.velocity);
         let mut u1: Vec<Vector> = u0.iter().zip(v0).map(|(u, v)| u + h * v).collect();
         // The momentum a step carries, M v0 / h, is a force scale too: a
         // shell moving freely has no other.
@@ -472,6 +497,9 @@ impl ShellDynamics {
         let params = DynamicParams { dt, ..self.params };
         params.validate()?;
         self.params = params;
+        if let Some(linear) = &mut self.linear {
+            linear.factored = None;
+        }
         Ok(())
     }
 
@@ -483,7 +511,11 @@ impl ShellDynamics {
     /// [`ShellError`] for a grab off the chart, a stiffness out of range
     /// or a target not finite; the grabs are then as they were.
     pub fn set_grabs(&mut self, grabs: &[Grab]) -> Result<(), ShellError> {
-        self.assembly = Assembly::new(&self.model, &self.supports, grabs, self.params.penalty)?;
+        let mut assembly = Assembly::new(&self.model, &self.supports, grabs, self.params.penalty)?;
+        if self.linear.is_some() {
+            self.linear = Some(Linear::new(&mut assembly, &self.model)?);
+        }
+        self.assembly = assembly;
         Ok(())
     }
 
@@ -510,6 +542,9 @@ impl ShellDynamics {
             });
         }
         if self.assembly.move_grab(index, target, rotation) {
+            if let Some(linear) = &mut self.linear {
+                linear.springs_moved(&self.assembly, self.model.node_count());
+            }
             Ok(())
         } else {
             Err(ShellError::Parameter {
@@ -526,8 +561,8 @@ impl ShellDynamics {
     /// # Errors
     /// [`ShellError::Folded`] where the surface folds flat.
     pub fn energy(&mut self) -> Result<ShellEnergy, ShellError> {
-        let (_, strain) = self.assembly.forces(&self.model, &self.displacement)?;
-        let mv = self.assembly.product(&self.model, &self.velocity, 0.0, 1.0);
+        let (_, strain) = self.internal_forces(&self.displacement.clone())?;
+        let mv = self.product(&self.velocity, 0.0, 1.0);
         let kinetic = 0.5
             * self
                 .velocity
@@ -546,6 +581,23 @@ impl ShellDynamics {
             strain,
             work,
         })
+    }
+
+    /// The internal and spring forces at `u` and the energy, by the
+    /// route's mechanics.
+    fn internal_forces(&mut self, u: &[Vector]) -> Result<(Vec<Vector>, Real), ShellError> {
+        match &self.linear {
+            Some(linear) => Ok(linear.forces(&self.assembly.pattern, u)),
+            None => self.assembly.forces(&self.model, u),
+        }
+    }
+
+    /// `(stiffness K + mass M) v`, by the route's mechanics.
+    fn product(&self, v: &[Vector], stiffness: Real, mass: Real) -> Vec<Vector> {
+        match &self.linear {
+            Some(linear) => linear.product(&self.assembly.pattern, v, stiffness, mass),
+            None => self.assembly.product(&self.model, v, stiffness, mass),
+        }
     }
 
     /// The total external force's magnitude, `sum_I |f_I|`: a scale of

@@ -34,10 +34,22 @@ impl ShellSurface for Atlas {
     }
 }
 
-/// Points embedded in a shell.
+/// Points embedded in a shell: each point's nodes and its shape
+/// functions' values and first derivatives there, flat.
+///
+/// The weights are kept in single precision and apart from the
+/// stencils' rows, which also hold second derivatives: the surface update
+/// reads them every frame for tens of thousands of points, so their bytes
+/// are its cost (a third of the rows' in all), and frames carry
+/// single-precision positions anyway (the weights' rounding moves a point
+/// by about 1e-7 of its displacement).
 #[derive(Debug, Clone)]
 pub struct Embedded {
-    stencils: Vec<Stencil>,
+    /// Point `i`'s entries are `starts[i]..starts[i + 1]`.
+    starts: Vec<u32>,
+    nodes: Vec<u32>,
+    /// `N`, `N_,1`, `N_,2` of each entry.
+    weights: Vec<[f32; 3]>,
     rest: Vec<Vector>,
 }
 
@@ -52,28 +64,39 @@ impl Embedded {
         self.rest.is_empty()
     }
 
-    /// The points moved by nodal displacements `displacement`.
-    pub fn positions(&self, displacement: &[Vector]) -> Vec<Vector> {
-        self.stencils
-            .par_iter()
-            .zip(&self.rest)
-            .map(|(s, p)| p + s.value(displacement))
-            .collect()
-    }
-
-    /// The deformed middle surface's unit normals at the points, for
-    /// nodal positions `nodes` (reference plus displacement); zero where
-    /// the surface has folded flat.
-    pub fn normals(&self, nodes: &[Vector]) -> Vec<Vector> {
-        self.stencils
-            .par_iter()
-            .map(|s| {
-                let q = s.local(nodes);
-                q[0].cross(&q[1])
+    /// The points moved by nodal displacements `displacement`, and the
+    /// deformed middle surface's unit normals at them (zero where the
+    /// surface has folded flat), for the nodes' reference positions
+    /// `reference`: one pass over the weights, in parallel.
+    pub fn surface(
+        &self,
+        reference: &[Vector],
+        displacement: &[Vector],
+    ) -> (Vec<Vector>, Vec<Vector>) {
+        let placed: Vec<Vector> = reference
+            .iter()
+            .zip(displacement)
+            .map(|(x, u)| x + u)
+            .collect();
+        (0..self.rest.len())
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|i| {
+                let range = self.starts[i] as usize..self.starts[i + 1] as usize;
+                let (mut d, mut t1, mut t2) = (Vector::zeros(), Vector::zeros(), Vector::zeros());
+                for (&k, w) in self.nodes[range.clone()].iter().zip(&self.weights[range]) {
+                    let k = k as usize;
+                    d += Real::from(w[0]) * displacement[k];
+                    t1 += Real::from(w[1]) * placed[k];
+                    t2 += Real::from(w[2]) * placed[k];
+                }
+                let normal = t1
+                    .cross(&t2)
                     .try_normalize(0.0)
-                    .unwrap_or_else(Vector::zeros)
+                    .unwrap_or_else(Vector::zeros);
+                (self.rest[i] + d, normal)
             })
-            .collect()
+            .unzip()
     }
 }
 
@@ -92,12 +115,30 @@ impl ShellModel {
                 range: "one rest position per parametric position",
             });
         }
-        let stencils = at
+        let stencils: Vec<Stencil> = at
             .par_iter()
             .map(|&u| self.stencil(u))
             .collect::<Result<_, _>>()?;
+        let mut starts = Vec::with_capacity(stencils.len() + 1);
+        let (mut nodes, mut weights) = (Vec::new(), Vec::new());
+        starts.push(0);
+        for s in &stencils {
+            nodes.extend_from_slice(&s.nodes);
+            weights.extend(
+                s.rows
+                    .iter()
+                    .map(|r| [r[0] as f32, r[1] as f32, r[2] as f32]),
+            );
+            starts.push(
+                u32::try_from(nodes.len()).map_err(|_| ShellError::TooLarge {
+                    nodes: self.node_count(),
+                })?,
+            );
+        }
         Ok(Embedded {
-            stencils,
+            starts,
+            nodes,
+            weights,
             rest: rest.to_vec(),
         })
     }

@@ -33,7 +33,9 @@ mod statics;
 mod vibration;
 
 pub use assembly::{Grab, Load, Support, SupportKind};
-pub use dynamics::{DynamicParams, Integrator, ShellDynamics, ShellEnergy, ShellState, ShellStep};
+pub use dynamics::{
+    DynamicParams, Integrator, Mechanics, ShellDynamics, ShellEnergy, ShellState, ShellStep,
+};
 pub use embedded::Embedded;
 pub use error::ShellError;
 pub use model::{Material, ShapeRow, ShellModel, ShellParams, ShellSurface, Stencil, SurfacePoint};

@@ -1,5 +1,5 @@
-//! Conversions of the shell messages (`ShellSpec` and `ShellIntegrator`
-//! in `scene.proto`), both directions. Unset optional fields take the
+//! Conversions of the shell messages (`ShellSpec`, `ShellIntegrator` and
+//! `ShellMechanics` in `scene.proto`), both directions. Unset optional fields take the
 //! scene file's defaults ([`meshless_engine::scene::shell_defaults`]).
 
 use super::geometry::{aabb, shape_from_proto, to_aabb, to_shape, to_vec3, vec3};
@@ -7,7 +7,7 @@ use crate::enums::{WireEnum, optional_enum, wire_enum};
 use crate::error::{Result, required};
 use meshless_engine::approx::mls::Order;
 use meshless_engine::scene::{ShellSpec, shell_defaults as defaults};
-use meshless_engine::shell::Integrator;
+use meshless_engine::shell::{Integrator, Mechanics};
 use meshless_proto::v1;
 
 wire_enum! {
@@ -15,6 +15,14 @@ wire_enum! {
     Integrator <-> ShellIntegrator, "shell integrator" {
         "backward_euler" => BackwardEuler,
         "newmark" => Newmark,
+    }
+}
+
+wire_enum! {
+    /// How a shell's internal forces follow its displacement.
+    Mechanics <-> ShellMechanics, "shell mechanics" {
+        "nonlinear" => Nonlinear,
+        "linear" => Linear,
     }
 }
 
@@ -43,6 +51,7 @@ pub(super) fn shell_from_proto(spec: v1::ShellSpec, field: &str) -> Result<Shell
         clamped,
         pinned,
         surface_cells,
+        mechanics,
     } = spec;
     let boxes = |list: Vec<v1::Aabb>, name: &str| {
         list.into_iter()
@@ -77,6 +86,11 @@ pub(super) fn shell_from_proto(spec: v1::ShellSpec, field: &str) -> Result<Shell
         clamped: boxes(clamped, "clamped")?,
         pinned: boxes(pinned, "pinned")?,
         surface_cells: surface_cells.unwrap_or(defaults::SURFACE_CELLS),
+        mechanics: optional_enum(
+            mechanics,
+            Mechanics::Nonlinear,
+            &format!("{field}.mechanics"),
+        )?,
     })
 }
 
@@ -106,6 +120,7 @@ pub(super) fn to_shell(spec: &ShellSpec) -> v1::ShellSpec {
         clamped,
         pinned,
         surface_cells,
+        mechanics,
     } = spec;
     v1::ShellSpec {
         shape: Some(to_shape(shape)),
@@ -130,6 +145,7 @@ pub(super) fn to_shell(spec: &ShellSpec) -> v1::ShellSpec {
         clamped: clamped.iter().map(to_aabb).collect(),
         pinned: pinned.iter().map(to_aabb).collect(),
         surface_cells: Some(*surface_cells),
+        mechanics: Some(mechanics.to_i32()),
     }
 }
 

@@ -373,21 +373,17 @@ impl Simulated for ShellEntry {
 
     /// The carried surface, deformed, with the middle surface's normals.
     fn solid_surface(&self) -> Option<SolidSurface> {
-        let model = self.dynamics.model();
-        let u = self.dynamics.displacement();
-        let nodes: Vec<Vector> = model
-            .reference()
-            .iter()
-            .zip(u)
-            .map(|(x, u)| x + u)
-            .collect();
+        let (vertices, normals) = self.surface.surface(
+            self.dynamics.model().reference(),
+            self.dynamics.displacement(),
+        );
         Some(SolidSurface {
             system: self.index,
             mesh: TriMesh {
-                vertices: self.surface.positions(u),
+                vertices,
                 triangles: self.triangles.clone(),
             },
-            normals: self.surface.normals(&nodes),
+            normals,
         })
     }
 

@@ -1,0 +1,220 @@
+//! The linear route (Guo–Qin's Eq. 24, `M u'' + C u' + K u = F` with `M`
+//! and `K` constant, the paper's own choice for its shells): the energy's
+//! second-order expansion at the reference, so that each step is one
+//! solve with a matrix that only a new time step or a new set of grabs
+//! changes. Factorised once, a step costs two sparse products and two
+//! triangular solves instead of Newton's assemblies and factorisations.
+//!
+//! What it gives up: the strains are linear in the displacement, so a
+//! rotation stretches (a cantilever bent past a few percent of its length
+//! lengthens, and a spinning shell swells). For small deflections about
+//! the reference (vibration, a balloon's few percent, interactive pokes)
+//! it agrees with the nonlinear route to the square of the strain.
+
+use super::{Integrator, ShellDynamics, ShellStep, norm};
+use crate::cancel::Cancel;
+use crate::linalg::sparse::BlockPattern;
+use crate::math::{Real, Vector};
+use crate::shell::assembly::Assembly;
+use crate::shell::error::ShellError;
+use crate::shell::model::ShellModel;
+
+/// The constant matrices of the linear route and what its factor is of.
+#[derive(Debug, Clone)]
+pub(super) struct Linear {
+    /// `K` at the reference, the supports' and grabs' springs included,
+    /// in the pattern's order.
+    stiffness: Vec<Real>,
+    /// The consistent mass `M`, in the pattern's order.
+    mass: Vec<Real>,
+    /// The springs' forces at zero displacement, and their energy there.
+    rest: Vec<Vector>,
+    rest_energy: Real,
+    /// The `(stiffness, mass)` scales of the matrix the solver holds the
+    /// factor of, if it holds one of this route's.
+    pub(super) factored: Option<(Real, Real)>,
+}
+
+/// `values` (over `pattern`) times `v`.
+fn multiply(pattern: &BlockPattern, values: &[Real], v: &[Vector]) -> Vec<Vector> {
+    let flat: Vec<Real> = v.iter().flat_map(|x| [x[0], x[1], x[2]]).collect();
+    pattern
+        .product(values, &flat)
+        .chunks_exact(3)
+        .map(|c| Vector::new(c[0], c[1], c[2]))
+        .collect()
+}
+
+impl Linear {
+    /// The matrices of `model` held as `assembly` holds it, which is left
+    /// with the energy's Hessians at the reference.
+    ///
+    /// # Errors
+    /// [`ShellError::Folded`] for a reference surface that folds.
+    pub(super) fn new(assembly: &mut Assembly, model: &ShellModel) -> Result<Self, ShellError> {
+        let n = model.node_count();
+        assembly.forces(model, &vec![Vector::zeros(); n])?;
+        let (mut stiffness, mut mass) = (Vec::new(), Vec::new());
+        let held = &*assembly;
+        held.pattern.assemble(&mut stiffness, |node, column| {
+            held.column(model, node, column, 1.0, 0.0)
+        });
+        held.pattern.assemble(&mut mass, |node, column| {
+            held.column(model, node, column, 0.0, 1.0)
+        });
+        let (rest, rest_energy) = held.springs_at_rest(n);
+        Ok(Self {
+            stiffness,
+            mass,
+            rest,
+            rest_energy,
+            factored: None,
+        })
+    }
+
+    /// The springs' pull after a grab moved.
+    pub(super) fn springs_moved(&mut self, assembly: &Assembly, nodes: usize) {
+        (self.rest, self.rest_energy) = assembly.springs_at_rest(nodes);
+    }
+
+    /// `K u` plus the springs' pull at rest, and the energy
+    /// `1/2 u.K u + f_rest.u + U_rest`.
+    pub(super) fn forces(&self, pattern: &BlockPattern, u: &[Vector]) -> (Vec<Vector>, Real) {
+        let mut f = multiply(pattern, &self.stiffness, u);
+        let mut energy = self.rest_energy;
+        for ((fk, uk), rk) in f.iter_mut().zip(u).zip(&self.rest) {
+            energy += 0.5 * fk.dot(uk) + rk.dot(uk);
+            *fk += rk;
+        }
+        (f, energy)
+    }
+
+    /// `(stiffness K + mass M) v`.
+    pub(super) fn product(
+        &self,
+        pattern: &BlockPattern,
+        v: &[Vector],
+        stiffness: Real,
+        mass: Real,
+    ) -> Vec<Vector> {
+        let k = multiply(pattern, &self.stiffness, v);
+        let m = multiply(pattern, &self.mass, v);
+        k.iter()
+            .zip(&m)
+            .map(|(k, m)| stiffness * k + mass * m)
+            .collect()
+    }
+
+    /// `stiffness K + mass M`, in the pattern's order.
+    fn combined(&self, stiffness: Real, mass: Real) -> Vec<Real> {
+        self.stiffness
+            .iter()
+            .zip(&self.mass)
+            .map(|(k, m)| stiffness * k + mass * m)
+            .collect()
+    }
+}
+
+impl ShellDynamics {
+    /// One step of the linear route: with `a1 = c_a du + a*` and
+    /// `v1 = c_v du + v*`, the equation of motion is linear in `du`:
+    ///
+    /// ```text
+    /// ((1 + beta c_v) K + (c_a + alpha c_v) M) du
+    ///     = F - f_rest - K (u0 + beta v*) - M (a* + alpha v*)
+    /// ```
+    ///
+    /// solved with the factor kept from the last step of this length.
+    pub(super) fn step_linear(&mut self, cancel: &Cancel) -> Result<ShellStep, ShellError> {
+        cancel.check().map_err(|_| ShellError::Cancelled)?;
+        let p = self.params;
+        let (c_a, c_v, a_star, v_star) = self.kinematics();
+        let (ks, ms) = (1.0 + p.stiffness_damping * c_v, c_a + p.mass_damping * c_v);
+        let pattern = &self.assembly.pattern;
+        let Some(linear) = self.linear.as_mut() else {
+            return Err(ShellError::Singular);
+        };
+        if linear.factored != Some((ks, ms)) {
+            linear.factored = None;
+            if !self.solver.factorize(pattern, &linear.combined(ks, ms)) {
+                return Err(ShellError::Singular);
+            }
+            linear.factored = Some((ks, ms));
+        }
+        let (u0, v0) = (&self.displacement, &self.velocity);
+        let at_stiffness: Vec<Vector> = u0
+            .iter()
+            .zip(&v_star)
+            .map(|(u, v)| u + p.stiffness_damping * v)
+            .collect();
+        let at_mass: Vec<Vector> = a_star
+            .iter()
+            .zip(&v_star)
+            .map(|(a, v)| a + p.mass_damping * v)
+            .collect();
+        let (k, _) = linear.forces(pattern, &at_stiffness);
+        let m = linear.product(pattern, &at_mass, 0.0, 1.0);
+        let rhs: Vec<Vector> = self
+            .load
+            .iter()
+            .zip(k.iter().zip(&m))
+            .map(|(l, (k, m))| l - k - m)
+            .collect();
+        let du: Vec<Vector> = self
+            .solver
+            .solve_factored(pattern, rhs.iter().flat_map(|r| [r[0], r[1], r[2]]))
+            .ok_or(ShellError::Singular)?
+            .chunks_exact(3)
+            .map(|c| Vector::new(c[0], c[1], c[2]))
+            .collect();
+        // The solve's own residual, against the right-hand side and the
+        // momentum the step carries: round-off, unless the factor is bad.
+        let applied = linear.product(pattern, &du, ks, ms);
+        let misfit: Vec<Vector> = applied.iter().zip(&rhs).map(|(a, r)| a - r).collect();
+        let momentum = norm(&linear.product(pattern, v0, 0.0, 1.0)) / p.dt;
+        let scale = norm(&rhs)
+            .max(momentum)
+            .max(norm(&self.load))
+            .max(Real::MIN_POSITIVE);
+        let residual = norm(&misfit) / scale;
+        // A NaN residual (a non-finite solve) fails too.
+        if residual.is_nan() || residual > p.tolerance {
+            return Err(ShellError::NotConverged {
+                iterations: 1,
+                residual,
+            });
+        }
+        let u1 = u0.iter().zip(&du).map(|(u, d)| u + d).collect();
+        let a1 = du.iter().zip(&a_star).map(|(d, a)| c_a * d + a).collect();
+        let v1 = du.iter().zip(&v_star).map(|(d, v)| c_v * d + v).collect();
+        self.displacement = u1;
+        self.velocity = v1;
+        self.acceleration = a1;
+        self.time += p.dt;
+        Ok(ShellStep {
+            iterations: 1,
+            residual,
+        })
+    }
+
+    /// The integrator's `c_a`, `c_v`, `a*` and `v*` for the next step (see
+    /// [`ShellDynamics::step`]).
+    pub(super) fn kinematics(&self) -> (Real, Real, Vec<Vector>, Vec<Vector>) {
+        let h = self.params.dt;
+        let (v0, a0) = (&self.velocity, &self.acceleration);
+        match self.params.integrator {
+            Integrator::BackwardEuler => (
+                1.0 / (h * h),
+                1.0 / h,
+                v0.iter().map(|v| -v / h).collect(),
+                vec![Vector::zeros(); v0.len()],
+            ),
+            Integrator::Newmark => (
+                4.0 / (h * h),
+                2.0 / h,
+                v0.iter().zip(a0).map(|(v, a)| -4.0 * v / h - a).collect(),
+                v0.iter().map(|v| -v).collect(),
+            ),
+        }
+    }
+}
