@@ -10,7 +10,7 @@ use super::model::{ShellModel, ShellSurface, Stencil};
 use crate::geometry::atlas::{Atlas, Transfer};
 use crate::geometry::conformal::ConformalChart;
 use crate::geometry::quadtree::Point2;
-use crate::math::{Real, Vector};
+use crate::math::{Real, Vector, bounds};
 use rayon::prelude::*;
 
 /// A mesh's chart is a shell's surface: its points are the mesh's,
@@ -37,20 +37,28 @@ impl ShellSurface for Atlas {
 /// Points embedded in a shell: each point's nodes and its shape
 /// functions' values and first derivatives there, flat.
 ///
-/// The weights are kept in single precision and apart from the
-/// stencils' rows, which also hold second derivatives: the surface update
-/// reads them every frame for tens of thousands of points, so their bytes
-/// are its cost (a third of the rows' in all), and frames carry
-/// single-precision positions anyway (the weights' rounding moves a point
-/// by about 1e-7 of its displacement).
+/// The update runs in single precision, apart from each point's own rest
+/// position: it reads the weights of tens of thousands of points every
+/// frame, so their bytes are its cost (a sixth of the stencils' rows in
+/// all: those also hold second derivatives, in double precision), and
+/// frames carry single-precision positions anyway (the rounding moves a
+/// point by about 1e-7 of its displacement). The tangents are summed over
+/// the nodes' positions about the shell's centre, which the derivatives'
+/// partition of nullity (`sum_I N_I,a = 0`) leaves unchanged, so a shell
+/// far from the origin keeps its normals' precision.
 #[derive(Debug, Clone)]
 pub struct Embedded {
     /// Point `i`'s entries are `starts[i]..starts[i + 1]`.
     starts: Vec<u32>,
-    nodes: Vec<u32>,
-    /// `N`, `N_,1`, `N_,2` of each entry.
-    weights: Vec<[f32; 3]>,
+    entries: Vec<Entry>,
     rest: Vec<Vector>,
+}
+
+/// A node of a point's stencil and its `N`, `N_,1`, `N_,2` there.
+#[derive(Debug, Clone, Copy)]
+struct Entry {
+    node: u32,
+    weights: [f32; 3],
 }
 
 impl Embedded {
@@ -73,28 +81,36 @@ impl Embedded {
         reference: &[Vector],
         displacement: &[Vector],
     ) -> (Vec<Vector>, Vec<Vector>) {
-        let placed: Vec<Vector> = reference
+        let (lo, hi) = bounds(reference);
+        let centre = 0.5 * (lo + hi);
+        let single = |v: Vector| [v.x as f32, v.y as f32, v.z as f32];
+        let moved: Vec<[f32; 3]> = displacement.iter().map(|&u| single(u)).collect();
+        let placed: Vec<[f32; 3]> = reference
             .iter()
             .zip(displacement)
-            .map(|(x, u)| x + u)
+            .map(|(x, u)| single(x + u - centre))
             .collect();
         (0..self.rest.len())
             .into_par_iter()
             .with_min_len(1024)
             .map(|i| {
-                let range = self.starts[i] as usize..self.starts[i + 1] as usize;
-                let (mut d, mut t1, mut t2) = (Vector::zeros(), Vector::zeros(), Vector::zeros());
-                for (&k, w) in self.nodes[range.clone()].iter().zip(&self.weights[range]) {
-                    let k = k as usize;
-                    d += Real::from(w[0]) * displacement[k];
-                    t1 += Real::from(w[1]) * placed[k];
-                    t2 += Real::from(w[2]) * placed[k];
+                let entries = &self.entries[self.starts[i] as usize..self.starts[i + 1] as usize];
+                let (mut d, mut t1, mut t2) = ([0.0f32; 3], [0.0f32; 3], [0.0f32; 3]);
+                for e in entries {
+                    let (u, x) = (moved[e.node as usize], placed[e.node as usize]);
+                    let [n, n1, n2] = e.weights;
+                    for a in 0..3 {
+                        d[a] += n * u[a];
+                        t1[a] += n1 * x[a];
+                        t2[a] += n2 * x[a];
+                    }
                 }
-                let normal = t1
-                    .cross(&t2)
+                let double = |v: [f32; 3]| Vector::new(v[0].into(), v[1].into(), v[2].into());
+                let normal = double(t1)
+                    .cross(&double(t2))
                     .try_normalize(0.0)
                     .unwrap_or_else(Vector::zeros);
-                (self.rest[i] + d, normal)
+                (self.rest[i] + double(d), normal)
             })
             .unzip()
     }
@@ -120,25 +136,22 @@ impl ShellModel {
             .map(|&u| self.stencil(u))
             .collect::<Result<_, _>>()?;
         let mut starts = Vec::with_capacity(stencils.len() + 1);
-        let (mut nodes, mut weights) = (Vec::new(), Vec::new());
+        let mut entries = Vec::new();
         starts.push(0);
         for s in &stencils {
-            nodes.extend_from_slice(&s.nodes);
-            weights.extend(
-                s.rows
-                    .iter()
-                    .map(|r| [r[0] as f32, r[1] as f32, r[2] as f32]),
-            );
+            entries.extend(s.nodes.iter().zip(&s.rows).map(|(&node, r)| Entry {
+                node,
+                weights: [r[0] as f32, r[1] as f32, r[2] as f32],
+            }));
             starts.push(
-                u32::try_from(nodes.len()).map_err(|_| ShellError::TooLarge {
+                u32::try_from(entries.len()).map_err(|_| ShellError::TooLarge {
                     nodes: self.node_count(),
                 })?,
             );
         }
         Ok(Embedded {
             starts,
-            nodes,
-            weights,
+            entries,
             rest: rest.to_vec(),
         })
     }
