@@ -89,7 +89,8 @@ impl Linear {
         (f, energy)
     }
 
-    /// `(stiffness K + mass M) v`.
+    /// `(stiffness K + mass M) v`; a matrix whose scale is zero is not
+    /// multiplied (most calls want `K` or `M` alone).
     pub(super) fn product(
         &self,
         pattern: &BlockPattern,
@@ -97,12 +98,15 @@ impl Linear {
         stiffness: Real,
         mass: Real,
     ) -> Vec<Vector> {
-        let k = multiply(pattern, &self.stiffness, v);
-        let m = multiply(pattern, &self.mass, v);
-        k.iter()
-            .zip(&m)
-            .map(|(k, m)| stiffness * k + mass * m)
-            .collect()
+        let mut out = vec![Vector::zeros(); v.len()];
+        for (scale, values) in [(stiffness, &self.stiffness), (mass, &self.mass)] {
+            if scale != 0.0 {
+                for (o, p) in out.iter_mut().zip(multiply(pattern, values, v)) {
+                    *o += scale * p;
+                }
+            }
+        }
+        out
     }
 
     /// `stiffness K + mass M`, in the pattern's order.
