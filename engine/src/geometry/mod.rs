@@ -7,6 +7,7 @@ pub mod atlas;
 mod bvh;
 mod closest;
 pub(crate) use closest::closest_point_on_triangle;
+pub(crate) use topology::sorted_half_edges;
 pub mod conformal;
 mod error;
 mod implicit;

@@ -52,6 +52,9 @@ pub struct Embedded {
     starts: Vec<u32>,
     entries: Vec<Entry>,
     rest: Vec<Vector>,
+    /// The centre of the nodes' reference box, which the tangents are
+    /// summed about.
+    centre: Vector,
 }
 
 /// A node of a point's stencil and its `N`, `N_,1`, `N_,2` there.
@@ -81,8 +84,7 @@ impl Embedded {
         reference: &[Vector],
         displacement: &[Vector],
     ) -> (Vec<Vector>, Vec<Vector>) {
-        let (lo, hi) = bounds(reference);
-        let centre = 0.5 * (lo + hi);
+        let centre = self.centre;
         let single = |v: Vector| [v.x as f32, v.y as f32, v.z as f32];
         let moved: Vec<[f32; 3]> = displacement.iter().map(|&u| single(u)).collect();
         let placed: Vec<[f32; 3]> = reference
@@ -153,6 +155,10 @@ impl ShellModel {
             starts,
             entries,
             rest: rest.to_vec(),
+            centre: {
+                let (lo, hi) = bounds(self.reference());
+                0.5 * (lo + hi)
+            },
         })
     }
 }

@@ -31,7 +31,9 @@ use super::field::NodeGrid;
 use super::marching_cubes;
 use crate::cancel::Cancel;
 use crate::geometry::ImplicitSurface;
-use crate::geometry::{PointCloudError, PointSurface, PointSurfaceParams, TriMesh};
+use crate::geometry::{
+    PointCloudError, PointSurface, PointSurfaceParams, TriMesh, sorted_half_edges,
+};
 use crate::math::{Real, Vector, bounds};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -273,14 +275,15 @@ fn largest_piece(mesh: TriMesh) -> Result<(TriMesh, usize), ReconstructError> {
     if count == 0 {
         return Err(ReconstructError::Empty);
     }
-    let mut by_edge: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
-    for (t, tri) in mesh.triangles.iter().enumerate() {
-        for k in 0..3 {
-            let (a, b) = (tri[k], tri[(k + 1) % 3]);
-            by_edge
-                .entry((a.min(b), a.max(b)))
-                .or_default()
-                .push(t as u32);
+    // Triangles joined across the edges they share.
+    let mut neighbours = vec![Vec::new(); count];
+    for uses in sorted_half_edges(&mesh).chunk_by(|a, b| a.key == b.key) {
+        for h in uses {
+            for i in uses {
+                if h.triangle != i.triangle {
+                    neighbours[h.triangle as usize].push(i.triangle);
+                }
+            }
         }
     }
     let mut piece = vec![u32::MAX; count];
@@ -295,14 +298,10 @@ fn largest_piece(mesh: TriMesh) -> Result<(TriMesh, usize), ReconstructError> {
         let mut size = 0;
         while let Some(t) = stack.pop() {
             size += 1;
-            let tri = mesh.triangles[t];
-            for k in 0..3 {
-                let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                for &u in &by_edge[&(a.min(b), a.max(b))] {
-                    if piece[u as usize] == u32::MAX {
-                        piece[u as usize] = label;
-                        stack.push(u as usize);
-                    }
+            for &u in &neighbours[t] {
+                if piece[u as usize] == u32::MAX {
+                    piece[u as usize] = label;
+                    stack.push(u as usize);
                 }
             }
         }
@@ -327,13 +326,24 @@ fn largest_piece(mesh: TriMesh) -> Result<(TriMesh, usize), ReconstructError> {
         .filter_map(|(tri, &p)| (p as usize == largest).then_some(*tri))
         .collect();
     let dropped = count - triangles.len();
-    Ok((
-        split_pinched_vertices(TriMesh {
-            vertices: mesh.vertices,
-            triangles,
-        }),
-        dropped,
-    ))
+    Ok((without_unused_vertices(mesh.vertices, triangles), dropped))
+}
+
+/// The mesh of `triangles` over the `vertices` they use, renumbered.
+fn without_unused_vertices(vertices: Vec<Vector>, mut triangles: Vec<[u32; 3]>) -> TriMesh {
+    let mut index = vec![u32::MAX; vertices.len()];
+    let mut kept = Vec::new();
+    for v in triangles.iter_mut().flatten() {
+        if index[*v as usize] == u32::MAX {
+            index[*v as usize] = kept.len() as u32;
+            kept.push(vertices[*v as usize]);
+        }
+        *v = index[*v as usize];
+    }
+    TriMesh {
+        vertices: kept,
+        triangles,
+    }
 }
 
 #[cfg(test)]
