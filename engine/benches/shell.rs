@@ -14,7 +14,8 @@
 //! Newton step and the surface update (every vertex moved and its
 //! normal), medians over the frames; then the same frames under linear
 //! mechanics (the paper's constant `M` and `K`: the first step factorises,
-//! the rest reuse the factor). Then all of it for a closed sphere of
+//! the rest reuse the factor), and a grab set and let go under linear
+//! mechanics, each with the step after it. Then all of it for a closed sphere of
 //! radius 1 (an icosphere of 40,962 vertices) on an atlas of charts,
 //! inflated by 100 Pa. Prints a table for each; asserts nothing.
 //!
@@ -25,8 +26,8 @@ use meshless_engine::geometry::TriMesh;
 use meshless_engine::geometry::atlas::{Atlas, AtlasParams};
 use meshless_engine::math::{Real, Vector};
 use meshless_engine::shell::{
-    DynamicParams, Embedded, Load, Material, Mechanics, ShellDynamics, ShellModel, ShellParams,
-    SupportKind,
+    DynamicParams, Embedded, Grab, Load, Material, Mechanics, ShellDynamics, ShellModel,
+    ShellParams, SupportKind,
 };
 use std::time::Instant;
 
@@ -168,6 +169,7 @@ fn run(name: &str, mesh: &TriMesh, resolution: Real, frames: usize) {
         ShellDynamics::new(linear_model, &supports, &load, params).expect("linear dynamics");
     let linear_ms = ms(start);
     let (linear_steps, linear_surfaces, _) = frames_of(&mut linear, &embedded, frames + 1);
+    let (grab_ms, release_ms) = grab_and_release(&mut linear, &atlas, &mesh.vertices);
     println!(
         "{name}: {} vertices, {} charts, {nodes} nodes, {points} Gauss points, {} threads",
         mesh.vertices.len(),
@@ -202,6 +204,34 @@ fn run(name: &str, mesh: &TriMesh, resolution: Real, frames: usize) {
         "| linear frame: surface update (median) | {:.2} |",
         median(linear_surfaces[1..].to_vec())
     );
+    println!("| linear: a grab set, and its first step | {grab_ms:.2} |");
+    println!("| linear: the grab let go, and the next step | {release_ms:.2} |");
+}
+
+/// Grabs a linear shell at the middle vertex of `vertices` (at its
+/// parameter on `atlas`), pulling it 1 cm along z, steps once, lets go and
+/// steps once: the milliseconds of each change with its step.
+fn grab_and_release(
+    dynamics: &mut ShellDynamics,
+    atlas: &Atlas,
+    vertices: &[Vector],
+) -> (f64, f64) {
+    let cancel = Cancel::new();
+    let middle = vertices.len() / 2;
+    let grab = Grab {
+        at: atlas.vertex_parameters()[middle],
+        target: Some(vertices[middle] + Vector::new(0.0, 0.0, 0.01)),
+        rotation: None,
+        stiffness: 1.0e4,
+    };
+    let start = Instant::now();
+    dynamics.set_grabs(&[grab]).expect("a grab on the surface");
+    dynamics.step(&cancel).expect("a grabbed step");
+    let grabbed = ms(start);
+    let start = Instant::now();
+    dynamics.set_grabs(&[]).expect("letting go");
+    dynamics.step(&cancel).expect("a step let go");
+    (grabbed, ms(start))
 }
 
 /// Steps `dynamics` for `frames` frames, each with the surface's update

@@ -150,9 +150,13 @@ class SessionView {
     this.constraints = [];
     this.design = null;
     this.handles = 0;
-    // Each modal solid's rest positions, by system: what a grab names.
+    // Each modal solid's and shell's rest positions, by system: what a
+    // grab names.
     this.rest = new Map(
-      (session.modal_modes ?? []).map((m) => [m.system, fieldArray({ data: m.rest_positions, scalar: 1 })]),
+      [...(session.modal_modes ?? []), ...(session.shell_nodes ?? [])].map((m) => [
+        m.system,
+        fieldArray({ data: m.rest_positions, scalar: 1 }),
+      ]),
     );
     this.kinds = session.system_kinds ?? [];
     for (const plot of Object.values(plots)) plot.clear();
@@ -704,7 +708,7 @@ function onPointerDown(event) {
   const range = index >= 0 ? current.rangeOf(index) : null;
   const kind = range ? current.kinds[range.system] : null;
   const p = index >= 0 ? [current.positions[3 * index], current.positions[3 * index + 1], current.positions[3 * index + 2]] : null;
-  if (range && kind === "modal_solid" && current.rest.has(range.system)) {
+  if (range && (kind === "modal_solid" || kind === "shell") && current.rest.has(range.system)) {
     const local = index - range.first;
     const rest = current.rest.get(range.system);
     drag = {

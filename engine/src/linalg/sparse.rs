@@ -154,24 +154,60 @@ impl BlockPattern {
     /// product is cheap beside the factorisations and solves it sits
     /// between.
     pub(crate) fn multiply(&self, values: &[Real], x: MatRef<'_, Real>, mut y: MatMut<'_, Real>) {
-        y.fill(0.0);
+        // Strided columns are copied into contiguous ones (every caller
+        // passes contiguous ones today).
+        let (mut x_copy, mut y_copy) = (Vec::new(), Vec::new());
         for j in 0..x.ncols() {
-            let x = x.col(j);
-            let mut y = y.rb_mut().col_mut(j);
-            for col in 0..self.size() {
-                let range = self.col_ptr[col] as usize..self.col_ptr[col + 1] as usize;
-                let mut sum = 0.0;
-                for (&row, &v) in self.row_idx[range.clone()].iter().zip(&values[range]) {
-                    let row = row as usize;
-                    if row > col {
-                        y[row] += v * x[col];
-                        sum += v * x[row];
-                    } else if row == col {
-                        sum += v * x[col];
+            let column = x.col(j);
+            let x = match column.try_as_col_major() {
+                Some(x) => x.as_slice(),
+                None => {
+                    x_copy.clear();
+                    x_copy.extend(column.iter().copied());
+                    &x_copy
+                }
+            };
+            let mut target = y.rb_mut().col_mut(j);
+            match target.rb_mut().try_as_col_major_mut() {
+                Some(y) => {
+                    let y = y.as_slice_mut();
+                    y.fill(0.0);
+                    self.multiply_into(values, x, y);
+                }
+                None => {
+                    y_copy.clear();
+                    y_copy.resize(x.len(), 0.0);
+                    self.multiply_into(values, x, &mut y_copy);
+                    for (t, v) in target.iter_mut().zip(&y_copy) {
+                        *t = *v;
                     }
                 }
-                y[col] += sum;
             }
+        }
+    }
+
+    /// Adds `A x` to `y`. Each scalar column starts with its diagonal
+    /// block (see the module's comment): its entries above the diagonal
+    /// are skipped, the one on it read once, and every later entry lies
+    /// below it, so the long inner loop has no test per entry.
+    fn multiply_into(&self, values: &[Real], x: &[Real], y: &mut [Real]) {
+        let dim = self.dim;
+        for (col, (ends, &xc)) in self.col_ptr.windows(2).zip(x).enumerate() {
+            let (start, end) = (ends[0] as usize, ends[1] as usize);
+            let a = col % dim;
+            let mut sum = values[start + a] * xc;
+            for b in a + 1..dim {
+                let (row, v) = (col - a + b, values[start + b]);
+                y[row] += v * xc;
+                sum += v * x[row];
+            }
+            let below = start + dim..end;
+            for (&row, &v) in self.row_idx[below.clone()].iter().zip(&values[below]) {
+                let row = row as usize;
+                y[row] += v * xc;
+                sum += v * x[row];
+            }
+            y[col] += sum;
         }
     }
 

@@ -141,6 +141,19 @@ pub(super) struct Constraint {
 }
 
 impl Constraint {
+    /// Its spring's stiffness.
+    pub(super) fn stiffness(&self) -> Real {
+        self.stiffness
+    }
+
+    /// Adds `scale` times its functional's gradient, `c_I direction` at
+    /// each node `I` of its stencil, to `out`.
+    pub(super) fn add_gradient(&self, scale: Real, out: &mut [Vector]) {
+        for (&k, c) in self.stencil.nodes.iter().zip(&self.coefficients) {
+            out[k as usize] += (c * scale) * self.direction;
+        }
+    }
+
     /// `sum_I c_I u_I . direction` (the held value not subtracted).
     pub(super) fn value(&self, u: &[Vector]) -> Real {
         self.stencil
@@ -389,6 +402,19 @@ impl ShellModel {
     }
 }
 
+/// Where the grabs' springs go.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum GrabBlocks {
+    /// Into the sparse pattern and the assembled matrices, beside the
+    /// shell's own blocks: the nonlinear route assembles its tangent
+    /// anew every iteration anyway.
+    InPattern,
+    /// Kept out of them: the linear route adds them to its constant `K`
+    /// as a low-rank term, so that grabbing and letting go assemble and
+    /// factorise nothing.
+    Apart,
+}
+
 /// One shell's sparse assembly with its supports: the pattern over every
 /// stencil, the items (quadrature points, then supports) each node is
 /// in, and each point's energy gradient and Hessian at the last
@@ -396,6 +422,9 @@ impl ShellModel {
 #[derive(Debug, Clone)]
 pub(super) struct Assembly {
     pub(super) pattern: BlockPattern,
+    /// How many of `constraints` are supports (the grabs' follow).
+    supports: usize,
+    grab_blocks: GrabBlocks,
     /// Per node, the items it is in: `(item, a, start)`, the node being
     /// the item's `a`-th, `slots[start + b - a]` the place in its block
     /// column of the item's `b`-th node, for every `b >= a` (found once
@@ -414,12 +443,14 @@ pub(super) struct Assembly {
 
 impl Assembly {
     /// The assembly of `model` held by `supports` with penalty scale
-    /// `beta`, and pulled by `grabs`.
+    /// `beta`, and pulled by `grabs`, whose springs go as `grab_blocks`
+    /// says.
     pub(super) fn new(
         model: &ShellModel,
         supports: &[Support],
         grabs: &[Grab],
         beta: Real,
+        grab_blocks: GrabBlocks,
     ) -> Result<Self, ShellError> {
         if !(beta > 0.0 && beta.is_finite()) {
             return Err(ShellError::Parameter {
@@ -432,19 +463,19 @@ impl Assembly {
             .iter()
             .map(|s| model.constraint(s, beta))
             .collect::<Result<Vec<_>, _>>()?;
-        let mut grab_rest = Vec::with_capacity(grabs.len());
-        for grab in grabs {
-            let (springs, mut hold) = model.grab_constraints(grab)?;
-            hold.first = constraints.len();
-            constraints.extend(springs);
-            grab_rest.push(hold);
-        }
+        let supports = constraints.len();
+        let (springs, grab_rest) = grab_springs(model, grabs, supports)?;
+        constraints.extend(springs);
+        let patterned = match grab_blocks {
+            GrabBlocks::InPattern => &constraints[..],
+            GrabBlocks::Apart => &constraints[..supports],
+        };
         let points = model.points();
         let stencils = || {
             points
                 .iter()
                 .map(|p| &p.stencil)
-                .chain(constraints.iter().map(|c| &c.stencil))
+                .chain(patterned.iter().map(|c| &c.stencil))
         };
         let (pattern, columns) = model.pattern(stencils())?;
         let mut touching: Vec<Vec<(u32, u32, u32)>> = vec![Vec::new(); model.node_count()];
@@ -469,6 +500,8 @@ impl Assembly {
         let local = vec![([0.0; LOCAL], [[0.0; LOCAL]; LOCAL]); points.len()];
         Ok(Self {
             pattern,
+            supports,
+            grab_blocks,
             touching,
             slots,
             constraints,
@@ -476,6 +509,32 @@ impl Assembly {
             local,
             spring_norm: 0.0,
         })
+    }
+
+    /// Replaces the grabs of an assembly built with
+    /// [`GrabBlocks::Apart`] (one whose pattern holds its grabs is built
+    /// anew instead): nothing else changes.
+    ///
+    /// # Errors
+    /// [`ShellError`] for a grab off the chart, a stiffness out of range
+    /// or a target not finite; the grabs are then as they were.
+    pub(super) fn replace_grabs(
+        &mut self,
+        model: &ShellModel,
+        grabs: &[Grab],
+    ) -> Result<(), ShellError> {
+        debug_assert_eq!(self.grab_blocks, GrabBlocks::Apart);
+        let (springs, grab_rest) = grab_springs(model, grabs, self.supports)?;
+        self.constraints.truncate(self.supports);
+        self.constraints.extend(springs);
+        self.grab_rest = grab_rest;
+        Ok(())
+    }
+
+    /// The grabs' springs, in the order they were given, each grab's
+    /// consecutive.
+    pub(super) fn grab_springs(&self) -> &[Constraint] {
+        &self.constraints[self.supports..]
     }
 
     /// The internal and support forces at nodal displacements `u`, and
@@ -639,6 +698,24 @@ impl Assembly {
         }
         true
     }
+}
+
+/// The springs of `grabs` in order, and each grab's hold, numbered as
+/// constraints from `first`.
+fn grab_springs(
+    model: &ShellModel,
+    grabs: &[Grab],
+    first: usize,
+) -> Result<(Vec<Constraint>, Vec<GrabHold>), ShellError> {
+    let mut springs = Vec::new();
+    let mut holds = Vec::with_capacity(grabs.len());
+    for grab in grabs {
+        let (more, mut hold) = model.grab_constraints(grab)?;
+        hold.first = first + springs.len();
+        springs.extend(more);
+        holds.push(hold);
+    }
+    Ok((springs, holds))
 }
 
 /// Adds a point's energy Hessian `hess` mapped to the nodes and its

@@ -32,7 +32,7 @@
 //! speed: the linear route (`linear.rs`) keeps `K` at the reference, so a
 //! step is one solve with a factor kept between steps.
 
-use super::assembly::{Assembly, Grab, Load, Support};
+use super::assembly::{Assembly, Grab, GrabBlocks, Load, Support};
 use super::error::ShellError;
 use super::model::ShellModel;
 use crate::cancel::Cancel;
@@ -235,7 +235,11 @@ impl ShellDynamics {
                 range: "a value > 0 (a shell in motion needs mass)",
             });
         }
-        let mut assembly = Assembly::new(&model, supports, &[], params.penalty)?;
+        let grab_blocks = match params.mechanics {
+            Mechanics::Nonlinear => GrabBlocks::InPattern,
+            Mechanics::Linear => GrabBlocks::Apart,
+        };
+        let mut assembly = Assembly::new(&model, supports, &[], params.penalty, grab_blocks)?;
         let linear = match params.mechanics {
             Mechanics::Nonlinear => None,
             Mechanics::Linear => Some(Linear::new(&mut assembly, &model)?),
@@ -504,18 +508,30 @@ impl ShellDynamics {
     }
 
     /// Replaces the grabs (none to release them all): their points are
-    /// pulled from the next step on. The grabs' sparsity is new, so the
-    /// assembly is rebuilt; to drag a grab, [`Self::move_grab`].
+    /// pulled from the next step on. Under nonlinear mechanics the
+    /// grabs' sparsity is new, so the assembly is rebuilt; the linear
+    /// route keeps its matrices and its factor and takes the springs as a
+    /// low-rank term. To drag a grab, [`Self::move_grab`].
     ///
     /// # Errors
     /// [`ShellError`] for a grab off the chart, a stiffness out of range
     /// or a target not finite; the grabs are then as they were.
     pub fn set_grabs(&mut self, grabs: &[Grab]) -> Result<(), ShellError> {
-        let mut assembly = Assembly::new(&self.model, &self.supports, grabs, self.params.penalty)?;
-        if self.linear.is_some() {
-            self.linear = Some(Linear::new(&mut assembly, &self.model)?);
+        match &mut self.linear {
+            Some(linear) => {
+                self.assembly.replace_grabs(&self.model, grabs)?;
+                linear.grabs_changed(&self.assembly, self.model.node_count());
+            }
+            None => {
+                self.assembly = Assembly::new(
+                    &self.model,
+                    &self.supports,
+                    grabs,
+                    self.params.penalty,
+                    GrabBlocks::InPattern,
+                )?;
+            }
         }
-        self.assembly = assembly;
         Ok(())
     }
 
@@ -587,7 +603,7 @@ impl ShellDynamics {
     /// route's mechanics.
     fn internal_forces(&mut self, u: &[Vector]) -> Result<(Vec<Vector>, Real), ShellError> {
         match &self.linear {
-            Some(linear) => Ok(linear.forces(&self.assembly.pattern, u)),
+            Some(linear) => Ok(linear.forces(&self.assembly, u)),
             None => self.assembly.forces(&self.model, u),
         }
     }
@@ -595,7 +611,7 @@ impl ShellDynamics {
     /// `(stiffness K + mass M) v`, by the route's mechanics.
     fn product(&self, v: &[Vector], stiffness: Real, mass: Real) -> Vec<Vector> {
         match &self.linear {
-            Some(linear) => linear.product(&self.assembly.pattern, v, stiffness, mass),
+            Some(linear) => linear.product(&self.assembly, v, stiffness, mass),
             None => self.assembly.product(&self.model, v, stiffness, mass),
         }
     }

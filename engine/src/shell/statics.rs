@@ -4,7 +4,7 @@
 //! what the validation problems are solved with (the Scordelis–Lo roof,
 //! clamped plates, `engine/tests/shells.rs`).
 
-use super::assembly::{Assembly, Load, Support};
+use super::assembly::{Assembly, GrabBlocks, Load, Support};
 use super::error::ShellError;
 use super::model::ShellModel;
 use crate::cancel::Cancel;
@@ -84,7 +84,8 @@ impl ShellModel {
                 range: "at least 1 each",
             });
         }
-        let mut assembly = Assembly::new(self, supports, &[], params.penalty)?;
+        let mut assembly =
+            Assembly::new(self, supports, &[], params.penalty, GrabBlocks::InPattern)?;
         let load = self.load_vector(load)?;
         let load_norm = load.iter().map(|f| f.norm_squared()).sum::<Real>().sqrt();
         let mut u = vec![Vector::zeros(); self.node_count()];

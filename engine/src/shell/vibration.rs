@@ -4,7 +4,7 @@
 //! parametric domain with the area element), by the shift-and-invert
 //! Krylov–Schur eigensolver the modal solids use (`linalg/eigen.rs`).
 
-use super::assembly::{Assembly, Support};
+use super::assembly::{Assembly, GrabBlocks, Support};
 use super::error::ShellError;
 use super::model::ShellModel;
 use crate::cancel::Cancel;
@@ -42,7 +42,7 @@ impl ShellModel {
                 range: "a value > 0 (free vibration needs mass)",
             });
         }
-        let mut assembly = Assembly::new(self, supports, &[], penalty)?;
+        let mut assembly = Assembly::new(self, supports, &[], penalty, GrabBlocks::InPattern)?;
         assembly.forces(self, &vec![Vector::zeros(); self.node_count()])?;
         let (mut stiffness, mut mass) = (Vec::new(), Vec::new());
         let assembly = &assembly;

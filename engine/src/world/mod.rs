@@ -31,6 +31,7 @@ use crate::fluid::Fluid;
 use crate::frame::{BodyPose, FieldData, FieldKind, Frame, SolidRange, SolidSurface};
 use crate::math::{Real, Vector, vector};
 use crate::scene::Scene;
+use crate::shell::ShellDynamics;
 use crate::solid::ElasticSolid;
 use crate::stats::StageTimer;
 use system::{StepEnv, System};
@@ -112,6 +113,14 @@ impl World {
             .iter()
             .filter_map(System::as_modal)
             .map(|m| (m.index, &m.solid))
+    }
+
+    /// The shells with their system indices, in scene order.
+    pub fn shells(&self) -> impl Iterator<Item = (usize, &ShellDynamics)> {
+        self.systems
+            .iter()
+            .filter_map(System::as_shell)
+            .map(|s| (s.index, &s.dynamics))
     }
 
     /// The solid of system `system`, to set up a state a scene cannot

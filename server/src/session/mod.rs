@@ -86,6 +86,15 @@ pub struct DesignState {
 
 type SharedDesign = Arc<Mutex<DesignState>>;
 
+/// Points as the wire's f32 x, y, z little-endian bytes.
+fn little_endian(points: &[meshless_engine::math::Vector]) -> Vec<u8> {
+    points
+        .iter()
+        .flat_map(|p| [p.x as f32, p.y as f32, p.z as f32])
+        .flat_map(f32::to_le_bytes)
+        .collect()
+}
+
 fn lock(design: &SharedDesign) -> std::sync::MutexGuard<'_, DesignState> {
     design
         .lock()
@@ -212,6 +221,8 @@ pub struct Session {
     pub particle_count: usize,
     /// Each modal solid's modes, fixed by the scene.
     modal_modes: Vec<v1::ModalModes>,
+    /// Each shell's nodes' rest positions, fixed by the scene.
+    shell_nodes: Vec<v1::ShellNodes>,
     /// Creation order, for listings.
     pub serial: u64,
     /// Who may see and drive it.
@@ -258,12 +269,14 @@ impl Session {
                 system: u32::try_from(system).unwrap_or(u32::MAX),
                 frequencies: solid.frequencies(),
                 rigid: u32::try_from(solid.zero_modes()).unwrap_or(u32::MAX),
-                rest_positions: solid
-                    .rest_positions()
-                    .iter()
-                    .flat_map(|p| [p.x as f32, p.y as f32, p.z as f32])
-                    .flat_map(f32::to_le_bytes)
-                    .collect(),
+                rest_positions: little_endian(solid.rest_positions()),
+            })
+            .collect();
+        let shell_nodes = world
+            .shells()
+            .map(|(system, shell)| v1::ShellNodes {
+                system: u32::try_from(system).unwrap_or(u32::MAX),
+                rest_positions: little_endian(shell.model().reference()),
             })
             .collect();
         let context = design::context(world);
@@ -331,6 +344,7 @@ impl Session {
             scene_echo,
             particle_count,
             modal_modes,
+            shell_nodes,
             serial,
             access,
             mailbox: Mailbox {
@@ -570,6 +584,7 @@ impl Session {
             observers: self.access.observers().to_vec(),
             seal_key: self.seal_key.clone(),
             modal_modes: self.modal_modes.clone(),
+            shell_nodes: self.shell_nodes.clone(),
             system_kinds: self
                 .scene
                 .systems

@@ -1,9 +1,18 @@
 //! The linear route (Guo–Qin's Eq. 24, `M u'' + C u' + K u = F` with `M`
 //! and `K` constant, the paper's own choice for its shells): the energy's
 //! second-order expansion at the reference, so that each step is one
-//! solve with a matrix that only a new time step or a new set of grabs
-//! changes. Factorised once, a step costs two sparse products and two
-//! triangular solves instead of Newton's assemblies and factorisations.
+//! solve with a matrix that only a new time step changes. Factorised once, a step costs three sparse products (one of
+//! them to check the solve) and two triangular solves instead of Newton's
+//! assemblies and factorisations.
+//!
+//! Grabs come and go without a new assembly or factor: their springs
+//! stay out of `K`'s pattern, and the step adds them as the low-rank term
+//! they are (`sum_c k_c w_c w_c^T`, three to nine springs a grab, each
+//! `w_c` a stencil's coefficients along an axis) by the
+//! Sherman–Morrison–Woodbury identity: with `A` the factored matrix,
+//! `Z = A^-1 W` (one solve per spring, once per factor and set of grabs)
+//! and `S = D^-1 + W^T Z`,
+//! `(A + W D W^T)^-1 b = y - Z S^-1 W^T y` for `y = A^-1 b`.
 //!
 //! What it gives up: the strains are linear in the displacement, so a
 //! rotation stretches (a cantilever bent past a few percent of its length
@@ -13,17 +22,18 @@
 
 use super::{Integrator, ShellDynamics, ShellStep, norm};
 use crate::cancel::Cancel;
-use crate::linalg::sparse::BlockPattern;
+use crate::linalg::sparse::{BlockPattern, SparseCholesky};
 use crate::math::{Real, Vector};
 use crate::shell::assembly::Assembly;
 use crate::shell::error::ShellError;
 use crate::shell::model::ShellModel;
+use nalgebra::{DMatrix, DVector};
 
 /// The constant matrices of the linear route and what its factor is of.
 #[derive(Debug, Clone)]
 pub(super) struct Linear {
-    /// `K` at the reference, the supports' and grabs' springs included,
-    /// in the pattern's order.
+    /// `K` at the reference with the supports' springs (the grabs' are
+    /// apart), in the pattern's order.
     stiffness: Vec<Real>,
     /// The consistent mass `M`, in the pattern's order.
     mass: Vec<Real>,
@@ -33,6 +43,21 @@ pub(super) struct Linear {
     /// The `(stiffness, mass)` scales of the matrix the solver holds the
     /// factor of, if it holds one of this route's.
     pub(super) factored: Option<(Real, Real)>,
+    /// That matrix, `stiffness K + mass M` in the pattern's order, which
+    /// each step's residual is measured with.
+    combined: Vec<Real>,
+    /// The grabs' springs against that factor, once a step with grabs
+    /// needed them.
+    grabbed: Option<Grabbed>,
+}
+
+/// What the Woodbury identity needs of the grabs' springs for one factor:
+/// `Z = A^-1 W`, a column per spring, and the Cholesky factor of
+/// `S = D^-1 + W^T Z`.
+#[derive(Debug, Clone)]
+struct Grabbed {
+    z: Vec<Vec<Vector>>,
+    capacitance: nalgebra::Cholesky<Real, nalgebra::Dyn>,
 }
 
 /// `values` (over `pattern`) times `v`.
@@ -69,6 +94,8 @@ impl Linear {
             rest,
             rest_energy,
             factored: None,
+            combined: Vec::new(),
+            grabbed: None,
         })
     }
 
@@ -77,10 +104,36 @@ impl Linear {
         (self.rest, self.rest_energy) = assembly.springs_at_rest(nodes);
     }
 
+    /// The grabs were replaced: their pull, and their low-rank term
+    /// anew at the next step.
+    pub(super) fn grabs_changed(&mut self, assembly: &Assembly, nodes: usize) {
+        self.springs_moved(assembly, nodes);
+        self.grabbed = None;
+    }
+
+    /// `values v` for a matrix over the pattern whose stiffness part is
+    /// `stiffness K` (`K` alone, or the factored matrix), plus that
+    /// multiple of the grabs' springs `W D W^T v`, which `K` leaves out.
+    fn apply(
+        &self,
+        assembly: &Assembly,
+        values: &[Real],
+        v: &[Vector],
+        stiffness: Real,
+    ) -> Vec<Vector> {
+        let mut out = multiply(&assembly.pattern, values, v);
+        if stiffness != 0.0 {
+            for spring in assembly.grab_springs() {
+                spring.add_gradient(stiffness * spring.stiffness() * spring.value(v), &mut out);
+            }
+        }
+        out
+    }
+
     /// `K u` plus the springs' pull at rest, and the energy
     /// `1/2 u.K u + f_rest.u + U_rest`.
-    pub(super) fn forces(&self, pattern: &BlockPattern, u: &[Vector]) -> (Vec<Vector>, Real) {
-        let mut f = multiply(pattern, &self.stiffness, u);
+    pub(super) fn forces(&self, assembly: &Assembly, u: &[Vector]) -> (Vec<Vector>, Real) {
+        let mut f = self.apply(assembly, &self.stiffness, u, 1.0);
         let mut energy = self.rest_energy;
         for ((fk, uk), rk) in f.iter_mut().zip(u).zip(&self.rest) {
             energy += 0.5 * fk.dot(uk) + rk.dot(uk);
@@ -93,29 +146,100 @@ impl Linear {
     /// multiplied (most calls want `K` or `M` alone).
     pub(super) fn product(
         &self,
-        pattern: &BlockPattern,
+        assembly: &Assembly,
         v: &[Vector],
         stiffness: Real,
         mass: Real,
     ) -> Vec<Vector> {
         let mut out = vec![Vector::zeros(); v.len()];
-        for (scale, values) in [(stiffness, &self.stiffness), (mass, &self.mass)] {
-            if scale != 0.0 {
-                for (o, p) in out.iter_mut().zip(multiply(pattern, values, v)) {
-                    *o += scale * p;
-                }
+        if stiffness != 0.0 {
+            for (o, p) in out
+                .iter_mut()
+                .zip(self.apply(assembly, &self.stiffness, v, 1.0))
+            {
+                *o += stiffness * p;
+            }
+        }
+        if mass != 0.0 {
+            for (o, p) in out
+                .iter_mut()
+                .zip(multiply(&assembly.pattern, &self.mass, v))
+            {
+                *o += mass * p;
             }
         }
         out
     }
 
-    /// `stiffness K + mass M`, in the pattern's order.
-    fn combined(&self, stiffness: Real, mass: Real) -> Vec<Real> {
-        self.stiffness
-            .iter()
-            .zip(&self.mass)
-            .map(|(k, m)| stiffness * k + mass * m)
-            .collect()
+    /// Solves `(A + ks W D W^T) x = rhs` for the factored `A = ks K + ms
+    /// M` and the grabs' springs `W D W^T`, by the Woodbury identity
+    /// (see the module's comment); `None` for a singular system.
+    fn solve(
+        &mut self,
+        solver: &mut SparseCholesky,
+        assembly: &Assembly,
+        rhs: &[Vector],
+        stiffness: Real,
+    ) -> Option<Vec<Vector>> {
+        let pattern = &assembly.pattern;
+        let mut solve = |b: &[Vector]| -> Option<Vec<Vector>> {
+            Some(
+                solver
+                    .solve_factored(pattern, b.iter().flat_map(|r| [r[0], r[1], r[2]]))?
+                    .chunks_exact(3)
+                    .map(|c| Vector::new(c[0], c[1], c[2]))
+                    .collect(),
+            )
+        };
+        let mut y = solve(rhs)?;
+        let springs = assembly.grab_springs();
+        if springs.is_empty() {
+            return Some(y);
+        }
+        if self.grabbed.is_none() {
+            let n = rhs.len();
+            let z: Vec<Vec<Vector>> = springs
+                .iter()
+                .map(|spring| {
+                    let mut w = vec![Vector::zeros(); n];
+                    spring.add_gradient(1.0, &mut w);
+                    solve(&w)
+                })
+                .collect::<Option<_>>()?;
+            let r = springs.len();
+            let capacitance = DMatrix::from_fn(r, r, |a, b| {
+                let diagonal = if a == b {
+                    1.0 / (stiffness * springs[a].stiffness())
+                } else {
+                    0.0
+                };
+                diagonal + springs[a].value(&z[b])
+            });
+            self.grabbed = Some(Grabbed {
+                z,
+                capacitance: capacitance.cholesky()?,
+            });
+        }
+        let grabbed = self.grabbed.as_ref()?;
+        let t = DVector::from_iterator(springs.len(), springs.iter().map(|s| s.value(&y)));
+        let s = grabbed.capacitance.solve(&t);
+        for (zc, sc) in grabbed.z.iter().zip(s.iter()) {
+            for (yk, zk) in y.iter_mut().zip(zc) {
+                *yk -= *sc * zk;
+            }
+        }
+        Some(y)
+    }
+
+    /// Sets `combined` to `stiffness K + mass M`.
+    fn combine(&mut self, stiffness: Real, mass: Real) {
+        self.combined.clear();
+        self.combined.extend(
+            self.stiffness
+                .iter()
+                .zip(&self.mass)
+                .map(|(k, m)| stiffness * k + mass * m),
+        );
     }
 }
 
@@ -140,12 +264,14 @@ impl ShellDynamics {
         };
         if linear.factored != Some((ks, ms)) {
             linear.factored = None;
-            if !self.solver.factorize(pattern, &linear.combined(ks, ms)) {
+            linear.grabbed = None;
+            linear.combine(ks, ms);
+            if !self.solver.factorize(pattern, &linear.combined) {
                 return Err(ShellError::Singular);
             }
             linear.factored = Some((ks, ms));
         }
-        let (u0, v0) = (&self.displacement, &self.velocity);
+        let u0 = &self.displacement;
         let at_stiffness: Vec<Vector> = u0
             .iter()
             .zip(&v_star)
@@ -156,28 +282,26 @@ impl ShellDynamics {
             .zip(&v_star)
             .map(|(a, v)| a + p.mass_damping * v)
             .collect();
-        let (k, _) = linear.forces(pattern, &at_stiffness);
-        let m = linear.product(pattern, &at_mass, 0.0, 1.0);
+        let (k, _) = linear.forces(&self.assembly, &at_stiffness);
+        let m = linear.product(&self.assembly, &at_mass, 0.0, 1.0);
         let rhs: Vec<Vector> = self
             .load
             .iter()
             .zip(k.iter().zip(&m))
             .map(|(l, (k, m))| l - k - m)
             .collect();
-        let du: Vec<Vector> = self
-            .solver
-            .solve_factored(pattern, rhs.iter().flat_map(|r| [r[0], r[1], r[2]]))
-            .ok_or(ShellError::Singular)?
-            .chunks_exact(3)
-            .map(|c| Vector::new(c[0], c[1], c[2]))
-            .collect();
-        // The solve's own residual, against the right-hand side and the
-        // momentum the step carries: round-off, unless the factor is bad.
-        let applied = linear.product(pattern, &du, ks, ms);
+        let du = linear
+            .solve(&mut self.solver, &self.assembly, &rhs, ks)
+            .ok_or(ShellError::Singular)?;
+        // The solve's own residual, against the largest of the terms the
+        // right-hand side sums (the load, the stiffness's and the
+        // inertia's; the last carries the step's momentum): round-off,
+        // unless the factor is bad.
+        let applied = linear.apply(&self.assembly, &linear.combined, &du, ks);
         let misfit: Vec<Vector> = applied.iter().zip(&rhs).map(|(a, r)| a - r).collect();
-        let momentum = norm(&linear.product(pattern, v0, 0.0, 1.0)) / p.dt;
         let scale = norm(&rhs)
-            .max(momentum)
+            .max(norm(&k))
+            .max(norm(&m))
             .max(norm(&self.load))
             .max(Real::MIN_POSITIVE);
         let residual = norm(&misfit) / scale;

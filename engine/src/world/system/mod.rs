@@ -104,6 +104,14 @@ impl System {
         }
     }
 
+    /// The shell, if this is one.
+    pub(crate) fn as_shell(&self) -> Option<&ShellEntry> {
+        match self {
+            Self::Shell(shell) => Some(shell),
+            Self::Fluid(_) | Self::Solid(_) | Self::Modal(_) => None,
+        }
+    }
+
     /// The running systems of a checked scene, from what its check
     /// prepared for each (one entry per system of the scene, of the
     /// system's kind), in step order: the fluid first, then the solids in
