@@ -80,8 +80,9 @@ pub fn frame_to_proto(session_id: &str, frame: &Frame) -> v1::Frame {
     }
 }
 
-/// Packed little-endian f32 vectors, three per entry.
-fn pack_vectors(vectors: &[Vector]) -> Vec<u8> {
+/// Packed little-endian f32 vectors, three per entry: how the protocol
+/// carries points (frames' meshes, a session's rest positions).
+pub fn pack_vectors(vectors: &[Vector]) -> Vec<u8> {
     vectors
         .iter()
         .flat_map(|v| v.iter().flat_map(|&c| (c as f32).to_le_bytes()))

@@ -149,8 +149,9 @@ impl Constraint {
     /// Adds `scale` times its functional's gradient, `c_I direction` at
     /// each node `I` of its stencil, to `out`.
     pub(super) fn add_gradient(&self, scale: Real, out: &mut [Vector]) {
+        let force = scale * self.direction;
         for (&k, c) in self.stencil.nodes.iter().zip(&self.coefficients) {
-            out[k as usize] += (c * scale) * self.direction;
+            out[k as usize] += *c * force;
         }
     }
 
@@ -550,10 +551,7 @@ impl Assembly {
         for c in &self.constraints {
             let value = c.value(u) - c.offset;
             energy += 0.5 * c.stiffness * value * value;
-            let force = c.stiffness * value * c.direction;
-            for (&k, ck) in c.stencil.nodes.iter().zip(&c.coefficients) {
-                springs[k as usize] += *ck * force;
-            }
+            c.add_gradient(c.stiffness * value, &mut springs);
         }
         self.spring_norm = springs
             .iter()
@@ -644,10 +642,7 @@ impl Assembly {
         }
         if stiffness != 0.0 {
             for c in &self.constraints {
-                let force = stiffness * c.stiffness * c.value(v) * c.direction;
-                for (&k, ck) in c.stencil.nodes.iter().zip(&c.coefficients) {
-                    out[k as usize] += *ck * force;
-                }
+                c.add_gradient(stiffness * c.stiffness * c.value(v), &mut out);
             }
         }
         out
@@ -663,10 +658,7 @@ impl Assembly {
         let mut energy = 0.0;
         for c in &self.constraints {
             energy += 0.5 * c.stiffness * c.offset * c.offset;
-            let force = -c.stiffness * c.offset * c.direction;
-            for (&k, ck) in c.stencil.nodes.iter().zip(&c.coefficients) {
-                f[k as usize] += *ck * force;
-            }
+            c.add_gradient(-c.stiffness * c.offset, &mut f);
         }
         (f, energy)
     }

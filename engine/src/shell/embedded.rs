@@ -122,8 +122,8 @@ impl Embedded {
                 }
                 // Normalised in a pass of their own: without the
                 // weights' loop between them, the square roots and
-                // divisions of neighbouring points overlap (a third of
-                // the update's time when each waited on its point's sums).
+                // divisions of neighbouring points overlap instead of
+                // each waiting on its point's sums.
                 for normal in normals {
                     let length = normal.norm();
                     *normal *= if length > 0.0 { length.recip() } else { 0.0 };

@@ -22,6 +22,7 @@ use meshless_engine::world::Controls;
 use meshless_engine::{BuildOptions, Scene, World};
 use meshless_proto::{keys, v1};
 use meshless_wire::design::SessionEdit;
+use meshless_wire::frame::pack_vectors;
 use meshless_wire::scene::scene_echo_to_proto;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -85,15 +86,6 @@ pub struct DesignState {
 }
 
 type SharedDesign = Arc<Mutex<DesignState>>;
-
-/// Points as the wire's f32 x, y, z little-endian bytes.
-fn little_endian(points: &[meshless_engine::math::Vector]) -> Vec<u8> {
-    points
-        .iter()
-        .flat_map(|p| [p.x as f32, p.y as f32, p.z as f32])
-        .flat_map(f32::to_le_bytes)
-        .collect()
-}
 
 fn lock(design: &SharedDesign) -> std::sync::MutexGuard<'_, DesignState> {
     design
@@ -269,14 +261,14 @@ impl Session {
                 system: u32::try_from(system).unwrap_or(u32::MAX),
                 frequencies: solid.frequencies(),
                 rigid: u32::try_from(solid.zero_modes()).unwrap_or(u32::MAX),
-                rest_positions: little_endian(solid.rest_positions()),
+                rest_positions: pack_vectors(solid.rest_positions()),
             })
             .collect();
         let shell_nodes = world
             .shells()
             .map(|(system, shell)| v1::ShellNodes {
                 system: u32::try_from(system).unwrap_or(u32::MAX),
-                rest_positions: little_endian(shell.model().reference()),
+                rest_positions: pack_vectors(shell.model().reference()),
             })
             .collect();
         let context = design::context(world);
