@@ -38,6 +38,7 @@ use super::quadtree::{ChartDomain, Point2};
 use super::topology::{HalfEdge, sorted_half_edges};
 use crate::math::{Real, Vector};
 use nalgebra::Matrix2;
+use rayon::prelude::*;
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, HashMap};
 
@@ -355,6 +356,9 @@ impl Atlas {
         if seeds[0] == seeds[1] {
             seeds.pop();
         }
+        // Charts accepted in the last round, by their faces: a region the
+        // new seeds did not reach is the same region, mapped the same way.
+        let mut kept: HashMap<Vec<u32>, Chart> = HashMap::new();
         loop {
             let (owner, distance) = dual.grow(&seeds);
             // A piece of the mesh no seed reached gets its own seed.
@@ -371,12 +375,26 @@ impl Atlas {
             for (f, &o) in owner.iter().enumerate() {
                 regions[o as usize].push(f as u32);
             }
+            // Each region's map is its own sparse solve: they run side by
+            // side, and are read back in region order (the same atlas on
+            // any number of threads).
+            let cached: Vec<Option<Chart>> = regions.iter().map(|f| kept.remove(f)).collect();
+            kept.clear();
+            let mapped: Vec<Result<Chart, String>> = regions
+                .par_iter()
+                .zip(cached)
+                .map(|(faces, cached)| match cached {
+                    Some(chart) => Ok(chart),
+                    None => chart_of(mesh, &rings, faces, &owner, params),
+                })
+                .collect();
             let mut charts = Vec::with_capacity(regions.len());
             let mut more = Vec::new();
             let mut why = String::new();
-            for faces in &regions {
-                match chart_of(mesh, &rings, faces, &owner, params) {
-                    Ok(chart) => charts.push(chart),
+            for (r, mapped) in mapped.into_iter().enumerate() {
+                let faces = &regions[r];
+                match mapped {
+                    Ok(chart) => charts.push((r, chart)),
                     Err(e) => {
                         why = e;
                         let farthest = faces
@@ -388,10 +406,14 @@ impl Atlas {
                 }
             }
             if more.is_empty() && charts.len() == regions.len() {
+                let charts = charts.into_iter().map(|(_, chart)| chart).collect();
                 return Ok(Self::assemble(mesh, &half_edges, charts, &owner, params));
             }
             if more.is_empty() || seeds.len() + more.len() > MAX_CHARTS {
                 return Err(AtlasError::TooManyCharts { why });
+            }
+            for (r, chart) in charts {
+                kept.insert(std::mem::take(&mut regions[r]), chart);
             }
             seeds.extend(more);
         }

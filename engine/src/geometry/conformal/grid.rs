@@ -178,10 +178,25 @@ impl ChartGrid {
         }
         let all = rings == self.dims[0].max(self.dims[1]);
         let reach = rings as Real * self.cell;
+        // Every edge lies in the grid's box, so a point outside it is at
+        // least that far from all of them: without this a point far out
+        // (clamped onto the grid's border cell) had a bound of a few cells
+        // however far it was, and a quadtree over an atlas's plane kept
+        // every leaf of the empty plane around the charts.
+        let outside = self.box_distance(u);
         match best {
             Some((e, d)) if all || d <= reach => Ok((e, d)),
-            Some((_, d)) => Err(d.min(reach)),
-            None => Err(reach),
+            Some((_, d)) => Err(d.min(reach).max(outside)),
+            None => Err(reach.max(outside)),
         }
+    }
+
+    /// Distance from `u` to the grid's box (zero inside).
+    fn box_distance(&self, u: Point2) -> Real {
+        let gap = |a: usize| {
+            let hi = self.lo[a] + self.dims[a] as Real * self.cell;
+            (self.lo[a] - u[a]).max(u[a] - hi).max(0.0)
+        };
+        gap(0).hypot(gap(1))
     }
 }

@@ -190,3 +190,28 @@ fn the_grid_answers_as_a_scan_of_the_chart() {
         assert!((at - p).norm() < 1e-9, "vertex {v}: {at} against {p}");
     }
 }
+
+/// Far outside the chart the distance is a bound that grows with the
+/// point's distance, not a few grid cells however far it lies: a
+/// quadtree over an atlas's plane prunes the empty plane by it (with a
+/// bound of a few cells it kept every leaf around the charts, and their
+/// nodes where a support reached a chart).
+#[test]
+fn a_far_point_is_known_to_be_far() {
+    let mesh = grid(120, 80, 0.4, |s, t| Vector::new(s, t, 0.1 * s * t));
+    let chart = ConformalChart::new(&mesh).expect("a disk");
+    let (lo, hi) = chart.bounds();
+    let span = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    for (dx, dy) in [(10.0, 0.0), (0.0, -7.0), (-4.0, 5.0), (3.0, 3.0)] {
+        let u = [hi[0] + dx * span, hi[1] + dy * span];
+        let out = [
+            (lo[0] - u[0]).max(u[0] - hi[0]).max(0.0),
+            (lo[1] - u[1]).max(u[1] - hi[1]).max(0.0),
+        ];
+        let to_box = out[0].hypot(out[1]);
+        let d = chart.distance(u);
+        assert!(d > 0.0, "outside at {u:?}");
+        // The grid's box exceeds the map's by under a cell on each side.
+        assert!(d >= to_box - 0.05 * span, "{d} for a point {to_box} off the box");
+    }
+}

@@ -1,9 +1,10 @@
 //! The linear route (Guo–Qin's Eq. 24, `M u'' + C u' + K u = F` with `M`
 //! and `K` constant, the paper's own choice for its shells): the energy's
 //! second-order expansion at the reference, so that each step is one
-//! solve with a matrix that only a new time step changes. Factorised once, a step costs three sparse products (one of
-//! them to check the solve) and two triangular solves instead of Newton's
-//! assemblies and factorisations.
+//! solve with a matrix that only a new time step changes. Factorised once, a step costs two passes over the
+//! pattern that each multiply `K` and `M` together (the second checks the
+//! solve) and two triangular solves instead of Newton's assemblies and
+//! factorisations.
 //!
 //! Grabs come and go without a new assembly or factor: their springs
 //! stay out of `K`'s pattern, and the step adds them as the low-rank term
@@ -43,8 +44,7 @@ pub(super) struct Linear {
     /// The `(stiffness, mass)` scales of the matrix the solver holds the
     /// factor of, if it holds one of this route's.
     pub(super) factored: Option<(Real, Real)>,
-    /// That matrix, `stiffness K + mass M` in the pattern's order, which
-    /// each step's residual is measured with.
+    /// That matrix, `stiffness K + mass M` in the pattern's order.
     combined: Vec<Real>,
     /// The grabs' springs against that factor, once a step with grabs
     /// needed them.
@@ -128,6 +128,28 @@ impl Linear {
             }
         }
         out
+    }
+
+    /// `(K x + W D W^T x, M z)`: the stiffness with the grabs' springs
+    /// and the mass, read in one pass over the pattern (see
+    /// [`BlockPattern::product_pair`]).
+    fn pair(&self, assembly: &Assembly, x: &[Vector], z: &[Vector]) -> (Vec<Vector>, Vec<Vector>) {
+        let flat =
+            |v: &[Vector]| -> Vec<Real> { v.iter().flat_map(|p| [p[0], p[1], p[2]]).collect() };
+        let vectors = |y: Vec<Real>| -> Vec<Vector> {
+            y.chunks_exact(3)
+                .map(|c| Vector::new(c[0], c[1], c[2]))
+                .collect()
+        };
+        let (kx, mz) =
+            assembly
+                .pattern
+                .product_pair(&self.stiffness, &flat(x), &self.mass, &flat(z));
+        let mut kx = vectors(kx);
+        for spring in assembly.grab_springs() {
+            spring.add_gradient(spring.stiffness() * spring.value(x), &mut kx);
+        }
+        (kx, vectors(mz))
     }
 
     /// `K u` plus the springs' pull at rest, and the energy
@@ -282,8 +304,10 @@ impl ShellDynamics {
             .zip(&v_star)
             .map(|(a, v)| a + p.mass_damping * v)
             .collect();
-        let (k, _) = linear.forces(&self.assembly, &at_stiffness);
-        let m = linear.product(&self.assembly, &at_mass, 0.0, 1.0);
+        let (mut k, m) = linear.pair(&self.assembly, &at_stiffness, &at_mass);
+        for (fk, rk) in k.iter_mut().zip(&linear.rest) {
+            *fk += rk;
+        }
         let rhs: Vec<Vector> = self
             .load
             .iter()
@@ -297,8 +321,13 @@ impl ShellDynamics {
         // right-hand side sums (the load, the stiffness's and the
         // inertia's; the last carries the step's momentum): round-off,
         // unless the factor is bad.
-        let applied = linear.apply(&self.assembly, &linear.combined, &du, ks);
-        let misfit: Vec<Vector> = applied.iter().zip(&rhs).map(|(a, r)| a - r).collect();
+        let (k_du, m_du) = linear.pair(&self.assembly, &du, &du);
+        let misfit: Vec<Vector> = k_du
+            .iter()
+            .zip(&m_du)
+            .zip(&rhs)
+            .map(|((k, m), r)| ks * k + ms * m - r)
+            .collect();
         let scale = norm(&rhs)
             .max(norm(&k))
             .max(norm(&m))
