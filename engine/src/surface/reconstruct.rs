@@ -14,10 +14,11 @@
 //! is the input, not the mesh.
 //!
 //! **Open clouds.** The field goes on past an open cloud's rim (as the
-//! plane of the nearest sample), so its zero set does too: triangles
-//! farther than [`RIM_SPACINGS`] sample spacings from every sample are
-//! taken off. The rim then lies within that distance beyond the outermost
-//! samples, and a gap in the cloud wider than about twice it opens a hole.
+//! plane of the nearest sample), so its zero set does too: triangles with
+//! a corner farther than [`RIM_SPACINGS`] sample spacings from every
+//! sample are taken off. The rim then lies within that distance beyond the
+//! outermost samples, and a gap in the cloud wider than about twice it
+//! opens a hole.
 //!
 //! **Clean-up.** A grid value within [`SNAP`] cells of zero is moved there
 //! (keeping its sign), so no crossing falls on a grid node and no triangle
@@ -150,21 +151,19 @@ pub fn reconstruct(
     let grid = field_on_grid(&surface, origin, cell, dims, cancel)?;
     let mesh = marching_cubes::extract(&grid, 0.0);
     let reach = RIM_SPACINGS * spacing;
-    let near: Vec<bool> = (0..mesh.triangles.len())
-        .into_par_iter()
-        .map(|t| {
-            let [a, b, c] = mesh.corners(t);
-            let centroid = (a + b + c) / 3.0;
-            surface
-                .distance_to_samples(&centroid)
-                .is_some_and(|d| d <= reach)
-        })
+    // A triangle is kept when all its corners are near the samples (not
+    // its centroid alone, which let a rim vertex lie a grid cell further
+    // out).
+    let near: Vec<bool> = mesh
+        .vertices
+        .par_iter()
+        .map(|v| surface.distance_to_samples(v).is_some_and(|d| d <= reach))
         .collect();
     let kept: Vec<[u32; 3]> = mesh
         .triangles
         .iter()
-        .zip(&near)
-        .filter_map(|(tri, &near)| near.then_some(*tri))
+        .filter(|tri| tri.iter().all(|&v| near[v as usize]))
+        .copied()
         .collect();
     let mesh = split_pinched_vertices(TriMesh {
         vertices: mesh.vertices,

@@ -212,6 +212,9 @@ fn a_far_point_is_known_to_be_far() {
         let d = chart.distance(u);
         assert!(d > 0.0, "outside at {u:?}");
         // The grid's box exceeds the map's by under a cell on each side.
-        assert!(d >= to_box - 0.05 * span, "{d} for a point {to_box} off the box");
+        assert!(
+            d >= to_box - 0.05 * span,
+            "{d} for a point {to_box} off the box"
+        );
     }
 }
