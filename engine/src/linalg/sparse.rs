@@ -180,12 +180,12 @@ impl BlockPattern {
                 Some(y) => {
                     let y = y.as_slice_mut();
                     y.fill(0.0);
-                    self.multiply_into(values, x, y);
+                    self.multiply_into([values], [x], [y], 0..x.len());
                 }
                 None => {
                     y_copy.clear();
                     y_copy.resize(x.len(), 0.0);
-                    self.multiply_into(values, x, &mut y_copy);
+                    self.multiply_into([values], [x], [&mut y_copy], 0..x.len());
                     for (t, v) in target.iter_mut().zip(&y_copy) {
                         *t = *v;
                     }
@@ -194,28 +194,47 @@ impl BlockPattern {
         }
     }
 
-    /// Adds `A x` to `y`. Each scalar column starts with its diagonal
-    /// block (see the module's comment): its entries above the diagonal
-    /// are skipped, the one on it read once, and every later entry lies
-    /// below it, so the long inner loop has no test per entry.
-    fn multiply_into(&self, values: &[Real], x: &[Real], y: &mut [Real]) {
+    /// Adds `A_m x_m` to `y_m` for each of `M` matrices over this
+    /// pattern, over the scalar `columns`: one pass reads the indices once
+    /// for all of them, and each product's sums run in the same order
+    /// whatever `M` is. Each scalar column starts with its diagonal block
+    /// (see the module's comment): its entries above the diagonal are
+    /// skipped, the one on it read once, and every later entry lies below
+    /// it, so the long inner loop has no test per entry.
+    fn multiply_into<const M: usize>(
+        &self,
+        values: [&[Real]; M],
+        x: [&[Real]; M],
+        y: [&mut [Real]; M],
+        columns: std::ops::Range<usize>,
+    ) {
         let dim = self.dim;
-        for (col, (ends, &xc)) in self.col_ptr.windows(2).zip(x).enumerate() {
-            let (start, end) = (ends[0] as usize, ends[1] as usize);
+        for col in columns {
+            let (start, end) = (self.col_ptr[col] as usize, self.col_ptr[col + 1] as usize);
             let a = col % dim;
-            let mut sum = values[start + a] * xc;
+            let xc: [Real; M] = std::array::from_fn(|m| x[m][col]);
+            let mut sum: [Real; M] = std::array::from_fn(|m| values[m][start + a] * xc[m]);
             for b in a + 1..dim {
-                let (row, v) = (col - a + b, values[start + b]);
-                y[row] += v * xc;
-                sum += v * x[row];
+                let row = col - a + b;
+                for m in 0..M {
+                    let v = values[m][start + b];
+                    y[m][row] += v * xc[m];
+                    sum[m] += v * x[m][row];
+                }
             }
-            let below = start + dim..end;
-            for (&row, &v) in self.row_idx[below.clone()].iter().zip(&values[below]) {
+            let rows = &self.row_idx[start + dim..end];
+            let below: [&[Real]; M] = std::array::from_fn(|m| &values[m][start + dim..end]);
+            for (k, &row) in rows.iter().enumerate() {
                 let row = row as usize;
-                y[row] += v * xc;
-                sum += v * x[row];
+                for m in 0..M {
+                    let v = below[m][k];
+                    y[m][row] += v * xc[m];
+                    sum[m] += v * x[m][row];
+                }
             }
-            y[col] += sum;
+            for m in 0..M {
+                y[m][col] += sum[m];
+            }
         }
     }
 
@@ -224,8 +243,8 @@ impl BlockPattern {
     /// constant `K` and `M` together, each index once.
     ///
     /// Below [`PAIR_SPLIT_VALUES`] values each product's sums are
-    /// [`Self::product`]'s in the same order (bit for bit the one
-    /// matrix's product). Above it the columns are cut into two halves of
+    /// [`Self::product`]'s in the same order (the same kernel: bit for bit
+    /// the one matrix's product). Above it the columns are cut into two halves of
     /// equal work, summed on two threads into vectors of their own and
     /// added: the same cut on any number of threads, so the same result.
     pub(crate) fn product_pair(
@@ -238,7 +257,7 @@ impl BlockPattern {
         let n = x.len();
         let part = |columns: std::ops::Range<usize>| {
             let (mut ya, mut yb) = (vec![0.0; n], vec![0.0; n]);
-            self.multiply_pair_into(a, x, b, z, columns, &mut ya, &mut yb);
+            self.multiply_into([a, b], [x, z], [&mut ya, &mut yb], columns);
             (ya, yb)
         };
         let total = self.col_ptr.last().map_or(0, |&v| v as usize);
@@ -254,49 +273,6 @@ impl BlockPattern {
             *y += y2;
         }
         (ya, yb)
-    }
-
-    /// Adds `A x` to `ya` and `B z` to `yb` over the scalar `columns`, as
-    /// [`Self::multiply_into`] does for one matrix.
-    #[allow(clippy::too_many_arguments)]
-    fn multiply_pair_into(
-        &self,
-        a: &[Real],
-        x: &[Real],
-        b: &[Real],
-        z: &[Real],
-        columns: std::ops::Range<usize>,
-        ya: &mut [Real],
-        yb: &mut [Real],
-    ) {
-        let dim = self.dim;
-        for col in columns {
-            let (start, end) = (self.col_ptr[col] as usize, self.col_ptr[col + 1] as usize);
-            let (xc, zc) = (x[col], z[col]);
-            let k = col % dim;
-            let (mut sa, mut sb) = (a[start + k] * xc, b[start + k] * zc);
-            for r in k + 1..dim {
-                let (row, va, vb) = (col - k + r, a[start + r], b[start + r]);
-                ya[row] += va * xc;
-                yb[row] += vb * zc;
-                sa += va * x[row];
-                sb += vb * z[row];
-            }
-            let below = start + dim..end;
-            for ((&row, &va), &vb) in self.row_idx[below.clone()]
-                .iter()
-                .zip(&a[below.clone()])
-                .zip(&b[below])
-            {
-                let row = row as usize;
-                ya[row] += va * xc;
-                yb[row] += vb * zc;
-                sa += va * x[row];
-                sb += vb * z[row];
-            }
-            ya[col] += sa;
-            yb[col] += sb;
-        }
     }
 
     /// `y = A x` from the stored lower triangle: to check an assembly, and

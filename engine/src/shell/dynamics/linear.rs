@@ -44,8 +44,6 @@ pub(super) struct Linear {
     /// The `(stiffness, mass)` scales of the matrix the solver holds the
     /// factor of, if it holds one of this route's.
     pub(super) factored: Option<(Real, Real)>,
-    /// That matrix, `stiffness K + mass M` in the pattern's order.
-    combined: Vec<Real>,
     /// The grabs' springs against that factor, once a step with grabs
     /// needed them.
     grabbed: Option<Grabbed>,
@@ -62,10 +60,22 @@ struct Grabbed {
 
 /// `values` (over `pattern`) times `v`.
 fn multiply(pattern: &BlockPattern, values: &[Real], v: &[Vector]) -> Vec<Vector> {
-    let flat: Vec<Real> = v.iter().flat_map(|x| [x[0], x[1], x[2]]).collect();
-    pattern
-        .product(values, &flat)
-        .chunks_exact(3)
+    vectors(&pattern.product(values, &flat(v)))
+}
+
+/// Nodal vectors as the solver's scalars, three a node.
+fn scalars(v: &[Vector]) -> impl Iterator<Item = Real> + '_ {
+    v.iter().flat_map(|x| [x[0], x[1], x[2]])
+}
+
+/// [`scalars`], gathered.
+fn flat(v: &[Vector]) -> Vec<Real> {
+    scalars(v).collect()
+}
+
+/// The solver's scalars as nodal vectors (the inverse of [`flat`]).
+fn vectors(y: &[Real]) -> Vec<Vector> {
+    y.chunks_exact(3)
         .map(|c| Vector::new(c[0], c[1], c[2]))
         .collect()
 }
@@ -94,7 +104,6 @@ impl Linear {
             rest,
             rest_energy,
             factored: None,
-            combined: Vec::new(),
             grabbed: None,
         })
     }
@@ -134,22 +143,15 @@ impl Linear {
     /// and the mass, read in one pass over the pattern (see
     /// [`BlockPattern::product_pair`]).
     fn pair(&self, assembly: &Assembly, x: &[Vector], z: &[Vector]) -> (Vec<Vector>, Vec<Vector>) {
-        let flat =
-            |v: &[Vector]| -> Vec<Real> { v.iter().flat_map(|p| [p[0], p[1], p[2]]).collect() };
-        let vectors = |y: Vec<Real>| -> Vec<Vector> {
-            y.chunks_exact(3)
-                .map(|c| Vector::new(c[0], c[1], c[2]))
-                .collect()
-        };
         let (kx, mz) =
             assembly
                 .pattern
                 .product_pair(&self.stiffness, &flat(x), &self.mass, &flat(z));
-        let mut kx = vectors(kx);
+        let mut kx = vectors(&kx);
         for spring in assembly.grab_springs() {
             spring.add_gradient(spring.stiffness() * spring.value(x), &mut kx);
         }
-        (kx, vectors(mz))
+        (kx, vectors(&mz))
     }
 
     /// `K u` plus the springs' pull at rest, and the energy
@@ -205,13 +207,7 @@ impl Linear {
     ) -> Option<Vec<Vector>> {
         let pattern = &assembly.pattern;
         let mut solve = |b: &[Vector]| -> Option<Vec<Vector>> {
-            Some(
-                solver
-                    .solve_factored(pattern, b.iter().flat_map(|r| [r[0], r[1], r[2]]))?
-                    .chunks_exact(3)
-                    .map(|c| Vector::new(c[0], c[1], c[2]))
-                    .collect(),
-            )
+            Some(vectors(solver.solve_factored(pattern, scalars(b))?))
         };
         let mut y = solve(rhs)?;
         let springs = assembly.grab_springs();
@@ -253,15 +249,14 @@ impl Linear {
         Some(y)
     }
 
-    /// Sets `combined` to `stiffness K + mass M`.
-    fn combine(&mut self, stiffness: Real, mass: Real) {
-        self.combined.clear();
-        self.combined.extend(
-            self.stiffness
-                .iter()
-                .zip(&self.mass)
-                .map(|(k, m)| stiffness * k + mass * m),
-        );
+    /// `stiffness K + mass M`, in the pattern's order: the matrix the
+    /// step factorises.
+    fn combined(&self, stiffness: Real, mass: Real) -> Vec<Real> {
+        self.stiffness
+            .iter()
+            .zip(&self.mass)
+            .map(|(k, m)| stiffness * k + mass * m)
+            .collect()
     }
 }
 
@@ -287,8 +282,7 @@ impl ShellDynamics {
         if linear.factored != Some((ks, ms)) {
             linear.factored = None;
             linear.grabbed = None;
-            linear.combine(ks, ms);
-            if !self.solver.factorize(pattern, &linear.combined) {
+            if !self.solver.factorize(pattern, &linear.combined(ks, ms)) {
                 return Err(ShellError::Singular);
             }
             linear.factored = Some((ks, ms));
