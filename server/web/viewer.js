@@ -801,8 +801,13 @@ function onPointerMove(event) {
       drag.target = renderer.unproject(x, y, drag.anchor);
       grab.position = toVec3(drag.target);
     }
-    const exists = view.constraints.some((c) => c.name === "grab");
-    throttle.push(() => edit(view, [{ [exists ? "replace" : "add"]: { name: "grab", grab } }]));
+    // Add or replace decided when the edit goes, not when the pointer
+    // moved: moves that come while the first add is on its way must
+    // replace the grab it made.
+    throttle.push(() => {
+      const exists = view.constraints.some((c) => c.name === "grab");
+      return edit(view, [{ [exists ? "replace" : "add"]: { name: "grab", grab } }]);
+    });
   } else if (drag.kind === "handle") {
     drag.target = renderer.unproject(x, y, drag.anchor);
     const { name, system, local, target } = drag;
