@@ -175,10 +175,12 @@ fn run(name: &str, mesh: &TriMesh, resolution: Real, frames: usize) {
     let (linear_steps, linear_surfaces, _) = frames_of(&mut linear, &embedded, frames + 1);
     let (grab_ms, release_ms) = grab_and_release(&mut linear, &atlas, &mesh.vertices);
     println!(
-        "{name}: {} vertices, {} charts, {nodes} nodes, {points} Gauss points, {} threads",
+        "{name}: {} vertices, {} charts, {nodes} nodes, {points} Gauss points, {} threads, \
+         linear factor {:.1} MB",
         mesh.vertices.len(),
         atlas.chart_count(),
-        rayon::current_num_threads()
+        rayon::current_num_threads(),
+        linear.factor_bytes() as f64 / 1e6
     );
     println!("| stage | ms |");
     println!("|---|---:|");

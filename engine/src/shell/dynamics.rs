@@ -627,6 +627,14 @@ impl ShellDynamics {
         &self.model
     }
 
+    /// Bytes held by the Cholesky factor of the last step's matrix (kept
+    /// between steps under linear mechanics): a closed surface's fills
+    /// far more of its matrix than an open one's, and every linear step
+    /// reads it twice (the two triangular solves).
+    pub fn factor_bytes(&self) -> usize {
+        self.solver.factor_bytes()
+    }
+
     /// Nodal displacement coefficients.
     pub fn displacement(&self) -> &[Vector] {
         &self.displacement
