@@ -801,18 +801,25 @@ function onPointerMove(event) {
       drag.target = renderer.unproject(x, y, drag.anchor);
       grab.position = toVec3(drag.target);
     }
-    // Add or replace decided when the edit goes, not when the pointer
-    // moved: moves that come while the first add is on its way must
-    // replace the grab it made.
-    throttle.push(() => {
-      const exists = view.constraints.some((c) => c.name === "grab");
-      return edit(view, [{ [exists ? "replace" : "add"]: { name: "grab", grab } }]);
-    });
+    throttle.push(upsert(view, { name: "grab", grab }));
   } else if (drag.kind === "handle") {
     drag.target = renderer.unproject(x, y, drag.anchor);
     const { name, system, local, target } = drag;
-    throttle.push(() => edit(view, [{ replace: handle(name, system, local, target) }]));
+    throttle.push(upsert(view, handle(name, system, local, target)));
   }
+}
+
+/**
+ * The edit that adds `constraint`, or replaces the one of its name,
+ * decided when the edit goes rather than when the pointer moved: a move
+ * that comes while the drag's first add is on its way must replace what
+ * that add made, and a move whose edit superseded a queued add must add.
+ */
+function upsert(view, constraint) {
+  return () => {
+    const exists = view.constraints.some((c) => c.name === constraint.name);
+    return edit(view, [{ [exists ? "replace" : "add"]: constraint }]);
+  };
 }
 
 async function onPointerUp(event) {
