@@ -47,10 +47,11 @@ ROOT = Path(__file__).resolve().parents[1]
 TIMEOUT = 60.0
 
 
-def start_server() -> tuple[subprocess.Popen, dict[str, str]]:
+def start_server(priority: str) -> tuple[subprocess.Popen, dict[str, str]]:
     binary = os.environ.get("MESHLESS_SERVER_BIN") or str(ROOT / "target" / "debug" / "meshless-server")
     process = subprocess.Popen(
-        [binary, "--grpc-addr", "127.0.0.1:0", "--zenoh-listen", "tcp/127.0.0.1:0", "--http-addr", "127.0.0.1:0"],
+        [binary, "--grpc-addr", "127.0.0.1:0", "--zenoh-listen", "tcp/127.0.0.1:0", "--http-addr", "127.0.0.1:0",
+         "--http-priority", priority],
         stdout=subprocess.PIPE,
         text=True,
         env={**os.environ, "MESHLESS_LOG": "warn"},
@@ -130,12 +131,16 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=30, help="frames the page receives before the shot")
     parser.add_argument("--field", default="FIELD_KIND_VELOCITY", help="field to colour by")
     parser.add_argument("--pull", type=int, default=0, help="then fetch the latest frame this many times as fast as the page can")
+    parser.add_argument("--warmup", type=int, default=10,
+                        help="frames pulled, untimed, before those --pull times (the page's first large fetches stall once)")
     parser.add_argument("-o", "--output", type=Path, default=Path("viewer.png"))
     parser.add_argument("--size", default="1400x860", help="window size, WIDTHxHEIGHT")
+    parser.add_argument("--http-priority", choices=("idle", "normal"), default="idle",
+                        help="the server's --http-priority: when its viewer thread runs")
     args = parser.parse_args()
 
     width, height = (int(v) for v in args.size.split("x"))
-    server, addresses = start_server()
+    server, addresses = start_server(args.http_priority)
     driver = None
     try:
         with Client(addresses["grpc"]) as client:
@@ -173,7 +178,12 @@ def main() -> None:
                         # Refused only if the run ended in between.
                         if client.get_session(session.id).status.state == 2:
                             raise
-                rate = driver.execute_async_script("meshless.pull(arguments[0]).then(arguments[1], (e) => arguments[1](String(e)))", args.pull)
+                pull = "meshless.pull(arguments[0]).then(arguments[1], (e) => arguments[1](String(e)))"
+                if args.warmup > 0:
+                    warm = driver.execute_async_script(pull, args.warmup)
+                    if isinstance(warm, str):
+                        sys.exit(f"the page could not pull frames: {warm}")
+                rate = driver.execute_async_script(pull, args.pull)
                 if isinstance(rate, str):
                     sys.exit(f"the page could not pull frames: {rate}")
                 stats = driver.execute_script("return meshless.stats")

@@ -274,6 +274,12 @@ export class Renderer {
     this.positions = positions;
   }
 
+  /** Blocks until the GPU (or, without one, the browser's software
+   * rasteriser) has carried out every command given so far. */
+  finish() {
+    this.gl.finish();
+  }
+
   /** Triangle meshes: `[{vertices, triangles, normals, colour: [r, g, b, a]}]`. */
   setMeshes(meshes) {
     const gl = this.gl;
