@@ -20,14 +20,20 @@
 //!   pairs' terms), the particles a split adds, the elastic step and its
 //!   sub-steps before the first split and after.
 //!
+//! - each piece's closed surface: a 3D block cut in two by a notch
+//!   through its middle, the surface a frame carries (every piece's own,
+//!   cut from the block's reference surface on a grid of half a spacing):
+//!   its triangles, the milliseconds the first frame after a change of the
+//!   cracks takes to build it, and those of a frame that finds it kept.
+//!
 //! Prints the tables; asserts nothing.
 //!
 //!     cargo bench -p meshless-engine --bench fracture
 
 use meshless_engine::approx::mls::Order;
-use meshless_engine::geometry::Shape;
+use meshless_engine::geometry::{MeshSdf, Shape, TriMesh};
 use meshless_engine::math::{Real, Vector};
-use meshless_engine::solid::fracture::{Discontinuity, Resampling};
+use meshless_engine::solid::fracture::{Discontinuity, Notch, Resampling};
 use meshless_engine::solid::{
     ElasticSolid, FractureParams, Integrator, Material, Obstacles, SolidParams,
 };
@@ -39,11 +45,12 @@ mod smoke;
 const SPACING: Real = 0.01;
 const DT: Real = 2e-4;
 
-/// The plate, fracturing with `fracture` (or not).
-fn plate(side: usize, fracture: Option<FractureParams>) -> ElasticSolid {
+/// The benchmark's material (E = 1 MPa, explicit, a support of two
+/// spacings) in `dim` dimensions, fracturing with `fracture` (or not).
+fn params(dim: usize, fracture: Option<FractureParams>) -> SolidParams {
     let young = 1e6;
-    let params = SolidParams {
-        dim: 2,
+    SolidParams {
+        dim,
         spacing: SPACING,
         density: 1000.0,
         young,
@@ -56,7 +63,12 @@ fn plate(side: usize, fracture: Option<FractureParams>) -> ElasticSolid {
         integrator: Integrator::Explicit { cfl: 0.5 },
         plasticity: None,
         fracture,
-    };
+    }
+}
+
+/// The plate, fracturing with `fracture` (or not).
+fn plate(side: usize, fracture: Option<FractureParams>) -> ElasticSolid {
+    let params = params(2, fracture);
     let half = 0.5 * side as Real * SPACING;
     let rest = Shape::Box {
         half_extents: Vector::new(half, half, 0.0),
@@ -175,6 +187,61 @@ fn main() {
         }
     }
     resampling(&sides, steps);
+    pieces(smoke::pick(vec![10, 20], vec![6]), smoke::pick(5, 1));
+}
+
+/// The fourth table: the closed surface of a block in two pieces.
+fn pieces(sides: Vec<usize>, repeats: usize) {
+    println!();
+    println!(
+        "each piece's closed surface, a 3D block (2n x n x n particles) cut through its middle: ms, median over {repeats} frames"
+    );
+    println!(
+        "| particles | triangles | after a crack change (built) | frame between changes (kept) |"
+    );
+    println!("|---|---|---|---|");
+    for side in sides {
+        let spacing = SPACING;
+        let half = Vector::new(side as Real, 0.5 * side as Real, 0.5 * side as Real) * spacing;
+        let params = params(3, Some(FractureParams::brittle(1e9)));
+        let rest = Shape::Box { half_extents: half }
+            .sample_volume(spacing, 3)
+            .expect("block");
+        let n = rest.len();
+        let mut block = ElasticSolid::new(
+            params,
+            rest,
+            vec![Vector::zeros(); n],
+            vec![false; n],
+            Obstacles::default(),
+        )
+        .expect("block");
+        // Between the two middle planes of particles, off the grid's nodes.
+        block
+            .notch(&[Notch {
+                center: Vector::new(0.3 * spacing, 0.0, 0.0),
+                normal: Vector::x(),
+                radius: 2.0 * half.norm(),
+            }])
+            .expect("a notch");
+        let outline = MeshSdf::new(&TriMesh::cuboid(-half, half)).expect("a closed box");
+        let (mut rebuilt, mut kept) = (Vec::new(), Vec::new());
+        let mut triangles = 0;
+        for _ in 0..repeats {
+            // A clone starts with no kept surface: its first frame builds it.
+            let fresh = block.clone();
+            let (surface, t) = timed(|| fresh.fragment_surface(&outline).expect("two pieces"));
+            triangles = surface.0.triangles.len();
+            rebuilt.push(t);
+            let (_, t) = timed(|| fresh.fragment_surface(&outline).expect("two pieces"));
+            kept.push(t);
+        }
+        println!(
+            "| {n:>9} | {triangles:>9} | {:>27.1} | {:>27.2} |",
+            median(&mut rebuilt),
+            median(&mut kept)
+        );
+    }
 }
 
 /// The third table: a running crack's resampling.

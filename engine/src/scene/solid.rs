@@ -5,8 +5,7 @@ use super::body::checked_shape;
 use super::error::{check_box, check_positive, check_range, check_vector};
 use super::{Aabb, SceneContext, SceneError, ShapeSpec, shape_pose};
 use crate::approx::mls::Order;
-use crate::geometry::Shape;
-use crate::geometry::TriMesh;
+use crate::geometry::{MeshSdf, Shape, TriMesh};
 use crate::math::{Real, Vector, vector};
 use crate::solid::embedded::{EmbeddedSurface, EmbeddingMethod};
 use crate::solid::fracture::{
@@ -17,6 +16,7 @@ use crate::solid::{
     SolidParams,
 };
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 
 /// Defaults of the optional solid parameters, shared with the protocol
 /// conversion.
@@ -662,7 +662,21 @@ impl SolidSpec {
             .embedded_surface(&shape, dim, &rest)
             .transpose()
             .map_err(|e| SceneError::invalid(format!("{at}.surface"), e))?;
-        Ok(SampledSolid { particles, surface })
+        // A fracturing solid's fragments are cut from its reference
+        // surface once it breaks (`solid/fracture/fragment_surface.rs`).
+        let outline = match (&solid.fracture, &solid.surface) {
+            (Some(_), Some(spec)) => solid
+                .surface_mesh(&shape, dim, spec.subdivisions)
+                .map(|mesh| MeshSdf::new(&mesh).map(Arc::new))
+                .transpose()
+                .map_err(|e| SceneError::invalid(format!("{at}.surface"), e.to_string()))?,
+            _ => None,
+        };
+        Ok(SampledSolid {
+            particles,
+            surface,
+            outline,
+        })
     }
 
     /// The most particles the solid may hold once built with `built`:
@@ -681,6 +695,9 @@ impl SolidSpec {
 pub(crate) struct SampledSolid {
     pub(crate) particles: Vec<(Vector, Vector)>,
     pub(crate) surface: Option<EmbeddedSurface>,
+    /// The reference surface as a distance field, for a fracturing solid
+    /// with a surface.
+    pub(crate) outline: Option<Arc<MeshSdf>>,
 }
 
 fn inside(b: &Aabb, x: &Vector, dim: usize) -> bool {

@@ -570,6 +570,70 @@ fn formula_fields_build_and_bad_ones_are_refused() {
     assert!(message.contains("`spacing`"), "{message}");
 }
 
+/// A 3D fracturing solid with a surface, built in two pieces by a notch
+/// through it: its frames carry a surface closed and cut at the notch
+/// (each piece's own), where the same solid in one piece carries its
+/// embedded surface.
+#[test]
+fn a_solid_in_pieces_frames_a_closed_surface_cut_where_it_broke() {
+    let cut = 0.02;
+    let whole = unit_box_solid(
+        0.1,
+        "surface = { subdivisions = 2 }\nfracture = { stress = 1e9 }",
+    )
+    .build(&BuildOptions::default())
+    .expect("builds");
+    let embedded = whole.frame().solid_surfaces[0].mesh.vertices.len();
+    let broken = unit_box_solid(
+        0.1,
+        &format!(
+            "surface = {{ subdivisions = 2 }}\nfracture = {{ stress = 1e9, criterion = \"visibility\", \
+             notches = [{{ center = [{cut}, 0.0, 0.0], normal = [1.0, 0.0, 0.0], radius = 1.0 }}] }}"
+        ),
+    )
+    .build(&BuildOptions::default())
+    .expect("builds");
+    let frame = broken.frame();
+    let mesh = &frame.solid_surfaces[0].mesh;
+    assert_ne!(
+        mesh.vertices.len(),
+        embedded,
+        "the pieces' surface, not the embedded one"
+    );
+    let edges: std::collections::HashSet<(u32, u32)> = mesh
+        .triangles
+        .iter()
+        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+        .collect();
+    assert_eq!(
+        edges.len(),
+        3 * mesh.triangles.len(),
+        "an edge used twice one way"
+    );
+    assert!(
+        edges.iter().all(|(a, b)| edges.contains(&(*b, *a))),
+        "the surface is open"
+    );
+    let x = |v: u32| mesh.vertices[v as usize].x;
+    assert!(
+        mesh.triangles.iter().all(|t| {
+            let (lo, hi) = t
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+                    (lo.min(x(v)), hi.max(x(v)))
+                });
+            hi <= cut + 1e-3 || lo >= cut - 1e-3
+        }),
+        "a triangle spans the cut"
+    );
+    for side in [-1.0, 1.0] {
+        assert!(
+            mesh.vertices.iter().any(|v| side * (v.x - cut) > 0.4),
+            "no piece on side {side}"
+        );
+    }
+}
+
 /// A fracture table's toughness and notches: a notched cube builds with
 /// its notch as a crack, and each bad value is refused naming its field.
 #[test]

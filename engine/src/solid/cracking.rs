@@ -8,9 +8,10 @@
 use super::body::Body;
 use super::fracture::{
     Crack, CrackIndex, Discontinuity, Fracture, FractureError, FractureParamsError,
-    FractureSnapshot, FractureStep, FrontNode, Notch, SearchCache, Threshold,
-    VERTICES_PER_PARTICLE, cauchy, check_room, crack_faces, label, largest_principal, lengthened,
-    opacity, principal, split, stress_bound, transparent_weight, undersampling,
+    FractureSnapshot, FractureStep, FrontNode, Notch, SearchCache, SkinCache, Threshold,
+    VERTICES_PER_PARTICLE, cauchy, check_room, crack_faces, fragment_surfaces, label,
+    largest_principal, lengthened, opacity, principal, split, stress_bound, transparent_weight,
+    undersampling,
 };
 use super::material::StressState;
 use super::topology::Reweigh;
@@ -33,6 +34,24 @@ impl Body {
         let fracture = self.fracture.as_ref()?;
         crack_faces(
             fracture,
+            &self.rest,
+            &self.positions,
+            self.params.spacing,
+            self.params.support,
+        )
+    }
+
+    /// Each fragment's closed surface, deformed with that fragment alone,
+    /// with unit vertex normals, for a frame (`fracture/fragment_surface.rs`);
+    /// `outline` is the solid's reference surface. `None` while the solid
+    /// is in one piece.
+    pub fn fragment_surface(
+        &self,
+        outline: &crate::geometry::MeshSdf,
+    ) -> Option<(crate::geometry::TriMesh, Vec<Vector>)> {
+        fragment_surfaces(
+            self.fracture.as_ref()?,
+            outline,
             &self.rest,
             &self.positions,
             self.params.spacing,
@@ -154,6 +173,7 @@ impl Body {
             fragments: state.fragments.clone(),
             fragment_count: state.fragments.iter().max().map_or(0, |&k| k + 1),
             search: SearchCache::default(),
+            skin: SkinCache::default(),
         };
         self.put_back_cracks(&saved);
     }

@@ -15,6 +15,9 @@ mod field;
 mod marching_cubes;
 pub mod reconstruct;
 
+pub(crate) use field::NodeGrid;
+pub(crate) use marching_cubes::extract;
+
 use crate::approx::Kernel;
 use crate::geometry::TriMesh;
 use crate::math::{Real, Vector};

@@ -38,6 +38,7 @@
 //!   side's material.
 
 mod crack;
+mod fragment_surface;
 mod fragments;
 mod index;
 mod params;
@@ -48,6 +49,7 @@ mod transparency;
 pub(in crate::solid) mod tests;
 
 pub use crack::{Crack, Crossing, FrontNode};
+pub(in crate::solid) use fragment_surface::{SkinCache, fragment_surfaces};
 pub(in crate::solid) use fragments::{label, split};
 pub(in crate::solid) use index::CrackIndex;
 pub use params::{
@@ -62,6 +64,7 @@ use crate::approx::mls::Mls;
 use crate::math::{Real, Vector};
 use crate::neighbors::{CandidateSearch, KdTree};
 use nalgebra::{Matrix3, SymmetricEigen};
+use std::borrow::Cow;
 use std::time::Duration;
 
 /// Crack vertices a solid may hold per particle (beyond a fixed
@@ -86,6 +89,8 @@ pub struct Fracture {
     /// updates (the shape never moves: a fracturing solid does not
     /// re-base), so a step's cost follows the particles near the fronts.
     pub(in crate::solid) search: SearchCache,
+    /// The fragments' reference surface, kept between frames.
+    pub(in crate::solid) skin: SkinCache,
 }
 
 /// A kd-tree over the reference shape and the radius it answers, built
@@ -111,6 +116,20 @@ impl SearchCache {
     /// support radius).
     pub(in crate::solid) fn built(&self) -> Option<&KdTree> {
         self.0.as_ref().map(|(_, tree)| tree)
+    }
+
+    /// The tree the updates keep (its radius covers the support), or one
+    /// of radius `support` built here, for a solid restored but not
+    /// stepped since.
+    pub(in crate::solid) fn or_built(&self, support: Real, rest: &[Vector]) -> Cow<'_, KdTree> {
+        match self.built() {
+            Some(tree) => Cow::Borrowed(tree),
+            None => {
+                let mut tree = KdTree::new(support);
+                tree.rebuild(rest);
+                Cow::Owned(tree)
+            }
+        }
     }
 }
 
@@ -276,6 +295,7 @@ impl Fracture {
             fragments: vec![0; particles],
             fragment_count: 1,
             search: SearchCache::default(),
+            skin: SkinCache::default(),
         }
     }
 

@@ -32,18 +32,8 @@ pub(in crate::solid) fn crack_faces(
     if fracture.cracks.is_empty() {
         return None;
     }
-    // The tree the updates keep (its radius covers the support), or one
-    // built here for a solid restored but not stepped since.
-    let built;
-    let search = match fracture.search.built() {
-        Some(tree) => tree,
-        None => {
-            let mut tree = KdTree::new(support);
-            tree.rebuild(rest);
-            built = tree;
-            &built
-        }
-    };
+    let search = fracture.search.or_built(support, rest);
+    let search = &*search;
     let mut mesh = TriMesh {
         vertices: Vec::new(),
         triangles: Vec::new(),

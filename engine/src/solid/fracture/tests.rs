@@ -1074,3 +1074,144 @@ fn a_plate_shatters_into_thousands_of_fragments_and_stays_finite() {
     );
     assert!((momentum(&plate) - p0).norm() < 1e-9);
 }
+
+/// Each closed component of `mesh` (triangles joined by shared edges):
+/// its vertex indices and enclosed volume; fails unless every edge is
+/// used once in each direction (closed and consistently wound).
+fn closed_components(mesh: &crate::geometry::TriMesh) -> Vec<(Vec<usize>, Real)> {
+    use std::collections::HashMap;
+    let mut directed: HashMap<(u32, u32), usize> = HashMap::new();
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        for k in 0..3 {
+            let edge = (tri[k], tri[(k + 1) % 3]);
+            assert!(
+                directed.insert(edge, t).is_none(),
+                "edge {edge:?} used twice one way"
+            );
+        }
+    }
+    let mut part: Vec<usize> = (0..mesh.triangles.len()).collect();
+    fn root(part: &mut [usize], mut t: usize) -> usize {
+        while part[t] != t {
+            part[t] = part[part[t]];
+            t = part[t];
+        }
+        t
+    }
+    for (&(a, b), &t) in &directed {
+        let other = *directed
+            .get(&(b, a))
+            .unwrap_or_else(|| panic!("edge ({a}, {b}) has no twin: the surface is open"));
+        let (r, s) = (root(&mut part, t), root(&mut part, other));
+        part[r] = s;
+    }
+    let mut components: HashMap<usize, (Vec<usize>, Real)> = HashMap::new();
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        let r = root(&mut part, t);
+        let [a, b, c] = tri.map(|v| mesh.vertices[v as usize]);
+        let entry = components.entry(r).or_default();
+        entry.0.extend(tri.iter().map(|&v| v as usize));
+        entry.1 += a.dot(&b.cross(&c)) / 6.0;
+    }
+    components.into_values().collect()
+}
+
+#[test]
+fn a_block_in_two_pieces_shows_two_closed_surfaces_that_part_with_their_pieces() {
+    // Through the block's whole section, between its two middle planes of
+    // particles (x = -0.01 and 0.01) and off the grid's nodes.
+    let cut = 0.004;
+    let mut p = FractureParams::brittle(1e9);
+    p.discontinuity = Discontinuity::Visibility;
+    let mut block = pulled_block(p);
+    let half = Vector::new(0.15, 0.05, 0.05);
+    let outline = crate::geometry::MeshSdf::new(&crate::geometry::TriMesh::cuboid(-half, half))
+        .expect("a closed box");
+    assert!(
+        block.fragment_surface(&outline).is_none(),
+        "one piece keeps its embedded surface"
+    );
+    block
+        .notch(&[Notch {
+            center: Vector::new(cut, 0.0, 0.0),
+            normal: Vector::x(),
+            radius: 0.2,
+        }])
+        .expect("a valid notch");
+    assert_eq!(block.fracture().expect("fractures").fragment_count(), 2);
+
+    let (mesh, normals) = block.fragment_surface(&outline).expect("two pieces");
+    assert_eq!(normals.len(), mesh.vertices.len());
+    assert!(normals.iter().all(|n| (n.norm() - 1.0).abs() < 1e-9));
+    let mut parts = closed_components(&mesh);
+    assert_eq!(parts.len(), 2, "one closed surface per piece");
+    parts.sort_by(|a, b| mesh.vertices[a.0[0]].x.total_cmp(&mesh.vertices[b.0[0]].x));
+    // Each on its own side of the cut, its crack face within a hundredth
+    // of a cell of the cut, and enclosing its piece's volume.
+    let side = |(vertices, _): &(Vec<usize>, Real)| {
+        let xs: Vec<Real> = vertices.iter().map(|&v| mesh.vertices[v].x).collect();
+        (
+            xs.iter().copied().fold(Real::INFINITY, Real::min),
+            xs.iter().copied().fold(Real::NEG_INFINITY, Real::max),
+        )
+    };
+    let (left, right) = (side(&parts[0]), side(&parts[1]));
+    assert!(
+        (left.1 - cut).abs() < 1e-4,
+        "left piece ends at x = {}",
+        left.1
+    );
+    assert!(
+        (right.0 - cut).abs() < 1e-4,
+        "right piece starts at x = {}",
+        right.0
+    );
+    let section = 4.0 * half.y * half.z;
+    for ((_, volume), expected) in parts
+        .iter()
+        .zip([(cut + half.x) * section, (half.x - cut) * section])
+    {
+        assert!(
+            (volume / expected - 1.0).abs() < 0.03,
+            "volume {volume:e} against {expected:e}"
+        );
+    }
+
+    // Pulled apart, each surface moves with its own piece: the gap between
+    // them opens as the pieces' inner faces part.
+    run(&mut block, 100);
+    let (moved, _) = block.fragment_surface(&outline).expect("two pieces");
+    let mut parts = closed_components(&moved);
+    assert_eq!(parts.len(), 2);
+    parts.sort_by(|a, b| {
+        moved.vertices[a.0[0]]
+            .x
+            .total_cmp(&moved.vertices[b.0[0]].x)
+    });
+    let max_left = parts[0]
+        .0
+        .iter()
+        .map(|&v| moved.vertices[v].x)
+        .fold(Real::NEG_INFINITY, Real::max);
+    let min_right = parts[1]
+        .0
+        .iter()
+        .map(|&v| moved.vertices[v].x)
+        .fold(Real::INFINITY, Real::min);
+    let rest = block.rest_positions();
+    let inner = |sign: Real| {
+        let (sum, count) = rest
+            .iter()
+            .zip(&block.positions)
+            .filter(|(x, _)| sign * (x.x - cut) > 0.0 && (x.x - cut).abs() < 0.015)
+            .fold((0.0, 0.0), |(s, c), (x, y)| (s + y.x - x.x, c + 1.0));
+        sum / count
+    };
+    let opened = inner(1.0) - inner(-1.0);
+    assert!(opened > 0.01, "the pieces parted by {opened}");
+    let gap = min_right - max_left;
+    assert!(
+        (gap - opened).abs() < 0.25 * opened,
+        "surfaces {gap} apart, pieces {opened}"
+    );
+}

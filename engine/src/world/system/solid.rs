@@ -4,6 +4,7 @@
 
 use super::simulated::{Invalid, RemoveError, Simulated, StepEnv};
 use crate::frame::{FieldKind, SolidSurface};
+use crate::geometry::MeshSdf;
 use crate::math::{Vector, vector};
 use crate::scene::{SampledSolid, Scene, SolidSpec};
 use crate::snapshot::check_finite;
@@ -13,6 +14,7 @@ use crate::stats::StageTimer;
 use crate::world::outcome::{StepError, StepInfo};
 use crate::world::saved::{StateError, SystemState};
 use crate::world::watch::EnergyWatch;
+use std::sync::Arc;
 
 /// An elastic solid of the scene as the world keeps it.
 #[derive(Debug, Clone)]
@@ -25,6 +27,9 @@ pub(crate) struct SolidEntry {
     pub backup: SolidState,
     /// Its embedded surface, when the scene asks for one.
     pub surface: Option<EmbeddedSurface>,
+    /// The reference surface as a distance field, for a fracturing solid
+    /// with a surface: each fragment's closed surface is cut from it.
+    pub outline: Option<Arc<MeshSdf>>,
     /// The energy the solid started from, which it may not exceed.
     pub watch: EnergyWatch,
 }
@@ -212,6 +217,17 @@ impl Simulated for SolidEntry {
     /// displacement gradients when it asks for them).
     fn solid_surface(&self) -> Option<SolidSurface> {
         let surface = self.surface.as_ref()?;
+        if let Some((mesh, normals)) = self
+            .outline
+            .as_deref()
+            .and_then(|outline| self.solid.fragment_surface(outline))
+        {
+            return Some(SolidSurface {
+                system: self.index,
+                mesh,
+                normals,
+            });
+        }
         let mut gradients = Vec::new();
         if surface.method() == EmbeddingMethod::Gradients {
             self.solid.displacement_gradients(&mut gradients);
@@ -298,6 +314,7 @@ pub(super) fn build(
         solid,
         backup: SolidState::default(),
         surface: sampled.surface,
+        outline: sampled.outline,
         watch: EnergyWatch::default(),
     }
 }
