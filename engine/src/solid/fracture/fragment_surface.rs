@@ -22,9 +22,9 @@
 //! Vertices then move with their own fragment: the Shepard mean of the
 //! displacements of that fragment's particles within the support that see
 //! a point a quarter spacing inside the vertex through no crack (a vertex
-//! of a crack face lies on the crack itself), so a fragment's surface never follows the
-//! material across a crack, and two fragments that fly apart leave two
-//! closed surfaces. The grid cell is half the particle spacing: finer than
+//! of a crack face lies on the crack itself), so a fragment's surface
+//! never follows the material across a crack, and two fragments that fly
+//! apart leave two closed surfaces. The grid cell is half the particle spacing: finer than
 //! the particles that carry the motion, coarser than a subdivided embedded
 //! surface, which the solid keeps while it is in one piece.
 
@@ -191,21 +191,47 @@ impl Skin {
             })
             .collect();
 
+        // Each fragment's field on the box of nodes it labels, a node of
+        // margin around it (outside, every other node is outside the
+        // fragment anyway): the work follows the nodes, not the nodes
+        // times the fragments, so a solid in thousands of pieces costs
+        // about what one in two does.
+        let mut boxes = vec![([usize::MAX; 3], [0; 3]); fracture.fragment_count as usize];
+        for (n, &f) in labels.iter().enumerate() {
+            if let Some((lo, hi)) = boxes.get_mut(f as usize) {
+                let at = grid.index(n);
+                for a in 0..3 {
+                    lo[a] = lo[a].min(at[a].saturating_sub(1));
+                    hi[a] = hi[a].max((at[a] + 1).min(grid.dims[a] - 1));
+                }
+            }
+        }
         let mut mesh = TriMesh::default();
         let mut owner = Vec::new();
-        for f in 0..fracture.fragment_count {
-            // `extract` takes corners above the iso value as inside.
-            let values = (0..grid.len())
-                .map(|n| {
-                    let c = if labels[n] == f { -reach[n] } else { reach[n] };
-                    -(body[n].max(c)) as f32
-                })
-                .collect();
+        for (f, (lo, hi)) in (0..fracture.fragment_count).zip(boxes) {
+            if lo[0] > hi[0] {
+                // A fragment no node sees: too small for the grid.
+                continue;
+            }
+            let dims = [0, 1, 2].map(|a| hi[a] - lo[a] + 1);
+            let mut values = Vec::with_capacity(dims.iter().product());
+            for k in lo[2]..=hi[2] {
+                for j in lo[1]..=hi[1] {
+                    for i in lo[0]..=hi[0] {
+                        let n = grid.node([i, j, k]);
+                        let c = if labels[n] == f { -reach[n] } else { reach[n] };
+                        // `extract` takes corners above the iso value as
+                        // inside.
+                        values.push(-(body[n].max(c)) as f32);
+                    }
+                }
+            }
+            let origin = grid.position(grid.node(lo));
             let part = extract(
                 &NodeGrid {
-                    origin: grid.origin,
+                    origin,
                     cell: grid.cell,
-                    dims: grid.dims,
+                    dims,
                     values,
                 },
                 0.0,
@@ -280,19 +306,29 @@ impl Grid {
         self.dims.iter().product()
     }
 
-    fn position(&self, n: usize) -> Vector {
+    /// Node `n`'s indices along the three axes.
+    fn index(&self, n: usize) -> [usize; 3] {
         let [nx, ny, _] = self.dims;
-        let (i, j, k) = (n % nx, (n / nx) % ny, n / (nx * ny));
+        [n % nx, (n / nx) % ny, n / (nx * ny)]
+    }
+
+    /// The node at indices `at`.
+    fn node(&self, at: [usize; 3]) -> usize {
+        let [nx, ny, _] = self.dims;
+        at[0] + nx * (at[1] + ny * at[2])
+    }
+
+    fn position(&self, n: usize) -> Vector {
+        let [i, j, k] = self.index(n);
         self.origin + Vector::new(i as Real, j as Real, k as Real) * self.cell
     }
 
     /// The up to six nodes one cell from node `n`.
     fn neighbours(&self, n: usize) -> impl Iterator<Item = usize> + '_ {
-        let [nx, ny, nz] = self.dims;
-        let (i, j, k) = (n % nx, (n / nx) % ny, n / (nx * ny));
+        let [nx, ny, _] = self.dims;
         let stride = [1, nx, nx * ny];
-        let at = [i, j, k];
-        let size = [nx, ny, nz];
+        let at = self.index(n);
+        let size = self.dims;
         (0..3).flat_map(move |a| {
             let down = (at[a] > 0).then(|| n - stride[a]);
             let up = (at[a] + 1 < size[a]).then(|| n + stride[a]);
