@@ -451,6 +451,12 @@ function statusFrom(get) {
   return { code: Number(status), message };
 }
 
+/** Throws the GrpcError a call's final `status` stands for, if any. */
+function ended(method, status) {
+  if (!status) throw new GrpcError(13, `${method} ended without a status`);
+  if (status.code !== 0) throw new GrpcError(status.code, status.message);
+}
+
 /**
  * The `meshless.v1.Simulation` service over gRPC-web. `token` (if any) goes
  * with every call as `authorization: Bearer TOKEN`, as from any client.
@@ -501,18 +507,10 @@ export class Service {
     const { spec, response } = await this.open(method, request, signal);
     const frames = new Frames();
     frames.push(new Uint8Array(await response.arrayBuffer()));
+    const call = { status: statusFrom((name) => response.headers.get(name)) };
     let answer;
-    let status = statusFrom((name) => response.headers.get(name));
-    for (let frame = frames.next(); frame; frame = frames.next()) {
-      if (frame.trailers) {
-        const trailers = parseTrailers(frame.body);
-        status = statusFrom((name) => trailers[name]);
-      } else {
-        answer = this.schema.decode(spec.output, frame.body);
-      }
-    }
-    if (!status) throw new GrpcError(13, `${method} ended without a status`);
-    if (status.code !== 0) throw new GrpcError(status.code, status.message);
+    for (const message of this.messages(frames, spec, call)) answer = message;
+    ended(method, call.status);
     if (answer === undefined) throw new GrpcError(13, `${method} answered nothing`);
     return answer;
   }
@@ -520,35 +518,38 @@ export class Service {
   /** Calls a server-streaming method; yields each message, throws a GrpcError at a failed end. */
   async *stream(method, request, { signal } = {}) {
     const { spec, response } = await this.open(method, request, signal);
-    const early = statusFrom((name) => response.headers.get(name));
+    const call = { status: statusFrom((name) => response.headers.get(name)) };
     const reader = response.body.getReader();
     const frames = new Frames();
-    let status = early;
-    let ended = false;
+    let done = false;
     try {
-      for (;;) {
-        const { value, done } = await reader.read();
-        if (done) {
-          ended = true;
-          break;
-        }
-        frames.push(value);
-        for (let frame = frames.next(); frame; frame = frames.next()) {
-          if (frame.trailers) {
-            const trailers = parseTrailers(frame.body);
-            status = statusFrom((name) => trailers[name]);
-          } else {
-            yield this.schema.decode(spec.output, frame.body);
-          }
+      while (!done) {
+        const chunk = await reader.read();
+        done = chunk.done;
+        if (!done) {
+          frames.push(chunk.value);
+          yield* this.messages(frames, spec, call);
         }
       }
     } finally {
       // A caller that stops reading early ends the call, as a gRPC client's
       // dropped stream does.
-      if (!ended) await reader.cancel().catch(() => {});
+      if (!done) await reader.cancel().catch(() => {});
       reader.releaseLock();
     }
-    if (!status) throw new GrpcError(13, `${method} ended without a status`);
-    if (status.code !== 0) throw new GrpcError(status.code, status.message);
+    ended(method, call.status);
+  }
+
+  /** Decodes the messages of the whole gRPC-web frames `frames` holds,
+   * consuming them; a trailers frame sets `call.status` instead. */
+  *messages(frames, spec, call) {
+    for (let frame = frames.next(); frame; frame = frames.next()) {
+      if (frame.trailers) {
+        const trailers = parseTrailers(frame.body);
+        call.status = statusFrom((name) => trailers[name]);
+      } else {
+        yield this.schema.decode(spec.output, frame.body);
+      }
+    }
   }
 }

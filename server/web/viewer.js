@@ -214,9 +214,11 @@ class SessionView {
         pending = this.nextFrame(this.frameNumber, FRAME_WAIT_MS);
         continue;
       }
-      if (reply.frame.length > 0) this.frameNumber = reply.number;
+      // An empty answer: no newer frame came within the wait.
+      const fresh = reply.frame.length > 0;
+      if (fresh) this.frameNumber = reply.number;
       pending = this.nextFrame(this.frameNumber, FRAME_WAIT_MS);
-      if (reply.frame.length > 0) this.take(reply.frame);
+      if (fresh) this.take(reply.frame);
     }
   }
 

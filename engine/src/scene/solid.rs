@@ -367,30 +367,40 @@ impl SolidSpec {
         })
     }
 
-    /// The embedded surface of a solid whose particles rest at `rest`.
+    /// The embedded surface of a solid whose particles rest at `rest`, and
+    /// for a fracturing solid its reference surface as a distance field
+    /// (each piece's surface is cut from it once the solid breaks,
+    /// `solid/fracture/fragment_surface.rs`).
     pub(crate) fn embedded_surface(
         &self,
         shape: &Shape,
         dim: usize,
         rest: &[Vector],
-    ) -> Option<Result<EmbeddedSurface, String>> {
+    ) -> Option<Result<SolidSurfaces, String>> {
         let spec = self.surface.as_ref()?;
         let Some(mesh) = self.surface_mesh(shape, dim, spec.subdivisions) else {
             return Some(Err(
                 "a capsule has no surface mesh here; use a box, a sphere or a mesh shape".into(),
             ));
         };
-        Some(
-            EmbeddedSurface::new(
-                &mesh,
-                rest,
-                dim,
-                self.support * self.spacing,
-                self.order,
-                spec.method,
-            )
-            .map_err(|e| e.to_string()),
-        )
+        let embedded = EmbeddedSurface::new(
+            &mesh,
+            rest,
+            dim,
+            self.support * self.spacing,
+            self.order,
+            spec.method,
+        );
+        let outline = self
+            .fracture
+            .as_ref()
+            .map(|_| MeshSdf::new(&mesh).map(Arc::new))
+            .transpose();
+        Some(match (embedded, outline) {
+            (Ok(embedded), Ok(outline)) => Ok((embedded, outline)),
+            (Err(e), _) => Err(e.to_string()),
+            (_, Err(e)) => Err(e.to_string()),
+        })
     }
 
     /// Whether a particle at `x` lies in one of the anchor boxes, and so
@@ -658,20 +668,11 @@ impl SolidSpec {
         // building it, its MLS work per vertex is the dearest part of a
         // solid's admission, and the build takes it from here.
         let rest: Vec<Vector> = particles.iter().map(|(x, _)| *x).collect();
-        let surface = solid
+        let (surface, outline) = solid
             .embedded_surface(&shape, dim, &rest)
             .transpose()
-            .map_err(|e| SceneError::invalid(format!("{at}.surface"), e))?;
-        // A fracturing solid's fragments are cut from its reference
-        // surface once it breaks (`solid/fracture/fragment_surface.rs`).
-        let outline = match (&solid.fracture, &solid.surface) {
-            (Some(_), Some(spec)) => solid
-                .surface_mesh(&shape, dim, spec.subdivisions)
-                .map(|mesh| MeshSdf::new(&mesh).map(Arc::new))
-                .transpose()
-                .map_err(|e| SceneError::invalid(format!("{at}.surface"), e.to_string()))?,
-            _ => None,
-        };
+            .map_err(|e| SceneError::invalid(format!("{at}.surface"), e))?
+            .map_or((None, None), |(surface, outline)| (Some(surface), outline));
         Ok(SampledSolid {
             particles,
             surface,
@@ -688,6 +689,10 @@ impl SolidSpec {
             .map_or(built, |r| r.capacity(built).max(built))
     }
 }
+
+/// A solid's embedded surface and, for a fracturing solid, its reference
+/// surface as a distance field.
+type SolidSurfaces = (EmbeddedSurface, Option<Arc<MeshSdf>>);
 
 /// What admitting a solid made, kept for its build: its particles' rest
 /// positions and initial velocities, and its embedded surface.
