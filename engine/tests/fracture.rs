@@ -538,3 +538,88 @@ fn the_spinning_notched_bar_snaps_at_its_notch_and_the_plain_one_holds() {
     let (_, solid) = world.solids().next().expect("one solid");
     assert!(solid.fracture().expect("fractures").cracks().is_empty());
 }
+
+/// The shipped 3D notched bar, spun: a crack runs from the notch across
+/// the section and the bar snaps into two halves; frames carry the
+/// embedded surface while it is whole and then one closed surface per
+/// half, each holding about half the bar's volume, the two apart.
+#[test]
+fn the_3d_notched_bar_snaps_in_two_each_half_framed_by_its_own_closed_surface() {
+    let mut world = build(&shipped("notched_spin_3d.toml"));
+    let whole = world.frame().solid_surfaces[0].mesh.clone();
+    assert!(whole.is_closed());
+    let bar = whole.signed_volume();
+    assert!((bar - 0.5 * 0.06 * 0.06).abs() < 1e-9, "bar volume {bar}");
+    let mut snapped = None;
+    for step in 1..=60 {
+        world.step().expect("the bar steps");
+        let (_, solid) = world.solids().next().expect("one solid");
+        let fracture = solid.fracture().expect("it fractures");
+        let mut parts = vec![0.0; fracture.fragment_count() as usize];
+        for (&k, m) in fracture.fragments().iter().zip(solid.masses()) {
+            parts[k as usize] += m;
+        }
+        parts.sort_by(|a, b| b.total_cmp(a));
+        let mass: f64 = parts.iter().sum();
+        if parts.len() >= 2 && parts[1] > 0.45 * mass {
+            snapped = Some(step);
+            break;
+        }
+    }
+    let step = snapped.expect("the notched bar snapped in two within 0.03 s");
+    for _ in 0..30 {
+        world.step().expect("the halves step");
+    }
+    let frame = world.frame();
+    let surface = &frame.solid_surfaces[0].mesh;
+    assert!(surface.is_closed(), "step {step}: an open surface");
+    // Components by shared vertices.
+    let mut root: Vec<usize> = (0..surface.vertices.len()).collect();
+    fn find(root: &mut [usize], mut v: usize) -> usize {
+        while root[v] != v {
+            root[v] = root[root[v]];
+            v = root[v];
+        }
+        v
+    }
+    for t in &surface.triangles {
+        for k in 0..3 {
+            let (a, b) = (
+                find(&mut root, t[k] as usize),
+                find(&mut root, t[(k + 1) % 3] as usize),
+            );
+            root[a] = b;
+        }
+    }
+    let mut pieces: std::collections::BTreeMap<usize, (f64, nalgebra::Vector3<f64>, usize)> =
+        Default::default();
+    for t in &surface.triangles {
+        let r = find(&mut root, t[0] as usize);
+        let [a, b, c] = t.map(|v| surface.vertices[v as usize]);
+        let piece = pieces.entry(r).or_default();
+        piece.0 += a.dot(&b.cross(&c)) / 6.0;
+        piece.1 += a + b + c;
+        piece.2 += 3;
+    }
+    let pieces: Vec<_> = pieces.into_values().collect();
+    assert_eq!(pieces.len(), 2, "step {step}: {} surfaces", pieces.len());
+    // Every vertex moved with the material: none is left behind where the
+    // bar was (a vertex with no particle of its piece in sight once stayed
+    // put, a tongue of surface reaching back to the notch).
+    let (_, solid) = world.solids().next().expect("one solid");
+    let stray = surface
+        .vertices
+        .iter()
+        .filter(|v| solid.positions.iter().all(|x| (x - *v).norm() > 0.01))
+        .count();
+    assert_eq!(stray, 0, "vertices two spacings from every particle");
+    for (volume, _, _) in &pieces {
+        assert!(
+            (0.40 * bar..0.52 * bar).contains(volume),
+            "a half holds {volume} of the bar's {bar} m^3"
+        );
+    }
+    let centre = |p: &(f64, nalgebra::Vector3<f64>, usize)| p.1 / p.2 as f64;
+    let apart = (centre(&pieces[0]) - centre(&pieces[1])).norm();
+    assert!(apart > 0.2, "the halves' surfaces are {apart} m apart");
+}

@@ -24,9 +24,14 @@
 //! a point a quarter spacing inside the vertex through no crack (a vertex
 //! of a crack face lies on the crack itself), so a fragment's surface
 //! never follows the material across a crack, and two fragments that fly
-//! apart leave two closed surfaces. The grid cell is half the particle spacing: finer than
-//! the particles that carry the motion, coarser than a subdivided embedded
-//! surface, which the solid keeps while it is in one piece.
+//! apart leave two closed surfaces. Where a crack's edge stops short of
+//! the body's surface, a few vertices of a fragment lie across the crack
+//! from its particles and see none of them: each moves with the nearest
+//! particle of its fragment, seen or not (left in place, they drew a
+//! tongue of surface back to where the bar had been). The grid cell is
+//! half the particle spacing: finer than the particles that carry the
+//! motion, coarser than a subdivided embedded surface, which the solid
+//! keeps while it is in one piece.
 
 use super::Fracture;
 use crate::approx::KernelKind;
@@ -159,8 +164,16 @@ impl Skin {
         let labels: Vec<u32> = (0..grid.len())
             .into_par_iter()
             .map(|n| {
-                nearest_visible(fracture, search, rest, &grid.position(n), support, None)
-                    .map_or(NONE, |j| fracture.fragments[j])
+                nearest(
+                    fracture,
+                    search,
+                    rest,
+                    &grid.position(n),
+                    support,
+                    None,
+                    true,
+                )
+                .map_or(NONE, |j| fracture.fragments[j])
             })
             .collect();
         let body: Vec<Real> = (0..grid.len())
@@ -251,7 +264,11 @@ impl Skin {
                 let probe = x - n * (0.25 * spacing);
                 let shepard = shepard(fracture, search, rest, &probe, support, f);
                 if shepard.is_empty() {
-                    nearest_visible(fracture, search, rest, &probe, support, Some(f))
+                    // Seen by none of its piece (module documentation).
+                    nearest(fracture, search, rest, &probe, support, Some(f), true)
+                        .or_else(|| {
+                            nearest(fracture, search, rest, &probe, support, Some(f), false)
+                        })
                         .map(|j| vec![(j as u32, 1.0)])
                         .unwrap_or_default()
                 } else {
@@ -342,15 +359,16 @@ fn visible(fracture: &Fracture, a: &Vector, b: &Vector) -> bool {
     fracture.cracks.iter().all(|c| c.crossing(a, b).is_none())
 }
 
-/// The particle nearest `x` within `support` that sees it through no crack
-/// (of fragment `only`, when given).
-fn nearest_visible(
+/// The particle nearest `x` within `support` (of fragment `only`, when
+/// given) that, where `seen`, sees it through no crack.
+fn nearest(
     fracture: &Fracture,
     search: &KdTree,
     rest: &[Vector],
     x: &Vector,
     support: Real,
     only: Option<u32>,
+    seen: bool,
 ) -> Option<usize> {
     let mut near: Vec<(Real, usize)> = Vec::new();
     search.for_each_candidate(x, |j| {
@@ -363,7 +381,7 @@ fn nearest_visible(
     near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     near.into_iter()
         .map(|(_, j)| j)
-        .find(|&j| visible(fracture, x, &rest[j]))
+        .find(|&j| !seen || visible(fracture, x, &rest[j]))
 }
 
 /// The Shepard weights at `x` of fragment `f`'s particles within `support`
