@@ -22,7 +22,9 @@
 //!
 //! - each piece's closed surface: a 3D block cut in two by a notch
 //!   through its middle, the surface a frame carries (every piece's own,
-//!   cut from the block's reference surface on a grid of half a spacing):
+//!   cut from the block's reference surface on a grid of `surface_cell`
+//!   spacings, the default half and a quarter; the volume the surfaces
+//!   hold against the block's says what the finer cell buys):
 //!   its triangles, the milliseconds the first frame after a change of the
 //!   cracks takes to build it, and those of a frame that finds it kept.
 //!
@@ -197,51 +199,65 @@ fn pieces(sides: Vec<usize>, repeats: usize) {
         "each piece's closed surface, a 3D block (2n x n x n particles) cut through its middle: ms, median over {repeats} frames"
     );
     println!(
-        "| particles | triangles | after a crack change (built) | frame between changes (kept) |"
+        "| particles | surface_cell | triangles | volume held | after a crack change (built) | frame between changes (kept) |"
     );
-    println!("|---|---|---|---|");
+    println!("|---|---|---|---|---|---|");
     for side in sides {
-        let spacing = SPACING;
-        let half = Vector::new(side as Real, 0.5 * side as Real, 0.5 * side as Real) * spacing;
-        let params = params(3, Some(FractureParams::brittle(1e9)));
-        let rest = Shape::Box { half_extents: half }
-            .sample_volume(spacing, 3)
-            .expect("block");
-        let n = rest.len();
-        let mut block = ElasticSolid::new(
-            params,
-            rest,
-            vec![Vector::zeros(); n],
-            vec![false; n],
-            Obstacles::default(),
-        )
-        .expect("block");
-        // Between the two middle planes of particles, off the grid's nodes.
-        block
-            .notch(&[Notch {
-                center: Vector::new(0.3 * spacing, 0.0, 0.0),
-                normal: Vector::x(),
-                radius: 2.0 * half.norm(),
-            }])
-            .expect("a notch");
-        let outline = MeshSdf::new(&TriMesh::cuboid(-half, half)).expect("a closed box");
-        let (mut rebuilt, mut kept) = (Vec::new(), Vec::new());
-        let mut triangles = 0;
-        for _ in 0..repeats {
-            // A clone starts with no kept surface: its first frame builds it.
-            let fresh = block.clone();
-            let (surface, t) = timed(|| fresh.fragment_surface(&outline).expect("two pieces"));
-            triangles = surface.0.triangles.len();
-            rebuilt.push(t);
-            let (_, t) = timed(|| fresh.fragment_surface(&outline).expect("two pieces"));
-            kept.push(t);
+        for cell in [FractureParams::DEFAULT_SURFACE_CELL, 0.25] {
+            piece_row(side, cell, repeats);
         }
-        println!(
-            "| {n:>9} | {triangles:>9} | {:>27.1} | {:>27.2} |",
-            median(&mut rebuilt),
-            median(&mut kept)
-        );
     }
+}
+
+/// One row of the fourth table: a block `side` particles deep, its
+/// pieces' surfaces cut on a grid of `cell` spacings.
+fn piece_row(side: usize, cell: Real, repeats: usize) {
+    let spacing = SPACING;
+    let half = Vector::new(side as Real, 0.5 * side as Real, 0.5 * side as Real) * spacing;
+    let fracture = FractureParams {
+        surface_cell: cell,
+        ..FractureParams::brittle(1e9)
+    };
+    let params = params(3, Some(fracture));
+    let rest = Shape::Box { half_extents: half }
+        .sample_volume(spacing, 3)
+        .expect("block");
+    let n = rest.len();
+    let mut block = ElasticSolid::new(
+        params,
+        rest,
+        vec![Vector::zeros(); n],
+        vec![false; n],
+        Obstacles::default(),
+    )
+    .expect("block");
+    // Between the two middle planes of particles, off the grid's nodes.
+    block
+        .notch(&[Notch {
+            center: Vector::new(0.3 * spacing, 0.0, 0.0),
+            normal: Vector::x(),
+            radius: 2.0 * half.norm(),
+        }])
+        .expect("a notch");
+    let outline = MeshSdf::new(&TriMesh::cuboid(-half, half)).expect("a closed box");
+    let (mut rebuilt, mut kept) = (Vec::new(), Vec::new());
+    let (mut triangles, mut held) = (0, 0.0);
+    for _ in 0..repeats {
+        // A clone starts with no kept surface: its first frame builds it.
+        let fresh = block.clone();
+        let (surface, t) = timed(|| fresh.fragment_surface(&outline).expect("two pieces"));
+        triangles = surface.0.triangles.len();
+        held = surface.0.signed_volume() / (8.0 * half.x * half.y * half.z);
+        rebuilt.push(t);
+        let (_, t) = timed(|| fresh.fragment_surface(&outline).expect("two pieces"));
+        kept.push(t);
+    }
+    println!(
+        "| {n:>9} | {cell:>12} | {triangles:>9} | {:>10.1} % | {:>27.1} | {:>27.2} |",
+        100.0 * held,
+        median(&mut rebuilt),
+        median(&mut kept)
+    );
 }
 
 /// The third table: a running crack's resampling.

@@ -214,6 +214,7 @@ impl Griffith {
                 max_cracks: 4,
                 branching: None,
                 resample: self.resample,
+                surface_cell: FractureParams::DEFAULT_SURFACE_CELL,
             }),
         };
         let shape = Shape::Box {

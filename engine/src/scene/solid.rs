@@ -179,6 +179,10 @@ pub struct FractureSpec {
     /// 71); none keeps the particles the solid is built with.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub resample: Option<Resampling>,
+    /// A 3D solid in pieces: the grid cell each piece's closed surface is
+    /// cut on, in particle spacings.
+    #[serde(default = "default_surface_cell")]
+    pub surface_cell: Real,
 }
 
 /// A crack a solid is built with, world frame at the build: in 2D a
@@ -215,6 +219,9 @@ fn default_advance() -> Real {
 fn default_max_cracks() -> u32 {
     FractureParams::DEFAULT_MAX_CRACKS
 }
+fn default_surface_cell() -> Real {
+    FractureParams::DEFAULT_SURFACE_CELL
+}
 
 impl FractureSpec {
     /// The engine's parameters (a stress threshold of 0 where none is
@@ -240,6 +247,7 @@ impl FractureSpec {
             max_cracks: self.max_cracks,
             branching: self.branching,
             resample: self.resample,
+            surface_cell: self.surface_cell,
         }
     }
 }

@@ -686,6 +686,11 @@ fn notches_and_toughness_build_or_are_refused_naming_the_field() {
             "fracture = { stress = 1e5, branching = 0.5 }",
             "systems[0].fracture",
         ),
+        // A surface cell past a spacing.
+        (
+            "fracture = { stress = 1e5, surface_cell = 1.5 }",
+            "systems[0].fracture",
+        ),
         (
             // A rim of 2 pi 1e4 / 0.1 nodes: past what 1000 particles hold.
             "fracture = { stress = 1e5, notches = [{ center = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0], radius = 1e4 }] }",

@@ -346,7 +346,7 @@ mod tests {
             assert_eq!(back, scene, "{name}");
         }
 
-        // A toughness and notches cross too.
+        // A toughness, notches and a surface cell cross too.
         let mut scene = shipped("brittle_beam.toml");
         let SystemSpec::Solid(solid) = &mut scene.systems[0] else {
             panic!("the beam is a solid")
@@ -354,6 +354,7 @@ mod tests {
         let fracture = solid.fracture.as_mut().expect("the beam fractures");
         fracture.toughness = Some(1e5);
         fracture.branching = Some(2.0);
+        fracture.surface_cell = 0.3;
         fracture.resample = Some(Resampling {
             q_min: 8.0,
             min_radius_ratio: 0.4,

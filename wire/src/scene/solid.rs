@@ -91,6 +91,7 @@ fn fracture_from_proto(fracture: v1::Fracture, field: &str) -> Result<FractureSp
         notches,
         branching,
         resample,
+        surface_cell,
     } = fracture;
     Ok(FractureSpec {
         stress,
@@ -104,6 +105,7 @@ fn fracture_from_proto(fracture: v1::Fracture, field: &str) -> Result<FractureSp
         kappa: kappa.unwrap_or(FractureParams::DEFAULT_KAPPA),
         advance: advance.unwrap_or(FractureParams::DEFAULT_ADVANCE),
         max_cracks: max_cracks.unwrap_or(FractureParams::DEFAULT_MAX_CRACKS),
+        surface_cell: surface_cell.unwrap_or(FractureParams::DEFAULT_SURFACE_CELL),
         branching,
         resample: resample.map(|r| Resampling {
             q_min: r.q_min.unwrap_or(Resampling::DEFAULT_Q_MIN),
@@ -144,6 +146,7 @@ fn to_fracture(fracture: &FractureSpec) -> v1::Fracture {
         branching,
         resample,
         ref notches,
+        surface_cell,
     } = *fracture;
     v1::Fracture {
         stress,
@@ -154,6 +157,7 @@ fn to_fracture(fracture: &FractureSpec) -> v1::Fracture {
         max_cracks: Some(max_cracks),
         toughness,
         branching,
+        surface_cell: Some(surface_cell),
         resample: resample.map(|r| v1::Resample {
             q_min: Some(r.q_min),
             min_radius_ratio: Some(r.min_radius_ratio),

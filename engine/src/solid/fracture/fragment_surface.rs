@@ -29,9 +29,10 @@
 //! from its particles and see none of them: each moves with the nearest
 //! particle of its fragment, seen or not (left in place, they drew a
 //! tongue of surface back to where the bar had been). The grid cell is
-//! half the particle spacing: finer than the particles that carry the
-//! motion, coarser than a subdivided embedded surface, which the solid
-//! keeps while it is in one piece.
+//! `surface_cell` spacings (half a spacing unless the scene says):
+//! finer than the particles that carry the motion, and as fine as a
+//! subdivided embedded surface (which the solid keeps while it is in one
+//! piece) only at a cost growing as the cell's inverse cube.
 
 use super::Fracture;
 use crate::approx::KernelKind;
@@ -160,7 +161,7 @@ impl Skin {
     ) -> Skin {
         let search = fracture.search.or_built(support, rest);
         let search = &*search;
-        let grid = Grid::around(outline, 0.5 * spacing);
+        let grid = Grid::around(outline, fracture.params.surface_cell * spacing);
         let labels: Vec<u32> = (0..grid.len())
             .into_par_iter()
             .map(|n| {

@@ -211,6 +211,12 @@ pub struct FractureParams {
     /// particles the solid was built with.
     #[serde(default)]
     pub resample: Option<Resampling>,
+    /// The grid cell on which a 3D solid in pieces cuts each piece's
+    /// closed surface, in particle spacings: a smaller cell keeps more of
+    /// the embedded surface's detail and bevels the pieces' edges less,
+    /// for nodes (and rebuild time) growing as its inverse cube.
+    #[serde(default = "FractureParams::default_surface_cell")]
+    pub surface_cell: Real,
 }
 
 /// Adaptive resampling (tutorial Section 7.3, Eq. 71, after Pauly et al.
@@ -346,6 +352,14 @@ impl FractureParams {
     pub const DEFAULT_ADVANCE: Real = 0.5;
     /// Default [`Self::max_cracks`].
     pub const DEFAULT_MAX_CRACKS: u32 = 64;
+    /// Default [`Self::surface_cell`]: half a spacing, finer than the
+    /// particles that carry the motion.
+    pub const DEFAULT_SURFACE_CELL: Real = 0.5;
+    /// The range [`Self::surface_cell`] may take, in spacings: below a
+    /// quarter a solid's grid holds over 64 nodes a particle, and a cell
+    /// past a spacing leaves slivers of surface at a box's corners (one
+    /// showed at a whole spacing).
+    pub const SURFACE_CELL_RANGE: (Real, Real) = (0.25, 1.0);
     /// Half the angle between the two arms of a branch, rad (15
     /// degrees): a model choice, not a material's.
     pub const BRANCH_ANGLE: Real = 15.0 * std::f64::consts::PI / 180.0;
@@ -358,6 +372,10 @@ impl FractureParams {
         Self::DEFAULT_MAX_CRACKS
     }
 
+    fn default_surface_cell() -> Real {
+        Self::DEFAULT_SURFACE_CELL
+    }
+
     /// A brittle solid of tensile strength `stress` with the defaults.
     pub fn brittle(stress: Real) -> Self {
         Self {
@@ -367,6 +385,7 @@ impl FractureParams {
             max_cracks: Self::DEFAULT_MAX_CRACKS,
             branching: None,
             resample: None,
+            surface_cell: Self::DEFAULT_SURFACE_CELL,
         }
     }
 
@@ -437,6 +456,14 @@ impl FractureParams {
                 what: "max_cracks",
                 range: "at least 1",
                 got: Brief(0.0),
+            });
+        }
+        let (lo, hi) = Self::SURFACE_CELL_RANGE;
+        if !(lo..=hi).contains(&self.surface_cell) {
+            return Err(FractureParamsError::OutOfRange {
+                what: "surface_cell",
+                range: "in [0.25, 1] particle spacings",
+                got: Brief(self.surface_cell),
             });
         }
         if rebases {
