@@ -52,7 +52,8 @@ def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def pieces(triangles: np.ndarray, vertices: int) -> np.ndarray:
-    """Each triangle's connected piece (triangles sharing a vertex are one piece)."""
+    """Each triangle's connected piece (triangles sharing a vertex are one piece),
+    numbered by size, the largest 0."""
     root = np.arange(vertices)
 
     def find(v: int) -> int:
@@ -65,8 +66,9 @@ def pieces(triangles: np.ndarray, vertices: int) -> np.ndarray:
         ra, rb, rc = find(a), find(b), find(c)
         root[rb] = ra
         root[rc] = ra
-    labels = np.array([find(t[0]) for t in triangles])
-    return np.unique(labels, return_inverse=True)[1]
+    labels = np.unique(np.array([find(t[0]) for t in triangles]), return_inverse=True)[1]
+    rank = np.argsort(np.argsort(-np.bincount(labels), kind="stable"))
+    return rank[labels]
 
 
 def plot_surfaces(args: argparse.Namespace, picked: list[tuple[float, Path]]) -> None:
@@ -96,7 +98,8 @@ def plot_surfaces(args: argparse.Namespace, picked: list[tuple[float, Path]]) ->
             normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
             normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-30)
             shade = 0.35 + 0.65 * np.abs(normal @ light)
-            base = np.array([palette(i % 10)[:3] for i in label]).reshape(-1, 3)
+            # The nine largest pieces in their own colours, smaller debris grey.
+            base = np.array([palette(i)[:3] if i < 9 else (0.5, 0.5, 0.5) for i in label]).reshape(-1, 3)
             ax.add_collection3d(Poly3DCollection(corners, facecolors=base * shade[:, None], linewidths=0))
         ax.set_xlim(lo[0], hi[0])
         ax.set_ylim(lo[1], hi[1])

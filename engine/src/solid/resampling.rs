@@ -109,7 +109,7 @@ impl Body {
     /// term, over particles `j`): a split particle's gradient weights
     /// grow as its radius shrinks, and one beside a crack, fitted over a
     /// lopsided neighbourhood, more (its moment matrix conditioned up to
-    /// `MAX_REFIT_CONDITION`), which a limit from the radius alone misses
+    /// `max_refit_condition`), which a limit from the radius alone misses
     /// (found spinning a ductile bar: a split particle on its edge blew up
     /// within three sub-steps). A pass over the pairs a step, paid only by
     /// a solid that split.

@@ -233,10 +233,18 @@ impl Simulated for SolidEntry {
             self.solid.displacement_gradients(&mut gradients);
         }
         let mut deformed = DeformedSurface::new();
-        // Lengths match by construction: the surface was built from this
-        // solid's particles.
+        // The surface was built from this solid's particles; those a
+        // resampling split added since follow them (their ids after the
+        // solid's), and the surface keeps following the particles it
+        // was built on (without the cut, a whole solid that split some
+        // particles framed no surface).
+        let built = surface.particle_count();
         surface
-            .update(&self.solid.positions, &gradients, &mut deformed)
+            .update(
+                self.solid.positions.get(..built)?,
+                gradients.get(..built.min(gradients.len()))?,
+                &mut deformed,
+            )
             .ok()?;
         Some(SolidSurface {
             system: self.index,
