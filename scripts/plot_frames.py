@@ -29,6 +29,13 @@ def read_ply(path: Path) -> tuple[float, dict[str, np.ndarray]]:
     return time, {name: values[:, i] for i, name in enumerate(names)}
 
 
+def frame_time(path: Path) -> float:
+    """A PLY frame's time, from its header alone (the first kilobytes)."""
+    with path.open("rb") as f:
+        head = f.read(4096)
+    return float(re.search(rb"time (\S+)", head).group(1))
+
+
 def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (n, 3) and triangles (m, 3) of a meshless OBJ or binary PLY surface."""
     if path.suffix == ".obj":
@@ -135,7 +142,7 @@ def main() -> None:
     import matplotlib.pyplot as plt
 
     if args.surfaces:
-        stamped = sorted((read_ply(p)[0], p) for p in args.folder.glob("frame_*.ply"))
+        stamped = sorted((frame_time(p), p) for p in args.folder.glob("frame_*.ply"))
         if not stamped:
             raise SystemExit(f"no frame_*.ply in {args.folder}")
         plot_surfaces(args, [min(stamped, key=lambda f: abs(f[0] - t)) for t in args.times])

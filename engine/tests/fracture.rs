@@ -42,6 +42,18 @@ fn piece_masses(solid: &meshless_engine::solid::ElasticSolid) -> Vec<f64> {
     parts
 }
 
+/// Steps `world` until its solid is in two pieces of over 45 % of its
+/// mass each, at most `max_steps`; the step it took.
+fn steps_until_halves(world: &mut World, max_steps: usize) -> Option<usize> {
+    (1..=max_steps).find(|_| {
+        world.step().expect("the bar steps");
+        let (_, solid) = world.solids().next().expect("one solid");
+        let parts = piece_masses(solid);
+        let mass: f64 = parts.iter().sum();
+        parts.len() >= 2 && parts[1] > 0.45 * mass
+    })
+}
+
 fn run_until_broken(world: &mut World, max_steps: usize) -> usize {
     for step in 1..=max_steps {
         world.step().expect("the beam steps");
@@ -474,18 +486,8 @@ fn the_spinning_ductile_bar_necks_and_tears_in_two_with_resampling_keeping_its_s
 fn the_spinning_notched_bar_snaps_at_its_notch_and_the_plain_one_holds() {
     let scene = shipped("notched_spin.toml");
     let mut world = build(&scene);
-    let mut snapped = None;
-    for step in 1..=100 {
-        world.step().expect("the bar steps");
-        let (_, solid) = world.solids().next().expect("one solid");
-        let parts = piece_masses(solid);
-        let mass: f64 = parts.iter().sum();
-        if parts.len() >= 2 && parts[1] > 0.45 * mass {
-            snapped = Some(step);
-            break;
-        }
-    }
-    let step = snapped.expect("the notched bar snapped in two within 0.05 s");
+    let step =
+        steps_until_halves(&mut world, 100).expect("the notched bar snapped in two within 0.05 s");
     let (_, solid) = world.solids().next().expect("one solid");
     let fracture = solid.fracture().expect("it fractures");
     // The notch (crack 0) grew from its tip at (0, 0) across the whole
@@ -553,18 +555,8 @@ fn the_3d_notched_bar_snaps_in_two_each_half_framed_by_its_own_closed_surface() 
     assert!(whole.is_closed());
     let bar = whole.signed_volume();
     assert!((bar - 0.5 * 0.06 * 0.06).abs() < 1e-9, "bar volume {bar}");
-    let mut snapped = None;
-    for step in 1..=60 {
-        world.step().expect("the bar steps");
-        let (_, solid) = world.solids().next().expect("one solid");
-        let parts = piece_masses(solid);
-        let mass: f64 = parts.iter().sum();
-        if parts.len() >= 2 && parts[1] > 0.45 * mass {
-            snapped = Some(step);
-            break;
-        }
-    }
-    let step = snapped.expect("the notched bar snapped in two within 0.03 s");
+    let step =
+        steps_until_halves(&mut world, 60).expect("the notched bar snapped in two within 0.03 s");
     for _ in 0..30 {
         world.step().expect("the halves step");
     }

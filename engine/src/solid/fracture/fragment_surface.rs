@@ -265,11 +265,10 @@ impl Skin {
                 let probe = x - n * (0.25 * spacing);
                 let shepard = shepard(fracture, search, rest, &probe, support, f);
                 if shepard.is_empty() {
-                    // Seen by none of its piece (module documentation).
-                    nearest(fracture, search, rest, &probe, support, Some(f), true)
-                        .or_else(|| {
-                            nearest(fracture, search, rest, &probe, support, Some(f), false)
-                        })
+                    // Seen by none of its piece within the support (the
+                    // Shepard weights are positive wherever one is): the
+                    // nearest of them, seen or not (module documentation).
+                    nearest(fracture, search, rest, &probe, support, Some(f), false)
                         .map(|j| vec![(j as u32, 1.0)])
                         .unwrap_or_default()
                 } else {
